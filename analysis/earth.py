@@ -1,0 +1,52 @@
+"""Earth model: WGS-84 normal gravity and Earth rate (ENU navigation frame).
+
+Used by the simulated world (as physics) and by identification (as the reference a real bench would
+compute from its site). A measured local g, when the bench file gives one, overrides the model.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+GAMMA_E: float = 9.7803253359
+"""WGS-84 normal gravity at the equator, m/s²."""
+K_SOMIGLIANA: float = 0.00193185265241
+"""WGS-84 Somigliana constant k."""
+E2: float = 0.00669437999013
+"""WGS-84 first eccentricity squared."""
+FREE_AIR_GRADIENT: float = 3.086e-6
+"""Free-air gravity gradient, (m/s²)/m."""
+EARTH_RATE: float = 7.292115e-5
+"""Earth rotation rate Ω, rad/s (WGS-84)."""
+
+
+def normal_gravity(latitude: float, height: float = 0.0) -> float:
+    """WGS-84 normal gravity magnitude (Somigliana) with the free-air correction.
+
+    γ(φ, h) = γ_e (1 + k sin²φ) / √(1 − e² sin²φ) − 3.086e-6 h.
+
+    Parameters
+    ----------
+    latitude : float
+        Geodetic latitude φ, rad.
+    height : float
+        Height above the ellipsoid h, m.
+
+    Returns
+    -------
+    float
+        Local gravity magnitude g, m/s² (positive).
+    """
+    s2 = np.sin(latitude) ** 2
+    return float(GAMMA_E * (1.0 + K_SOMIGLIANA * s2) / np.sqrt(1.0 - E2 * s2) - FREE_AIR_GRADIENT * height)
+
+
+def earth_rate_enu(latitude: float) -> NDArray[np.float64]:
+    """Earth rotation vector in the local ENU frame, rad/s: [0, Ω cos φ, Ω sin φ]."""
+    return np.array([0.0, EARTH_RATE * np.cos(latitude), EARTH_RATE * np.sin(latitude)])
+
+
+def gravity_specific_force_enu(g: float) -> NDArray[np.float64]:
+    """Specific force sensed at rest in ENU, m/s²: [0, 0, +g] (an upward reading when z is up)."""
+    return np.array([0.0, 0.0, g])

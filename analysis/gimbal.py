@@ -1,0 +1,93 @@
+"""Three-axis table gimbal kinematics (pure maths, vectorised over samples).
+
+Gimbal angles (outer ψ about n-Up, middle θ about the outer-gimbal x, inner γ about the middle-gimbal y),
+rad. The inner-gimbal frame t relates to the ENU navigation frame n by
+
+    C_t^n = R_z(ψ) R_x(θ) R_y(γ)        (scipy ``Rotation.from_euler('ZXY', [ψ, θ, γ])``)
+
+and the unit's body frame b by the bench mounting: C_b^n = C_t^n C_b^t.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+
+def _rz(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    c, s = np.cos(a), np.sin(a)
+    z, o = np.zeros_like(a), np.ones_like(a)
+    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
+
+
+def _rx(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    c, s = np.cos(a), np.sin(a)
+    z, o = np.zeros_like(a), np.ones_like(a)
+    return np.stack([np.stack([o, z, z], -1), np.stack([z, c, -s], -1), np.stack([z, s, c], -1)], -2)
+
+
+def _ry(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    c, s = np.cos(a), np.sin(a)
+    z, o = np.zeros_like(a), np.ones_like(a)
+    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2)
+
+
+def table_to_nav(angles: ArrayLike) -> NDArray[np.float64]:
+    """C_t^n for gimbal angles (..., 3) = (ψ, θ, γ), rad; returns (..., 3, 3)."""
+    a = np.asarray(angles, dtype=float)
+    return _rz(a[..., 0]) @ _rx(a[..., 1]) @ _ry(a[..., 2])
+
+
+def body_to_nav(angles: ArrayLike, mounting: ArrayLike | None = None) -> NDArray[np.float64]:
+    """C_b^n = C_t^n C_b^t for gimbal angles (..., 3), rad, and mounting C_b^t (3, 3) (identity if None)."""
+    c = table_to_nav(angles)
+    return c if mounting is None else c @ np.asarray(mounting, dtype=float)
+
+
+def table_rate(angles: ArrayLike, rates: ArrayLike) -> NDArray[np.float64]:
+    """Angular rate of the inner gimbal relative to the ground, in the inner-gimbal frame t, rad/s.
+
+    ω^t = R_y(γ)ᵀ [R_x(θ)ᵀ (ψ̇ e_z) + θ̇ e_x] + γ̇ e_y, for angles and gimbal rates of shape (..., 3).
+    (Earth rotation is not included: add C_n^t Ω^n for what a gyro senses.)
+    """
+    a = np.asarray(angles, dtype=float)
+    r = np.asarray(rates, dtype=float)
+    th, ga = a[..., 1], a[..., 2]
+    psid, thd, gad = r[..., 0], r[..., 1], r[..., 2]
+    # R_x(θ)ᵀ ψ̇ e_z = ψ̇ [0, sin θ, cos θ]
+    v1 = np.stack([thd, psid * np.sin(th), psid * np.cos(th)], -1)
+    # R_y(γ)ᵀ v = [c v_x − s v_z, v_y, s v_x + c v_z]
+    c, s = np.cos(ga), np.sin(ga)
+    return np.stack([c * v1[..., 0] - s * v1[..., 2], v1[..., 1] + gad, s * v1[..., 0] + c * v1[..., 2]], -1)
+
+
+def body_rate(angles: ArrayLike, rates: ArrayLike, mounting: ArrayLike | None = None) -> NDArray[np.float64]:
+    """Angular rate of the unit relative to the ground in its body frame b, rad/s: ω^b = C_t^b ω^t."""
+    w = table_rate(angles, rates)
+    if mounting is None:
+        return w
+    return w @ np.asarray(mounting, dtype=float)  # (C_b^t)ᵀ ω^t, row-vector form
+
+
+def gravity_in_body(angles: ArrayLike, g: float, mounting: ArrayLike | None = None) -> NDArray[np.float64]:
+    """Specific force of gravity at rest in the body frame, m/s²: C_n^b [0, 0, g]ᵀ, shape (..., 3)."""
+    c = body_to_nav(angles, mounting)
+    return g * c[..., 2, :]  # third row of C_b^n is C_n^b e_z
+
+
+def euler_from_body_to_nav(c_bn: ArrayLike, mounting: ArrayLike | None = None) -> NDArray[np.float64]:
+    """Gimbal angles (ψ, θ, γ), rad, that realise body attitude C_b^n with mounting C_b^t (ZXY Euler).
+
+    Returns the solution with θ in [−π/2, π/2]; at gimbal lock (|θ| = π/2) γ is set to 0.
+    """
+    c = np.asarray(c_bn, dtype=float)
+    if mounting is not None:
+        c = c @ np.asarray(mounting, dtype=float).T  # C_t^n = C_b^n C_t^b
+    # C = Rz(ψ) Rx(θ) Ry(γ): C[2,1] = sin θ; C[0,1] = −sin ψ cos θ; C[1,1] = cos ψ cos θ;
+    # C[2,0] = −cos θ sin γ; C[2,2] = cos θ cos γ
+    th = np.arcsin(np.clip(c[..., 2, 1], -1.0, 1.0))
+    cth = np.cos(th)
+    lock = np.abs(cth) < 1e-9
+    psi = np.where(lock, np.arctan2(c[..., 1, 0], c[..., 0, 0]), np.arctan2(-c[..., 0, 1], c[..., 1, 1]))
+    ga = np.where(lock, 0.0, np.arctan2(-c[..., 2, 0], c[..., 2, 2]))
+    return np.stack([psi, th, ga], -1)

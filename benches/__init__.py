@@ -1,0 +1,1 @@
+"""Bench definitions and the orchestrator: runner, recorder, CLI, certificates."""

@@ -1,0 +1,234 @@
+"""Input for analysis commands (noise, periodic, drift): a recording, or a ``.npy`` / ``.csv`` file.
+
+Every analysis command accepts:
+
+- a recording (``RUN_DIR`` or ``RUN_DIR/recording.h5``; layout in ``benches/RECORDING.md``), whose channels
+  are ``accel_x accel_y accel_z`` (m/s²) and ``gyro_x gyro_y gyro_z`` (rad/s), body frame, at the recording's
+  sample rate; optionally restricted to one step (``--step NAME``);
+- a ``.npy`` file (1-D, or 2-D with one column per channel, SI units) with ``--rate HZ``;
+- a ``.csv`` file (one column per channel, optional header row of channel names) with ``--rate HZ``.
+
+Problems (missing file, NaNs, non-numeric CSV, too-short records, bad rate) raise :class:`InputError`
+with a message that names the file and the fix.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+RECORDING_CHANNELS: tuple[str, ...] = ("accel_x", "accel_y", "accel_z", "gyro_x", "gyro_y", "gyro_z")
+CHANNEL_UNITS: dict[str, str] = {
+    "accel_x": "m/s^2",
+    "accel_y": "m/s^2",
+    "accel_z": "m/s^2",
+    "gyro_x": "rad/s",
+    "gyro_y": "rad/s",
+    "gyro_z": "rad/s",
+}
+
+
+class InputError(ValueError):
+    """An analysis input cannot be used; the message names the file and the fix."""
+
+
+@dataclass
+class AnalysisInput:
+    """Channels of a record at one sample rate.
+
+    Attributes
+    ----------
+    source : str
+        Path the data came from.
+    rate : float
+        Sample rate, Hz.
+    channels : dict[str, ndarray]
+        Channel name → 1-D float64 array (SI units, see ``units``).
+    units : dict[str, str]
+        Channel name → SI unit label ("m/s^2", "rad/s", or "SI" for foreign data).
+    """
+
+    source: str
+    rate: float
+    channels: dict[str, NDArray[np.float64]]
+    units: dict[str, str]
+
+
+def add_input_arguments(parser: argparse.ArgumentParser, default_channels: str | None = None) -> None:
+    """Add the common input/output options: INPUT, --rate, --channels, --step, --out."""
+    parser.add_argument("input", metavar="RUN|FILE", help="a recording (run folder or .h5), or a .npy/.csv file")
+    parser.add_argument("--rate", type=float, default=None, help="sample rate in Hz (required for .npy/.csv)")
+    parser.add_argument(
+        "--channels",
+        default=default_channels,
+        help="comma-separated channel names (recording: accel_x,...,gyro_z; .npy/.csv: ch0,ch1,... or header "
+        "names); default: all",
+    )
+    parser.add_argument("--step", default=None, help="recording only: analyse only the samples of this step")
+    parser.add_argument("--out", default=None, metavar="DIR", help="write <command>.json and PNG plots here")
+
+
+def _check_rate(rate: float | None, source: str) -> float:
+    if rate is None:
+        raise InputError(f"{source}: --rate HZ is required for .npy and .csv input (e.g. --rate 1000)")
+    if not math.isfinite(rate) or rate <= 0:
+        raise InputError(f"{source}: --rate must be a positive number of Hz, got {rate}")
+    return float(rate)
+
+
+def _finite_columns(data: NDArray[np.float64], names: list[str], source: str) -> None:
+    bad = ~np.isfinite(data)
+    if bad.any():
+        rows, cols = np.nonzero(bad)
+        raise InputError(
+            f"{source}: {int(bad.sum())} non-finite value(s) (NaN/inf), first in channel {names[cols[0]]!r} "
+            f"at sample {int(rows[0])}; remove or interpolate them before analysis"
+        )
+
+
+def _select(channels: dict[str, NDArray[np.float64]], wanted: str | None, source: str) -> list[str]:
+    if not wanted:
+        return list(channels)
+    names = [c.strip() for c in wanted.split(",") if c.strip()]
+    unknown = [n for n in names if n not in channels]
+    if unknown:
+        raise InputError(f"{source}: unknown channel(s) {', '.join(unknown)}; available: {', '.join(channels)}")
+    return names
+
+
+def _load_array(path: Path, rate: float | None, wanted: str | None) -> AnalysisInput:
+    source = str(path)
+    rate_v = _check_rate(rate, source)
+    header: list[str] | None = None
+    if path.suffix.lower() == ".npy":
+        try:
+            data = np.load(path, allow_pickle=False)
+        except Exception as exc:
+            raise InputError(f"{source}: not a readable .npy array ({exc})") from None
+        if not np.issubdtype(data.dtype, np.number) or np.iscomplexobj(data):
+            raise InputError(f"{source}: expected a real numeric array, got dtype {data.dtype}")
+    else:
+        try:
+            with path.open("r", encoding="utf-8") as fh:
+                first = fh.readline()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InputError(f"{source}: cannot read as text CSV ({exc})") from None
+        fields = [f.strip() for f in first.split(",")]
+        skip = 0
+        try:
+            [float(f) for f in fields]
+        except ValueError:
+            header, skip = fields, 1
+        try:
+            data = np.loadtxt(path, delimiter=",", skiprows=skip, ndmin=2, dtype=np.float64)
+        except ValueError as exc:
+            raise InputError(
+                f"{source}: non-numeric CSV content ({exc}); expected one numeric column per channel"
+            ) from None
+    data = np.asarray(data, dtype=np.float64)
+    if data.ndim == 1:
+        data = data[:, None]
+    if data.ndim != 2:
+        raise InputError(f"{source}: expected a 1-D or 2-D array (samples × channels), got shape {data.shape}")
+    if data.shape[0] < data.shape[1] and data.shape[0] <= 16 and data.shape[1] > 16:
+        raise InputError(
+            f"{source}: shape {data.shape} looks like channels × samples; save one column per channel (transpose it)"
+        )
+    names = header if header and len(header) == data.shape[1] else [f"ch{i}" for i in range(data.shape[1])]
+    _finite_columns(data, names, source)
+    channels = {n: np.ascontiguousarray(data[:, i]) for i, n in enumerate(names)}
+    sel = _select(channels, wanted, source)
+    return AnalysisInput(source, rate_v, {n: channels[n] for n in sel}, {n: "SI" for n in sel})
+
+
+def _load_recording(path: Path, rate: float | None, wanted: str | None, step: str | None) -> AnalysisInput:
+    import h5py
+
+    source = str(path)
+    try:
+        fh = h5py.File(path, "r")
+    except OSError as exc:
+        raise InputError(f"{source}: not a readable HDF5 recording ({exc})") from None
+    with fh:
+        if fh.attrs.get("format") != "tablebench-recording":
+            raise InputError(f"{source}: not a tablebench recording (missing format attribute)")
+        file_rate = float(fh.attrs["sample_rate_hz"])
+        if rate is not None and abs(rate - file_rate) > 1e-9 * file_rate:
+            raise InputError(f"{source}: --rate {rate} disagrees with the recording's {file_rate} Hz; omit --rate")
+        if "imu" not in fh or "accel" not in fh["imu"]:
+            raise InputError(f"{source}: the recording holds no unit samples (/imu/accel missing)")
+        n = fh["imu/accel"].shape[0]
+        start, stop = 0, n
+        if step is not None:
+            steps = fh["steps"][()] if "steps" in fh else np.zeros(0)
+            names = [s.decode() if isinstance(s, bytes) else str(s) for s in steps["name"]] if len(steps) else []
+            if step not in names:
+                raise InputError(f"{source}: no step named {step!r}; steps: {', '.join(names) or '(none)'}")
+            row = steps[names.index(step)]
+            start, stop = int(row["start_sample"]), int(row["end_sample"])
+        accel = fh["imu/accel"][start:stop]
+        gyro = fh["imu/gyro"][start:stop]
+    channels = {
+        "accel_x": accel[:, 0],
+        "accel_y": accel[:, 1],
+        "accel_z": accel[:, 2],
+        "gyro_x": gyro[:, 0],
+        "gyro_y": gyro[:, 1],
+        "gyro_z": gyro[:, 2],
+    }
+    channels = {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in channels.items()}
+    sel = _select(channels, wanted, source)
+    data = np.stack([channels[s] for s in sel], axis=1) if sel else np.zeros((0, 0))
+    _finite_columns(data, sel, source)
+    return AnalysisInput(source, file_rate, {s: channels[s] for s in sel}, {s: CHANNEL_UNITS[s] for s in sel})
+
+
+def recording_path(path: str | Path) -> Path:
+    """The ``recording.h5`` of a run folder, or the path itself if it is a file."""
+    p = Path(path)
+    return p / "recording.h5" if p.is_dir() else p
+
+
+def load_input(
+    path: str | Path,
+    rate: float | None = None,
+    channels: str | None = None,
+    step: str | None = None,
+    min_samples: int = 16,
+) -> AnalysisInput:
+    """Load a recording, ``.npy`` or ``.csv`` into named SI channels; see the module docstring."""
+    p = recording_path(path)
+    if not p.exists():
+        raise InputError(f"{p}: no such file or run folder")
+    suffix = p.suffix.lower()
+    if suffix in (".npy", ".csv", ".txt"):
+        if step is not None:
+            raise InputError(f"{p}: --step applies only to recordings")
+        result = _load_array(p, rate, channels)
+    elif suffix in (".h5", ".hdf5"):
+        result = _load_recording(p, rate, channels, step)
+    else:
+        raise InputError(f"{p}: unknown input type {suffix or '(no extension)'}; give a run folder, .h5, .npy or .csv")
+    if not result.channels:
+        raise InputError(f"{p}: no channels selected")
+    n = len(next(iter(result.channels.values())))
+    if n < min_samples:
+        raise InputError(f"{p}: only {n} samples; this analysis needs at least {min_samples}")
+    return result
+
+
+def output_dir(out: str | None, default_name: str) -> Path | None:
+    """Create and return the ``--out`` directory, or None when no output was asked for."""
+    if out is None:
+        return None
+    d = Path(out)
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"--out {out}: cannot create the folder ({exc.strerror})") from None
+    return d

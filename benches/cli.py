@@ -1,0 +1,83 @@
+"""The ``tablebench`` command line.
+
+Every subcommand lives in its own module under :mod:`benches.commands` and defines::
+
+    def register(subparsers: argparse._SubParsersAction) -> None:
+        p = subparsers.add_parser("noise", help=..., description=..., epilog=EXAMPLES,
+                                  formatter_class=argparse.RawDescriptionHelpFormatter)
+        ...
+        p.set_defaults(func=run)          # run(args) -> int exit code
+
+Modules are discovered automatically. User errors are raised as :class:`UsageError` (or
+``procedures.yaml_source.ConfigError`` / ``analysis_input.InputError``) and printed as one clear line with
+exit code 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+from collections.abc import Sequence
+
+from procedures.yaml_source import ConfigError
+
+
+class UsageError(Exception):
+    """A user error: bad arguments or input. Printed as one line; exit code 2."""
+
+
+def _version() -> str:
+    try:
+        from importlib.metadata import version
+
+        return version("tablebench")
+    except Exception:  # pragma: no cover - running from a source tree without install
+        return "0.0.0+source"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The top-level parser with every discovered subcommand."""
+    parser = argparse.ArgumentParser(
+        prog="tablebench",
+        description="Calibrate inertial units on a three-axis turntable: run procedures, record, identify, "
+        "analyse noise, and issue certificates. The simulated bench (benches/sim.yaml) is the default.",
+        epilog="Run 'tablebench COMMAND --help' for a command's options and examples.",
+    )
+    parser.add_argument("--version", action="version", version=f"tablebench {_version()}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    import benches.commands as commands_pkg
+
+    for info in sorted(pkgutil.iter_modules(commands_pkg.__path__), key=lambda m: m.name):
+        if info.name.startswith("_"):
+            continue
+        module = importlib.import_module(f"benches.commands.{info.name}")
+        register = getattr(module, "register", None)
+        if register is not None:
+            register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the console script; returns the process exit code."""
+    from benches.analysis_input import InputError
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    func = getattr(args, "func", None)
+    if func is None:
+        parser.print_help()
+        return 2
+    try:
+        return int(func(args) or 0)
+    except (UsageError, ConfigError, InputError) as exc:
+        print(f"tablebench {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"tablebench {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

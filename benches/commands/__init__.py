@@ -1,0 +1,1 @@
+"""One module per ``tablebench`` subcommand; each defines ``register(subparsers)``."""

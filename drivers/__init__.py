@@ -1,0 +1,1 @@
+"""Turntable and inertial-unit drivers, their transports, and the simulated world."""

@@ -1,0 +1,194 @@
+"""The seams between the orchestrator and hardware: small protocols a real driver and a simulator share.
+
+Frames: gimbal angles are (outer ψ about n-Up, middle θ, inner γ) in rad, with
+C_t^n = R_z(ψ) R_x(θ) R_y(γ) (ENU navigation frame n, inner-gimbal frame t). Inertial-unit samples are in
+the unit's body frame b, SI (m/s², rad/s, K). Times are bench time in seconds: the unit's sample clock
+for the unit, the controller's clock for the table; on a simulated bench both are the one simulated clock.
+
+Drivers receive an already-open transport (a pymodbus client, a pyserial ``Serial``-like object, or an
+in-process simulator handle) in their constructor; they never open ports themselves.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+AXIS_NAMES: tuple[str, str, str] = ("outer", "middle", "inner")
+
+
+class TableStatus(enum.IntFlag):
+    """Status bits a turntable controller reports (the bit values are also the wire bits)."""
+
+    NONE = 0
+    IN_POSITION = 1 << 0  # all position-mode axes within tolerance and settled
+    MOVING = 1 << 1  # any axis moving (profile active or not yet settled)
+    AT_RATE = 1 << 2  # all rate-mode axes at their commanded rate
+    FAULT = 1 << 3  # a fault is latched; see fault_code; clear_fault() to reset
+    LIMIT = 1 << 4  # a position / rate limit was hit
+    INTERLOCK_OPEN = 1 << 5  # motion inhibited
+    WATCHDOG = 1 << 6  # heartbeat lost: the controller brought the table to rest
+    REMOTE = 1 << 7  # remote control enabled
+
+
+class FaultCode(enum.IntEnum):
+    """Latched fault causes (0 = none). Shared by every controller dialect."""
+
+    NONE = 0
+    STALL = 1
+    POSITION_LIMIT = 2
+    RATE_LIMIT = 3
+    ACCELERATION_LIMIT = 4
+    COMMUNICATION_LOST = 5
+    INTERLOCK = 6
+    BAD_COMMAND = 7
+    AMPLIFIER = 8
+
+
+class AxisMode(enum.IntEnum):
+    """Commanded mode of one gimbal axis."""
+
+    STOP = 0
+    POSITION = 1
+    RATE = 2
+
+
+@dataclass(frozen=True)
+class AxisLimits:
+    """Limits of one gimbal axis, SI. ``position_min``/``position_max`` are None for a continuous axis."""
+
+    rate_max: float  # rad/s
+    accel_max: float  # rad/s²
+    position_min: float | None = None  # rad
+    position_max: float | None = None  # rad
+
+
+@dataclass(frozen=True)
+class TableState:
+    """One reading of the table controller.
+
+    Attributes
+    ----------
+    time : float
+        Controller time stamp, s (bench time).
+    angles : ndarray (3,)
+        Reported gimbal angles (outer, middle, inner), rad, encoder-quantised, unwrapped (a continuous
+        axis that has spun two turns reports ≈ 4π).
+    rates : ndarray (3,)
+        Reported gimbal rates, rad/s.
+    status : TableStatus
+    fault_code : FaultCode
+    modes : tuple of AxisMode
+    """
+
+    time: float
+    angles: NDArray[np.float64]
+    rates: NDArray[np.float64]
+    status: TableStatus
+    fault_code: FaultCode = FaultCode.NONE
+    modes: tuple[AxisMode, AxisMode, AxisMode] = (AxisMode.STOP, AxisMode.STOP, AxisMode.STOP)
+
+
+class TableError(RuntimeError):
+    """A turntable command was refused or the controller reported a fault."""
+
+
+class LinkError(ConnectionError):
+    """The transport to a device failed (connection lost, timeout, unanswered request)."""
+
+
+@runtime_checkable
+class Turntable(Protocol):
+    """A three-axis position/rate table."""
+
+    def limits(self) -> tuple[AxisLimits, AxisLimits, AxisLimits]:
+        """Per-axis limits (outer, middle, inner)."""
+        ...
+
+    def move_to(self, angles: NDArray[np.float64] | list[float]) -> None:
+        """Command absolute gimbal angles (outer, middle, inner), rad; returns at once (poll state)."""
+        ...
+
+    def spin(self, axis: int, rate: float) -> None:
+        """Command a constant rate (rad/s, signed) on gimbal ``axis`` (0 outer, 1 middle, 2 inner)."""
+        ...
+
+    def stop(self) -> None:
+        """Bring every axis to rest under control (decelerate within limits), not a power cut."""
+        ...
+
+    def read_state(self) -> TableState:
+        """Read angles, rates, status and fault code."""
+        ...
+
+    def heartbeat(self) -> None:
+        """Tell the controller's watchdog the client is alive."""
+        ...
+
+    def clear_fault(self) -> None:
+        """Reset a latched fault (the table stays at rest)."""
+        ...
+
+    def close(self) -> None:
+        """Release the driver (does not close a transport it did not open... which is all of them)."""
+        ...
+
+
+@dataclass
+class ImuBlock:
+    """A block of consecutive inertial-unit samples, decoded to SI, body frame.
+
+    Attributes
+    ----------
+    counter : ndarray (n,) uint32
+        The unit's frame counter (wraps at 2³²).
+    time : ndarray (n,) float64
+        Sample time stamps, s (the unit's sample clock).
+    accel : ndarray (n, 3) float64
+        Specific force, m/s², body frame.
+    gyro : ndarray (n, 3) float64
+        Angular rate, rad/s, body frame.
+    temperature : ndarray (n,) float64
+        Unit temperature, K.
+    status : ndarray (n,) uint16
+        The unit's status word per sample.
+    dropped : int
+        Frames missing in this block (from counter gaps, including the gap from the previous block).
+    rejected : int
+        Frames rejected in this block (bad CRC, bad sync/length).
+    """
+
+    counter: NDArray[np.uint32]
+    time: NDArray[np.float64]
+    accel: NDArray[np.float64]
+    gyro: NDArray[np.float64]
+    temperature: NDArray[np.float64]
+    status: NDArray[np.uint16]
+    dropped: int = 0
+    rejected: int = 0
+    events: list[str] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return int(self.time.shape[0])
+
+
+@runtime_checkable
+class InertialUnit(Protocol):
+    """An inertial measurement unit streaming fixed-rate samples."""
+
+    @property
+    def sample_rate(self) -> float:
+        """Nominal sample rate, Hz."""
+        ...
+
+    def read(self, n: int) -> ImuBlock:
+        """Return the next ``n`` samples (fewer only if frames were dropped; never blocks forever)."""
+        ...
+
+    def close(self) -> None:
+        """Release the driver."""
+        ...

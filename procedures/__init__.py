@@ -1,0 +1,1 @@
+"""Procedure files: schema, loader and compiler to plain motion/acquisition steps."""
