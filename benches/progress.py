@@ -1,0 +1,117 @@
+"""Progress display for long bench work: a live bar on a terminal, plain lines otherwise.
+
+Shows the current step, % of the procedure (by estimated bench time), elapsed and remaining time both in
+bench time (the unit's sample clock) and wall time, and optional extra text (e.g. live estimates from the
+streaming identifier).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from typing import TextIO
+
+
+def _hms(seconds: float) -> str:
+    if seconds != seconds or seconds == float("inf"):
+        return "--:--:--"
+    s = max(0, int(round(seconds)))
+    return f"{s // 3600:d}:{(s % 3600) // 60:02d}:{s % 60:02d}"
+
+
+class ProgressDisplay:
+    """Report progress of a run of known total bench duration.
+
+    Parameters
+    ----------
+    total_bench_s : float
+        Estimated total bench time of the work, s.
+    stream : TextIO
+        Where to write (default stderr).
+    live : bool or None
+        Force a live single-line display (True) or plain lines (False); None: live iff ``stream`` is a TTY.
+    min_interval_s : float
+        Plain-line mode: at most one progress line per this many wall seconds (and one per step).
+    """
+
+    def __init__(
+        self,
+        total_bench_s: float,
+        stream: TextIO | None = None,
+        live: bool | None = None,
+        min_interval_s: float = 5.0,
+    ) -> None:
+        self.total = max(float(total_bench_s), 1e-9)
+        self.stream = stream or sys.stderr
+        self.live = self.stream.isatty() if live is None else live
+        self.min_interval = min_interval_s
+        self.t0 = time.monotonic()
+        self._last_print = -1e9
+        self._step = ""
+        self._extra = ""
+        self._bar = None
+        if self.live:
+            from tqdm import tqdm
+
+            self._bar = tqdm(
+                total=1000, file=self.stream, bar_format="{l_bar}{bar}| {postfix}", dynamic_ncols=True, leave=True
+            )
+
+    def step(self, name: str, description: str = "") -> None:
+        """A new step starts."""
+        self._step = name
+        if not self.live:
+            print(f"step {name}{': ' + description if description else ''}", file=self.stream, flush=True)
+
+    def extra(self, text: str) -> None:
+        """Set extra text shown with the next update (e.g. live estimates)."""
+        self._extra = text
+
+    def update(self, bench_elapsed_s: float, *, force: bool = False) -> None:
+        """Report that ``bench_elapsed_s`` of the procedure's bench time has passed."""
+        frac = min(max(bench_elapsed_s / self.total, 0.0), 1.0)
+        wall = time.monotonic() - self.t0
+        speed = bench_elapsed_s / wall if wall > 0 else float("nan")
+        bench_left = max(self.total - bench_elapsed_s, 0.0)
+        wall_left = bench_left / speed if speed and speed == speed and speed > 0 else float("nan")
+        text = (
+            f"{self._step} | bench {_hms(bench_elapsed_s)}/{_hms(self.total)} ETA {_hms(bench_left)} | "
+            f"wall {_hms(wall)} ETA {_hms(wall_left)} ({speed:.0f}x real time)"
+        )
+        if self._extra:
+            text += f" | {self._extra}"
+        if self._bar is not None:
+            self._bar.n = int(frac * 1000)
+            self._bar.set_description_str(f"{100 * frac:5.1f}%", refresh=False)
+            self._bar.set_postfix_str(text, refresh=False)
+            self._bar.refresh()
+            return
+        now = time.monotonic()
+        if force or now - self._last_print >= self.min_interval:
+            self._last_print = now
+            print(f"{100 * frac:5.1f}% {text}", file=self.stream, flush=True)
+
+    def close(self) -> None:
+        """Finish the display."""
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+
+
+class NullProgress(ProgressDisplay):
+    """A progress display that shows nothing (tests, library use)."""
+
+    def __init__(self) -> None:  # noqa: D107 - trivial
+        self.live = False
+
+    def step(self, name: str, description: str = "") -> None:  # noqa: D102
+        pass
+
+    def extra(self, text: str) -> None:  # noqa: D102
+        pass
+
+    def update(self, bench_elapsed_s: float, *, force: bool = False) -> None:  # noqa: D102
+        pass
+
+    def close(self) -> None:  # noqa: D102
+        pass

@@ -1,0 +1,415 @@
+"""Execute a compiled procedure on a bench, recording everything, always leaving the table at rest.
+
+Bench time is the unit's sample clock: the runner advances only by reading samples from the unit, so a
+simulated bench runs as fast as the machine allows and a real one in real time, and every wait (in
+position, settling, at rate, at rest) is counted in samples. Each step's samples go to the recorder, and
+the table is read once per acquisition block.
+
+Safety: every command of the procedure is checked against the turntable's limits before anything moves;
+the controller gets a heartbeat every block; on Ctrl-C (SIGINT/SIGTERM), a controller fault, or a lost link
+the runner stops the table under control, waits for rest (bounded), records the interrupted step, marks the
+recording, and says how to resume. On a simulated bench ``resume`` replays the completed steps without
+recording them (the simulator is deterministic), so the resumed recording equals an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import signal
+import threading
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from drivers.protocols import (
+    AxisLimits,
+    ImuBlock,
+    InertialUnit,
+    LinkError,
+    TableError,
+    TableState,
+    TableStatus,
+    Turntable,
+)
+
+from .progress import NullProgress, ProgressDisplay
+from .recording import Recorder, StepRecord
+
+log = logging.getLogger(__name__)
+
+
+class RunAborted(RuntimeError):
+    """The run stopped before the end (interrupt, fault, lost link); the recording is closed cleanly."""
+
+    def __init__(self, status: str, reason: str) -> None:
+        super().__init__(reason)
+        self.status = status
+        self.reason = reason
+
+
+class StepLike(Protocol):
+    """What the runner needs of a compiled step (``procedures.steps.Step``)."""
+
+    index: int
+    name: str
+    kind: str
+    group: str
+    angles: tuple[float, float, float] | None
+    axis: int | None
+    rate: float
+    duration: float
+    settle: float
+    text: str
+
+
+class SampleObserver(Protocol):
+    """Receives the samples of the run as they arrive (e.g. the streaming identifier)."""
+
+    def on_block(self, step: StepLike, block: ImuBlock, table: TableState, counts: bool) -> None:
+        """A block of samples and the table reading after it; ``counts``: inside the acquisition window."""
+        ...
+
+    def on_step_end(self, step: StepLike, record: StepRecord) -> None:
+        """A step finished (any status)."""
+        ...
+
+
+@dataclass
+class RunResult:
+    """Outcome of :meth:`Runner.run`."""
+
+    status: str
+    completed: list[int] = field(default_factory=list)
+    samples: int = 0
+    bench_seconds: float = 0.0
+    reason: str = ""
+
+
+def check_commands(steps: Sequence[StepLike], limits: Sequence[AxisLimits]) -> list[str]:
+    """Every position/rate the steps command, checked against the table's limits; returns problems (empty: ok)."""
+    problems: list[str] = []
+    for s in steps:
+        if s.angles is not None:
+            for i, (a, lim) in enumerate(zip(s.angles, limits, strict=True)):
+                if lim.position_min is not None and a < lim.position_min - 1e-12:
+                    problems.append(f"step {s.name!r}: axis {i} angle {math.degrees(a):.3f}° below the table's limit")
+                if lim.position_max is not None and a > lim.position_max + 1e-12:
+                    problems.append(f"step {s.name!r}: axis {i} angle {math.degrees(a):.3f}° above the table's limit")
+        if s.kind == "spin":
+            if s.axis is None or not 0 <= s.axis <= 2:
+                problems.append(f"step {s.name!r}: spin without a valid gimbal axis")
+            elif abs(s.rate) > limits[s.axis].rate_max * (1 + 1e-12):
+                problems.append(
+                    f"step {s.name!r}: rate {math.degrees(s.rate):.3f} °/s exceeds the table's "
+                    f"{math.degrees(limits[s.axis].rate_max):.3f} °/s on axis {s.axis}"
+                )
+    return problems
+
+
+def move_time(start: np.ndarray, target: np.ndarray, limits: Sequence[AxisLimits]) -> float:
+    """Trapezoidal-profile time for the slowest axis to go from ``start`` to ``target`` (rad), s."""
+    worst = 0.0
+    for a0, a1, lim in zip(start, target, limits, strict=True):
+        d = abs(float(a1) - float(a0))
+        v, acc = lim.rate_max, lim.accel_max
+        t = 2 * math.sqrt(d / acc) if d < v * v / acc else d / v + v / acc
+        worst = max(worst, t)
+    return worst
+
+
+class _InterruptFlag:
+    """Turns SIGINT/SIGTERM into a flag checked between blocks (installed only in the main thread)."""
+
+    def __init__(self) -> None:
+        self.signal_name: str | None = None
+        self._old: dict[int, Any] = {}
+
+    def __enter__(self) -> _InterruptFlag:
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._old[sig] = signal.signal(sig, self._handler)
+        return self
+
+    def _handler(self, signum: int, _frame: Any) -> None:
+        if self.signal_name is not None and signum == signal.SIGINT:
+            raise KeyboardInterrupt  # a second Ctrl-C: stop waiting politely
+        self.signal_name = signal.Signals(signum).name
+
+    def __exit__(self, *exc: Any) -> None:
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+
+
+class Runner:
+    """Run compiled steps on a bench.
+
+    Parameters
+    ----------
+    turntable, unit : Turntable, InertialUnit
+        The bench's drivers (real or simulated, in-process or over transports).
+    steps : sequence of Step
+        The compiled procedure's steps (``procedures.steps.Step``).
+    recorder : Recorder
+        Where the run is written.
+    position_tolerance : float
+        rad; a hold verifies the table is within this of its target before acquiring.
+    block_seconds : float
+        Acquisition block length (bench s); the table is read and the heartbeat sent once per block.
+    observers : iterable of SampleObserver
+    progress : ProgressDisplay or None
+    total_bench_s : float or None
+        Estimated procedure duration (for progress).
+    """
+
+    def __init__(
+        self,
+        turntable: Turntable,
+        unit: InertialUnit,
+        steps: Sequence[StepLike],
+        recorder: Recorder,
+        *,
+        position_tolerance: float,
+        block_seconds: float = 0.2,
+        observers: Iterable[SampleObserver] = (),
+        progress: ProgressDisplay | None = None,
+        rest_rate: float = math.radians(0.01),
+        stop_timeout_s: float = 120.0,
+    ) -> None:
+        self.table = turntable
+        self.unit = unit
+        self.steps = list(steps)
+        self.rec = recorder
+        self.tol = float(position_tolerance)
+        self.rate = float(unit.sample_rate)
+        self.block = max(1, int(round(block_seconds * self.rate)))
+        self.observers = list(observers)
+        self.progress = progress or NullProgress()
+        self.rest_rate = rest_rate
+        self.stop_timeout_s = stop_timeout_s
+        self.limits = tuple(turntable.limits())
+        self._recording = True
+        self._sample = 0  # samples read from the unit in this process (recorded or replayed)
+        self._state: TableState | None = None
+        self._interrupt: _InterruptFlag | None = None
+        self._step_start = 0
+        self._acq: tuple[int, int] | None = None
+        self._progress_base = 0.0
+
+    # ---- acquisition primitives -----------------------------------------------------------------------------
+    def _read_block(self, step: StepLike, n: int, counts: bool) -> TableState:
+        block = self.unit.read(n)
+        state = self.table.read_state()
+        self.table.heartbeat()
+        self._state = state
+        if self._recording:
+            self.rec.add_samples(block)
+            self.rec.add_table(state)
+            if block.dropped or block.rejected:
+                self.rec.event(
+                    float(block.time[-1]) if len(block) else state.time,
+                    "warning",
+                    f"unit link: {block.dropped} frame(s) dropped, {block.rejected} rejected in step {step.name}",
+                )
+            for obs in self.observers:
+                obs.on_block(step, block, state, counts)
+        self._sample += len(block)
+        self._progress_base += len(block) / self.rate
+        self.progress.update(self._progress_base)
+        if self._interrupt is not None and self._interrupt.signal_name is not None:
+            raise RunAborted("interrupted", f"{self._interrupt.signal_name} received")
+        if state.status & TableStatus.FAULT:
+            raise RunAborted("failed", f"turntable fault: {state.fault_code.name} (status {int(state.status):#x})")
+        return state
+
+    def _acquire(self, step: StepLike, n: int, counts: bool) -> None:
+        left = int(n)
+        while left > 0:
+            k = min(self.block, left)
+            self._read_block(step, k, counts)
+            left -= k
+
+    def _wait_until(self, step: StepLike, predicate: Callable[[TableState], bool], timeout_s: float, what: str) -> None:
+        limit = self._sample + int(math.ceil(timeout_s * self.rate))
+        state = self._state if self._state is not None else self.table.read_state()
+        while not predicate(state):
+            if self._sample >= limit:
+                raise RunAborted("failed", f"step {step.name!r}: table did not {what} within {timeout_s:.0f} s")
+            state = self._read_block(step, self.block, False)
+
+    # ---- steps -------------------------------------------------------------------------------------------------
+    def _in_position(self, target: Sequence[float]) -> Callable[[TableState], bool]:
+        tgt = np.asarray(target, dtype=float)
+
+        def ok(s: TableState) -> bool:
+            return bool(
+                s.status & TableStatus.IN_POSITION
+                and not s.status & TableStatus.MOVING
+                and np.all(np.abs(s.angles - tgt) <= self.tol)
+            )
+
+        return ok
+
+    def _at_rest(self, s: TableState) -> bool:
+        return bool(not s.status & TableStatus.MOVING and np.all(np.abs(s.rates) <= self.rest_rate))
+
+    def _move(self, step: StepLike, target: Sequence[float]) -> None:
+        state = self._state if self._state is not None else self.table.read_state()
+        if self._in_position(target)(state):
+            return
+        self.table.move_to(np.asarray(target, dtype=float))
+        t = move_time(state.angles, np.asarray(target), self.limits)
+        self._wait_until(step, self._in_position(target), 3 * t + 30.0, "reach position")
+
+    def _execute(self, step: StepLike) -> None:
+        kind = step.kind
+        if kind == "note":
+            if self._recording:
+                self.rec.event(self._time(), "info", f"note: {step.text}")
+            return
+        if kind == "move":
+            assert step.angles is not None
+            self._move(step, step.angles)
+            return
+        if kind in ("hold", "warmup"):
+            if step.angles is not None:
+                self._move(step, step.angles)  # a hold always verifies its attitude
+            self._acquire(step, int(round(step.settle * self.rate)), False)
+            a0 = self._sample
+            self._acq = (a0, a0)
+            self._acquire(step, int(round(step.duration * self.rate)), True)
+            self._acq = (a0, self._sample)
+            return
+        if kind == "spin":
+            assert step.axis is not None
+            self.table.spin(int(step.axis), float(step.rate))
+            lim = self.limits[int(step.axis)]
+            ramp = abs(step.rate) / lim.accel_max
+            self._wait_until(step, lambda s: bool(s.status & TableStatus.AT_RATE), 3 * ramp + 30.0, "reach rate")
+            self._acquire(step, int(round(step.settle * self.rate)), False)
+            a0 = self._sample
+            self._acq = (a0, a0)
+            self._acquire(step, int(round(step.duration * self.rate)), True)
+            self._acq = (a0, self._sample)
+            self.table.stop()
+            self._wait_until(step, self._at_rest, 3 * ramp + 30.0, "come to rest")
+            return
+        raise RunAborted("failed", f"step {step.name!r}: unknown step kind {kind!r}")
+
+    def _time(self) -> float:
+        return self._state.time if self._state is not None else 0.0
+
+    def _record_step(self, step: StepLike, status: str) -> StepRecord:
+        acq = self._acq or (self._sample, self._sample)
+        rec = StepRecord(
+            index=int(step.index),
+            name=step.name,
+            kind=step.kind,
+            group=step.group or "",
+            start_sample=self._step_start,
+            acq_start=acq[0],
+            acq_end=acq[1],
+            end_sample=self._sample,
+            status=status,
+            axis=-1 if step.axis is None else int(step.axis),
+            rate=float(step.rate),
+            angles=tuple(step.angles) if step.angles is not None else (math.nan, math.nan, math.nan),
+        )
+        self.rec.end_step(rec)
+        for obs in self.observers:
+            obs.on_step_end(step, rec)
+        return rec
+
+    # ---- the run -----------------------------------------------------------------------------------------------
+    def _safe_stop(self) -> None:
+        """Stop the table under control and wait (bounded) for rest; never raises."""
+        try:
+            self.table.stop()
+        except Exception as exc:  # noqa: BLE001 - cleanup must go on
+            log.error("could not command stop: %s", exc)
+            if self._recording:
+                self.rec.event(self._time(), "error", f"stop command failed: {exc}")
+            return
+        limit = self._sample + int(self.stop_timeout_s * self.rate)
+        try:
+            state = self.table.read_state()
+            while not self._at_rest(state) and self._sample < limit:
+                block = self.unit.read(self.block)
+                if self._recording:
+                    self.rec.add_samples(block)
+                self._sample += len(block)
+                state = self.table.read_state()
+                if self._recording:
+                    self.rec.add_table(state)
+            if self._recording:
+                self.rec.event(state.time, "info", "table at rest" if self._at_rest(state) else "table not at rest")
+        except Exception as exc:  # noqa: BLE001 - cleanup must go on
+            log.error("while waiting for rest: %s", exc)
+            if self._recording:
+                self.rec.event(self._time(), "error", f"could not confirm rest: {exc}")
+
+    def run(self, *, replay: Iterable[int] = (), start_sample: int = 0) -> RunResult:
+        """Run the steps; those in ``replay`` are executed without recording (simulated resume).
+
+        Returns
+        -------
+        RunResult
+            status "complete", or "interrupted" / "failed" with the reason (the recording is closed
+            cleanly in every case; the table is left at rest).
+        """
+        problems = check_commands(self.steps, self.limits)
+        if problems:
+            raise TableError("refusing to start, nothing moved: " + "; ".join(problems))
+        replay_set = set(replay)
+        last_replayed = max(replay_set) if replay_set else -1
+        completed: list[int] = []
+        status, reason = "complete", ""
+        self._sample = 0
+        current: StepLike | None = None
+        with _InterruptFlag() as flag:
+            self._interrupt = flag
+            try:
+                self._state = self.table.read_state()
+                for step in self.steps:
+                    current = step
+                    self._recording = step.index not in replay_set
+                    self._step_start = self._sample
+                    self._acq = None
+                    self.progress.step(step.name + (" (replay)" if not self._recording else ""), step.text)
+                    self._execute(step)
+                    if self._recording:
+                        self._record_step(step, "complete")
+                    elif step.index == last_replayed and self._sample != start_sample:
+                        raise RunAborted(
+                            "failed",
+                            f"replay of the completed steps gave {self._sample} samples but the recording holds "
+                            f"{start_sample} (different bench, seed or software?); cannot resume",
+                        )
+                    completed.append(step.index)
+                    current = None
+            except RunAborted as exc:
+                status, reason = exc.status, exc.reason
+            except KeyboardInterrupt:
+                status, reason = "interrupted", "interrupted by the user"
+            except LinkError as exc:
+                status, reason = "failed", f"link lost: {exc}"
+            except TableError as exc:
+                status, reason = "failed", f"turntable refused a command: {exc}"
+            finally:
+                self._recording = True
+                if status != "complete":
+                    self.rec.event(self._time(), "error", f"run stopped: {reason}")
+                    self._safe_stop()
+                    if current is not None:
+                        try:
+                            self._record_step(current, status)
+                        except Exception as exc:  # noqa: BLE001
+                            log.error("could not record the interrupted step: %s", exc)
+                else:
+                    self._safe_stop()
+                self.rec.set_status(status)
+                self._interrupt = None
+                self.progress.update(self._progress_base, force=True)
+        return RunResult(status, completed, self._sample, self._sample / self.rate, reason)
