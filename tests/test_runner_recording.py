@@ -1,0 +1,95 @@
+"""Runner and recorder on a fake bench: step table, flushing, interruption, resume, limits."""
+
+from __future__ import annotations
+
+import math
+
+import h5py
+import numpy as np
+import pytest
+
+from benches.recording import Hdf5Recorder, open_recording, read_steps
+from benches.runner import Runner
+from drivers.protocols import TableError
+from tests.fakes import FakeClock, FakeStep, FakeTable, FakeUnit, fake_steps
+
+
+def _run(tmp_path, steps, *, fail_after=None, replay=(), resume=False, start_sample=0, name="recording.h5"):
+    clock = FakeClock(100.0)
+    table = FakeTable(clock, fail_after=fail_after)
+    unit = FakeUnit(clock)
+    rec = Hdf5Recorder(tmp_path / name, attrs={"sample_rate_hz": 100.0}, resume=resume, checkpoint_samples=150)
+    runner = Runner(table, unit, steps, rec, position_tolerance=1e-6, block_seconds=0.1)
+    try:
+        result = runner.run(replay=replay, start_sample=start_sample)
+    finally:
+        rec.close()
+    return result, table
+
+
+def test_complete_run_records_every_step_with_consistent_ranges(tmp_path):
+    result, table = _run(tmp_path, fake_steps())
+    assert result.status == "complete"
+    with open_recording(tmp_path / "recording.h5") as f:
+        steps = read_steps(f)
+        n = f["imu/time"].shape[0]
+        assert f.attrs["status"] == "complete"
+        assert [s.name for s in steps] == [s.name for s in fake_steps()]
+        assert all(s.status == "complete" for s in steps)
+        for a, b in zip(steps, steps[1:], strict=False):
+            assert a.end_sample == b.start_sample
+        hold = steps[2]
+        assert hold.acq_end - hold.acq_start == 300  # 3 s at 100 Hz, after 0.5 s settle
+        assert hold.acq_start - hold.start_sample == 50
+        spin = steps[3]
+        assert spin.acq_end - spin.acq_start == 1200
+        # samples are contiguous and counted from 0; table read once per block
+        assert np.array_equal(f["imu/counter"][()], np.arange(n, dtype=np.uint32))
+        assert f["table/time"].shape[0] >= n // 10
+        assert any("note: done" in e.decode() if isinstance(e, bytes) else "note: done" in e for e in f["events"]["message"])
+    # the table was left at rest
+    assert table.commands[-1] == ("stop",)
+    assert np.all(table.rates == 0)
+
+
+def test_out_of_limit_command_refused_before_any_motion(tmp_path):
+    steps = [FakeStep(0, "fast", "spin", axis=0, rate=math.radians(500), duration=1.0)]
+    clock = FakeClock(100.0)
+    table = FakeTable(clock)
+    rec = Hdf5Recorder(tmp_path / "r.h5", attrs={"sample_rate_hz": 100.0})
+    with pytest.raises(TableError, match="nothing moved"):
+        Runner(table, FakeUnit(clock), steps, rec, position_tolerance=1e-6).run()
+    rec.close()
+    assert table.commands == []
+
+
+def test_fault_stops_the_table_and_marks_the_step(tmp_path):
+    result, table = _run(tmp_path, fake_steps(), fail_after=4.0)
+    assert result.status == "failed" and "STALL" in result.reason
+    with open_recording(tmp_path / "recording.h5") as f:
+        steps = read_steps(f)
+        assert f.attrs["status"] == "failed"
+        assert steps[-1].status == "failed"
+        assert all(s.status == "complete" for s in steps[:-1])
+    assert ("stop",) in table.commands
+
+
+def test_resume_by_replay_equals_uninterrupted_run(tmp_path):
+    full, _ = _run(tmp_path, fake_steps(), name="full.h5")
+    part, _ = _run(tmp_path, fake_steps(), fail_after=7.0, name="part.h5")
+    assert part.status == "failed"
+    with h5py.File(tmp_path / "part.h5", "r") as f:
+        done = [s for s in read_steps(f) if s.status == "complete"]
+    start = done[-1].end_sample
+    resumed, _ = _run(
+        tmp_path, fake_steps(), replay=[s.index for s in done], resume=True, start_sample=start, name="part.h5"
+    )
+    assert resumed.status == "complete"
+    with h5py.File(tmp_path / "full.h5", "r") as a, h5py.File(tmp_path / "part.h5", "r") as b:
+        sa, sb = read_steps(a), read_steps(b)
+        assert [(s.name, s.start_sample, s.acq_start, s.acq_end, s.end_sample) for s in sa] == [
+            (s.name, s.start_sample, s.acq_start, s.acq_end, s.end_sample) for s in sb
+        ]
+        last = sa[-1].end_sample
+        assert np.array_equal(a["imu/accel"][:last], b["imu/accel"][:last])
+        assert b.attrs["status"] == "complete"
