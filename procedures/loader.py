@@ -1,0 +1,567 @@
+"""Procedure files: read, validate and convert to SI (the schema is documented in ``procedures/SCHEMA.md``).
+
+A procedure file is YAML with degrees, °/s and seconds; :func:`load_procedure` returns a
+:class:`Procedure` whose step specifications are SI (rad, rad/s, s) and remember their source line.
+Every mistake raises :class:`~procedures.yaml_source.ConfigError` naming file, line, step and what is
+allowed. Attitudes are not resolved here (that needs the bench's mounting and limits): see
+:mod:`procedures.compiler`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from analysis.units import from_display
+
+from .yaml_source import ConfigError, KeyPath, SourceMap, load_yaml, load_yaml_text
+
+STEP_KINDS: tuple[str, ...] = ("warmup", "orient", "hold", "step_rotate", "spin", "repeat", "group", "note")
+DIRECTION_WORDS: dict[str, tuple[int, int, int]] = {
+    "East": (1, 0, 0),
+    "West": (-1, 0, 0),
+    "North": (0, 1, 0),
+    "South": (0, -1, 0),
+    "Up": (0, 0, 1),
+    "Down": (0, 0, -1),
+}
+BODY_AXES: tuple[str, ...] = ("x", "y", "z", "+x", "+y", "+z", "-x", "-y", "-z")
+TOP_KEYS: tuple[str, ...] = ("name", "description", "version", "defaults", "parameters", "steps")
+DEFAULT_KEYS: tuple[str, ...] = ("settle_s", "hold_s", "spin_settle_s")
+MAX_COUNT: int = 10_000
+"""Largest ``count`` of a repeat or step_rotate (guards against a typo compiling for ever)."""
+_PARAM_RE = re.compile(r"^\$\{?([A-Za-z_][A-Za-z0-9_]*)\}?$")
+
+
+# ---- the loaded (SI) specification -------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Attitude:
+    """A requested attitude: body axes along named ENU directions, or explicit gimbal angles (rad).
+
+    ``directions`` maps body axis (``"x"``, ``"y"``, ``"z"``) to a unit ENU vector (n frame); it is always
+    complete (a missing third axis is completed right-handed). ``angles`` are (outer ψ, middle θ, inner γ).
+    """
+
+    directions: dict[str, tuple[int, int, int]] | None = None
+    angles: tuple[float, float, float] | None = None
+
+    def matrix(self) -> np.ndarray | None:
+        """C_b^n (3, 3) for a direction attitude (columns: body axes in ENU), else None."""
+        if self.directions is None:
+            return None
+        return np.array([self.directions[a] for a in "xyz"], dtype=float).T
+
+    def words(self) -> str:
+        """``"x East, y North, z Up"`` or ``"angles (0, -90, 0) deg"``."""
+        if self.directions is not None:
+            inv = {v: k for k, v in DIRECTION_WORDS.items()}
+            return ", ".join(f"{a} {inv[self.directions[a]]}" for a in "xyz")
+        assert self.angles is not None
+        return "angles (" + ", ".join(f"{np.degrees(a):g}" for a in self.angles) + ") deg"
+
+
+@dataclass(frozen=True)
+class StepSpec:
+    """Common fields of a step specification: kind, source line, a label for messages, an optional name."""
+
+    kind: str
+    line: int | None
+    label: str
+    name: str | None
+
+
+@dataclass(frozen=True)
+class WarmupSpec(StepSpec):
+    """Warm-up record of ``duration`` s at ``at`` (None: the current/initial attitude)."""
+
+    duration: float = 0.0
+    at: Attitude | None = None
+    settle: float | None = None
+
+
+@dataclass(frozen=True)
+class OrientSpec(StepSpec):
+    """Move to a base orientation."""
+
+    attitude: Attitude = field(default_factory=Attitude)
+
+
+@dataclass(frozen=True)
+class HoldSpec(StepSpec):
+    """Static acquisition of ``duration`` s at the current attitude."""
+
+    duration: float = 0.0
+    settle: float | None = None
+
+
+@dataclass(frozen=True)
+class StepRotateSpec(StepSpec):
+    """``count`` rotations of ``angle`` rad about signed body axis ``axis``, holding ``hold`` s after each."""
+
+    axis: str = "+z"
+    angle: float = 0.0
+    count: int = 1
+    hold: float = 0.0
+    settle: float | None = None
+
+
+@dataclass(frozen=True)
+class SpinSpec(StepSpec):
+    """Constant-rate spin(s) about signed body axis ``axis``; ``rates`` rad/s (two entries for both directions)."""
+
+    axis: str = "+z"
+    rates: tuple[float, ...] = ()
+    revolutions: float | None = None
+    duration: float | None = None
+    settle: float | None = None
+
+
+@dataclass(frozen=True)
+class RepeatSpec(StepSpec):
+    """``steps`` repeated ``count`` times."""
+
+    count: int = 1
+    steps: tuple[StepSpec, ...] = ()
+
+
+@dataclass(frozen=True)
+class GroupSpec(StepSpec):
+    """Named group of steps (the name prefixes every compiled step name)."""
+
+    group: str = ""
+    steps: tuple[StepSpec, ...] = ()
+
+
+@dataclass(frozen=True)
+class NoteSpec(StepSpec):
+    """Free text, logged in the recording when reached."""
+
+    text: str = ""
+
+
+@dataclass(frozen=True)
+class Defaults:
+    """Procedure-wide defaults, s (None: not given, the compiler's default applies)."""
+
+    settle: float | None = None
+    hold: float | None = None
+    spin_settle: float | None = None
+
+
+@dataclass(frozen=True)
+class Procedure:
+    """A loaded, validated procedure (SI), not yet compiled against a bench."""
+
+    name: str
+    description: str
+    version: str
+    defaults: Defaults
+    steps: tuple[StepSpec, ...]
+    text: str
+    sha256: str
+    path: str | None
+    parameters: dict[str, float] = field(default_factory=dict)
+
+
+# ---- parsing ---------------------------------------------------------------------------------------
+
+
+class _Ctx:
+    def __init__(self, smap: SourceMap, defaults: Defaults) -> None:
+        self.smap = smap
+        self.defaults = defaults
+
+    def err(self, path: KeyPath, label: str, message: str) -> ConfigError:
+        return ConfigError(self.smap.file, self.smap.line(path), f"step {label!r}: {message}")
+
+
+def _num(
+    ctx: _Ctx,
+    d: Mapping[str, Any],
+    path: KeyPath,
+    label: str,
+    key: str,
+    *,
+    required: bool = True,
+    minimum: float | None = None,
+    positive: bool = False,
+    integer: bool = False,
+    maximum: float | None = None,
+    what: str = "a number",
+) -> float | None:
+    if key not in d or d[key] is None:
+        if required:
+            raise ctx.err(path, label, f"{key} is required ({what})")
+        return None
+    v = d[key]
+    where = path + (key,)
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or v != v or v in (float("inf"), float("-inf")):
+        raise ctx.err(where, label, f"{key}: expected {what}, got {v!r}")
+    if integer and float(v) != int(v):
+        raise ctx.err(where, label, f"{key}: expected a whole number, got {v!r}")
+    if positive and not v > 0:
+        raise ctx.err(where, label, f"{key}: {v!r} is not allowed; must be > 0")
+    if minimum is not None and v < minimum:
+        raise ctx.err(where, label, f"{key}: {v!r} is not allowed; must be >= {minimum:g}")
+    if maximum is not None and v > maximum:
+        raise ctx.err(where, label, f"{key}: {v!r} is not allowed; must be <= {maximum:g}")
+    return float(v)
+
+
+def _keys(ctx: _Ctx, d: Mapping[str, Any], path: KeyPath, label: str, allowed: tuple[str, ...]) -> None:
+    for k in d:
+        if k not in allowed:
+            raise ctx.err(path + (str(k),), label, f"unknown key {k!r}; allowed here: {', '.join(allowed)}")
+
+
+def _body_axis(ctx: _Ctx, d: Mapping[str, Any], path: KeyPath, label: str) -> str:
+    v = d.get("axis")
+    if v is None:
+        raise ctx.err(path, label, "axis is required (a body axis: x, y, z, or signed like -y)")
+    if not isinstance(v, str) or v.strip() not in BODY_AXES:
+        raise ctx.err(path + ("axis",), label, f"axis: {v!r} is not allowed; choose one of: x, y, z, +x, -x, ... -z")
+    s = v.strip()
+    return s if s[0] in "+-" else "+" + s
+
+
+def _attitude(ctx: _Ctx, d: Mapping[str, Any], path: KeyPath, label: str) -> Attitude:
+    has_dirs = any(k in d for k in ("x", "y", "z"))
+    if has_dirs and "angles_deg" in d:
+        raise ctx.err(path, label, "give either body-axis directions (x/y/z) or angles_deg, not both")
+    if "angles_deg" in d:
+        v = d["angles_deg"]
+        if not isinstance(v, list) or len(v) != 3:
+            raise ctx.err(
+                path + ("angles_deg",), label, f"angles_deg: expected 3 gimbal angles [outer, middle, inner], got {v!r}"
+            )
+        out = []
+        for i, item in enumerate(v):
+            if isinstance(item, bool) or not isinstance(item, (int, float)) or item != item:
+                raise ctx.err(
+                    path + ("angles_deg", i), label, f"angles_deg[{i}]: expected a number (deg), got {item!r}"
+                )
+            out.append(from_display("angle", float(item)))
+        return Attitude(angles=(out[0], out[1], out[2]))
+    if not has_dirs:
+        raise ctx.err(
+            path,
+            label,
+            "an attitude needs body-axis directions like {x: East, y: North, z: Up} or angles_deg: [ψ, θ, γ]",
+        )
+    words = {w.lower(): w for w in DIRECTION_WORDS}
+    dirs: dict[str, tuple[int, int, int]] = {}
+    for ax in "xyz":
+        if ax not in d:
+            continue
+        v = d[ax]
+        if not isinstance(v, str) or v.strip().lower() not in words:
+            raise ctx.err(path + (ax,), label, f"{ax}: {v!r} is not a direction; allowed: {', '.join(DIRECTION_WORDS)}")
+        dirs[ax] = DIRECTION_WORDS[words[v.strip().lower()]]
+    if len(dirs) < 2:
+        raise ctx.err(path, label, "give the directions of at least two body axes (e.g. x: East, z: Up)")
+    given = list(dirs)
+    for i, a in enumerate(given):
+        for b in given[i + 1 :]:
+            if int(np.dot(dirs[a], dirs[b])) != 0:
+                raise ctx.err(
+                    path + (b,),
+                    label,
+                    f"body axes {a} and {b} cannot both point along the same line; choose perpendicular directions",
+                )
+    # Complete / check right-handedness: z = x × y, x = y × z, y = z × x.
+    cyc = {"z": ("x", "y"), "x": ("y", "z"), "y": ("z", "x")}
+    for ax, (p, q) in cyc.items():
+        if p in dirs and q in dirs:
+            need = tuple(int(c) for c in np.cross(dirs[p], dirs[q]))
+            if ax in dirs and dirs[ax] != need:
+                inv = {v: k for k, v in DIRECTION_WORDS.items()}
+                raise ctx.err(
+                    path + (ax,),
+                    label,
+                    f"{ax}: {inv[dirs[ax]]} makes a left-handed frame; with {p} {inv[dirs[p]]} and {q} {inv[dirs[q]]} "
+                    f"the allowed direction is {inv[need]}",
+                )
+            dirs.setdefault(ax, need)  # type: ignore[arg-type]
+    return Attitude(directions=dirs)
+
+
+def _leaf_label(prefix: str, kind: str, name: str | None) -> str:
+    base = name or kind
+    return f"{prefix}/{base}" if prefix else base
+
+
+def _parse_steps(ctx: _Ctx, items: Any, path: KeyPath, prefix: str) -> tuple[StepSpec, ...]:
+    label_here = prefix or "steps"
+    if not isinstance(items, list):
+        raise ctx.err(path, label_here, f"steps: expected a list of steps (lines starting with '- '), got {items!r}")
+    if not items:
+        raise ctx.err(path, label_here, "steps: the list is empty; add at least one step")
+    return tuple(_parse_step(ctx, item, path + (i,), prefix) for i, item in enumerate(items))
+
+
+def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
+    line = ctx.smap.line(path)
+    label0 = prefix or f"steps[{path[-1]}]"
+    if not isinstance(item, dict) or len(item) != 1:
+        raise ctx.err(
+            path,
+            label0,
+            f"each step is one 'kind: {{...}}' entry; kinds allowed: {', '.join(STEP_KINDS)}; got {item!r}",
+        )
+    kind, body = next(iter(item.items()))
+    if kind not in STEP_KINDS:
+        raise ctx.err(path + (str(kind),), label0, f"unknown step kind {kind!r}; allowed: {', '.join(STEP_KINDS)}")
+    bpath = path + (kind,)
+    if kind == "note":
+        if isinstance(body, dict):
+            _keys(ctx, body, bpath, _leaf_label(prefix, kind, None), ("text",))
+            body = body.get("text")
+        if not isinstance(body, str) or not body.strip():
+            raise ctx.err(bpath, _leaf_label(prefix, kind, None), f"note: expected text, got {body!r}")
+        return NoteSpec(kind, line, _leaf_label(prefix, kind, None), None, text=body.strip())
+    if body is None:
+        body = {}
+    if not isinstance(body, dict):
+        raise ctx.err(bpath, _leaf_label(prefix, kind, None), f"{kind}: expected a mapping (key: value), got {body!r}")
+    name = body.get("name")
+    if name is not None and (not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9_.+\-]+", name)):
+        raise ctx.err(
+            bpath + ("name",),
+            _leaf_label(prefix, kind, None),
+            f"name: {name!r} is not allowed; use letters, digits, _ . + -",
+        )
+    label = _leaf_label(prefix, kind, name)
+    sett = ("settle_s",)
+    if kind == "warmup":
+        _keys(ctx, body, bpath, label, ("name", "duration_s", "at") + sett)
+        at = None
+        if "at" in body:
+            if not isinstance(body["at"], dict):
+                raise ctx.err(bpath + ("at",), label, "at: expected an attitude like {x: East, y: North, z: Up}")
+            _keys(ctx, body["at"], bpath + ("at",), label, ("x", "y", "z", "angles_deg"))
+            at = _attitude(ctx, body["at"], bpath + ("at",), label)
+        dur = _num(ctx, body, bpath, label, "duration_s", positive=True, what="seconds > 0")
+        return WarmupSpec(kind, line, label, name, duration=dur or 0.0, at=at, settle=_settle(ctx, body, bpath, label))
+    if kind == "orient":
+        _keys(ctx, body, bpath, label, ("name", "x", "y", "z", "angles_deg"))
+        return OrientSpec(kind, line, label, name, attitude=_attitude(ctx, body, bpath, label))
+    if kind == "hold":
+        _keys(ctx, body, bpath, label, ("name", "duration_s") + sett)
+        dur = _num(ctx, body, bpath, label, "duration_s", required=False, positive=True, what="seconds > 0")
+        if dur is None:
+            if ctx.defaults.hold is None:
+                raise ctx.err(bpath, label, "duration_s is required (seconds > 0) unless defaults.hold_s is set")
+            dur = ctx.defaults.hold
+        return HoldSpec(kind, line, label, name, duration=dur, settle=_settle(ctx, body, bpath, label))
+    if kind == "step_rotate":
+        _keys(ctx, body, bpath, label, ("name", "axis", "angle_deg", "count", "hold_s") + sett)
+        axis = _body_axis(ctx, body, bpath, label)
+        ang = _num(ctx, body, bpath, label, "angle_deg", what="degrees, non-zero")
+        assert ang is not None
+        if ang == 0 or abs(ang) > 360:
+            raise ctx.err(
+                bpath + ("angle_deg",), label, f"angle_deg: {ang:g} is not allowed; use a non-zero angle in [-360, 360]"
+            )
+        count = _num(
+            ctx,
+            body,
+            bpath,
+            label,
+            "count",
+            required=False,
+            positive=True,
+            integer=True,
+            maximum=MAX_COUNT,
+            what="a whole number >= 1",
+        )
+        hold = _num(ctx, body, bpath, label, "hold_s", required=False, minimum=0.0, what="seconds >= 0")
+        if hold is None:
+            if ctx.defaults.hold is None:
+                raise ctx.err(bpath, label, "hold_s is required (seconds >= 0) unless defaults.hold_s is set")
+            hold = ctx.defaults.hold
+        return StepRotateSpec(
+            kind,
+            line,
+            label,
+            name,
+            axis=axis,
+            angle=from_display("angle", ang),
+            count=int(count or 1),
+            hold=hold,
+            settle=_settle(ctx, body, bpath, label),
+        )
+    if kind == "spin":
+        _keys(ctx, body, bpath, label, ("name", "axis", "rate_dps", "direction", "revolutions", "duration_s") + sett)
+        axis = _body_axis(ctx, body, bpath, label)
+        rate = _num(ctx, body, bpath, label, "rate_dps", what="°/s, non-zero")
+        assert rate is not None
+        if rate == 0:
+            raise ctx.err(bpath + ("rate_dps",), label, "rate_dps: 0 is not allowed; a spin needs a non-zero rate")
+        direction = body.get("direction")
+        if direction is not None:
+            if direction not in ("positive", "negative", "both"):
+                raise ctx.err(
+                    bpath + ("direction",),
+                    label,
+                    f"direction: {direction!r} is not allowed; choose positive, negative or both",
+                )
+            if rate < 0:
+                raise ctx.err(
+                    bpath + ("rate_dps",),
+                    label,
+                    "rate_dps must be positive when direction is given (the sign comes from direction)",
+                )
+        r = from_display("rate", rate)
+        rates = {None: (r,), "positive": (r,), "negative": (-r,), "both": (r, -r)}[direction]
+        revs = _num(ctx, body, bpath, label, "revolutions", required=False, positive=True, what="a number > 0")
+        dur = _num(ctx, body, bpath, label, "duration_s", required=False, positive=True, what="seconds > 0")
+        if (revs is None) == (dur is None):
+            raise ctx.err(bpath, label, "give exactly one of revolutions or duration_s")
+        settle = _num(ctx, body, bpath, label, "settle_s", required=False, minimum=0.0, what="seconds >= 0")
+        return SpinSpec(kind, line, label, name, axis=axis, rates=rates, revolutions=revs, duration=dur, settle=settle)
+    if kind == "repeat":
+        _keys(ctx, body, bpath, label, ("count", "steps"))
+        count = _num(
+            ctx, body, bpath, label, "count", positive=True, integer=True, maximum=MAX_COUNT, what="a whole number >= 1"
+        )
+        if "steps" not in body:
+            raise ctx.err(bpath, label, "steps is required (the list of steps to repeat)")
+        steps = _parse_steps(ctx, body["steps"], bpath + ("steps",), prefix)
+        return RepeatSpec(kind, line, label, None, count=int(count or 1), steps=steps)
+    # group
+    _keys(ctx, body, bpath, label, ("name", "steps"))
+    if name is None:
+        raise ctx.err(bpath, label, "name is required (e.g. name: A); it prefixes the group's step names")
+    if "steps" not in body:
+        raise ctx.err(bpath, label, "steps is required (the group's list of steps)")
+    gname = f"{prefix}/{name}" if prefix else name
+    steps = _parse_steps(ctx, body["steps"], bpath + ("steps",), gname)
+    return GroupSpec(kind, line, label, name, group=gname, steps=steps)
+
+
+def _settle(ctx: _Ctx, body: Mapping[str, Any], bpath: KeyPath, label: str) -> float | None:
+    return _num(ctx, body, bpath, label, "settle_s", required=False, minimum=0.0, what="seconds >= 0")
+
+
+def _parameters(data: Mapping[str, Any], smap: SourceMap, overrides: Mapping[str, float] | None) -> dict[str, float]:
+    params: dict[str, float] = {}
+    raw = data.get("parameters")
+    if raw is not None:
+        if not isinstance(raw, dict):
+            raise smap.error(("parameters",), "expected a mapping of name: number")
+        for k, v in raw.items():
+            if not isinstance(k, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", k):
+                raise smap.error(("parameters", str(k)), f"parameter name {k!r} is not allowed; use letters, digits, _")
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or v != v:
+                raise smap.error(("parameters", k), f"expected a number (the default value), got {v!r}")
+            params[k] = float(v)
+    for k, v in (overrides or {}).items():
+        if k not in params:
+            allowed = ", ".join(params) or "none (the file has no parameters: block)"
+            raise ConfigError(
+                smap.file, smap.lines.get(("parameters",)), f"unknown parameter {k!r}; allowed: {allowed}"
+            )
+        params[k] = float(v)
+    return params
+
+
+def _substitute(node: Any, path: KeyPath, params: Mapping[str, float], smap: SourceMap) -> Any:
+    if isinstance(node, dict):
+        return {k: _substitute(v, path + (k,), params, smap) for k, v in node.items()}
+    if isinstance(node, list):
+        return [_substitute(v, path + (i,), params, smap) for i, v in enumerate(node)]
+    if isinstance(node, str):
+        m = _PARAM_RE.match(node.strip())
+        if m:
+            if m.group(1) not in params:
+                allowed = ", ".join(f"${p}" for p in params) or "none (add a top-level parameters: block)"
+                raise smap.error(path, f"unknown parameter {node!r}; allowed: {allowed}")
+            return params[m.group(1)]
+    return node
+
+
+def parse_procedure(
+    data: Any, smap: SourceMap, text: str, path: str | Path | None = None, overrides: Mapping[str, float] | None = None
+) -> Procedure:
+    """Validate parsed YAML ``data`` (with its source map) and convert it to a :class:`Procedure` (SI)."""
+    if not isinstance(data, dict):
+        raise ConfigError(smap.file, smap.line(()), "a procedure file is a mapping with name, description, steps")
+    for key in data:
+        if key not in TOP_KEYS:
+            raise smap.error((str(key),), f"unknown key {key!r}; allowed at the top level: {', '.join(TOP_KEYS)}")
+    name = data.get("name")
+    if not isinstance(name, str) or not name.strip():
+        raise smap.error(("name",), f"name is required (text), got {name!r}")
+    desc = data.get("description", "")
+    if desc is None:
+        desc = ""
+    if not isinstance(desc, str):
+        raise smap.error(("description",), f"expected text, got {desc!r}")
+    version = data.get("version", "1")
+    if isinstance(version, bool) or not isinstance(version, (str, int, float)):
+        raise smap.error(("version",), f"expected a version like 1 or '1.2', got {version!r}")
+    params = _parameters(data, smap, overrides)
+    data = {k: (_substitute(v, (k,), params, smap) if k in ("defaults", "steps") else v) for k, v in data.items()}
+    dd = data.get("defaults") or {}
+    if not isinstance(dd, dict):
+        raise smap.error(("defaults",), "expected a mapping like {settle_s: 5, hold_s: 60}")
+    for k, v in dd.items():
+        if k not in DEFAULT_KEYS:
+            raise smap.error(("defaults", str(k)), f"unknown key {k!r}; allowed here: {', '.join(DEFAULT_KEYS)}")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0 or v == float("inf"):
+            raise smap.error(("defaults", k), f"expected seconds >= 0, got {v!r}")
+    defaults = Defaults(
+        settle=None if dd.get("settle_s") is None else float(dd["settle_s"]),
+        hold=None if dd.get("hold_s") is None else float(dd["hold_s"]),
+        spin_settle=None if dd.get("spin_settle_s") is None else float(dd["spin_settle_s"]),
+    )
+    if "steps" not in data:
+        raise ConfigError(smap.file, smap.line(()), "steps is required (the list of steps)")
+    ctx = _Ctx(smap, defaults)
+    steps = _parse_steps(ctx, data["steps"], ("steps",), "")
+    return Procedure(
+        name=name.strip(),
+        description=desc.strip(),
+        version=str(version),
+        defaults=defaults,
+        steps=steps,
+        text=text,
+        sha256=hashlib.sha256(text.encode("utf-8")).hexdigest(),
+        path=None if path is None else str(path),
+        parameters=params,
+    )
+
+
+def load_procedure(path: str | Path, overrides: Mapping[str, float] | None = None) -> Procedure:
+    """Load and validate a procedure file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The YAML file.
+    overrides : mapping, optional
+        Values for the file's ``parameters:`` (file units, e.g. ``{"duration_s": 60}``).
+
+    Raises
+    ------
+    ConfigError
+        Naming file, line, step and what is allowed.
+    """
+    data, smap, text = load_yaml(path)
+    return parse_procedure(data, smap, text, path, overrides)
+
+
+def load_procedure_text(
+    text: str, file: str = "<procedure>", overrides: Mapping[str, float] | None = None
+) -> Procedure:
+    """Like :func:`load_procedure` for YAML text (tests, embedded procedures)."""
+    data, smap = load_yaml_text(text, file)
+    return parse_procedure(data, smap, text, None, overrides)
