@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import hashlib
+import json
 import shutil
 import sys
 from collections.abc import Iterable
@@ -19,32 +20,15 @@ from typing import TextIO
 
 import h5py
 
-from procedures.yaml_source import ConfigError
-
 from .progress import ProgressDisplay
 from .recording import Hdf5Recorder, RecordingError, open_recording, read_steps
 from .runner import Runner, RunResult, SampleObserver
 
-PACKAGE_BENCHES = Path(__file__).resolve().parent
-PACKAGE_PROCEDURES = PACKAGE_BENCHES.parent / "procedures"
-DEFAULT_BENCH = "sim"
 DEFAULT_PROCEDURE = "ten-step"
 
 
 class SessionError(RuntimeError):
     """A run cannot start or resume; the message says why and what to do."""
-
-
-def resolve_file(name: str | Path, folder: Path, kind: str) -> Path:
-    """A path as given if it exists, else a shipped file in ``folder`` (``ten-step`` → ``ten-step.yaml``)."""
-    p = Path(name)
-    if p.exists():
-        return p
-    for cand in (folder / p.name, folder / f"{p.name}.yaml"):
-        if cand.exists():
-            return cand
-    shipped = ", ".join(sorted(q.stem for q in folder.glob("*.yaml")))
-    raise ConfigError(p, None, f"no such {kind} file; give a path or one of the shipped {kind}s: {shipped}")
 
 
 def software_version() -> str:
@@ -66,21 +50,38 @@ class Prepared:
     config: object  # benches.bench_config.BenchConfig
     compiled: object  # procedures.steps.CompiledProcedure
     estimated_s: float
+    overrides: dict[str, float]
 
 
-def prepare(bench: str | Path | None, procedure: str | Path | None) -> Prepared:
-    """Load the bench and the procedure, compile and check; raise ConfigError on any problem."""
+def prepare(
+    bench: str | Path | None, procedure: str | Path | None, overrides: dict[str, float] | None = None
+) -> Prepared:
+    """Load the bench and the procedure (with parameter overrides), compile and check; ConfigError if wrong."""
+    from benches.bench_config import load_bench
     from procedures.compiler import compile_procedure
     from procedures.loader import load_procedure
+    from procedures.paths import default_bench_path, resolve_bench, resolve_procedure
 
-    from benches.bench_config import load_bench
-
-    bench_path = resolve_file(bench or DEFAULT_BENCH, PACKAGE_BENCHES, "bench")
-    procedure_path = resolve_file(procedure or DEFAULT_PROCEDURE, PACKAGE_PROCEDURES, "procedure")
+    bench_path = resolve_bench(bench) if bench else default_bench_path()
+    procedure_path = resolve_procedure(procedure or DEFAULT_PROCEDURE)
     config = load_bench(bench_path)
-    proc = load_procedure(procedure_path)
+    proc = load_procedure(procedure_path, overrides or None)
     compiled = compile_procedure(proc, limits=config.turntable.limits, mounting=config.unit.mounting)
-    return Prepared(bench_path, procedure_path, config, compiled, compiled.estimated_duration(config.turntable.limits))
+    return Prepared(
+        bench_path,
+        procedure_path,
+        config,
+        compiled,
+        compiled.estimated_duration(config.turntable.limits),
+        dict(overrides or {}),
+    )
+
+
+def recorded_overrides(folder: Path) -> dict[str, float]:
+    """The procedure parameter overrides a run was started with (stored in its recording)."""
+    with open_recording(folder / "recording.h5") as f:
+        text = f.attrs.get("procedure_overrides", "{}")
+    return {str(k): float(v) for k, v in json.loads(text).items()}
 
 
 def new_run_folder(out: str | Path | None, procedure_name: str) -> Path:
@@ -162,6 +163,7 @@ def execute(
                 "procedure_name": compiled.name,
                 "procedure_file": str(prep.procedure_path),
                 "procedure_sha256": compiled.sha256,
+                "procedure_overrides": json.dumps(prep.overrides, sort_keys=True),
                 "bench_sha256": _sha256(config.text),
                 "sample_rate_hz": float(config.unit.sample_rate),
                 "simulated": world is not None,
@@ -231,5 +233,4 @@ __all__ = [
     "new_run_folder",
     "prepare",
     "recording_status",
-    "resolve_file",
 ]

@@ -40,6 +40,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="simulated benches: in-process device simulators, or real pymodbus/pyserial bytes on loopback",
     )
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="override a procedure parameter (its parameters: block), e.g. --set duration_s=600; repeatable",
+    )
     p.add_argument("--plain", action="store_true", help="plain progress lines even on a terminal")
     p.set_defaults(func=run)
 
@@ -47,7 +54,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench run``."""
     from benches.cli import UsageError
-    from benches.session import SessionError, copy_inputs, execute, new_run_folder, prepare
+    from benches.commands.check import parse_overrides
+    from benches.session import SessionError, copy_inputs, execute, new_run_folder, prepare, recorded_overrides
 
     if args.seed is not None and args.seed < 0:
         raise UsageError("--seed must be a non-negative integer")
@@ -59,10 +67,11 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"--resume {args.resume}: no recording.h5 there; give a run folder printed by 'run'")
         if args.bench or args.procedure:
             raise UsageError("--resume uses the run's own bench and procedure copies; omit --bench/--procedure")
-        bench_file, proc_file = folder / "bench.yaml", folder / "procedure.yaml"
-        prep = prepare(bench_file, proc_file)
+        if args.set:
+            raise UsageError("--resume uses the run's recorded procedure parameters; omit --set")
+        prep = prepare(folder / "bench.yaml", folder / "procedure.yaml", recorded_overrides(folder))
     else:
-        prep = prepare(args.bench, args.procedure)
+        prep = prepare(args.bench, args.procedure, parse_overrides(args.set))
     print(f"bench: {prep.config.name} ({prep.bench_path})", file=sys.stderr)
     print(
         f"procedure: {prep.compiled.name} ({prep.procedure_path}), {len(prep.compiled.steps)} steps, "
