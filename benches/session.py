@@ -13,7 +13,7 @@ import hashlib
 import json
 import shutil
 import sys
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
@@ -112,7 +112,7 @@ def execute(
     seed: int | None,
     transport: str | None,
     resume: bool = False,
-    observers: Iterable[SampleObserver] = (),
+    observers: Callable[[ProgressDisplay], Iterable[SampleObserver]] | None = None,
     stream: TextIO | None = None,
     live: bool | None = None,
 ) -> RunResult:
@@ -183,7 +183,7 @@ def execute(
                 steps,
                 recorder,
                 position_tolerance=config.turntable.position_tolerance,
-                observers=observers,
+                observers=list(observers(progress)) if observers is not None else (),
                 progress=progress,
             )
             try:

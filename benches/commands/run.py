@@ -47,6 +47,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="NAME=VALUE",
         help="override a procedure parameter (its parameters: block), e.g. --set duration_s=600; repeatable",
     )
+    p.add_argument("--no-identify", action="store_true", help="only record (no plan, no identification)")
+    p.add_argument("--no-certificate", action="store_true", help="do not issue a certificate at the end")
     p.add_argument("--plain", action="store_true", help="plain progress lines even on a terminal")
     p.set_defaults(func=run)
 
@@ -72,12 +74,32 @@ def run(args: argparse.Namespace) -> int:
         prep = prepare(folder / "bench.yaml", folder / "procedure.yaml", recorded_overrides(folder))
     else:
         prep = prepare(args.bench, args.procedure, parse_overrides(args.set))
+    from benches.identify import IdentificationError, LiveIdentifier, identify_run, plan_for, write_calibration
+
     print(f"bench: {prep.config.name} ({prep.bench_path})", file=sys.stderr)
     print(
         f"procedure: {prep.compiled.name} ({prep.procedure_path}), {len(prep.compiled.steps)} steps, "
         f"estimated {prep.estimated_s / 60:.1f} min of bench time",
         file=sys.stderr,
     )
+    live: list[LiveIdentifier] = []
+    identify = not args.no_identify
+    if identify:
+        try:
+            plan = plan_for(prep.compiled, prep.config)
+        except IdentificationError as exc:
+            print(f"plan: not available ({exc}); the run will only record", file=sys.stderr)
+            identify = False
+        else:
+            print("pre-run plan (predicted 1σ):", file=sys.stderr)
+            print(plan.table(), file=sys.stderr)
+
+    def observers(progress):
+        if not identify:
+            return []
+        live.append(LiveIdentifier(prep.config, progress))
+        return live
+
     try:
         folder = folder if args.resume is not None else new_run_folder(args.out, Path(prep.procedure_path).stem)
         copy_inputs(prep, folder)
@@ -89,6 +111,7 @@ def run(args: argparse.Namespace) -> int:
             transport=args.transport,
             resume=args.resume is not None,
             live=False if args.plain else None,
+            observers=observers,
         )
     except SessionError as exc:
         raise UsageError(str(exc)) from None
@@ -104,4 +127,32 @@ def run(args: argparse.Namespace) -> int:
         f"run complete: {result.samples} samples ({result.bench_seconds / 60:.1f} min of bench time)", file=sys.stderr
     )
     print(f"recording: {folder}/recording.h5")
+    if identify:
+        try:
+            result = identify_run(folder, method="kalman")
+        except IdentificationError as exc:
+            print(f"identification not possible: {exc}", file=sys.stderr)
+            return 0
+        if live and live[0].filter.n_samples:
+            # the live filter saw the same samples and readings (except replayed ones on resume)
+            import numpy as np
+
+            offline = np.array([result["parameters"][n]["value"] for n in result["parameter_names"]])
+            diff = np.abs(live[0].filter.estimate - offline) / np.array(
+                [result["parameters"][n]["sigma_white"] for n in result["parameter_names"]]
+            )
+            result["live_vs_offline_max_sigma"] = float(diff.max())
+        path = write_calibration(result, folder / "calibration.json")
+        from benches.commands.identify import format_result
+
+        print(format_result(result), file=sys.stderr)
+        print(f"calibration: {path}")
+        if not args.no_certificate:
+            try:
+                from benches.certificate import issue_certificate
+            except ImportError:
+                print("certificate: not available in this installation", file=sys.stderr)
+            else:
+                pdf, js, verdict = issue_certificate(folder)
+                print(f"certificate: {pdf} ({verdict})")
     return 0

@@ -1,0 +1,72 @@
+"""``tablebench identify``: identify the 18-parameter accelerometer model from a recording."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+EXAMPLES = """examples:
+  tablebench identify runs/20261121-101500-ten-step                 # writes RUN/calibration.json
+  tablebench identify RUN --method batch --out /tmp/batch.json      # batch least squares cross-check
+  tablebench identify RUN --noise warm-up                           # R estimated from the warm-up record
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``identify`` subcommand."""
+    p = sub.add_parser(
+        "identify",
+        help="identify the accelerometer error model from a recording",
+        description="Estimate bias b, scale S, misalignment τ, quadratic d and size effect r (18 parameters) with "
+        "their covariance from the hold and spin steps of a recording, with the Kalman filter (one filter over "
+        "the whole sequence) or batch least squares. Writes calibration.json next to the recording.",
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("run", metavar="RUN", help="run folder or recording.h5")
+    p.add_argument("--method", choices=("kalman", "batch"), default="kalman")
+    p.add_argument(
+        "--noise",
+        choices=("configured", "warm-up"),
+        default="configured",
+        help="measurement noise R: the bench's configured VRW, or estimated from the warm-up",
+    )
+    p.add_argument("--out", default=None, metavar="FILE.json", help="default: RUN/calibration.json")
+    p.set_defaults(func=run)
+
+
+def format_result(result: dict) -> str:
+    """A readable table of a calibration result."""
+    lines = [f"{'param':8s} {'value':>12s} {'1σ':>10s} {'unit':7s} {'err/σ':>7s}  note"]
+    truth = result.get("truth") or {}
+    for name in result["parameter_names"]:
+        p = result["parameters"][name]
+        e = truth.get("error_sigma", {}).get(name)
+        note = "" if p["identifiable"] else "NOT IDENTIFIED (prior-dominated; do not use)"
+        lines.append(
+            f"{name:8s} {p['display_value']:12.4f} {p['display_sigma']:10.4f} {p['display_unit']:7s} "
+            f"{'' if e is None else f'{e:7.2f}':>7s}  {note}"
+        )
+    info = result["information"]
+    lines.append(f"information rank {info['rank']}/18, condition {info['condition']:.3g}; method {result['method']}")
+    if truth:
+        lines.append(f"NEES {truth['nees']:.2f} over {truth['dof']} identified states (simulator truth)")
+    lines += [f"warning: {w}" for w in result.get("warnings", [])]
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute ``tablebench identify``."""
+    from benches.cli import UsageError
+    from benches.identify import IdentificationError, identify_run, write_calibration
+
+    try:
+        result = identify_run(args.run, method=args.method, noise=args.noise)
+    except IdentificationError as exc:
+        raise UsageError(str(exc)) from None
+    folder = Path(args.run) if Path(args.run).is_dir() else Path(args.run).parent
+    out = write_calibration(result, args.out or folder / "calibration.json")
+    print(format_result(result))
+    print(f"calibration: {out}", file=sys.stderr)
+    return 0

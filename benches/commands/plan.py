@@ -1,0 +1,48 @@
+"""``tablebench plan``: predict the identification accuracy of a procedure on a bench before any motion."""
+
+from __future__ import annotations
+
+import argparse
+
+EXAMPLES = """examples:
+  tablebench plan                                          # ten-step on the simulated bench
+  tablebench plan --procedure ten-step-fast-spin
+  tablebench plan --bench benches/lab1.yaml --procedure twenty-four-position
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``plan`` subcommand."""
+    p = sub.add_parser(
+        "plan",
+        help="predict parameter uncertainties of a procedure before running it",
+        description="Predict, from the procedure's geometry and durations and the unit's noise and bias stability, "
+        "the 1σ of every accelerometer parameter, the information rank, and which parameters will not be "
+        "identified and what change would fix it. Nothing moves.",
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--bench", default=None, help="bench file (default: the simulated bench)")
+    p.add_argument("--procedure", default=None, help="procedure file or shipped name (default: ten-step)")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="procedure parameter override")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute ``tablebench plan``."""
+    from benches.cli import UsageError
+    from benches.commands.check import parse_overrides
+    from benches.identify import IdentificationError, plan_for
+    from benches.session import prepare
+
+    prep = prepare(args.bench, args.procedure, parse_overrides(args.set))
+    try:
+        plan = plan_for(prep.compiled, prep.config)
+    except IdentificationError as exc:
+        raise UsageError(str(exc)) from None
+    print(
+        f"plan: procedure {prep.compiled.name} on bench {prep.config.name} "
+        f"({prep.estimated_s / 60:.1f} min of bench time)"
+    )
+    print(plan.table())
+    return 0

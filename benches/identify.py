@@ -1,0 +1,434 @@
+"""Identification of the accelerometer model from a run: live during the run, and offline from a recording.
+
+This module joins the pure maths of :mod:`analysis.kalman_identifier`, :mod:`analysis.batch_identifier`
+and :mod:`analysis.identification_plan` to the bench: the prior P0 and the white noise R come from the
+bench file (or R from the warm-up record), the reference specific force and body rate from the table's own
+readings (:mod:`benches.reference`), and the samples from the acquisition windows of complete hold and spin
+steps (moves and settling excluded; the warm-up is used only to estimate R when asked).
+
+Uncertainty reported (``sigma``): the filter's covariance (white noise) plus the systematic term of the
+unit's bias instability (an unmodelled DC offset per step of σ = the bench's ``bias_instability``),
+propagated through the estimator exactly as the plan does. ``sigma_white`` is the filter's own 1σ.
+Results: ``calibration.json`` (format ``benches/CALIBRATION_FORMAT.md``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from analysis.accel_model import PARAM_KINDS, PARAM_NAMES, predict
+from analysis.batch_identifier import batch_identify, information_rank, unobservable_parameters
+from analysis.identification_plan import IdentificationPlan, PlanStep, plan_identification
+from analysis.kalman_identifier import StreamingIdentifier, estimate_measurement_noise
+from analysis.units import DISPLAY_UNITS
+from drivers.protocols import ImuBlock, TableState
+
+from .recording import RecordingError, open_recording, read_steps
+from .reference import interpolate_table, reference_at
+
+MODEL_TEXT = (
+    "f_out = f + (S + T) f + b + D (f∘f) + diag(r) c(ω), body frame; c(ω) = [ω_y²+ω_z², ω_z²+ω_x², ω_x²+ω_y²]; "
+    "misalignment convention δf_i += τ_ij f_j"
+)
+ACQUISITION_KINDS = ("hold", "spin")
+_SI_UNITS = {"bias": "m/s^2", "scale": "1", "misalignment": "rad", "quadratic": "s^2/m", "size_effect": "m"}
+
+
+class IdentificationError(RuntimeError):
+    """The recording cannot be identified; the message says why and what to do."""
+
+
+# ---- bench → prior and noise ------------------------------------------------------------------------------------
+
+
+def prior_covariance(config: Any) -> NDArray[np.float64]:
+    """P0 = diag(σ²) from the bench's ``unit.prior`` (datasheet 1σ per parameter, SI)."""
+    prior = config.unit.prior
+    missing = [n for n in PARAM_NAMES if n not in prior]
+    if missing:
+        raise IdentificationError(
+            f"bench {config.name!r}: unit prior lacks {', '.join(missing)}; give a datasheet 1σ for all 18 parameters"
+        )
+    return np.diag([float(prior[n]) ** 2 for n in PARAM_NAMES])
+
+
+def configured_noise_variance(config: Any) -> NDArray[np.float64]:
+    """Per-sample white-noise variance per axis, (m/s²)²: VRW density² × sample rate (bench file)."""
+    return np.asarray(config.unit.noise.vrw, dtype=float) ** 2 * float(config.unit.sample_rate)
+
+
+def bias_stability(config: Any) -> NDArray[np.float64]:
+    """Bias instability per axis, m/s² (the per-step unmodelled DC offset of the error budget)."""
+    return np.asarray(config.unit.noise.bias_instability, dtype=float)
+
+
+# ---- the pre-run plan ------------------------------------------------------------------------------------------------
+
+
+def plan_steps_from_procedure(compiled: Any, config: Any, sample_rate: float | None = None) -> list[PlanStep]:
+    """Nominal samples of every hold and spin of a compiled procedure, as plan steps (body frame)."""
+    from procedures.trajectory import nominal_samples
+
+    rate = float(sample_rate or config.unit.sample_rate)
+    out: list[PlanStep] = []
+    for ns in nominal_samples(compiled, rate, limits=config.turntable.limits):
+        if ns.step.kind not in ACQUISITION_KINDS or not np.all(np.isfinite(ns.angles)):
+            continue
+        f_ref, omega = reference_at(ns.angles, ns.rates, config.site.g, config.unit.mounting)
+        out.append(PlanStep(ns.step.name, f_ref, omega, ns.weights, ns.angles))
+    if not out:
+        raise IdentificationError(f"procedure {compiled.name!r} has no hold or spin to identify from")
+    return out
+
+
+def plan_for(compiled: Any, config: Any) -> IdentificationPlan:
+    """Predicted 1σ of every parameter for a procedure on a bench, before any motion."""
+    steps = plan_steps_from_procedure(compiled, config)
+    return plan_identification(
+        steps, configured_noise_variance(config), prior_covariance(config), bias_stability(config)
+    )
+
+
+# ---- live identification during the run ---------------------------------------------------------------------------
+
+
+class LiveIdentifier:
+    """Runner observer feeding the streaming Kalman filter block by block as the run goes.
+
+    The reference for each block's samples interpolates between the previous table reading and the one
+    taken after the block — the same readings offline identification interpolates, so the live result
+    equals the offline one (Q = 0).
+    """
+
+    def __init__(self, config: Any, progress: Any | None = None, show: tuple[str, ...] = ("b_z", "S_z", "r_x")) -> None:
+        self.config = config
+        self.filter = StreamingIdentifier(
+            configured_noise_variance(config), prior_covariance(config), sample_rate=config.unit.sample_rate
+        )
+        self._prev: TableState | None = None
+        self.progress = progress
+        self.show = show
+
+    def on_block(self, step: Any, block: ImuBlock, table: TableState, counts: bool) -> None:
+        """Fuse the block if it is inside a hold/spin acquisition window."""
+        prev, self._prev = self._prev, table
+        if not counts or step.kind not in ACQUISITION_KINDS or len(block) == 0:
+            return
+        if prev is None:
+            prev = table
+        tt = np.array([prev.time, table.time])
+        angles, rates = interpolate_table(
+            block.time, tt, np.stack([prev.angles, table.angles]), np.stack([prev.rates, table.rates])
+        )
+        f_ref, omega = reference_at(angles, rates, self.config.site.g, self.config.unit.mounting)
+        self.filter.update(block.accel, f_ref, omega, step.name, t=block.time)
+        if self.progress is not None:
+            x, s = self.filter.estimate, self.filter.sigma
+            parts = []
+            for name in self.show:
+                k = PARAM_NAMES.index(name)
+                unit, one = DISPLAY_UNITS[PARAM_KINDS[k]]
+                parts.append(f"{name} {x[k] / one:.4g}±{s[k] / one:.2g} {unit}")
+            self.progress.extra(", ".join(parts))
+
+    def on_step_end(self, step: Any, record: Any) -> None:
+        """Nothing to do at step ends (the filter keeps per-step history itself)."""
+
+
+# ---- offline: recording → arrays -------------------------------------------------------------------------------------
+
+
+@dataclass
+class StepWindow:
+    """Samples of one acquisition window with their reference (body frame, SI)."""
+
+    name: str
+    kind: str
+    t: NDArray[np.float64]
+    f_out: NDArray[np.float64]
+    f_ref: NDArray[np.float64]
+    omega: NDArray[np.float64]
+
+
+@dataclass
+class RecordedRun:
+    """What identification needs from a recording."""
+
+    path: Path
+    attrs: dict[str, Any]
+    config: Any
+    windows: list[StepWindow]
+    warmup_accel: NDArray[np.float64] | None
+    truth: dict[str, float] | None
+    incomplete_steps: list[str]
+    temperature: NDArray[np.float64]
+
+
+def _sha256_file(path: Path) -> str:
+    h = hashlib.sha256()
+    with path.open("rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def load_run(run: str | Path) -> RecordedRun:
+    """Read a recording's acquisition windows and reference; clear errors for unusable recordings."""
+    from benches.bench_config import load_bench_text
+
+    try:
+        f = open_recording(run)
+    except RecordingError as exc:
+        raise IdentificationError(str(exc)) from None
+    path = Path(f.filename)
+    with f:
+        attrs = {k: (v.item() if hasattr(v, "item") else v) for k, v in f.attrs.items()}
+        if "bench_yaml" not in f or "imu" not in f or "table" not in f:
+            raise IdentificationError(f"{path}: the recording lacks its bench text, samples or table readings")
+        bench_text = f["bench_yaml"][()]
+        bench_text = bench_text.decode() if isinstance(bench_text, bytes) else str(bench_text)
+        config = load_bench_text(bench_text, f"{path}:/bench_yaml")
+        steps = read_steps(f)
+        if not steps:
+            raise IdentificationError(f"{path}: no completed step in the recording (was the run stopped at once?)")
+        n = f["imu/time"].shape[0]
+        table_t = f["table/time"][()]
+        table_a = f["table/angles"][()]
+        table_r = f["table/rates"][()]
+        windows: list[StepWindow] = []
+        warm: NDArray[np.float64] | None = None
+        incomplete = [s.name for s in steps if s.status != "complete"]
+        for s in steps:
+            if s.status != "complete" or s.acq_end <= s.acq_start:
+                continue
+            if s.acq_end > n:
+                raise IdentificationError(
+                    f"{path}: step {s.name!r} ends at sample {s.acq_end} but the file holds {n}; it is truncated"
+                )
+            if s.kind == "warmup":
+                warm = f["imu/accel"][s.acq_start : s.acq_end]
+                continue
+            if s.kind not in ACQUISITION_KINDS:
+                continue
+            t = f["imu/time"][s.acq_start : s.acq_end]
+            fo = f["imu/accel"][s.acq_start : s.acq_end]
+            ang, rat = interpolate_table(t, table_t, table_a, table_r)
+            fr, om = reference_at(ang, rat, config.site.g, config.unit.mounting)
+            windows.append(StepWindow(s.name, s.kind, t, fo, fr, om))
+        truth = None
+        if "truth" in f:
+            ta = f["truth"].attrs
+            if all(n_ in ta for n_ in PARAM_NAMES):
+                truth = {n_: float(ta[n_]) for n_ in PARAM_NAMES}
+        temp = f["imu/temperature"][:: max(1, n // 10000)] if n else np.zeros(0)
+    if not windows:
+        raise IdentificationError(
+            f"{path}: no complete hold or spin step to identify from (procedure {attrs.get('procedure_name')!r}); "
+            "run a calibration procedure such as ten-step"
+        )
+    return RecordedRun(path, attrs, config, windows, warm, truth, incomplete, temp)
+
+
+def _windows_as_plan_steps(windows: list[StepWindow], max_points: int = 4000) -> list[PlanStep]:
+    out = []
+    for w in windows:
+        m = w.f_ref.shape[0]
+        if w.kind == "hold":
+            out.append(PlanStep(w.name, w.f_ref.mean(0, keepdims=True), w.omega.mean(0, keepdims=True), np.array([m])))
+        else:
+            k = max(1, math.ceil(m / max_points))
+            idx = np.arange(0, m, k)
+            wts = np.full(idx.size, float(k))
+            wts[-1] = m - k * (idx.size - 1)
+            out.append(PlanStep(w.name, w.f_ref[idx], w.omega[idx], wts))
+    return out
+
+
+def _display(k: int, value: float) -> float:
+    return value / DISPLAY_UNITS[PARAM_KINDS[k]][1]
+
+
+def identify_run(run: str | Path, method: str = "kalman", noise: str = "configured") -> dict[str, Any]:
+    """Identify the 18 parameters from a recording; returns the ``calibration.json`` content.
+
+    Parameters
+    ----------
+    run : path
+        Run folder or recording file.
+    method : {"kalman", "batch"}
+        The streaming filter over all windows in order, or batch least squares (same prior, same model).
+    noise : {"configured", "warm-up"}
+        R from the bench's configured VRW, or estimated from the run's warm-up record.
+    """
+    if method not in ("kalman", "batch"):
+        raise IdentificationError(f"unknown method {method!r}; use kalman or batch")
+    rr = load_run(run)
+    config = rr.config
+    p0 = prior_covariance(config)
+    if noise == "configured":
+        r_var = configured_noise_variance(config)
+    elif noise == "warm-up":
+        if rr.warmup_accel is None or rr.warmup_accel.shape[0] < 100:
+            raise IdentificationError(f"{rr.path}: no warm-up record to estimate R from; use --noise configured")
+        r_var = estimate_measurement_noise(rr.warmup_accel)
+    else:
+        raise IdentificationError(f"unknown noise source {noise!r}; use configured or warm-up")
+    history = None
+    if method == "kalman":
+        kf = StreamingIdentifier(r_var, p0, sample_rate=config.unit.sample_rate)
+        for w in rr.windows:
+            kf.update(w.f_out, w.f_ref, w.omega, w.name, t=w.t)
+        x, p_white, info = kf.estimate, kf.covariance, kf.information
+        resid = kf.residual_statistics()
+        per_step = [
+            {"name": name, "samples": int(st.count), "mean": list(map(float, st.mean)), "rms": list(map(float, st.rms))}
+            for name, st in resid.items()
+        ]
+        history = {
+            "time": [h.time for h in kf.history],
+            "step": [h.step for h in kf.history],
+            "estimate": [list(map(float, h.x)) for h in kf.history],
+            "sigma": [list(map(float, h.sigma)) for h in kf.history],
+        }
+    else:
+        res = batch_identify(
+            np.concatenate([w.f_out for w in rr.windows]),
+            np.concatenate([w.f_ref for w in rr.windows]),
+            np.concatenate([w.omega for w in rr.windows]),
+            r_var,
+            None,
+            p0,
+        )
+        x, p_white, info = res.x, res.covariance, res.information
+        per_step = []
+        for w in rr.windows:
+            r = w.f_out - predict(x, w.f_ref, w.omega)
+            per_step.append(
+                {
+                    "name": w.name,
+                    "samples": int(r.shape[0]),
+                    "mean": list(map(float, r.mean(0))),
+                    "rms": list(map(float, np.sqrt((r**2).mean(0)))),
+                }
+            )
+    kinds = {w.name: w.kind for w in rr.windows}
+    for s in per_step:
+        s["kind"] = kinds.get(s["name"], "")
+    # honest total uncertainty: white + bias-instability systematic term, on the actual data geometry
+    actual = plan_identification(_windows_as_plan_steps(rr.windows), r_var, p0, bias_stability(config))
+    p_total = p_white + (actual.covariance_total - actual.covariance_white)
+    p_total = 0.5 * (p_total + p_total.T)
+    sigma = np.sqrt(np.diag(p_total))
+    sigma_white = np.sqrt(np.diag(p_white))
+    rank, cond = information_rank(info, r_var)
+    unobs = set(unobservable_parameters(info, r_var)) | set(actual.unidentifiable)
+    params: dict[str, Any] = {}
+    for k, name in enumerate(PARAM_NAMES):
+        kind = PARAM_KINDS[k]
+        unit, _one = DISPLAY_UNITS[kind]
+        params[name] = {
+            "value": float(x[k]),
+            "sigma": float(sigma[k]),
+            "sigma_white": float(sigma_white[k]),
+            "unit": _SI_UNITS[kind],
+            "kind": kind,
+            "display_unit": unit,
+            "display_value": _display(k, x[k]),
+            "display_sigma": _display(k, sigma[k]),
+            "identifiable": name not in unobs,
+            "prior_sigma": float(math.sqrt(p0[k, k])),
+        }
+    all_r = np.concatenate([w.f_out - predict(x, w.f_ref, w.omega) for w in rr.windows])
+    truth_block = None
+    if rr.truth is not None:
+        xt = np.array([rr.truth[n_] for n_ in PARAM_NAMES])
+        err = x - xt
+        ident = np.array([params[n_]["identifiable"] for n_ in PARAM_NAMES])
+        idx = np.flatnonzero(ident)
+        sub = p_total[np.ix_(idx, idx)]
+        nees = float(err[idx] @ np.linalg.solve(sub, err[idx]))
+        truth_block = {
+            "values": rr.truth,
+            "error_sigma": {n_: float(err[k] / sigma[k]) for k, n_ in enumerate(PARAM_NAMES)},
+            "nees": nees,
+            "dof": int(idx.size),
+            "nees_states": [PARAM_NAMES[i] for i in idx],
+        }
+    warnings = list(actual.warnings)
+    if rr.incomplete_steps:
+        warnings.insert(0, f"recording incomplete: step(s) {', '.join(rr.incomplete_steps)} not completed")
+    a = rr.attrs
+    temp = rr.temperature
+    result = {
+        "format": "tablebench-calibration",
+        "format_version": 1,
+        "recording": rr.path.name,
+        "recording_sha256": _sha256_file(rr.path),
+        "software_version": str(a.get("software_version", "")),
+        "method": method,
+        "model": MODEL_TEXT,
+        "parameter_names": list(PARAM_NAMES),
+        "parameters": params,
+        "covariance": [list(map(float, row)) for row in p_total],
+        "information": {
+            "rank": int(rank),
+            "condition": float(cond),
+            "unidentifiable": sorted(unobs, key=PARAM_NAMES.index),
+            "tolerance": "numerical rank of the noise-whitened data information, scaled per parameter kind "
+            "(analysis.batch_identifier.information_rank)",
+        },
+        "measurement_noise": {"variance": list(map(float, r_var)), "source": noise},
+        "residuals": {"rms": list(map(float, np.sqrt((all_r**2).mean(0)))), "per_step": per_step},
+        "plan": {
+            "predicted_sigma": {n_: float(actual.sigma_total[k]) for k, n_ in enumerate(PARAM_NAMES)},
+            "rank": int(actual.rank),
+            "warnings": list(actual.warnings),
+        },
+        "truth": truth_block,
+        "history": history,
+        "run": {
+            "status": str(a.get("status", "")),
+            "bench_name": str(a.get("bench_name", "")),
+            "procedure_name": str(a.get("procedure_name", "")),
+            "procedure_sha256": str(a.get("procedure_sha256", "")),
+            "seed": int(a.get("seed", -1)),
+            "created_utc": str(a.get("created_utc", "")),
+            "transport": str(a.get("transport", "")),
+            "site": {
+                "name": config.site.name,
+                "latitude_deg": math.degrees(config.site.latitude),
+                "height_m": config.site.height,
+                "g": config.site.g,
+                "g_source": config.site.g_source,
+            },
+            "unit": {"model": config.unit.model, "serial_number": config.unit.serial_number},
+            "table": {
+                "model": config.turntable.model,
+                "serial_number": config.turntable.serial_number,
+                "attitude_accuracy": config.turntable.attitude_accuracy,
+            },
+            "temperature_k": {
+                "mean": float(temp.mean()) if temp.size else None,
+                "min": float(temp.min()) if temp.size else None,
+                "max": float(temp.max()) if temp.size else None,
+            },
+        },
+        "warnings": warnings,
+    }
+    return result
+
+
+def write_calibration(result: dict[str, Any], out: str | Path) -> Path:
+    """Write ``calibration.json`` (sorted keys, stable float formatting)."""
+    p = Path(out)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_text(json.dumps(result, indent=1, ensure_ascii=False, allow_nan=False) + "\n", encoding="utf-8")
+    return p
