@@ -170,6 +170,7 @@ def plan_identification(
     *,
     magnitudes: ArrayLike | None = None,
     min_snr: float = 3.0,
+    offset_covariance: ArrayLike | None = None,
 ) -> IdentificationPlan:
     """Predict the identification accuracy of a procedure before running it.
 
@@ -187,6 +188,10 @@ def plan_identification(
         Datasheet magnitude of each parameter, SI (default: the prior 1σ).
     min_snr : float
         A parameter counts as identified when σ_total ≤ magnitude / min_snr.
+    offset_covariance : array_like (3, K, K), optional
+        Covariance of the per-step DC offsets, per body axis, over the K distinct step labels in order of
+        first appearance (e.g. correlated flicker from :func:`analysis.bias_drift.window_mean_covariance`).
+        Replaces the independent-offset model diag(σ_bi²); ``bias_stability`` then only words the warnings.
     """
     if not steps:
         raise ValueError("the plan has no steps: give the nominal samples of at least one step")
@@ -213,14 +218,21 @@ def plan_identification(
         if np.any(moving):
             max_rate = max(max_rate, float(np.max(np.linalg.norm(st.omega[moving], axis=1))))
     info = np.zeros((N_PARAMS, N_PARAMS))
-    sys_info = np.zeros((N_PARAMS, N_PARAMS))
-    for g in grams.values():
+    gains = np.zeros((len(grams), N_PARAMS, 3))
+    for idx, g in enumerate(grams.values()):
         info_s, _ = information_from_gram(g, r)
         info += info_s
-        gs = np.zeros((N_PARAMS, 3))
         for i in range(3):
-            gs[list(AXIS_PARAMS[i]), i] = g[0, list(AXIS_BASE[i])] / r[i]
-        sys_info += (gs * sbi**2) @ gs.T
+            gains[idx, list(AXIS_PARAMS[i]), i] = g[0, list(AXIS_BASE[i])] / r[i]
+    if offset_covariance is None:
+        sys_info = sum(((gs * sbi**2) @ gs.T for gs in gains), np.zeros((N_PARAMS, N_PARAMS)))
+    else:
+        c_off = np.asarray(offset_covariance, dtype=float)
+        if c_off.shape != (3, len(grams), len(grams)) or not np.all(np.isfinite(c_off)):
+            raise ValueError(
+                f"offset_covariance must be a finite (3, {len(grams)}, {len(grams)}) array over the step labels"
+            )
+        sys_info = sum((gains[:, :, a].T @ c_off[a] @ gains[:, :, a] for a in range(3)), np.zeros((N_PARAMS, N_PARAMS)))
     rank, cond = information_rank(info, r)
     unobs = unobservable_parameters(info, r) if rank < N_PARAMS else ()
 

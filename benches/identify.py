@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from analysis.accel_model import PARAM_KINDS, PARAM_NAMES, predict
 from analysis.batch_identifier import batch_identify, information_rank, unobservable_parameters
+from analysis.bias_drift import flicker_components, window_mean_covariance
 from analysis.identification_plan import IdentificationPlan, PlanStep, plan_identification
 from analysis.kalman_identifier import StreamingIdentifier, estimate_measurement_noise
 from analysis.units import DISPLAY_UNITS
@@ -70,30 +71,68 @@ def bias_stability(config: Any) -> NDArray[np.float64]:
     return np.asarray(config.unit.noise.bias_instability, dtype=float)
 
 
+def offset_covariance(windows: list[tuple[float, float]], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(3, K, K) covariance of the step-mean bias offsets over K acquisition windows (bench s), per body axis.
+
+    The unit's bias instability B (bench file) as flicker noise (:mod:`analysis.bias_drift`): correlated
+    between steps, so slow wander across a sequence of positions is propagated, not assumed independent.
+    """
+    starts = np.array([w[0] for w in windows])
+    ends = np.array([w[1] for w in windows])
+    out = np.zeros((3, len(windows), len(windows)))
+    for axis in range(3):
+        if b[axis] > 0:
+            out[axis] = window_mean_covariance(starts, ends, *flicker_components(float(b[axis])))
+    return out
+
+
 # ---- the pre-run plan ------------------------------------------------------------------------------------------------
 
 
 def plan_steps_from_procedure(compiled: Any, config: Any, sample_rate: float | None = None) -> list[PlanStep]:
     """Nominal samples of every hold and spin of a compiled procedure, as plan steps (body frame)."""
+    return [p for p, _w in _plan_steps_and_windows(compiled, config, sample_rate)]
+
+
+def _plan_steps_and_windows(
+    compiled: Any, config: Any, sample_rate: float | None = None
+) -> list[tuple[PlanStep, tuple[float, float]]]:
     from procedures.trajectory import nominal_samples
 
     rate = float(sample_rate or config.unit.sample_rate)
-    out: list[PlanStep] = []
-    for ns in nominal_samples(compiled, rate, limits=config.turntable.limits):
+    limits = config.turntable.limits
+    # nominal acquisition window of every step in bench time (step end minus the spin's ramp down)
+    ends = np.cumsum(compiled.step_times(limits))
+    window: dict[str, tuple[float, float]] = {}
+    for step, end in zip(compiled.steps, ends, strict=True):
+        if step.kind == "spin" and step.axis is not None:
+            end = end - abs(step.rate) / limits[step.axis].accel_max
+        window[step.name] = (float(end - step.duration), float(end))
+    out: list[tuple[PlanStep, tuple[float, float]]] = []
+    for ns in nominal_samples(compiled, rate, limits=limits):
         if ns.step.kind not in ACQUISITION_KINDS or not np.all(np.isfinite(ns.angles)):
             continue
         f_ref, omega = reference_at(ns.angles, ns.rates, config.site.g, config.unit.mounting)
-        out.append(PlanStep(ns.step.name, f_ref, omega, ns.weights, ns.angles))
+        out.append((PlanStep(ns.step.name, f_ref, omega, ns.weights, ns.angles), window[ns.step.name]))
     if not out:
         raise IdentificationError(f"procedure {compiled.name!r} has no hold or spin to identify from")
     return out
 
 
 def plan_for(compiled: Any, config: Any) -> IdentificationPlan:
-    """Predicted 1σ of every parameter for a procedure on a bench, before any motion."""
-    steps = plan_steps_from_procedure(compiled, config)
+    """Predicted 1σ of every parameter for a procedure on a bench, before any motion.
+
+    White noise from the bench's VRW, prior from its datasheet bounds, and the bias instability as
+    correlated flicker between the steps' nominal acquisition windows (:func:`offset_covariance`).
+    """
+    pairs = _plan_steps_and_windows(compiled, config)
+    b = bias_stability(config)
     return plan_identification(
-        steps, configured_noise_variance(config), prior_covariance(config), bias_stability(config)
+        [p for p, _ in pairs],
+        configured_noise_variance(config),
+        prior_covariance(config),
+        b,
+        offset_covariance=offset_covariance([w for _, w in pairs], b),
     )
 
 
@@ -323,7 +362,14 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
     for s in per_step:
         s["kind"] = kinds.get(s["name"], "")
     # honest total uncertainty: white + bias-instability systematic term, on the actual data geometry
-    actual = plan_identification(_windows_as_plan_steps(rr.windows), r_var, p0, bias_stability(config))
+    b = bias_stability(config)
+    actual = plan_identification(
+        _windows_as_plan_steps(rr.windows),
+        r_var,
+        p0,
+        b,
+        offset_covariance=offset_covariance([(float(w.t[0]), float(w.t[-1])) for w in rr.windows], b),
+    )
     p_total = p_white + (actual.covariance_total - actual.covariance_white)
     p_total = 0.5 * (p_total + p_total.T)
     sigma = np.sqrt(np.diag(p_total))
