@@ -1,0 +1,95 @@
+"""``tablebench correct``: apply a calibration to raw accelerometer data (f_out → f, the inverse model)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+EXAMPLES = """examples:
+  tablebench correct runs/RUN/calibration.json raw.npy --out corrected.npy
+        # raw.npy: (n, 3) specific force in m/s² (body frame), or (n, 6) with the gyro rates (rad/s) used
+        # for the size-effect term; without rates the unit is taken as not rotating
+  tablebench correct runs/RUN/calibration.json runs/OTHER --out corrected.npy
+        # a recording: rates from the recorded table readings
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``correct`` subcommand."""
+    p = sub.add_parser(
+        "correct",
+        help="apply a calibration to raw accelerometer data",
+        description="Compensate raw accelerometer output with an identified model: solve "
+        "f_out = f + (S+T) f + b + D(f∘f) + diag(r) c(ω) for f exactly (Newton iteration per sample, not a "
+        "first-order shortcut). Parameters the calibration marks as not identified are left out (set to 0).",
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("calibration", metavar="CALIBRATION.json")
+    p.add_argument("input", metavar="RAW.npy|RUN", help="(n,3) or (n,6) .npy in SI, or a recording")
+    p.add_argument("--out", required=True, metavar="FILE.npy", help="corrected specific force (n, 3), m/s²")
+    p.set_defaults(func=run)
+
+
+def load_calibration_vector(path: str | Path) -> tuple[np.ndarray, list[str]]:
+    """The 18-parameter vector of a calibration.json (not-identified parameters zeroed) and their names."""
+    from analysis.accel_model import PARAM_NAMES
+    from benches.cli import UsageError
+
+    try:
+        cal = json.loads(Path(path).read_text(encoding="utf-8"))
+        params = cal["parameters"]
+        x = np.array([float(params[n]["value"]) for n in PARAM_NAMES])
+        skipped = [n for n in PARAM_NAMES if not params[n].get("identifiable", True)]
+    except FileNotFoundError:
+        raise UsageError(f"{path}: no such calibration file") from None
+    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
+        raise UsageError(f"{path}: not a tablebench calibration.json ({exc.__class__.__name__}: {exc})") from None
+    for n in skipped:
+        x[PARAM_NAMES.index(n)] = 0.0
+    return x, skipped
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute ``tablebench correct``."""
+    from analysis.accel_model import correct
+    from benches.analysis_input import InputError, recording_path
+    from benches.cli import UsageError
+
+    x, skipped = load_calibration_vector(args.calibration)
+    src = recording_path(args.input)
+    if src.suffix.lower() in (".h5", ".hdf5"):
+        from benches.identify import IdentificationError, load_run
+
+        try:
+            rr = load_run(src)
+        except IdentificationError as exc:
+            raise UsageError(str(exc)) from None
+        f_out = np.concatenate([w.f_out for w in rr.windows])
+        omega = np.concatenate([w.omega for w in rr.windows])
+    else:
+        try:
+            data = np.load(src, allow_pickle=False)
+        except FileNotFoundError:
+            raise InputError(f"{src}: no such file") from None
+        except (OSError, ValueError) as exc:
+            raise InputError(f"{src}: not a readable .npy array ({exc})") from None
+        if data.ndim != 2 or data.shape[1] not in (3, 6) or not np.issubdtype(data.dtype, np.number):
+            raise InputError(f"{src}: expected a numeric (n, 3) or (n, 6) array in SI units, got {data.shape}")
+        if not np.all(np.isfinite(data)):
+            raise InputError(f"{src}: contains NaN/inf; remove them first")
+        f_out = data[:, :3].astype(float)
+        omega = data[:, 3:6].astype(float) if data.shape[1] == 6 else np.zeros_like(f_out)
+    try:
+        f = correct(x, f_out, omega)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    np.save(args.out, f)
+    if skipped:
+        print(f"not applied (not identified): {', '.join(skipped)}", file=sys.stderr)
+    print(f"corrected {f.shape[0]} samples → {args.out}")
+    return 0
