@@ -1,0 +1,307 @@
+"""Configuration of the simulated bench (truth of the table, the unit and the Earth), SI throughout.
+
+A :class:`SimConfig` holds everything :class:`drivers.sim.world.SimulatedWorld` needs. It is normally
+built by ``benches.bench_config.load_bench`` from a bench YAML file (display units there, converted once
+through ``analysis.units``), but every field has a sensible default so tests can build one directly::
+
+    SimConfig(accel=AccelTruth(bias=(1e-3, 0, 0)))
+
+Frames: body frame b (the unit's case axes) for every sensor quantity; the mounting ``C_b^t`` rotates
+body vectors into the inner-gimbal frame t; gimbal angles as in ``analysis.gimbal``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from analysis.earth import normal_gravity
+from analysis.units import ARCSEC, DEG, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, UG
+from drivers.imu_counts import CountScale
+from drivers.protocols import AxisLimits, FaultCode
+
+Vec3 = tuple[float, float, float]
+Mat3 = tuple[Vec3, Vec3, Vec3]
+
+ACCEL_PARAM_NAMES: tuple[str, ...] = (
+    "b_x",
+    "b_y",
+    "b_z",
+    "S_x",
+    "S_y",
+    "S_z",
+    "tau_xy",
+    "tau_xz",
+    "tau_yx",
+    "tau_yz",
+    "tau_zx",
+    "tau_zy",
+    "d_x",
+    "d_y",
+    "d_z",
+    "r_x",
+    "r_y",
+    "r_z",
+)
+"""The 18 accelerometer-model parameters, in state order (accelerometer-calibration.md)."""
+
+MISALIGNMENT_PAIRS: tuple[tuple[int, int], ...] = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
+"""(i, j) of τ_xy τ_xz τ_yx τ_yz τ_zx τ_zy: δf_i += τ_ij f_j."""
+
+CHANNELS: tuple[str, ...] = ("accel_x", "accel_y", "accel_z", "gyro_x", "gyro_y", "gyro_z")
+"""Output channel names, in the order of the unit's count columns."""
+
+_I3: Mat3 = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+_Z3: Mat3 = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+
+
+def _good_table_limits() -> tuple[AxisLimits, AxisLimits, AxisLimits]:
+    lim = AxisLimits(rate_max=300.0 * DEG, accel_max=100.0 * DEG)
+    return (lim, lim, lim)
+
+
+@dataclass(frozen=True)
+class AccelTruth:
+    """True accelerometer-triad errors (accelerometer-calibration.md), SI, body frame.
+
+    Attributes
+    ----------
+    bias : (3,) m/s².
+    scale : (3,) scale-factor errors S_i (dimensionless).
+    misalignment : (6,) τ_xy τ_xz τ_yx τ_yz τ_zx τ_zy, rad; δf_i += τ_ij f_j.
+    quadratic : (3,) d_i, s²/m; δf_i += d_i f_i².
+    lever_arms : (3, 3) row i = ρ_i, position of accelerometer i relative to the table's rotation centre,
+        m, body frame. The 3-parameter model's size effect is r_i = −ρ_{i,i}.
+    """
+
+    bias: Vec3 = (0.0, 0.0, 0.0)
+    scale: Vec3 = (0.0, 0.0, 0.0)
+    misalignment: tuple[float, float, float, float, float, float] = (0.0,) * 6
+    quadratic: Vec3 = (0.0, 0.0, 0.0)
+    lever_arms: Mat3 = _Z3
+
+
+@dataclass(frozen=True)
+class GyroTruth:
+    """True gyro-triad errors, SI, body frame.
+
+    Attributes
+    ----------
+    bias : (3,) rad/s.
+    scale : (3,) scale-factor errors (dimensionless).
+    misalignment : (6,) τ_xy τ_xz τ_yx τ_yz τ_zx τ_zy, rad; δω_i += τ_ij ω_j (same convention as accel).
+    g_sensitivity : (3, 3) rad/s per m/s²; δω = G f (f the specific force at the reference point).
+    """
+
+    bias: Vec3 = (0.0, 0.0, 0.0)
+    scale: Vec3 = (0.0, 0.0, 0.0)
+    misalignment: tuple[float, float, float, float, float, float] = (0.0,) * 6
+    g_sensitivity: Mat3 = _Z3
+
+
+@dataclass(frozen=True)
+class NoiseTruth:
+    """Stochastic errors of one triad (IEEE 952 / IEEE 1293 conventions), SI per channel.
+
+    Attributes
+    ----------
+    white : (3,) white-noise density N: Allan deviation N/√τ, per-sample std N·√f_s
+        (accel: m/s²/√Hz = m/s/√s, velocity random walk; gyro: rad/√s, angle random walk).
+    bias_instability : (3,) B: flicker floor of the Allan deviation ≈ 0.664 B (accel m/s², gyro rad/s).
+        Realised as a sum of first-order Gauss–Markov processes, two per decade over ``flicker_band``.
+    random_walk : (3,) K: rate / acceleration random walk, Allan deviation K√(τ/3) (unit/s·√s = unit/√s).
+    flicker_band : (f_low, f_high) Hz, corner-frequency band of the flicker approximation.
+    """
+
+    white: Vec3 = (0.0, 0.0, 0.0)
+    bias_instability: Vec3 = (0.0, 0.0, 0.0)
+    random_walk: Vec3 = (0.0, 0.0, 0.0)
+    flicker_band: tuple[float, float] = (1e-4, 1.0)
+
+
+@dataclass(frozen=True)
+class TemperatureModel:
+    """Unit temperature and its effect on bias and scale (linear in the deviation from settled).
+
+    T(t) = ambient + warmup_rise·(1 − exp(−t/warmup_tau)), °C. Errors drift by coefficient × (T − T_settled)
+    with T_settled = ambient + warmup_rise, so after warm-up the configured truth holds.
+
+    Attributes
+    ----------
+    ambient_c, warmup_rise_c : °C.
+    warmup_tau : s.
+    accel_bias_tc : (3,) m/s² per K.  accel_scale_tc : (3,) 1/K.
+    gyro_bias_tc : (3,) rad/s per K.  gyro_scale_tc : (3,) 1/K.
+    """
+
+    ambient_c: float = 23.0
+    warmup_rise_c: float = 0.0
+    warmup_tau: float = 600.0
+    accel_bias_tc: Vec3 = (0.0, 0.0, 0.0)
+    accel_scale_tc: Vec3 = (0.0, 0.0, 0.0)
+    gyro_bias_tc: Vec3 = (0.0, 0.0, 0.0)
+    gyro_scale_tc: Vec3 = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class PeriodicTerm:
+    """A periodic error A cos(2π f t + φ) added to one output channel (periodic-error.md).
+
+    Attributes
+    ----------
+    channel : one of ``CHANNELS``.
+    frequency_hz : Hz.
+    amplitude : SI (m/s² or rad/s).
+    phase : rad.
+    """
+
+    channel: str
+    frequency_hz: float
+    amplitude: float
+    phase: float = 0.0
+
+
+@dataclass(frozen=True)
+class ArmaDrift:
+    """ARMA-coloured drift on one channel (drift-timeseries.md sign convention), per output sample.
+
+    x_t − Σ φ_j x_{t−j} = e_t − Σ θ_j e_{t−j},  e_t ~ N(0, σ²) white at the sample rate.
+
+    Attributes
+    ----------
+    channel : one of ``CHANNELS``.
+    phi, theta : AR and MA coefficients.
+    sigma : std of the driving white noise e, SI (m/s² or rad/s).
+    """
+
+    channel: str
+    phi: tuple[float, ...] = ()
+    theta: tuple[float, ...] = ()
+    sigma: float = 0.0
+
+
+@dataclass(frozen=True)
+class TableModel:
+    """Turntable behaviour and imperfections.
+
+    Attributes
+    ----------
+    limits : per-axis (outer, middle, inner) rate/accel/position limits.
+    position_tolerance : rad, in-position window.
+    in_position_time : s, time inside the window before IN_POSITION is set.
+    watchdog : s of bench time without heartbeat while moving before the table is stopped (None: off).
+    slew_fraction : fraction of rate_max a position move cruises at.
+    overshoot : rad, amplitude of the settling transient A·exp(−τ/τ_s)·sin(2π f_s τ) after a move.
+    settle_frequency_hz, settle_time_constant : f_s (Hz) and τ_s (s) of that transient.
+    encoder_bits : reported angles are quantised to 2π / 2^bits.
+    position_jitter : rad, white noise std of the reported angles.
+    rate_jitter : rad/s, std of the physical rate jitter (first-order Gauss–Markov per axis).
+    rate_jitter_tau : s, correlation time of the rate jitter.
+    non_orthogonality : (2,) rad: tilt of the middle axis w.r.t. the outer (about outer y) and of the inner
+        axis w.r.t. the middle (about middle z). Zero by default.
+    wobble : rad, inner-axis wobble: the inner gimbal is tilted by ``wobble`` about an axis that turns once
+        per inner revolution, C_t^m = E2 R_x(w cos γ) R_z(w sin γ) R_y(γ). Zero by default.
+    """
+
+    limits: tuple[AxisLimits, AxisLimits, AxisLimits] = field(default_factory=_good_table_limits)
+    position_tolerance: float = 2.0 * ARCSEC
+    in_position_time: float = 0.2
+    watchdog: float | None = 2.0
+    slew_fraction: float = 0.9
+    overshoot: float = 5.0 * ARCSEC
+    settle_frequency_hz: float = 4.0
+    settle_time_constant: float = 0.08
+    encoder_bits: int = 24
+    position_jitter: float = 0.1 * ARCSEC
+    rate_jitter: float = 1e-4 * DEG
+    rate_jitter_tau: float = 0.05
+    non_orthogonality: tuple[float, float] = (0.0, 0.0)
+    wobble: float = 0.0
+
+
+@dataclass(frozen=True)
+class ScheduledFault:
+    """A fault the simulator injects by itself at bench time ``time`` (s)."""
+
+    time: float
+    fault: FaultCode
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Everything the simulated world needs, SI.
+
+    Attributes
+    ----------
+    latitude : rad; height : m; g : local gravity magnitude used as physics truth, m/s².
+    sample_rate : Hz; scale : count scale of the unit; mounting : (3, 3) C_b^t.
+    accel, gyro : true triad errors. accel_noise, gyro_noise : stochastic errors.
+    temperature : TemperatureModel or None (constant 23 °C, no drift).
+    periodic : periodic terms. arma : ARMA drifts.
+    anti_alias_hz : cutoff of the unit's 2nd-order Butterworth anti-alias filter applied to the physical
+        signal (None or 0: off); noise, periodic and ARMA terms are specified at the output.
+    timestamp_jitter : s, white std of the unit's time stamps.
+    drop_probability : probability that a frame is lost (its counter value is skipped).
+    table : TableModel. faults : scheduled faults.
+    seed : default seed. transport : "in-process" or "loopback".
+    """
+
+    latitude: float = 48.0 * DEG
+    height: float = 300.0
+    g: float | None = None
+    sample_rate: float = 1000.0
+    scale: CountScale = field(default_factory=lambda: CountScale(accel_lsb=0.1 * UG, gyro_lsb=1e-3 * DEG_PER_HOUR))
+    mounting: Mat3 = _I3
+    accel: AccelTruth = field(default_factory=AccelTruth)
+    gyro: GyroTruth = field(default_factory=GyroTruth)
+    accel_noise: NoiseTruth = field(default_factory=NoiseTruth)
+    gyro_noise: NoiseTruth = field(default_factory=NoiseTruth)
+    temperature: TemperatureModel | None = None
+    periodic: tuple[PeriodicTerm, ...] = ()
+    arma: tuple[ArmaDrift, ...] = ()
+    anti_alias_hz: float | None = None
+    timestamp_jitter: float = 0.0
+    drop_probability: float = 0.0
+    table: TableModel = field(default_factory=TableModel)
+    faults: tuple[ScheduledFault, ...] = ()
+    seed: int = 0
+    transport: str = "in-process"
+
+    @property
+    def local_g(self) -> float:
+        """Local gravity used by the physics, m/s²: ``g`` if given, else WGS-84 normal gravity at the site."""
+        return float(self.g) if self.g is not None else normal_gravity(self.latitude, self.height)
+
+
+def example_navigation_grade() -> SimConfig:
+    """A navigation-grade quartz accelerometer triad + tactical gyro triad on a good table (tests, demos)."""
+    from analysis.units import MM, PPM, UG_PER_G2
+
+    return SimConfig(
+        accel=AccelTruth(
+            bias=(100 * UG, -80 * UG, 120 * UG),
+            scale=(200 * PPM, -150 * PPM, 250 * PPM),
+            misalignment=tuple(a * ARCSEC for a in (30.0, -25.0, 20.0, 35.0, -30.0, 15.0)),  # type: ignore[arg-type]
+            quadratic=(20 * UG_PER_G2, -15 * UG_PER_G2, 25 * UG_PER_G2),
+            lever_arms=((30 * MM, 5 * MM, -3 * MM), (4 * MM, -28 * MM, 6 * MM), (-5 * MM, 2 * MM, 32 * MM)),
+        ),
+        gyro=GyroTruth(bias=(0.5 * DEG_PER_HOUR, -0.3 * DEG_PER_HOUR, 0.4 * DEG_PER_HOUR), scale=(50e-6,) * 3),
+        accel_noise=NoiseTruth(white=(15 * UG,) * 3, bias_instability=(3 * UG,) * 3),
+        gyro_noise=NoiseTruth(white=(0.005 * DEG_PER_SQRT_HOUR,) * 3, bias_instability=(0.02 * DEG_PER_HOUR,) * 3),
+    )
+
+
+__all__ = [
+    "ACCEL_PARAM_NAMES",
+    "CHANNELS",
+    "MISALIGNMENT_PAIRS",
+    "AccelTruth",
+    "ArmaDrift",
+    "GyroTruth",
+    "NoiseTruth",
+    "PeriodicTerm",
+    "ScheduledFault",
+    "SimConfig",
+    "TableModel",
+    "TemperatureModel",
+    "example_navigation_grade",
+]

@@ -1,0 +1,557 @@
+"""The simulated world: one bench clock driving a three-axis table, the inertial unit on it, and the Earth.
+
+:class:`SimulatedWorld` is the single source of simulated truth. Drivers talk to it in process
+(``drivers.sim.inprocess``) or through wire-level servers (Modbus, serial) running in other threads, so
+every public method holds one re-entrant lock.
+
+Time: the world's clock is the unit's sample clock. Sample k is taken at bench time t_k = k / f_s;
+``time`` is the time of the next sample; only :meth:`produce` advances it. Commands take effect at
+``time``; faults, limit hits and the watchdog act at sample instants, so the motion (piecewise analytic,
+``drivers.sim.motion``) and every random stream are independent of how :meth:`produce` calls are split.
+
+Frames: gimbal angles (outer ψ, middle θ, inner γ), rad, C_t^n = R_z(ψ) R_x(θ) R_y(γ) (``analysis.gimbal``),
+C_b^n = C_t^n C_b^t; navigation frame ENU; unit outputs in the body frame b.
+
+Table behaviour (simulation.md): trapezoidal moves at ``slew_fraction``·rate_max and accel_max to the
+absolute commanded angle (continuous axes report unwrapped angles), then a damped overshoot; IN_POSITION
+once the transient envelope is inside the tolerance for ``in_position_time``. Rate commands ramp at the
+acceleration limit; AT_RATE when reached. Physical rate jitter (first-order Gauss–Markov, only on axes
+spinning in rate mode) enters the unit's gyro/lever-arm physics but not the angles (its angle effect is
+σ·τ_c, far below an arcsecond). Reported angles carry white jitter and encoder quantisation. Optional
+gimbal-axis tilts (non-orthogonality) and inner-axis wobble change the true attitude and body rate (their
+effect on the angular acceleration, arcsec × ω̇, is neglected); the reported angles do not show them.
+Faults: STALL / AMPLIFIER / POSITION_LIMIT halt the axes at once; INTERLOCK / COMMUNICATION_LOST and the
+watchdog bring the table to rest under control; any latched fault makes further motion commands raise
+:class:`~drivers.protocols.TableError` until :meth:`clear_fault` (stop is always accepted). The watchdog is
+fed by :meth:`heartbeat` and by every accepted command; it trips if the table is still moving
+``watchdog`` s of bench time after the last feed.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy import signal
+
+from analysis import gimbal
+from analysis.earth import earth_rate_enu
+from drivers.imu_counts import CountScale, RawFrames
+from drivers.protocols import AxisLimits, AxisMode, FaultCode, TableError, TableState, TableStatus
+from drivers.sim.config import ACCEL_PARAM_NAMES, SimConfig
+from drivers.sim.imu_model import InertialModel, misalignment_matrix
+from drivers.sim.motion import AxisPlan, plan_hold, plan_position, plan_rate, plan_stop
+
+if TYPE_CHECKING:  # pragma: no cover
+    from benches.bench_config import BenchConfig
+
+CHUNK = 32768
+"""Samples evaluated per vectorised pass (bounds memory for long produce() calls)."""
+
+_HALTING = (FaultCode.STALL, FaultCode.AMPLIFIER, FaultCode.POSITION_LIMIT)
+
+
+def _rot_small(axis: int, angle: float) -> NDArray[np.float64]:
+    c, s = math.cos(angle), math.sin(angle)
+    if axis == 1:
+        return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+class SimulatedWorld:
+    """Simulated bench: table + inertial unit + Earth on one clock (thread-safe; see module docstring).
+
+    Parameters
+    ----------
+    config : SimConfig
+        Truth of the bench.
+    seed : int
+        Seed of every random stream (same seed → identical frames and readings, bit for bit).
+    """
+
+    def __init__(self, config: SimConfig, seed: int) -> None:
+        self._lock = threading.RLock()
+        self.cfg = config
+        self._fs = float(config.sample_rate)
+        if not self._fs > 0:
+            raise ValueError(f"sample_rate must be > 0 Hz, got {config.sample_rate}")
+        self._seed = int(seed)
+        self._k = 0
+        self._g = config.local_g
+        self._earth_n = earth_rate_enu(config.latitude)
+        self._mount = np.asarray(config.mounting, dtype=float)
+        tb = config.table
+        self._limits = tuple(tb.limits)
+        self._plans: list[AxisPlan] = [
+            plan_hold(0.0, 0.0, AxisMode.POSITION, target=0.0),
+            plan_hold(0.0, 0.0, AxisMode.POSITION, target=0.0),
+            plan_hold(0.0, 0.0, AxisMode.POSITION, target=0.0),
+        ]
+        self._fault = FaultCode.NONE
+        self._latched = TableStatus.NONE
+        self._feed_k = 0
+        self._wd_armed = True
+        self._pending = sorted(
+            (max(0, math.ceil(f.time * self._fs - 1e-9)), i, f.fault) for i, f in enumerate(config.faults)
+        )
+        root = np.random.SeedSequence(self._seed)
+        unit_ss, table_ss, reading_ss = root.spawn(3)
+        self._model = InertialModel(config, unit_ss)
+        self._rng_jitter = np.random.default_rng(table_ss)
+        self._reading_entropy = int(reading_ss.generate_state(1)[0])
+        self._jit_a = math.exp(-1.0 / (self._fs * tb.rate_jitter_tau)) if tb.rate_jitter_tau > 0 else 0.0
+        self._jit_state = np.zeros(3)
+        self._enc_lsb = 2.0 * math.pi / float(2**tb.encoder_bits) if tb.encoder_bits > 0 else 0.0
+        e1, e2 = tb.non_orthogonality
+        self._wobble = float(tb.wobble)
+        self._nonortho = (e1 != 0.0) or (e2 != 0.0) or self._wobble != 0.0
+        self._e1 = _rot_small(1, e1)
+        self._e2 = _rot_small(2, e2)
+
+    @classmethod
+    def from_bench(cls, config: BenchConfig, seed: int | None = None) -> SimulatedWorld:
+        """The world of a simulated bench file (``seed`` None: the bench's default seed)."""
+        if config.simulation is None:
+            raise ValueError(f"bench {config.name!r} ({config.path}) has no simulation section; it is a real bench")
+        return cls(config.simulation, config.simulation.seed if seed is None else seed)
+
+    # ---- properties ----------------------------------------------------------------------------------
+    @property
+    def sample_rate(self) -> float:
+        """Unit sample rate, Hz."""
+        return self._fs
+
+    @property
+    def scale(self) -> CountScale:
+        """The unit's count scale."""
+        return self.cfg.scale
+
+    @property
+    def time(self) -> float:
+        """Bench time of the next sample, s."""
+        with self._lock:
+            return self._k / self._fs
+
+    @property
+    def samples_produced(self) -> int:
+        """Sample periods elapsed since start (dropped frames included)."""
+        with self._lock:
+            return self._k
+
+    # ---- table commands ------------------------------------------------------------------------------
+    def table_limits(self) -> tuple[AxisLimits, AxisLimits, AxisLimits]:
+        """Per-axis limits (outer, middle, inner), SI."""
+        return self._limits  # type: ignore[return-value]
+
+    def _check_ready(self) -> None:
+        if self._fault != FaultCode.NONE:
+            raise TableError(f"table fault {self._fault.name} is latched; clear_fault() before commanding motion")
+
+    def command_position(self, angles: ArrayLike) -> None:
+        """Move to absolute gimbal angles (outer, middle, inner), rad.
+
+        Raises
+        ------
+        TableError
+            If a fault is latched or an angle is outside its axis's position limits (nothing moves).
+        """
+        with self._lock:
+            self._apply_due_events(self._k)
+            self._check_ready()
+            a = np.asarray(angles, dtype=float).reshape(-1)
+            if a.shape != (3,) or not np.all(np.isfinite(a)):
+                raise TableError(f"position command needs 3 finite angles (rad), got {angles!r}")
+            for i, (x, lim) in enumerate(zip(a, self._limits, strict=True)):
+                lo, hi = lim.position_min, lim.position_max
+                if (lo is not None and x < lo) or (hi is not None and x > hi):
+                    raise TableError(
+                        f"axis {i} angle {math.degrees(x):.4f}° is outside its limits "
+                        f"[{math.degrees(lo) if lo is not None else -math.inf:.4f}°, "
+                        f"{math.degrees(hi) if hi is not None else math.inf:.4f}°]"
+                    )
+            t = self._k / self._fs
+            tb = self.cfg.table
+            for i in range(3):
+                p0, v0 = self._plans[i].state(t)
+                self._plans[i] = plan_position(
+                    t,
+                    p0,
+                    v0,
+                    float(a[i]),
+                    self._limits[i],
+                    slew_fraction=tb.slew_fraction,
+                    overshoot=tb.overshoot,
+                    settle_frequency_hz=tb.settle_frequency_hz,
+                    settle_time_constant=tb.settle_time_constant,
+                    tolerance=tb.position_tolerance,
+                    in_position_time=tb.in_position_time,
+                )
+            self._feed()
+
+    def command_rate(self, axis: int, rate: float) -> None:
+        """Spin gimbal ``axis`` (0 outer, 1 middle, 2 inner) at ``rate`` rad/s (signed); others unchanged.
+
+        Raises
+        ------
+        TableError
+            If a fault is latched, the axis is not 0–2, or |rate| exceeds the axis rate limit.
+        """
+        with self._lock:
+            self._apply_due_events(self._k)
+            self._check_ready()
+            if axis not in (0, 1, 2):
+                raise TableError(f"axis must be 0 (outer), 1 (middle) or 2 (inner), got {axis!r}")
+            rate = float(rate)
+            lim = self._limits[axis]
+            if not math.isfinite(rate) or abs(rate) > lim.rate_max * (1 + 1e-12):
+                raise TableError(
+                    f"rate {math.degrees(rate):.4f} °/s on axis {axis} exceeds its limit "
+                    f"{math.degrees(lim.rate_max):.4f} °/s"
+                )
+            t = self._k / self._fs
+            p0, v0 = self._plans[axis].state(t)
+            self._plans[axis] = plan_rate(t, p0, v0, rate, lim)
+            self._feed()
+
+    def command_stop(self) -> None:
+        """Decelerate every axis to rest at its acceleration limit (always accepted)."""
+        with self._lock:
+            self._apply_due_events(self._k)
+            self._controlled_stop(self._k / self._fs)
+            self._feed()
+
+    def clear_fault(self) -> None:
+        """Reset a latched fault and its status bits (the table stays as it is: at rest after a fault)."""
+        with self._lock:
+            self._apply_due_events(self._k)
+            self._fault = FaultCode.NONE
+            self._latched = TableStatus.NONE
+
+    def heartbeat(self) -> None:
+        """Feed the bench-time watchdog (too late if its deadline is already reached at this sample)."""
+        with self._lock:
+            self._apply_due_events(self._k)
+            self._feed()
+
+    def inject_fault(self, fault: FaultCode) -> None:
+        """Latch ``fault`` now (STALL/AMPLIFIER/POSITION_LIMIT halt at once; others stop under control)."""
+        with self._lock:
+            self._apply_fault(FaultCode(fault), self._k)
+
+    # ---- readings ------------------------------------------------------------------------------------
+    def table_state(self) -> TableState:
+        """Controller reading at the current bench time (angles jittered + encoder-quantised, unwrapped)."""
+        with self._lock:
+            self._apply_due_events(self._k)
+            t = self._k / self._fs
+            tt = np.array([t])
+            p = np.empty(3)
+            v = np.empty(3)
+            for i, plan in enumerate(self._plans):
+                pi, vi, _ = plan.evaluate(tt)
+                p[i], v[i] = pi[0], vi[0]
+            v = v + self._jit_state * self._spin_mask()
+            tb = self.cfg.table
+            if tb.position_jitter > 0:
+                rng = np.random.default_rng([self._reading_entropy, self._k])
+                p = p + rng.standard_normal(3) * tb.position_jitter
+            if self._enc_lsb > 0:
+                p = np.rint(p / self._enc_lsb) * self._enc_lsb
+            return TableState(
+                time=t,
+                angles=p,
+                rates=v,
+                status=self._status(t),
+                fault_code=self._fault,
+                modes=tuple(pl.mode for pl in self._plans),  # type: ignore[arg-type]
+            )
+
+    def _status(self, t: float) -> TableStatus:
+        st = TableStatus.REMOTE | self._latched
+        if any(t < pl.t_still for pl in self._plans):
+            st |= TableStatus.MOVING
+        pos = [pl for pl in self._plans if pl.mode == AxisMode.POSITION]
+        if pos and all(t >= pl.t_done for pl in pos):
+            st |= TableStatus.IN_POSITION
+        rate = [pl for pl in self._plans if pl.mode == AxisMode.RATE]
+        if rate and all(t >= pl.t_done for pl in rate):
+            st |= TableStatus.AT_RATE
+        if self._fault != FaultCode.NONE:
+            st |= TableStatus.FAULT
+        return st
+
+    # ---- sample generation ---------------------------------------------------------------------------
+    def produce(self, n: int) -> RawFrames:
+        """Advance the clock by ``n`` sample periods; return the frames emitted (fewer if frames drop)."""
+        n = int(n)
+        if n < 0:
+            raise ValueError(f"n must be >= 0, got {n}")
+        with self._lock:
+            parts: list[RawFrames] = []
+            k_end = self._k + n
+            while self._k < k_end:
+                k = self._k
+                self._apply_due_events(k)
+                k1 = min(k_end, self._next_event(k), k + CHUNK)
+                idx = np.arange(k, k1, dtype=np.int64)
+                t = idx / self._fs
+                ang, rat, acc = self._evaluate(t)
+                hit = self._limit_hit(ang)
+                if hit is not None:
+                    j, axis = hit
+                    if j == 0:
+                        self._limit_fault(axis, k)
+                        continue
+                    k1 = k + j
+                    t, ang, rat, acc = t[:j], ang[:j], rat[:j], acc[:j]
+                parts.append(self._frames(k, t, ang, rat, acc))
+                self._k = k1
+                if hit is not None:
+                    self._limit_fault(hit[1], k1)
+            return _concat(parts)
+
+    def _evaluate(self, t: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
+        n = t.shape[0]
+        ang, rat, acc = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
+        for i, plan in enumerate(self._plans):
+            ang[:, i], rat[:, i], acc[:, i] = plan.evaluate(t)
+        return ang, rat, acc
+
+    def _spin_mask(self) -> NDArray[np.float64]:
+        return np.array([1.0 if (pl.mode == AxisMode.RATE and pl.rate_cmd != 0.0) else 0.0 for pl in self._plans])
+
+    def _frames(
+        self,
+        k: int,
+        t: NDArray[np.float64],
+        ang: NDArray[np.float64],
+        rat: NDArray[np.float64],
+        acc: NDArray[np.float64],
+    ) -> RawFrames:
+        n = t.shape[0]
+        tb = self.cfg.table
+        w = self._rng_jitter.standard_normal((n, 3))
+        mask = self._spin_mask()
+        if tb.rate_jitter > 0 and np.any(mask):
+            a = self._jit_a
+            x, _ = signal.lfilter(
+                [1.0], [1.0, -a], w * (tb.rate_jitter * math.sqrt(1 - a * a)), axis=0, zi=a * self._jit_state[None, :]
+            )
+            self._jit_state = x[-1].copy()
+            rat = rat + x * mask
+        else:
+            self._jit_state = np.zeros(3)
+        if not np.any(rat) and not np.any(acc) and not np.any(ang[1:] != ang[0]):
+            # at rest during the whole chunk: one attitude, broadcast (identical values, less work)
+            c1, _, _ = self._kinematics(ang[:1], rat[:1], acc[:1])
+            f0 = np.broadcast_to(self._g * c1[0, 2, :], (n, 3))
+            earth_b = np.broadcast_to(self._earth_n @ c1[0], (n, 3))
+            omega = alpha = np.zeros((n, 3))
+        else:
+            c_bn, omega, alpha = self._kinematics(ang, rat, acc)
+            f0 = self._g * c_bn[:, 2, :]
+            earth_b = self._earth_n @ c_bn
+        return self._model.frames(k, f0, omega, alpha, earth_b)
+
+    def _kinematics(
+        self, ang: NDArray[np.float64], rat: NDArray[np.float64], acc: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """C_b^n (n,3,3), body rate ω^b (n,3) rad/s and angular acceleration ω̇^b (n,3) rad/s² (w.r.t. Earth)."""
+        th, ga = ang[:, 1], ang[:, 2]
+        psid, thd, gad = rat[:, 0], rat[:, 1], rat[:, 2]
+        psidd, thdd, gadd = acc[:, 0], acc[:, 1], acc[:, 2]
+        sth, cth = np.sin(th), np.cos(th)
+        sg, cg = np.sin(ga), np.cos(ga)
+        # perfect gimbals: ω^t = R_y(γ)ᵀ [θ̇, ψ̇ sθ, ψ̇ cθ] + γ̇ e_y, and its time derivative
+        v1x, v1z = thd, psid * cth
+        d1x, d1y, d1z = thdd, psidd * sth + psid * thd * cth, psidd * cth - psid * thd * sth
+        alpha_t = np.stack(
+            [
+                cg * d1x - sg * d1z - gad * (sg * v1x + cg * v1z),
+                d1y + gadd,
+                sg * d1x + cg * d1z + gad * (cg * v1x - sg * v1z),
+            ],
+            -1,
+        )
+        if not self._nonortho:
+            c_tn = gimbal.table_to_nav(ang)
+            omega_t = gimbal.table_rate(ang, rat)
+        else:
+            # C_t^n = R_z(ψ) E1 R_x(θ) E2 W_x W_z R_y(γ): E1, E2 the axis tilts, W_x = R_x(w cos γ),
+            # W_z = R_z(w sin γ) the inner-axis wobble (a tilt whose direction turns once per inner revolution).
+            # Each factor's rate q̇_k a_k contributes (product of the later factors)ᵀ q̇_k a_k to ω^t.
+            rz = gimbal._rz(ang[:, 0])
+            rx = gimbal._rx(th)
+            ry = gimbal._ry(ga)
+            wz_ry = gimbal._rz(self._wobble * sg) @ ry
+            inner = self._e2 @ gimbal._rx(self._wobble * cg) @ wz_ry  # C_t^m
+            mid = self._e1 @ rx @ inner  # C_t^o
+            c_tn = rz @ mid
+            ez = np.array([0.0, 0.0, 1.0])
+            ex = np.array([1.0, 0.0, 0.0])
+            omega_t = (
+                psid[:, None] * np.einsum("nij,i->nj", mid, ez)
+                + thd[:, None] * np.einsum("nij,i->nj", inner, ex)
+                - (self._wobble * sg * gad)[:, None] * np.einsum("nij,i->nj", wz_ry, ex)
+                + (self._wobble * cg * gad)[:, None] * np.einsum("nij,i->nj", ry, ez)
+                + np.stack([np.zeros_like(gad), gad, np.zeros_like(gad)], -1)
+            )
+            # ω̇ from perfect-gimbal kinematics (the arcsec-level tilt/wobble effect on ω̇ is neglected)
+        c_bn = c_tn @ self._mount
+        omega_b = omega_t @ self._mount
+        alpha_b = alpha_t @ self._mount
+        return c_bn, omega_b, alpha_b
+
+    # ---- events --------------------------------------------------------------------------------------
+    def _feed(self) -> None:
+        self._feed_k = self._k
+        self._wd_armed = True
+
+    def _watchdog_index(self) -> int | None:
+        wd = self.cfg.table.watchdog
+        if not wd or not self._wd_armed:
+            return None
+        return self._feed_k + max(1, math.ceil(wd * self._fs - 1e-9))
+
+    def _next_event(self, k: int) -> int:
+        cand = [kk for kk, _, _ in self._pending if kk > k]
+        w = self._watchdog_index()
+        if w is not None and w > k:
+            cand.append(w)
+        return min(cand) if cand else k + CHUNK
+
+    def _apply_due_events(self, k: int) -> None:
+        while self._pending and self._pending[0][0] <= k:
+            kk, _, fault = self._pending.pop(0)
+            self._apply_fault(fault, kk)
+        w = self._watchdog_index()
+        if w is not None and w <= k:
+            self._wd_armed = False
+            t = w / self._fs
+            if any(t < pl.t_still for pl in self._plans):
+                self._controlled_stop(t)
+                self._latch(FaultCode.COMMUNICATION_LOST, TableStatus.WATCHDOG)
+
+    def _latch(self, fault: FaultCode, bits: TableStatus) -> None:
+        if self._fault == FaultCode.NONE:
+            self._fault = fault
+        self._latched |= bits
+
+    def _controlled_stop(self, t: float) -> None:
+        for i in range(3):
+            p0, v0 = self._plans[i].state(t)
+            self._plans[i] = plan_stop(t, p0, v0, self._limits[i])
+
+    def _halt(self, t: float, axes: Sequence[int] = (0, 1, 2)) -> None:
+        for i in axes:
+            p0, _ = self._plans[i].state(t)
+            self._plans[i] = plan_hold(t, p0)
+
+    def _apply_fault(self, fault: FaultCode, k: int) -> None:
+        if fault == FaultCode.NONE:
+            return
+        t = k / self._fs
+        if fault in _HALTING:
+            self._halt(t)
+        else:
+            self._controlled_stop(t)
+        bits = {
+            FaultCode.POSITION_LIMIT: TableStatus.LIMIT,
+            FaultCode.RATE_LIMIT: TableStatus.LIMIT,
+            FaultCode.ACCELERATION_LIMIT: TableStatus.LIMIT,
+            FaultCode.INTERLOCK: TableStatus.INTERLOCK_OPEN,
+            FaultCode.COMMUNICATION_LOST: TableStatus.WATCHDOG,
+        }.get(fault, TableStatus.NONE)
+        self._latch(fault, bits)
+
+    def _limit_hit(self, ang: NDArray[np.float64]) -> tuple[int, int] | None:
+        first: tuple[int, int] | None = None
+        for i, lim in enumerate(self._limits):
+            if lim.position_min is None and lim.position_max is None:
+                continue
+            if self._plans[i].mode == AxisMode.POSITION:
+                continue  # commanded targets are inside the limits; a settling overshoot is not a limit hit
+            lo = -math.inf if lim.position_min is None else lim.position_min
+            hi = math.inf if lim.position_max is None else lim.position_max
+            bad = np.flatnonzero((ang[:, i] < lo) | (ang[:, i] > hi))
+            if bad.size and (first is None or bad[0] < first[0]):
+                first = (int(bad[0]), i)
+        return first
+
+    def _limit_fault(self, axis: int, k: int) -> None:
+        """Axis ``axis`` crossed a position limit at sample ``k``: hold it at the limit, stop the others."""
+        t = k / self._fs
+        lim = self._limits[axis]
+        p, _ = self._plans[axis].state(t)
+        lo = -math.inf if lim.position_min is None else lim.position_min
+        hi = math.inf if lim.position_max is None else lim.position_max
+        self._plans[axis] = plan_hold(t, min(max(p, lo), hi))
+        others = [i for i in range(3) if i != axis]
+        for i in others:
+            p0, v0 = self._plans[i].state(t)
+            self._plans[i] = plan_stop(t, p0, v0, self._limits[i])
+        self._latch(FaultCode.POSITION_LIMIT, TableStatus.LIMIT)
+
+    # ---- truth ---------------------------------------------------------------------------------------
+    def truth(self) -> dict[str, float]:
+        """The 18 accelerometer-model parameters by name, SI (r_i = −ρ_{i,i})."""
+        a = self.cfg.accel
+        rho = np.asarray(a.lever_arms, dtype=float)
+        vals = [*a.bias, *a.scale, *a.misalignment, *a.quadratic, *(-np.diag(rho))]
+        return {name: float(v) for name, v in zip(ACCEL_PARAM_NAMES, vals, strict=True)}
+
+    def truth_arrays(self) -> dict[str, NDArray[np.float64]]:
+        """Everything else the simulator knows, SI, body frame (lever arms, gyro errors, noise, site…)."""
+        c = self.cfg
+        out = {
+            "accel_bias": np.asarray(c.accel.bias, float),
+            "accel_scale": np.asarray(c.accel.scale, float),
+            "accel_misalignment": misalignment_matrix(c.accel.misalignment),
+            "accel_quadratic": np.asarray(c.accel.quadratic, float),
+            "lever_arms": np.asarray(c.accel.lever_arms, float),
+            "gyro_bias": np.asarray(c.gyro.bias, float),
+            "gyro_scale": np.asarray(c.gyro.scale, float),
+            "gyro_misalignment": misalignment_matrix(c.gyro.misalignment),
+            "gyro_g_sensitivity": np.asarray(c.gyro.g_sensitivity, float),
+            "accel_white": np.asarray(c.accel_noise.white, float),
+            "accel_bias_instability": np.asarray(c.accel_noise.bias_instability, float),
+            "accel_random_walk": np.asarray(c.accel_noise.random_walk, float),
+            "gyro_white": np.asarray(c.gyro_noise.white, float),
+            "gyro_bias_instability": np.asarray(c.gyro_noise.bias_instability, float),
+            "gyro_random_walk": np.asarray(c.gyro_noise.random_walk, float),
+            "mounting": np.asarray(c.mounting, float),
+            "g": np.array(self._g),
+            "latitude": np.array(c.latitude),
+            "earth_rate_enu": self._earth_n.copy(),
+            "non_orthogonality": np.asarray(c.table.non_orthogonality, float),
+            "wobble": np.array(c.table.wobble),
+        }
+        if c.periodic:
+            out["periodic_frequency_hz"] = np.array([p.frequency_hz for p in c.periodic])
+            out["periodic_amplitude"] = np.array([p.amplitude for p in c.periodic])
+            out["periodic_phase"] = np.array([p.phase for p in c.periodic])
+        return out
+
+
+def _concat(parts: list[RawFrames]) -> RawFrames:
+    if len(parts) == 1:
+        return parts[0]
+    if not parts:
+        return RawFrames(
+            counter=np.zeros(0, np.uint32),
+            timestamp_ns=np.zeros(0, np.uint64),
+            counts=np.zeros((0, 6), np.int32),
+            temperature=np.zeros(0, np.int16),
+            status=np.zeros(0, np.uint16),
+        )
+    return RawFrames(
+        counter=np.concatenate([p.counter for p in parts]),
+        timestamp_ns=np.concatenate([p.timestamp_ns for p in parts]),
+        counts=np.concatenate([p.counts for p in parts]),
+        temperature=np.concatenate([p.temperature for p in parts]),
+        status=np.concatenate([p.status for p in parts]),
+    )
