@@ -151,6 +151,7 @@ class UnitSpec:
     mounting: np.ndarray
     noise: NoiseSpec
     prior: dict[str, float] = field(default_factory=dict)
+    latency: float = 0.0  # s: output latency (anti-alias group delay) from the datasheet
 
 
 @dataclass(frozen=True)
@@ -365,6 +366,7 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
             "model",
             "serial_number",
             "sample_rate_hz",
+            "latency_ms",
             "scale",
             "mounting",
             "noise",
@@ -413,6 +415,7 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
         mounting=mount,
         noise=noise,
         prior=prior,
+        latency=get_number(d, smap, p, "latency_ms", 0.0, minimum=0.0, maximum=1000.0) * 1e-3,
     )
 
 

@@ -66,6 +66,15 @@ def configured_noise_variance(config: Any) -> NDArray[np.float64]:
     return np.asarray(config.unit.noise.vrw, dtype=float) ** 2 * float(config.unit.sample_rate)
 
 
+def unit_latency(config: Any) -> float:
+    """The unit's output latency (group delay of its anti-alias filter), s, from the bench file (0 if absent).
+
+    The sample stamped t measures the specific force of about t − latency, so the table reference is
+    evaluated there; during a spin at ω an unaccounted latency δ turns the reference by ω·δ.
+    """
+    return float(getattr(config.unit, "latency", 0.0) or 0.0)
+
+
 def bias_stability(config: Any) -> NDArray[np.float64]:
     """Bias instability per axis, m/s² (the per-step unmodelled DC offset of the error budget)."""
     return np.asarray(config.unit.noise.bias_instability, dtype=float)
@@ -142,9 +151,9 @@ def plan_for(compiled: Any, config: Any) -> IdentificationPlan:
 class LiveIdentifier:
     """Runner observer feeding the streaming Kalman filter block by block as the run goes.
 
-    The reference for each block's samples interpolates between the previous table reading and the one
-    taken after the block — the same readings offline identification interpolates, so the live result
-    equals the offline one (Q = 0).
+    The reference for each block's samples interpolates the last few table readings (up to the one taken
+    after the block) at the sample times less the unit's latency — the same readings offline identification
+    interpolates, so the live result equals the offline one (Q = 0).
     """
 
     def __init__(self, config: Any, progress: Any | None = None, show: tuple[str, ...] = ("b_z", "S_z", "r_x")) -> None:
@@ -152,20 +161,23 @@ class LiveIdentifier:
         self.filter = StreamingIdentifier(
             configured_noise_variance(config), prior_covariance(config), sample_rate=config.unit.sample_rate
         )
-        self._prev: TableState | None = None
+        self._readings: list[TableState] = []
+        self.latency = unit_latency(config)
         self.progress = progress
         self.show = show
 
     def on_block(self, step: Any, block: ImuBlock, table: TableState, counts: bool) -> None:
         """Fuse the block if it is inside a hold/spin acquisition window."""
-        prev, self._prev = self._prev, table
+        self._readings.append(table)
+        del self._readings[:-4]
         if not counts or step.kind not in ACQUISITION_KINDS or len(block) == 0:
             return
-        if prev is None:
-            prev = table
-        tt = np.array([prev.time, table.time])
+        rd = self._readings
         angles, rates = interpolate_table(
-            block.time, tt, np.stack([prev.angles, table.angles]), np.stack([prev.rates, table.rates])
+            block.time - self.latency,
+            np.array([r.time for r in rd]),
+            np.stack([r.angles for r in rd]),
+            np.stack([r.rates for r in rd]),
         )
         f_ref, omega = reference_at(angles, rates, self.config.site.g, self.config.unit.mounting)
         self.filter.update(block.accel, f_ref, omega, step.name, t=block.time)
@@ -242,6 +254,7 @@ def load_run(run: str | Path) -> RecordedRun:
         table_t = f["table/time"][()]
         table_a = f["table/angles"][()]
         table_r = f["table/rates"][()]
+        latency = unit_latency(config)
         windows: list[StepWindow] = []
         warm: NDArray[np.float64] | None = None
         incomplete = [s.name for s in steps if s.status != "complete"]
@@ -259,7 +272,7 @@ def load_run(run: str | Path) -> RecordedRun:
                 continue
             t = f["imu/time"][s.acq_start : s.acq_end]
             fo = f["imu/accel"][s.acq_start : s.acq_end]
-            ang, rat = interpolate_table(t, table_t, table_a, table_r)
+            ang, rat = interpolate_table(t - latency, table_t, table_a, table_r)
             fr, om = reference_at(ang, rat, config.site.g, config.unit.mounting)
             windows.append(StepWindow(s.name, s.kind, t, fo, fr, om))
         truth = None
