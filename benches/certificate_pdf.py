@@ -1,0 +1,470 @@
+"""Render a :class:`benches.certificate.Certificate` to PDF bytes with fpdf2.
+
+Fonts: DejaVu Sans from matplotlib's bundled fonts (``matplotlib/mpl-data/fonts/ttf``), embedded as subsets
+(µ, σ, ″, ², ω, ∘ …); nothing is copied into the project. Determinism: the PDF creation date is the
+certificate's ``creation_date`` (the recording's creation time), so equal certificates give equal bytes.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import io
+import math
+from pathlib import Path
+
+import matplotlib
+from fpdf import FPDF, FontFace, XPos, YPos
+
+from .certificate import MODEL_TEXT, SIGN_CONVENTIONS, Certificate
+
+_FONT = "DejaVu"
+_GREY = (235, 235, 235)
+_DARK = (30, 45, 80)
+_VERDICT_COLOURS = {
+    "PASS": (30, 120, 50),
+    "FAIL": (170, 25, 25),
+    "INCOMPLETE": (190, 110, 0),
+    "INCONCLUSIVE": (190, 110, 0),
+    "NO LIMITS": (90, 90, 90),
+}
+_COMPONENT_SHORT = {
+    "estimation": "Estimation",
+    "bias_instability": "Bias inst.",
+    "attitude": "Attitude",
+    "local_g": "Local g",
+    "model_mismatch": "Mismatch",
+}
+LAB_NAME = "tablebench calibration laboratory"
+
+
+def _font_dir() -> Path:
+    return Path(matplotlib.get_data_path()) / "fonts" / "ttf"
+
+
+class _CertificatePdf(FPDF):
+    """A4 portrait with the certificate's header line and footer on every page."""
+
+    def __init__(self, cert: Certificate) -> None:
+        super().__init__(orientation="P", unit="mm", format="A4")
+        self.cert = cert
+        d = _font_dir()
+        self.add_font(_FONT, "", str(d / "DejaVuSans.ttf"))
+        self.add_font(_FONT, "B", str(d / "DejaVuSans-Bold.ttf"))
+        self.add_font(_FONT, "I", str(d / "DejaVuSans-Oblique.ttf"))
+        self.set_margins(15, 15, 15)
+        self.set_auto_page_break(True, margin=18)
+        self.alias_nb_pages()
+
+    def header(self) -> None:
+        if self.page_no() == 1:
+            return
+        self.set_font(_FONT, "", 7.5)
+        self.set_text_color(90, 90, 90)
+        self.cell(0, 4, f"Calibration certificate {self.cert.number} — issued {self.cert.issue_date}", align="L")
+        self.set_x(self.l_margin)
+        self.cell(
+            0, 4, f"Unit {self.cert.unit.get('serial_number', '')}", align="R", new_x=XPos.LMARGIN, new_y=YPos.NEXT
+        )
+        self.set_draw_color(*_DARK)
+        self.line(self.l_margin, self.get_y() + 0.5, self.w - self.r_margin, self.get_y() + 0.5)
+        self.ln(4)
+        self.set_text_color(0, 0, 0)
+
+    def footer(self) -> None:
+        self.set_y(-13)
+        self.set_font(_FONT, "", 7)
+        self.set_text_color(90, 90, 90)
+        self.cell(
+            0,
+            4,
+            f"{self.cert.number} · This certificate shall not be reproduced except in full without the written "
+            "approval of the issuing laboratory.",
+            align="L",
+        )
+        self.set_x(self.l_margin)
+        self.cell(0, 4, f"Page {self.page_no()} of {{nb}}", align="R")
+        self.set_text_color(0, 0, 0)
+
+    # ---- building blocks ---------------------------------------------------------------------------------
+    def section(self, title: str) -> None:
+        if self.get_y() > self.h - 40:
+            self.add_page()
+        self.ln(2)
+        self.set_font(_FONT, "B", 10.5)
+        self.set_text_color(*_DARK)
+        self.cell(0, 6, title, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+        self.set_draw_color(*_DARK)
+        self.line(self.l_margin, self.get_y(), self.w - self.r_margin, self.get_y())
+        self.ln(1.5)
+        self.set_text_color(0, 0, 0)
+        self.set_font(_FONT, "", 8.5)
+
+    def para(self, text: str, size: float = 8.5, style: str = "") -> None:
+        self.set_font(_FONT, style, size)
+        self.multi_cell(0, size * 0.48, text, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+
+    def key_values(self, rows: list[tuple[str, str]], key_w: float = 45.0) -> None:
+        self.set_font(_FONT, "", 8.5)
+        self.set_fill_color(255, 255, 255)
+        self.set_draw_color(150, 150, 150)
+        with self.table(
+            col_widths=(key_w, self.epw - key_w),
+            first_row_as_headings=False,
+            line_height=4.4,
+            borders_layout="HORIZONTAL_LINES",
+            text_align=("LEFT", "LEFT"),
+            padding=(0.8, 1.2),
+        ) as table:
+            for k, v in rows:
+                r = table.row()
+                r.cell(k, style=FontFace(emphasis="BOLD"))
+                r.cell(v)
+
+    def grid(
+        self, head: list[str], rows: list[list[str]], widths: tuple[float, ...], align: tuple[str, ...], size: float
+    ) -> None:
+        self.set_font(_FONT, "", size)
+        self.set_fill_color(255, 255, 255)
+        self.set_draw_color(120, 120, 120)
+        with self.table(
+            col_widths=widths,
+            text_align=align,
+            line_height=size * 0.5,
+            headings_style=FontFace(emphasis="BOLD", fill_color=_GREY),
+            borders_layout="SINGLE_TOP_LINE",
+            padding=(0.6, 1.0),
+            width=self.epw,
+        ) as table:
+            r = table.row()
+            for h in head:
+                r.cell(h)
+            for row in rows:
+                r = table.row()
+                for c in row:
+                    r.cell(c)
+
+    def figure(self, png: bytes, width: float | None = None) -> None:
+        w = width or self.epw
+        self.image(io.BytesIO(png), x=self.l_margin + (self.epw - w) / 2, w=w)
+        self.ln(2)
+
+
+def _fmt_opt(v: object, spec: str, suffix: str = "") -> str:
+    return "—" if v is None else f"{format(float(v), spec)}{suffix}"  # type: ignore[arg-type]
+
+
+def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
+    pdf.add_page()
+    # title block
+    pdf.set_fill_color(*_DARK)
+    pdf.rect(pdf.l_margin, 12, pdf.epw, 20, style="F")
+    pdf.set_xy(pdf.l_margin + 4, 14)
+    pdf.set_text_color(255, 255, 255)
+    pdf.set_font(_FONT, "B", 17)
+    pdf.cell(110, 8, "CALIBRATION CERTIFICATE")
+    pdf.set_font(_FONT, "", 8.5)
+    pdf.set_xy(pdf.l_margin + 115, 14.5)
+    pdf.multi_cell(
+        pdf.epw - 119,
+        4.2,
+        f"Certificate No. {c.number}\nIssue date {c.issue_date}\nPage 1 of {{nb}}",
+        align="R",
+    )
+    pdf.set_xy(pdf.l_margin + 4, 23)
+    pdf.set_font(_FONT, "", 9)
+    pdf.cell(110, 6, "Accelerometer triad — three-axis turntable calibration")
+    pdf.set_text_color(0, 0, 0)
+    pdf.set_y(35)
+    pdf.set_font(_FONT, "", 8)
+    pdf.cell(0, 4, f"Issued by: {LAB_NAME}", new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+    if c.bench.get("simulated"):
+        pdf.set_font(_FONT, "B", 8)
+        pdf.set_text_color(120, 60, 0)
+        pdf.cell(0, 4, "SIMULATED BENCH: the measurements come from the physics simulator, not a physical unit.",
+                 new_x=XPos.LMARGIN, new_y=YPos.NEXT)  # fmt: skip
+        pdf.set_text_color(0, 0, 0)
+    pdf.ln(1.5)
+    if not c.complete:
+        pdf.set_fill_color(255, 236, 200)
+        pdf.set_draw_color(190, 110, 0)
+        pdf.set_line_width(0.6)
+        pdf.set_font(_FONT, "B", 10)
+        pdf.set_text_color(150, 70, 0)
+        pdf.multi_cell(
+            0,
+            5.2,
+            "INCOMPLETE RUN — issued with --allow-incomplete: "
+            f"{c.incomplete_reason}. The results use only the completed steps and may not cover every "
+            "parameter; this is not a full calibration.",
+            border=1,
+            fill=True,
+            padding=2,
+            align="L",
+            new_x=XPos.LMARGIN,
+            new_y=YPos.NEXT,
+        )
+        pdf.set_line_width(0.2)
+        pdf.set_text_color(0, 0, 0)
+        pdf.ln(2)
+    # verdict box
+    col = _VERDICT_COLOURS.get(c.verdict, (90, 90, 90))
+    pdf.set_draw_color(*col)
+    pdf.set_line_width(0.8)
+    y0 = pdf.get_y()
+    pdf.set_font(_FONT, "B", 14)
+    pdf.set_text_color(*col)
+    label = {
+        "NO LIMITS": "NO CONFORMITY STATEMENT (no limits in the bench file)",
+        "INCONCLUSIVE": "INCONCLUSIVE (conformity not established)",
+        "INCOMPLETE": "INCOMPLETE RUN (no conformity statement)",
+    }.get(c.verdict, c.verdict)
+    pdf.cell(0, 9, f"  Result: {label}", border=1, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+    pdf.set_line_width(0.2)
+    pdf.set_text_color(0, 0, 0)
+    if c.reasons:
+        pdf.set_font(_FONT, "", 8.5)
+        for r in c.reasons:
+            pdf.multi_cell(0, 4.2, f"• {r}", new_x=XPos.LMARGIN, new_y=YPos.NEXT, align="L")
+    elif c.verdict == "PASS":
+        pdf.set_font(_FONT, "", 8.5)
+        pdf.cell(0, 5, "Every parameter with a limit in the bench file is within it (decision rule: page 2).",
+                 new_x=XPos.LMARGIN, new_y=YPos.NEXT)  # fmt: skip
+    del y0
+    pdf.ln(1)
+    b, rec, proc = c.bench, c.recording, c.procedure
+    temp = c.environment.get("unit_temperature_c") or {}
+    temp_txt = (
+        f"{temp['mean']:.2f} °C mean (min {temp['min']:.2f} °C, max {temp['max']:.2f} °C), unit's internal sensor"
+        if temp
+        else "not recorded"
+    )
+    info = c.identification.get("information") or {}
+    noise = c.identification.get("measurement_noise") or {}
+    lat = b.get("latitude_deg")
+    site_txt = ", ".join(
+        x
+        for x in (
+            str(b.get("site") or ""),
+            _fmt_opt(lat, ".4f", "° latitude") if lat is not None else "",
+            _fmt_opt(b.get("height_m"), ".1f", " m height") if b.get("height_m") is not None else "",
+        )
+        if x
+    )
+    unit_txt = f"Accelerometer triad {c.unit.get('model', '')}, serial No. {c.unit.get('serial_number', '')}"
+    bench_txt = (
+        f"{b.get('name', '')}: turntable {b.get('table_model', '')}, serial No. {b.get('table_serial_number', '')}; "
+        f"attitude accuracy ±{b.get('attitude_accuracy_arcsec', 0):.2f}″"
+    )
+    g_txt = f"{b['g']:.6f} m/s² — {b.get('g_source', '')}; standard uncertainty {b.get('g_uncertainty', 0):.1e} m/s²"
+    rec_txt = (
+        f"{rec.get('file')} ({rec.get('status')}, {rec.get('steps_complete')}/{rec.get('steps')} steps, "
+        f"{rec.get('samples')} samples at {rec.get('sample_rate_hz', 0):g} Hz, "
+        f"{rec.get('duration_s', 0) / 60:.1f} min)\nSHA-256 {rec.get('sha256')}"
+    )
+    ident_txt = (
+        f"{c.identification.get('method', '')} estimator over {len(c.identification.get('steps_used', []))} steps; "
+        f"information rank {info.get('rank', '?')}, condition {_fmt_opt(info.get('condition'), '.3g')}; "
+        f"noise {noise.get('source', '?')}"
+    )
+    sw_txt = f"tablebench {c.software_version} (certificate); recording by tablebench {rec.get('software_version', '')}"
+    pdf.key_values(
+        [
+            ("Item calibrated", unit_txt),
+            ("Calibration bench", bench_txt),
+            ("Site", site_txt or "—"),
+            ("Local gravity g", g_txt),
+            ("Procedure", f"{proc.get('name', '')}; SHA-256 of its text: {proc.get('sha256', '')}"),
+            ("Date of calibration", f"{rec.get('created_utc', '')} to {rec.get('updated_utc', '') or '—'} (UTC)"),
+            ("Environment", f"Unit temperature {temp_txt}"),
+            ("Recording", rec_txt),
+            ("Identification", ident_txt),
+            ("Software", sw_txt),
+        ]
+    )
+    pdf.ln(2)
+    pdf.para(
+        "The expanded uncertainties reported are the combined standard uncertainties multiplied by the coverage "
+        f"factor k = {c.coverage_factor:g}, which for a normal distribution corresponds to a coverage probability of "
+        "approximately 95 %. The standard uncertainties were determined in accordance with the GUM (JCGM 100:2008). "
+        "The results relate only to the item calibrated, at the conditions stated.",
+        size=7.8,
+    )
+    _signature_block(pdf)
+
+
+def _signature_block(pdf: _CertificatePdf) -> None:
+    if pdf.get_y() > pdf.h - 55:
+        pdf.add_page()
+    pdf.set_y(max(pdf.get_y() + 4, pdf.h - 52))
+    pdf.set_font(_FONT, "B", 9)
+    half = pdf.epw / 2
+    y = pdf.get_y()
+    for i, title in enumerate(("Calibrated by", "Approved by (authorised signatory)")):
+        x = pdf.l_margin + i * half
+        pdf.set_xy(x, y)
+        pdf.set_font(_FONT, "B", 9)
+        pdf.cell(half - 6, 5, title)
+        pdf.set_font(_FONT, "", 8)
+        for k, label in enumerate(("Name", "Signature", "Date")):
+            yy = y + 12 + k * 9
+            pdf.set_xy(x, yy - 4)
+            pdf.cell(20, 4, label)
+            pdf.set_draw_color(120, 120, 120)
+            pdf.line(x + 20, yy, x + half - 8, yy)
+
+
+def _results_page(pdf: _CertificatePdf, c: Certificate) -> None:
+    pdf.add_page()
+    pdf.section("Error model and sign conventions")
+    pdf.para(f"Per sample, in the body frame:   {MODEL_TEXT}", style="B", size=9)
+    pdf.ln(1)
+    for line in SIGN_CONVENTIONS:
+        pdf.para(f"• {line}", size=7.8)
+    pdf.section("Results")
+    rows = []
+    for p in c.parameters:
+        lim = "—" if p.display_limit is None else f"±{p.display_limit:.4g}"
+        rows.append(
+            [
+                p.name,
+                p.value_text,
+                p.expanded_text,
+                p.display_unit,
+                lim,
+                "yes" if p.identifiable else "NO",
+                p.verdict,
+            ]
+        )
+    pdf.grid(
+        ["Parameter", "Value", f"U (k = {c.coverage_factor:g})", "Unit", "Limit", "Identified", "Result"],
+        rows,
+        (20, 28, 28, 18, 24, 20, 42),
+        ("LEFT", "RIGHT", "RIGHT", "LEFT", "RIGHT", "CENTER", "LEFT"),
+        8.2,
+    )
+    pdf.ln(1.5)
+    pdf.para(
+        "Decision rule (ILAC-G8:09/2019, simple acceptance): a parameter passes when |value| ≤ limit. "
+        '"PASS (conditional)": the value is within the limit but the expanded uncertainty interval extends beyond '
+        "it. A parameter not identified by the procedure, or with U ≥ limit, cannot be verified (NOT VERIFIED): "
+        "the overall result is then INCONCLUSIVE unless another parameter fails. Values in SI and the full "
+        "covariance are in the machine-readable certificate (JSON). µg = 9.80665e-6 m/s²; ppm = 1e-6; ″ = arcsecond.",
+        size=7.6,
+    )
+
+
+def _budget_page(pdf: _CertificatePdf, c: Certificate) -> None:
+    pdf.add_page()
+    pdf.section("Uncertainty budget (standard uncertainties, display units)")
+    keys = [comp["key"] for comp in c.budget_components]
+    head = ["Parameter", "Unit"] + [_COMPONENT_SHORT.get(k, k) for k in keys] + ["u_c", f"U (k={c.coverage_factor:g})"]
+    rows = []
+    for p in c.parameters:
+        u_c = p.display_expanded / c.coverage_factor
+        dec = max(2 - math.floor(math.log10(u_c)), 0) if u_c > 0 else 3
+        rows.append(
+            [p.name, p.display_unit]
+            + [f"{p.display_budget[k]:.{dec}f}" for k in keys]
+            + [f"{u_c:.{dec}f}", p.expanded_text]
+        )
+    nk = len(keys)
+    rest = pdf.epw - 20 - 16 - 22 - 24
+    pdf.grid(
+        head,
+        rows,
+        (20, 16) + (rest / nk,) * nk + (22, 24),
+        ("LEFT", "LEFT") + ("RIGHT",) * (nk + 2),
+        7.8,
+    )
+    pdf.ln(1.5)
+    pdf.set_font(_FONT, "B", 8.5)
+    pdf.cell(0, 5, "Input quantities", new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+    for comp in c.budget_components:
+        pdf.para(f"• {comp['label']} (type {comp['type']}): {comp['source']}", size=7.8)
+    pdf.ln(1)
+    pdf.para(
+        "Method (GUM law of propagation, linearised estimator): the identification is the information "
+        "(Kalman/least-squares) solution x̂ = P(P0⁻¹x0 + ΣHᵀR⁻¹z), z = f_out − f_ref, so an error e in the reference "
+        "specific force moves the estimate by δx̂ = −PΣHᵀR⁻¹e. Table attitude: a small navigation-frame tilt δφ per "
+        "step, independent between steps, e = −[f×]C_n^b δφ, u = bound/√3 (rectangular). Local g: e = f·δg/g, fully "
+        "correlated over the run. Bias instability: an unknown constant offset per step and axis. Model mismatch: "
+        "per-step residual means scattering beyond noise and bias instability (propagated as per-step offsets), "
+        "plus residual variance beyond the noise model per step (sandwich P(ΣHᵀR⁻¹(β−1)H)P). u_c is the root sum "
+        "of squares of the components (they are uncorrelated by construction); the full combined covariance is "
+        "in the JSON certificate.",
+        size=7.6,
+    )
+    for n in c.budget_notes:
+        pdf.para(f"Note: {n}", size=7.6, style="I")
+
+
+def _plots_pages(pdf: _CertificatePdf, c: Certificate) -> None:
+    if "residuals" in c.plots:
+        pdf.add_page()
+        pdf.section("Residuals per step")
+        pdf.figure(c.plots["residuals"], 175)
+    if "coverage" in c.plots:
+        pdf.section("Orientation coverage")
+        pdf.figure(c.plots["coverage"], 165)
+    if "convergence" in c.plots:
+        pdf.add_page()
+        pdf.section("Estimate convergence during the run")
+        pdf.figure(c.plots["convergence"], 165)
+
+
+def _warnings_and_analyses(pdf: _CertificatePdf, c: Certificate) -> None:
+    pdf.add_page()
+    pdf.section("Warnings and limitations")
+    if c.warnings:
+        for w in c.warnings:
+            pdf.para(f"• {w}", size=8)
+    else:
+        pdf.para("None.")
+    titles = {"noise": "Noise analysis (Allan variance terms)", "periodic": "Periodic error", "drift": "Drift model"}
+    for kind, rows in c.analyses.items():
+        pdf.section(titles.get(kind, kind))
+        if rows:
+            pdf.grid(
+                ["Channel", "Item", "Value"],
+                [[r["channel"], r["item"], r["value"]] for r in rows],
+                (25, 35, pdf.epw - 60),
+                ("LEFT", "LEFT", "LEFT"),
+                7.6,
+            )
+        else:
+            pdf.para("No results in the analysis file.")
+        for name, png in c.analysis_plots:
+            if name.startswith(f"{kind}/"):
+                if pdf.get_y() > pdf.h - 110:
+                    pdf.add_page()
+                pdf.figure(png, 150)
+    pdf.section("Traceability")
+    pdf.para(
+        f"Recording SHA-256: {c.recording.get('sha256')}\n"
+        f"Calibration file SHA-256: {c.identification.get('calibration_sha256')}\n"
+        f"Procedure text SHA-256: {c.procedure.get('sha256')}\n"
+        "The JSON certificate next to this PDF carries the same content in SI units (values, uncertainties, "
+        "budget, combined covariance) for production databases and firmware loading.",
+        size=7.8,
+    )
+
+
+def render_pdf(cert: Certificate) -> bytes:
+    """The certificate as PDF bytes (deterministic for a given certificate)."""
+    pdf = _CertificatePdf(cert)
+    created = _dt.datetime.fromisoformat(cert.creation_date)
+    pdf.set_creation_date(created)
+    pdf.set_title(f"Calibration certificate {cert.number}")
+    pdf.set_author(LAB_NAME)
+    pdf.set_subject(f"Accelerometer triad {cert.unit.get('model', '')} {cert.unit.get('serial_number', '')}")
+    pdf.set_creator(f"tablebench {cert.software_version}")
+    pdf.set_producer(f"tablebench {cert.software_version} (fpdf2)")
+    _first_page(pdf, cert)
+    _results_page(pdf, cert)
+    _budget_page(pdf, cert)
+    _plots_pages(pdf, cert)
+    _warnings_and_analyses(pdf, cert)
+    return bytes(pdf.output())
+
+
+__all__ = ["render_pdf"]

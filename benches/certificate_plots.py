@@ -1,0 +1,199 @@
+"""Figures of the calibration certificate, as deterministic PNG bytes (matplotlib, Agg, no pyplot state).
+
+Determinism: every figure is drawn on a bare :class:`matplotlib.figure.Figure` with the Agg canvas inside an
+``rc_context`` that starts from matplotlib's defaults plus fixed overrides (so a user's matplotlibrc cannot
+change the bytes), and saved without the "Software" metadata. The same inputs give the same bytes.
+
+Display units come from :mod:`analysis.units` (µg, ppm, arcsec, µg/g², mm).
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import matplotlib
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from numpy.typing import NDArray
+
+from analysis.units import UG, display_unit, to_display
+
+from .uncertainty_budget import StepGeometry
+
+_RC: dict[str, Any] = {
+    "font.family": "DejaVu Sans",
+    "font.size": 8.0,
+    "axes.titlesize": 8.5,
+    "axes.labelsize": 8.0,
+    "xtick.labelsize": 7.0,
+    "ytick.labelsize": 7.0,
+    "legend.fontsize": 7.0,
+    "axes.grid": True,
+    "grid.alpha": 0.35,
+    "grid.linewidth": 0.5,
+    "lines.linewidth": 1.0,
+    "savefig.dpi": 150,
+    "svg.hashsalt": "tablebench",
+    "path.simplify": True,
+    "figure.dpi": 100,
+}
+_AXIS_COLOURS = ("#1f4e9c", "#2f8f2f", "#b5332a")
+
+
+def _render(fig: Figure) -> bytes:
+    """PNG bytes of a figure, without timestamps or software metadata."""
+    FigureCanvasAgg(fig)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", metadata={"Software": None})
+    return buf.getvalue()
+
+
+def _context() -> Any:
+    base = dict(matplotlib.rcParamsDefault)
+    base.pop("backend", None)
+    base.update(_RC)
+    return matplotlib.rc_context(base)
+
+
+def plot_residuals(per_step: Sequence[Mapping[str, Any]], noise_var: NDArray[np.float64]) -> bytes:
+    """Per-step residual mean (±2σ of the mean from the noise) and RMS per body axis, µg.
+
+    Parameters
+    ----------
+    per_step : sequence of mapping
+        ``calibration.json`` ``residuals.per_step`` rows (name, samples, mean (3), rms (3), SI, body frame).
+    noise_var : (3,) array
+        Measurement noise variance per body axis, (m/s²)².
+    """
+    with _context():
+        fig = Figure(figsize=(7.2, 4.6))
+        ax1, ax2 = fig.subplots(2, 1, sharex=True)
+        rows = list(per_step)
+        k = np.arange(len(rows))
+        n = np.array([max(float(r.get("samples", 0)), 1.0) for r in rows])
+        mean = np.array([r["mean"] for r in rows], dtype=float).reshape(-1, 3) / UG
+        rms = np.array([r["rms"] for r in rows], dtype=float).reshape(-1, 3) / UG
+        sig = np.sqrt(np.asarray(noise_var, dtype=float))[None, :] / UG
+        for a, name in enumerate("xyz"):
+            off = (a - 1) * 0.22
+            ax1.errorbar(
+                k + off,
+                mean[:, a],
+                yerr=2 * sig[0, a] / np.sqrt(n),
+                fmt="o",
+                ms=3,
+                capsize=1.5,
+                color=_AXIS_COLOURS[a],
+                label=f"{name}",
+            )
+            ax2.plot(k + off, rms[:, a], "s", ms=3, color=_AXIS_COLOURS[a], label=f"{name}")
+            ax2.axhline(sig[0, a], color=_AXIS_COLOURS[a], lw=0.8, ls="--")
+        ax1.axhline(0.0, color="black", lw=0.6)
+        ax1.set_ylabel("mean residual, µg")
+        ax1.set_title("Residuals per step (body axes); error bars: ±2σ of the mean from the noise model")
+        ax1.legend(ncol=3, loc="upper right")
+        ax2.set_ylabel("RMS residual, µg")
+        ax2.set_title("RMS per step; dashed: noise standard deviation used by the identification")
+        ax2.set_xticks(k)
+        ax2.set_xticklabels([str(r.get("name", i)) for i, r in enumerate(rows)], rotation=70, ha="right")
+        fig.tight_layout()
+        return _render(fig)
+
+
+def plot_convergence(
+    history: Mapping[str, Any],
+    names: Sequence[str],
+    kinds: Sequence[str],
+    final: NDArray[np.float64] | None = None,
+) -> bytes:
+    """Estimate of every parameter after each update, with ±2σ bands, in display units (18 panels).
+
+    Parameters
+    ----------
+    history : mapping
+        ``calibration.json`` ``history``: time (K,) s, estimate (K, 18) SI, sigma (K, 18) SI.
+    names, kinds : sequence of str
+        Parameter names and quantity kinds (``analysis.units.DISPLAY_UNITS`` keys).
+    final : (18,) array, optional
+        Final estimate (drawn as a dotted line).
+    """
+    t = np.asarray(history.get("time", []), dtype=float)
+    est = np.asarray(history.get("estimate", []), dtype=float).reshape(-1, len(names))
+    sig = np.asarray(history.get("sigma", []), dtype=float).reshape(-1, len(names))
+    tm = t / 60.0 if t.size == est.shape[0] and t.size else np.arange(est.shape[0], dtype=float)
+    with _context():
+        fig = Figure(figsize=(7.2, 9.0))
+        axes = fig.subplots(6, 3, sharex=True)
+        for p, (name, kind) in enumerate(zip(names, kinds, strict=True)):
+            ax = axes[p // 3][p % 3]
+            v = to_display(kind, est[:, p]) if est.size else np.zeros(0)
+            s = to_display(kind, sig[:, p]) if sig.size else np.zeros(0)
+            if v.size:
+                ax.fill_between(tm, v - 2 * s, v + 2 * s, step="post", color="#9db7e0", alpha=0.6, lw=0)
+                ax.step(tm, v, where="post", color="#1f4e9c")
+                # zoom on the converged part: final ± max(8 σ_final, spread of the second half); the early,
+                # prior-dominated updates leave the frame, as they should
+                half = v[v.size // 2 :]
+                centre = float(v[-1])
+                span = max(8.0 * float(s[-1]), 1.5 * float(np.max(np.abs(half - centre))), 1e-30)
+                if np.isfinite(span) and np.isfinite(centre):
+                    ax.set_ylim(centre - span, centre + span)
+            if final is not None:
+                ax.axhline(to_display(kind, float(final[p])), color="black", lw=0.6, ls=":")
+            ax.set_title(f"{name} [{display_unit(kind)}]", pad=2)
+        for ax in axes[-1]:
+            ax.set_xlabel("bench time, min" if t.size == est.shape[0] and t.size else "update")
+        fig.suptitle(
+            "Estimate after each step (band: ±2σ of the filter; frame: final ± max(8σ, late spread))", fontsize=9
+        )
+        fig.tight_layout()
+        return _render(fig)
+
+
+def plot_coverage(geometry: Sequence[StepGeometry]) -> bytes:
+    """Direction of the reference specific force in the body frame for every step (orientation coverage).
+
+    Static holds are points, spins are traces; the axis markers show where ±x, ±y, ±z point up.
+    Mollweide projection: longitude atan2(f_y, f_x), latitude asin(f_z/|f|), body frame.
+    """
+    with _context():
+        fig = Figure(figsize=(7.2, 4.2))
+        ax = fig.add_subplot(1, 1, 1, projection="mollweide")
+        for geo in geometry:
+            f = np.asarray(geo.f, dtype=float)
+            nrm = np.linalg.norm(f, axis=1)
+            ok = nrm > 0
+            if not np.any(ok):
+                continue
+            u = f[ok] / nrm[ok, None]
+            lon = np.arctan2(u[:, 1], u[:, 0])
+            lat = np.arcsin(np.clip(u[:, 2], -1, 1))
+            if geo.kind == "spin":
+                jumps = np.flatnonzero(np.abs(np.diff(lon)) > math.pi) + 1
+                for seg_lon, seg_lat in zip(np.split(lon, jumps), np.split(lat, jumps), strict=True):
+                    ax.plot(seg_lon, seg_lat, "-", color="#b5332a", lw=1.2)
+            else:
+                ax.plot(lon[:1], lat[:1], "o", color="#1f4e9c", ms=4)
+        for lbl, lon, lat in (
+            ("+x up", 0.0, 0.0),
+            ("+y up", math.pi / 2, 0.0),
+            ("−x up", math.pi - 0.25, 0.0),
+            ("−y up", -math.pi / 2, 0.0),
+            ("+z up", 0.0, math.pi / 2 - 0.02),
+            ("−z up", 0.0, -math.pi / 2 + 0.02),
+        ):
+            ax.annotate(lbl, (lon, lat), xytext=(4, 4), textcoords="offset points", fontsize=7, color="0.25")
+        ax.plot([], [], "o", color="#1f4e9c", ms=4, label="static holds")
+        ax.plot([], [], "-", color="#b5332a", label="constant-rate spins")
+        ax.legend(loc="lower right", bbox_to_anchor=(1.0, -0.12))
+        ax.set_xticklabels([])
+        ax.set_title("Orientation coverage: direction of gravity (specific force) in the body frame", pad=10)
+        fig.tight_layout()
+        return _render(fig)
+
+
+__all__ = ["plot_convergence", "plot_coverage", "plot_residuals"]

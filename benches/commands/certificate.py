@@ -1,0 +1,63 @@
+"""``tablebench certificate``: issue the calibration certificate (PDF + JSON) of a run."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+EXAMPLES = """examples:
+  tablebench certificate runs/20261122-101500-ten-step
+  tablebench certificate RUN --out cert.pdf --json cert.json --issue-date 2026-11-22
+  tablebench certificate RUN --allow-incomplete      # an interrupted run: marked INCOMPLETE on page 1
+
+exit codes: 0 issued (PASS / INCONCLUSIVE / INCOMPLETE / NO LIMITS), 1 issued and marked FAIL,
+            2 cannot issue (bad input, incomplete run without --allow-incomplete)
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``certificate`` subcommand."""
+    p = sub.add_parser(
+        "certificate",
+        help="issue the calibration certificate (PDF + JSON) of a run",
+        description="Build the calibration certificate of a run folder from its recording.h5 and calibration.json "
+        "(plus noise/periodic/drift analyses if present): unit and bench identity, procedure digest, results with "
+        "expanded uncertainties (k = 2, GUM budget), pass/fail against the bench file's limits, plots, warnings, "
+        "and the recording's SHA-256. The same recording gives the same bytes apart from the issue date.",
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("run", metavar="RUN", help="run folder (holding recording.h5 and calibration.json)")
+    p.add_argument("--out", default=None, metavar="FILE.pdf", help="PDF output (default: RUN/certificate.pdf)")
+    p.add_argument("--json", default=None, metavar="FILE.json", help="JSON output (default: the PDF path with .json)")
+    p.add_argument("--issue-date", default=None, metavar="YYYY-MM-DD", help="pin the issue date (default: today UTC)")
+    p.add_argument(
+        "--allow-incomplete",
+        action="store_true",
+        help="issue a certificate for an interrupted or failed run (says so prominently on page 1)",
+    )
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute ``tablebench certificate``."""
+    from benches.certificate import CertificateError, issue_certificate
+    from benches.cli import UsageError
+    from benches.recording import RecordingError
+
+    if args.out is not None and not str(args.out).lower().endswith(".pdf"):
+        raise UsageError(f"--out {args.out}: give a .pdf file name")
+    try:
+        pdf, js, verdict = issue_certificate(
+            args.run,
+            out_pdf=args.out,
+            out_json=args.json,
+            issue_date=args.issue_date,
+            allow_incomplete=args.allow_incomplete,
+        )
+    except (CertificateError, RecordingError) as exc:
+        raise UsageError(str(exc)) from None
+    print(f"certificate {verdict}: {pdf}", file=sys.stderr)
+    print(pdf)
+    print(js)
+    return 1 if verdict == "FAIL" else 0
