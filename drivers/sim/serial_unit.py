@@ -1,0 +1,258 @@
+"""The simulated inertial unit on a loopback TCP socket, speaking the serial frame format.
+
+A :class:`SerialUnitServer` listens on 127.0.0.1 (ephemeral port by default) in a background thread and
+serves one client at a time with the bytes the unit would put on its serial line: frames from
+``world.produce(n)`` encoded by :func:`drivers.imu_frame.encode_frames`. Connect to it with
+``serial.serial_for_url(f"socket://127.0.0.1:{server.port}")``.
+
+Host → unit commands (ASCII lines, CR-LF or LF terminated; the unit never answers in text):
+
+``BURST <n>``
+    Polled mode: produce exactly ``n`` samples (advancing the one simulated clock by n sample periods) and
+    send their frames. The clock advances only with what the host asked for, so a polled run is
+    deterministic whatever the speed of the machine.
+``STREAM <factor>``
+    Free-running mode: produce frames continuously at ``factor`` × real time (``STREAM 1`` is a real unit
+    streaming at its sample rate; ``STREAM 0`` stops). The simulated clock then advances with wall time.
+
+Injected corruption (:class:`Corruption`, seeded) is applied to the outgoing frames for link tests:
+garbage bytes inserted before a frame, a flipped bit in a frame, or a frame omitted.
+"""
+
+from __future__ import annotations
+
+import logging
+import select
+import socket
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from drivers.imu_frame import FRAME_SIZE, encode_frames
+from drivers.serial_imu import MAX_BURST
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Corruption:
+    """Seeded link corruption applied per outgoing frame (probabilities in [0, 1]).
+
+    Attributes
+    ----------
+    garbage : float
+        Probability of inserting 1–``garbage_max`` random bytes before a frame.
+    flip : float
+        Probability of flipping one random bit of a frame (after the sync word: the CRC catches it).
+    drop : float
+        Probability of omitting a frame.
+    garbage_max : int
+    seed : int
+    """
+
+    garbage: float = 0.0
+    flip: float = 0.0
+    drop: float = 0.0
+    garbage_max: int = 64
+    seed: int = 0
+
+    @property
+    def active(self) -> bool:
+        return self.garbage > 0 or self.flip > 0 or self.drop > 0
+
+
+class _Corrupter:
+    def __init__(self, spec: Corruption) -> None:
+        self.spec = spec
+        self.rng = np.random.default_rng(spec.seed)
+        self.injected = {"garbage": 0, "flip": 0, "drop": 0}
+        self.lost_counters: list[int] = []  # counters of frames flipped or omitted (for tests)
+
+    def apply(self, data: bytes, n: int) -> bytes:
+        s = self.spec
+        original = np.frombuffer(data, dtype=np.uint8).reshape(n, FRAME_SIZE)
+        frames = original.copy()
+        flip = self.rng.random(n) < s.flip
+        if flip.any():
+            rows = np.flatnonzero(flip)
+            byte = self.rng.integers(2, FRAME_SIZE, rows.size)
+            bit = self.rng.integers(0, 8, rows.size)
+            frames[rows, byte] ^= (1 << bit).astype(np.uint8)
+        keep = self.rng.random(n) >= s.drop
+        garbage_before = self.rng.random(n) < s.garbage
+        lost = flip | ~keep
+        if lost.any():
+            self.lost_counters.extend(original[lost, 4:8].copy().view("<u4").reshape(-1).tolist())
+        self.injected["flip"] += int(flip.sum())
+        self.injected["drop"] += int((~keep).sum())
+        self.injected["garbage"] += int((garbage_before & keep).sum())
+        if not garbage_before.any():
+            return frames[keep].tobytes()
+        parts: list[bytes] = []
+        start = 0
+        for i in np.flatnonzero(garbage_before & keep).tolist():  # loop over insertions only
+            parts.append(frames[start:i][keep[start:i]].tobytes())
+            k = int(self.rng.integers(1, s.garbage_max + 1))
+            parts.append(self.rng.integers(0, 256, k, dtype=np.uint8).tobytes())
+            start = i
+        parts.append(frames[start:][keep[start:]].tobytes())
+        return b"".join(parts)
+
+
+class SerialUnitServer:
+    """Serve a :class:`~drivers.sim.world.SimulatedWorld`'s unit as a byte stream on 127.0.0.1.
+
+    Parameters
+    ----------
+    world : SimulatedWorld
+        The world whose ``produce`` drives the stream (shared with the table controller).
+    port : int
+        TCP port (0: ephemeral; read :attr:`port` after construction).
+    corruption : Corruption or None
+        Injected link faults.
+    stream_factor : float
+        Free-running speed at connection (0: polled mode until the host sends ``STREAM``).
+    chunk_s : float
+        In free-running mode, wall-clock period between writes, s.
+    """
+
+    def __init__(
+        self,
+        world: object,
+        port: int = 0,
+        *,
+        corruption: Corruption | None = None,
+        stream_factor: float = 0.0,
+        chunk_s: float = 0.01,
+    ) -> None:
+        self.world = world
+        self.corruption = corruption if corruption is not None and corruption.active else None
+        self._corrupter = _Corrupter(self.corruption) if self.corruption else None
+        self.initial_stream_factor = float(stream_factor)
+        self.chunk_s = float(chunk_s)
+        self._listener = socket.create_server(("127.0.0.1", port))
+        self._listener.setblocking(False)
+        self.port: int = self._listener.getsockname()[1]
+        self._stop = threading.Event()
+        self._client: socket.socket | None = None
+        self._client_lock = threading.Lock()
+        self.frames_sent = 0
+        self._thread = threading.Thread(target=self._serve, name=f"sim-imu-serial:{self.port}", daemon=True)
+        self._thread.start()
+        log.info("simulated unit serving on 127.0.0.1:%d", self.port)
+
+    @property
+    def url(self) -> str:
+        """pyserial URL of the server (``socket://127.0.0.1:PORT``)."""
+        return f"socket://127.0.0.1:{self.port}"
+
+    @property
+    def lost_counters(self) -> list[int]:
+        """Counters of the frames the injected corruption destroyed (flipped or omitted)."""
+        return list(self._corrupter.lost_counters) if self._corrupter else []
+
+    @property
+    def injected(self) -> dict[str, int]:
+        """Counts of injected faults so far (garbage insertions, flipped frames, dropped frames)."""
+        return dict(self._corrupter.injected) if self._corrupter else {"garbage": 0, "flip": 0, "drop": 0}
+
+    # ---- serving -----------------------------------------------------------------------------------------
+    def _serve(self) -> None:
+        while not self._stop.is_set():
+            r, _, _ = select.select([self._listener], [], [], 0.05)
+            if not r:
+                continue
+            try:
+                conn, addr = self._listener.accept()
+            except OSError:
+                continue
+            conn.setblocking(True)
+            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            with self._client_lock:
+                self._client = conn
+            log.info("simulated unit: client %s connected", addr)
+            try:
+                self._handle(conn)
+            except OSError as exc:
+                log.info("simulated unit: client gone (%s)", exc)
+            finally:
+                with self._client_lock:
+                    self._client = None
+                try:
+                    conn.close()
+                except OSError:
+                    pass
+
+    def _send(self, conn: socket.socket, n: int) -> None:
+        frames = self.world.produce(n)
+        data = encode_frames(frames)
+        if self._corrupter is not None and len(frames):
+            data = self._corrupter.apply(data, len(frames))
+        conn.sendall(data)
+        self.frames_sent += len(frames)
+
+    def _handle(self, conn: socket.socket) -> None:
+        buf = b""
+        factor = self.initial_stream_factor
+        rate = float(self.world.sample_rate)
+        t0 = time.monotonic()
+        streamed = 0
+        while not self._stop.is_set():
+            r, _, _ = select.select([conn], [], [], self.chunk_s if factor > 0 else 0.05)
+            if r:
+                chunk = conn.recv(4096)
+                if not chunk:
+                    return
+                buf += chunk
+                while b"\n" in buf:
+                    line, buf = buf.split(b"\n", 1)
+                    cmd = line.strip().decode("ascii", "replace").split()
+                    if not cmd:
+                        continue
+                    word = cmd[0].upper()
+                    try:
+                        arg = float(cmd[1]) if len(cmd) > 1 else None
+                    except ValueError:
+                        arg = None
+                    if word == "BURST" and arg is not None and 1 <= arg <= MAX_BURST and arg == int(arg):
+                        self._send(conn, int(arg))
+                    elif word == "STREAM" and arg is not None and arg >= 0:
+                        factor = arg
+                        t0, streamed = time.monotonic(), 0
+                    else:
+                        log.warning("simulated unit: ignoring unknown command %r", line[:80])
+            if factor > 0:
+                due = int((time.monotonic() - t0) * rate * factor) - streamed
+                if due > 0:
+                    self._send(conn, due)
+                    streamed += due
+
+    # ---- control -----------------------------------------------------------------------------------------
+    def disconnect(self) -> None:
+        """Drop the current client connection (simulates a pulled cable); the server keeps listening."""
+        with self._client_lock:
+            if self._client is not None:
+                try:
+                    self._client.shutdown(socket.SHUT_RDWR)
+                except OSError:
+                    pass
+
+    def close(self) -> None:
+        """Stop serving, drop the client, close the listener and join the thread (idempotent)."""
+        if self._stop.is_set():
+            return
+        self._stop.set()
+        self.disconnect()
+        self._thread.join(timeout=2.0)
+        try:
+            self._listener.close()
+        except OSError:
+            pass
+
+    def __enter__(self) -> SerialUnitServer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
