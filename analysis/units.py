@@ -84,3 +84,27 @@ def celsius_to_kelvin(t_c: float) -> float:
 def kelvin_to_celsius(t_k: float) -> float:
     """Temperature in K to °C."""
     return t_k - CELSIUS_ZERO
+
+
+# --- noise-term display units (appended for the noise analysis; IEEE 952 / IEEE 1293 conventions) ---
+DEG_PER_HOUR_PER_SQRT_HOUR: float = DEG_PER_HOUR / math.sqrt(HOUR)
+"""One °/h/√h (gyro rate random walk) in rad/s/√s."""
+DEG_PER_HOUR2: float = DEG_PER_HOUR / HOUR
+"""One °/h² (gyro rate ramp) in rad/s²."""
+UG_PER_SQRT_S: float = UG
+"""One µg/√s (accelerometer acceleration random walk) in m/s²/√s."""
+UG_PER_S: float = UG
+"""One µg/s (accelerometer ramp) in m/s³."""
+MM_PER_S: float = MM
+"""One mm/s (velocity quantisation) in m/s."""
+
+DISPLAY_UNITS.update(
+    {
+        "angle_quantisation": ("arcsec", ARCSEC),
+        "rrw": ("deg/h/√h", DEG_PER_HOUR_PER_SQRT_HOUR),
+        "rate_ramp": ("deg/h²", DEG_PER_HOUR2),
+        "velocity_quantisation": ("mm/s", MM_PER_S),
+        "accel_random_walk": ("µg/√s", UG_PER_SQRT_S),
+        "accel_ramp": ("µg/s", UG_PER_S),
+    }
+)
