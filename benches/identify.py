@@ -485,9 +485,21 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
     return result
 
 
+def _json_safe(obj: Any) -> Any:
+    """Non-finite numbers (an unobservable parameter's predicted σ is ∞) become null in JSON."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_json_safe(v) for v in obj]
+    return obj
+
+
 def write_calibration(result: dict[str, Any], out: str | Path) -> Path:
     """Write ``calibration.json`` (sorted keys, stable float formatting)."""
     p = Path(out)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(json.dumps(result, indent=1, ensure_ascii=False, allow_nan=False) + "\n", encoding="utf-8")
+    text = json.dumps(_json_safe(result), indent=1, ensure_ascii=False, allow_nan=False)
+    p.write_text(text + "\n", encoding="utf-8")
     return p
