@@ -1,0 +1,187 @@
+"""``tablebench drift``: drift modelling of a static record (tests, ARMA model, online RLS, compensation)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+
+EXAMPLES = """examples:
+  tablebench drift runs/static-noise-001                          # a recording, all six channels
+  tablebench drift runs/static-noise-001 --channel gyro_z --out report/
+  tablebench drift data.npy --rate 100 --criterion aic --out report/
+  tablebench drift data.csv --rate 100 --outliers mad --detrend 1
+
+output: per channel, outliers replaced, the trend removed, every test (Daniel and reverse-arrangement on
+sub-series means and mean squares, Jarque-Bera, Welch periodicity, Ljung-Box on the ARMA residuals) with its
+statistic, threshold and verdict, the chosen ARMA(p,q) model with standard errors (Box-Jenkins signs:
+x_t - sum phi_j x_(t-j) = e_t - sum theta_j e_(t-j)), the online RLS/ELS estimate, and the standard deviation
+before/after compensation. With --out DIR: drift.json (SI) and PNGs per channel (ACF/PACF, PSD, histogram,
+compensation). Tones found by the periodicity check are listed for 'tablebench periodic'.
+Methods: shared/spec/drift-timeseries.md, analysis/drift_*.py.
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``drift`` subcommand."""
+    from benches.analysis_input import add_input_arguments
+
+    p = sub.add_parser(
+        "drift",
+        help="drift modelling of a static record: stationarity/normality/periodicity tests, ARMA, RLS",
+        description="Pre-process a static record (outliers, trend), test it (stationarity, periodicity, "
+        "normality), select and estimate an ARMA(p,q) drift model (p, q <= 3, p >= q) with standard errors, "
+        "check the residuals' whiteness, run the online recursive estimator, and compensate the drift with a "
+        "Kalman filter and a sliding-window graph (Levenberg-Marquardt) smoother.",
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    add_input_arguments(p)
+    p.add_argument("--channel", dest="channels", help="same as --channels (one or more comma-separated names)")
+    p.add_argument("--criterion", choices=("bic", "aic"), default="bic", help="ARMA order criterion (default bic)")
+    p.add_argument("--outliers", choices=("sigma", "mad"), default="sigma", help="outlier scale: 3σ or MAD")
+    p.add_argument("--outlier-k", type=float, default=3.0, help="outlier threshold in scale units (default 3)")
+    p.add_argument("--detrend", type=int, default=None, metavar="ORDER", help="polynomial order (default: by BIC)")
+    p.add_argument("--segments", type=int, default=50, help="sub-series for the stationarity tests (default 50)")
+    p.add_argument("--alpha", type=float, default=0.05, help="significance level of the tests (default 0.05)")
+    p.add_argument("--forgetting", type=float, default=1.0, help="RLS forgetting factor λ in (0, 1] (default 1)")
+    p.add_argument("--keep-tones", action="store_true", help="do not subtract detected tones before the ARMA fit")
+    p.add_argument("--no-online", action="store_true", help="skip the online RLS/ELS pass")
+    p.add_argument(
+        "--measurement-var", type=float, default=None, help="R of the compensation model, SI unit² (default: σ²)"
+    )
+    p.set_defaults(func=run)
+
+
+def _clean(obj: object) -> object:
+    """Replace non-finite floats by None (JSON has no NaN/inf)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {str(k): _clean(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_clean(v) for v in obj]
+    return obj
+
+
+def _display(unit: str) -> tuple[float, str]:
+    """Scale and label to show a channel's σ: °/h for rad/s, µg for m/s², SI otherwise."""
+    from analysis.units import DEG_PER_HOUR, UG
+
+    if unit == "rad/s":
+        return DEG_PER_HOUR, "°/h"
+    if unit == "m/s^2":
+        return UG, "µg"
+    return 1.0, unit
+
+
+def format_report(result: dict, units: dict[str, str]) -> str:
+    """Plain-text report: tests, model with standard errors, online estimate, compensation."""
+    lines = []
+    for name, ch in result["channels"].items():
+        scale, label = _display(units.get(name, "SI"))
+        m = ch["model"]
+        lines.append(f"== {name}: {ch['samples']} samples at {ch['rate_hz']:g} Hz")
+        o = ch["outliers"]
+        lines.append(
+            f"  outliers ({o['method']}, k={o['k']:g}): {o['replaced']} replaced; "
+            f"detrend order {ch['detrend']['order']}"
+        )
+        lines.append(f"  {'test':<32}{'statistic':>12}{'threshold':>12}  verdict")
+        for tname, t in ch["tests"].items():
+            lines.append(f"  {tname:<32}{t['statistic']:>12.4g}{t['threshold']:>12.4g}  {t['verdict']}")
+        if ch["tones_hz"]:
+            lines.append("  tones for 'tablebench periodic': " + ", ".join(f"{f:.4g} Hz" for f in ch["tones_hz"]))
+        lines.append("  note: " + ch["tests"]["jarque_bera"]["note"])
+        lines.append(
+            f"  model ARMA({m['p']},{m['q']}) by {m['criterion'].upper()} "
+            f"(by AIC {tuple(ch['order_selection']['by_aic'])}, by BIC {tuple(ch['order_selection']['by_bic'])})"
+        )
+        for j, (v, s) in enumerate(zip(m["phi"], m["se_phi"], strict=True), start=1):
+            lines.append(f"    phi_{j}   = {v: .6f} ± {s:.6f}")
+        for j, (v, s) in enumerate(zip(m["theta"], m["se_theta"], strict=True), start=1):
+            lines.append(f"    theta_{j} = {v: .6f} ± {s:.6f}")
+        lines.append(f"    sigma    = {math.sqrt(m['sigma2']) / scale:.4g} {label} (innovation std)")
+        mo = m["moment"]
+        lines.append(
+            f"    moment estimates: phi {[round(v, 5) for v in mo['phi']]}, theta {[round(v, 5) for v in mo['theta']]}"
+        )
+        on = ch["online"]
+        if on.get("run"):
+            lines.append(
+                f"  online {on['method']} (λ={on['forgetting']:g}): phi {[round(v, 5) for v in on['phi']]}, "
+                f"theta {[round(v, 5) for v in on['theta']]}, {on['samples_per_s']:.3g} samples/s"
+            )
+        c = ch["compensation"]
+        after = c.get("std_after_filter")
+        txt = f"  std before {c['std_before'] / scale:.4g} {label}"
+        if after is not None:
+            txt += f", after Kalman prediction {after / scale:.4g} {label}"
+        if "std_after_smoother" in c:
+            txt += (
+                f"; smoother span {c['smoother_samples']} samples: {c['std_before_smoothed_span'] / scale:.4g} → "
+                f"{c['std_after_smoother'] / scale:.4g} {label}"
+            )
+        lines.append(txt)
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute ``tablebench drift``."""
+    from analysis.drift_preprocess import DriftInputError
+    from analysis.drift_report import MIN_SAMPLES, DriftOptions, analyse_channel
+    from benches.analysis_input import InputError, load_input, output_dir
+    from benches.cli import UsageError
+
+    if not 0.0 < args.alpha < 0.5:
+        raise UsageError(f"--alpha must be between 0 and 0.5 (e.g. 0.05), got {args.alpha}")
+    if not 0.0 < args.forgetting <= 1.0:
+        raise UsageError(f"--forgetting must be in (0, 1] (e.g. 0.999), got {args.forgetting}")
+    if args.detrend is not None and args.detrend < 0:
+        raise UsageError(f"--detrend must be a non-negative polynomial order, got {args.detrend}")
+    if args.segments < 4:
+        raise UsageError(f"--segments must be at least 4, got {args.segments}")
+    if not (args.outlier_k > 0 and math.isfinite(args.outlier_k)):
+        raise UsageError(f"--outlier-k must be a positive number, got {args.outlier_k}")
+    if args.measurement_var is not None and not args.measurement_var > 0:
+        raise UsageError(f"--measurement-var must be positive (SI unit²), got {args.measurement_var}")
+    data = load_input(args.input, rate=args.rate, channels=args.channels, step=args.step, min_samples=MIN_SAMPLES)
+    out = output_dir(args.out, "drift")
+    opts = DriftOptions(
+        outlier_method=args.outliers,
+        outlier_k=args.outlier_k,
+        detrend_order=args.detrend,
+        segments=args.segments,
+        alpha=args.alpha,
+        criterion=args.criterion,
+        online=not args.no_online,
+        forgetting=args.forgetting,
+        measurement_var=args.measurement_var,
+        remove_tones=not args.keep_tones,
+    )
+    results = {}
+    summaries = {}
+    for name, x in data.channels.items():
+        try:
+            results[name] = analyse_channel(x, data.rate, name, opts)
+        except DriftInputError as exc:
+            raise InputError(f"{data.source}: {exc}") from None
+        summaries[name] = results[name].summary
+    result = {
+        "source": data.source,
+        "rate_hz": data.rate,
+        "sign_convention": "x_t - sum phi_j x_(t-j) = e_t - sum theta_j e_(t-j) (Box-Jenkins)",
+        "units": data.units,
+        "channels": summaries,
+    }
+    print(f"{data.source}: {len(data.channels)} channel(s) at {data.rate:g} Hz")
+    print(format_report(result, data.units))
+    if out is not None:
+        from analysis.drift_plot import plot_channel
+
+        (out / "drift.json").write_text(json.dumps(_clean(result), indent=1, allow_nan=False), encoding="utf-8")
+        written = [out / "drift.json"]
+        for name, res in results.items():
+            written += plot_channel(res, name, data.units.get(name, "SI"), out)
+        print("wrote " + ", ".join(str(p) for p in written))
+    return 0
