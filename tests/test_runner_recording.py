@@ -93,3 +93,25 @@ def test_resume_by_replay_equals_uninterrupted_run(tmp_path):
         last = sa[-1].end_sample
         assert np.array_equal(a["imu/accel"][:last], b["imu/accel"][:last])
         assert b.attrs["status"] == "complete"
+
+
+def test_lost_link_stops_cleanly_and_records_the_failed_step(tmp_path):
+    from drivers.protocols import LinkError
+
+    class FlakyTable(FakeTable):
+        def read_state(self):
+            if self.clock.time > 5.0:
+                raise LinkError("controller stopped answering (timeout 0.5 s)")
+            return super().read_state()
+
+    clock = FakeClock(100.0)
+    table = FlakyTable(clock)
+    rec = Hdf5Recorder(tmp_path / "r.h5", attrs={"sample_rate_hz": 100.0})
+    result = Runner(table, FakeUnit(clock), fake_steps(), rec, position_tolerance=1e-6).run()
+    rec.close()
+    assert result.status == "failed" and "link lost" in result.reason
+    assert ("stop",) in table.commands  # the stop was still sent on the command channel
+    with open_recording(tmp_path / "r.h5") as f:
+        steps = read_steps(f)
+        assert f.attrs["status"] == "failed" and steps[-1].status == "failed"
+        assert all(s.status == "complete" for s in steps[:-1])

@@ -57,7 +57,15 @@ def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench run``."""
     from benches.cli import UsageError
     from benches.commands.check import parse_overrides
-    from benches.session import SessionError, copy_inputs, execute, new_run_folder, prepare, recorded_overrides
+    from benches.session import (
+        SessionError,
+        copy_inputs,
+        execute,
+        new_run_folder,
+        prepare,
+        recorded_overrides,
+        recording_status,
+    )
 
     if args.seed is not None and args.seed < 0:
         raise UsageError("--seed must be a non-negative integer")
@@ -71,6 +79,8 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError("--resume uses the run's own bench and procedure copies; omit --bench/--procedure")
         if args.set:
             raise UsageError("--resume uses the run's recorded procedure parameters; omit --set")
+        if recording_status(folder / "recording.h5").get("status") == "complete":
+            raise UsageError(f"{folder}: the run is already complete; nothing to resume")
         prep = prepare(folder / "bench.yaml", folder / "procedure.yaml", recorded_overrides(folder))
     else:
         prep = prepare(args.bench, args.procedure, parse_overrides(args.set))
