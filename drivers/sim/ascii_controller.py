@@ -25,6 +25,7 @@ from analysis.units import DEG
 from drivers.ascii_table import fmt
 from drivers.modbus_table import check_position, check_rate
 from drivers.protocols import AxisMode, FaultCode, TableError, TableStatus
+from drivers.sim.tcp_server import SingleClientServer
 
 log = logging.getLogger(__name__)
 
@@ -35,7 +36,7 @@ class _CommandError(Exception):
         self.code = code
 
 
-class AsciiTableServer:
+class AsciiTableServer(SingleClientServer):
     """Serve a SimulatedWorld's table in the ASCII dialect on 127.0.0.1.
 
     Parameters
@@ -61,7 +62,7 @@ class AsciiTableServer:
         self.port: int = self._listener.getsockname()[1]
         self._stop = threading.Event()
         self._client: socket.socket | None = None
-        self._lock = threading.Lock()
+        self._client_lock = threading.Lock()
         self._thread = threading.Thread(target=self._serve, name=f"sim-ascii-table:{self.port}", daemon=True)
         self._thread.start()
 
@@ -234,7 +235,7 @@ class AsciiTableServer:
                 continue
             conn.setblocking(True)
             conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            with self._lock:
+            with self._client_lock:
                 self._client = conn
             try:
                 self._handle(conn)
@@ -243,7 +244,7 @@ class AsciiTableServer:
             except Exception:  # a bug must not kill the server thread silently
                 log.exception("simulated ASCII controller: internal error; dropping the client")
             finally:
-                with self._lock:
+                with self._client_lock:
                     self._client = None
                 try:
                     conn.close()
@@ -271,30 +272,3 @@ class AsciiTableServer:
                 if text:
                     reply = self.execute_line(text).replace("°", " deg").replace("²", "^2")
                     conn.sendall(reply.encode("ascii", "replace") + b"\r\n")
-
-    def disconnect(self) -> None:
-        """Drop the current client (simulates a pulled cable)."""
-        with self._lock:
-            if self._client is not None:
-                try:
-                    self._client.shutdown(socket.SHUT_RDWR)
-                except OSError:
-                    pass
-
-    def close(self) -> None:
-        """Stop serving and join the thread (idempotent)."""
-        if self._stop.is_set():
-            return
-        self._stop.set()
-        self.disconnect()
-        self._thread.join(timeout=2.0)
-        try:
-            self._listener.close()
-        except OSError:
-            pass
-
-    def __enter__(self) -> AsciiTableServer:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

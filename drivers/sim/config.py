@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from analysis.accel_model import PARAM_NAMES
 from analysis.earth import normal_gravity
 from analysis.units import ARCSEC, DEG, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, UG
 from drivers.imu_counts import CountScale
@@ -22,26 +23,7 @@ from drivers.protocols import AxisLimits, FaultCode
 Vec3 = tuple[float, float, float]
 Mat3 = tuple[Vec3, Vec3, Vec3]
 
-ACCEL_PARAM_NAMES: tuple[str, ...] = (
-    "b_x",
-    "b_y",
-    "b_z",
-    "S_x",
-    "S_y",
-    "S_z",
-    "tau_xy",
-    "tau_xz",
-    "tau_yx",
-    "tau_yz",
-    "tau_zx",
-    "tau_zy",
-    "d_x",
-    "d_y",
-    "d_z",
-    "r_x",
-    "r_y",
-    "r_z",
-)
+ACCEL_PARAM_NAMES: tuple[str, ...] = PARAM_NAMES
 """The 18 accelerometer-model parameters, in state order (accelerometer-calibration.md)."""
 
 MISALIGNMENT_PAIRS: tuple[tuple[int, int], ...] = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))

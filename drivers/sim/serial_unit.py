@@ -32,6 +32,7 @@ import numpy as np
 
 from drivers.imu_frame import FRAME_SIZE, encode_frames
 from drivers.serial_imu import MAX_BURST
+from drivers.sim.tcp_server import SingleClientServer
 
 log = logging.getLogger(__name__)
 
@@ -101,7 +102,7 @@ class _Corrupter:
         return b"".join(parts)
 
 
-class SerialUnitServer:
+class SerialUnitServer(SingleClientServer):
     """Serve a :class:`~drivers.sim.world.SimulatedWorld`'s unit as a byte stream on 127.0.0.1.
 
     Parameters
@@ -228,31 +229,3 @@ class SerialUnitServer:
                 if due > 0:
                     self._send(conn, due)
                     streamed += due
-
-    # ---- control -----------------------------------------------------------------------------------------
-    def disconnect(self) -> None:
-        """Drop the current client connection (simulates a pulled cable); the server keeps listening."""
-        with self._client_lock:
-            if self._client is not None:
-                try:
-                    self._client.shutdown(socket.SHUT_RDWR)
-                except OSError:
-                    pass
-
-    def close(self) -> None:
-        """Stop serving, drop the client, close the listener and join the thread (idempotent)."""
-        if self._stop.is_set():
-            return
-        self._stop.set()
-        self.disconnect()
-        self._thread.join(timeout=2.0)
-        try:
-            self._listener.close()
-        except OSError:
-            pass
-
-    def __enter__(self) -> SerialUnitServer:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
