@@ -59,6 +59,33 @@ class RawFrames:
         return int(self.counter.shape[0])
 
 
+def empty_frames() -> RawFrames:
+    """A RawFrames with no frames."""
+    return RawFrames(
+        counter=np.zeros(0, np.uint32),
+        timestamp_ns=np.zeros(0, np.uint64),
+        counts=np.zeros((0, 6), np.int32),
+        temperature=np.zeros(0, np.int16),
+        status=np.zeros(0, np.uint16),
+    )
+
+
+def concat_frames(parts: list[RawFrames]) -> RawFrames:
+    """Concatenate RawFrames in order."""
+    parts = [p for p in parts if len(p)]
+    if not parts:
+        return empty_frames()
+    if len(parts) == 1:
+        return parts[0]
+    return RawFrames(
+        counter=np.concatenate([p.counter for p in parts]),
+        timestamp_ns=np.concatenate([p.timestamp_ns for p in parts]),
+        counts=np.concatenate([p.counts for p in parts]),
+        temperature=np.concatenate([p.temperature for p in parts]),
+        status=np.concatenate([p.status for p in parts]),
+    )
+
+
 def frames_to_block(frames: RawFrames, scale: CountScale, dropped: int = 0, rejected: int = 0) -> ImuBlock:
     """Convert raw frames to an SI :class:`ImuBlock` (body frame; m/s², rad/s, K)."""
     c = frames.counts.astype(np.float64)

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.imu_counts import RawFrames, counter_gaps
+from drivers.imu_counts import RawFrames, counter_gaps, empty_frames
 
 log = logging.getLogger(__name__)
 
@@ -102,33 +102,6 @@ def encode_frames(frames: RawFrames) -> bytes:
     raw = rec.view(np.uint8).reshape(n, FRAME_SIZE)
     rec["crc"] = crc16_ccitt_false(raw[:, CRC_START:CRC_END])
     return rec.tobytes()
-
-
-def empty_frames() -> RawFrames:
-    """A RawFrames with no frames."""
-    return RawFrames(
-        counter=np.zeros(0, np.uint32),
-        timestamp_ns=np.zeros(0, np.uint64),
-        counts=np.zeros((0, 6), np.int32),
-        temperature=np.zeros(0, np.int16),
-        status=np.zeros(0, np.uint16),
-    )
-
-
-def concat_frames(parts: list[RawFrames]) -> RawFrames:
-    """Concatenate RawFrames in order."""
-    parts = [p for p in parts if len(p)]
-    if not parts:
-        return empty_frames()
-    if len(parts) == 1:
-        return parts[0]
-    return RawFrames(
-        counter=np.concatenate([p.counter for p in parts]),
-        timestamp_ns=np.concatenate([p.timestamp_ns for p in parts]),
-        counts=np.concatenate([p.counts for p in parts]),
-        temperature=np.concatenate([p.temperature for p in parts]),
-        status=np.concatenate([p.status for p in parts]),
-    )
 
 
 def slice_frames(frames: RawFrames, start: int, stop: int | None = None) -> RawFrames:

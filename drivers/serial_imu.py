@@ -28,8 +28,8 @@ import logging
 import time
 from typing import Any
 
-from drivers.imu_counts import CountScale, RawFrames, counter_gaps, frames_to_block
-from drivers.imu_frame import FRAME_SIZE, DecodeStats, FrameDecoder, concat_frames, empty_frames, slice_frames
+from drivers.imu_counts import CountScale, RawFrames, concat_frames, counter_gaps, empty_frames, frames_to_block
+from drivers.imu_frame import FRAME_SIZE, DecodeStats, FrameDecoder, slice_frames
 from drivers.protocols import ImuBlock, LinkError
 
 log = logging.getLogger(__name__)

@@ -7,11 +7,10 @@ import struct
 import numpy as np
 import pytest
 
-from drivers.imu_counts import RawFrames
+from drivers.imu_counts import RawFrames, concat_frames
 from drivers.imu_frame import (
     FRAME_SIZE,
     FrameDecoder,
-    concat_frames,
     crc16_ccitt_false,
     encode_frames,
 )

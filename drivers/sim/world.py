@@ -40,7 +40,7 @@ from scipy import signal
 
 from analysis import gimbal
 from analysis.earth import earth_rate_enu
-from drivers.imu_counts import CountScale, RawFrames
+from drivers.imu_counts import CountScale, RawFrames, concat_frames
 from drivers.protocols import AxisLimits, AxisMode, FaultCode, TableError, TableState, TableStatus
 from drivers.sim.config import ACCEL_PARAM_NAMES, SimConfig
 from drivers.sim.imu_model import InertialModel, misalignment_matrix
@@ -312,7 +312,7 @@ class SimulatedWorld:
                 self._k = k1
                 if hit is not None:
                     self._limit_fault(hit[1], k1)
-            return _concat(parts)
+            return concat_frames(parts)
 
     def _evaluate(self, t: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
         n = t.shape[0]
@@ -535,23 +535,3 @@ class SimulatedWorld:
             out["periodic_amplitude"] = np.array([p.amplitude for p in c.periodic])
             out["periodic_phase"] = np.array([p.phase for p in c.periodic])
         return out
-
-
-def _concat(parts: list[RawFrames]) -> RawFrames:
-    if len(parts) == 1:
-        return parts[0]
-    if not parts:
-        return RawFrames(
-            counter=np.zeros(0, np.uint32),
-            timestamp_ns=np.zeros(0, np.uint64),
-            counts=np.zeros((0, 6), np.int32),
-            temperature=np.zeros(0, np.int16),
-            status=np.zeros(0, np.uint16),
-        )
-    return RawFrames(
-        counter=np.concatenate([p.counter for p in parts]),
-        timestamp_ns=np.concatenate([p.timestamp_ns for p in parts]),
-        counts=np.concatenate([p.counts for p in parts]),
-        temperature=np.concatenate([p.temperature for p in parts]),
-        status=np.concatenate([p.status for p in parts]),
-    )
