@@ -149,38 +149,74 @@ def plan_for(compiled: Any, config: Any) -> IdentificationPlan:
 
 
 class LiveIdentifier:
-    """Runner observer feeding the streaming Kalman filter block by block as the run goes.
+    """Runner observer feeding the streaming Kalman filter as the run goes.
 
-    The reference for each block's samples interpolates the last few table readings (up to the one taken
-    after the block) at the sample times less the unit's latency — the same readings offline identification
-    interpolates, so the live result equals the offline one (Q = 0).
+    Samples of the acquisition windows are buffered and fused every ``update_seconds`` of data and at each
+    step end (one exact information-form update per batch: with Q = 0 grouping samples changes nothing).
+    The reference for the buffered samples interpolates the table readings taken during (and just before)
+    the buffer at the sample times less the unit's latency — the same readings offline identification
+    interpolates, so the live result equals the offline one.
     """
 
-    def __init__(self, config: Any, progress: Any | None = None, show: tuple[str, ...] = ("b_z", "S_z", "r_x")) -> None:
+    def __init__(
+        self,
+        config: Any,
+        progress: Any | None = None,
+        show: tuple[str, ...] = ("b_z", "S_z", "r_x"),
+        update_seconds: float = 2.0,
+    ) -> None:
         self.config = config
         self.filter = StreamingIdentifier(
             configured_noise_variance(config), prior_covariance(config), sample_rate=config.unit.sample_rate
         )
-        self._readings: list[TableState] = []
         self.latency = unit_latency(config)
         self.progress = progress
         self.show = show
+        self._flush_n = max(1, int(update_seconds * config.unit.sample_rate))
+        self._readings: list[TableState] = []
+        self._times: list[NDArray[np.float64]] = []
+        self._accel: list[NDArray[np.float64]] = []
+        self._n = 0
+        self._step: str | None = None
 
     def on_block(self, step: Any, block: ImuBlock, table: TableState, counts: bool) -> None:
-        """Fuse the block if it is inside a hold/spin acquisition window."""
+        """Buffer the block if it is inside a hold/spin acquisition window; fuse when enough is buffered."""
         self._readings.append(table)
-        del self._readings[:-4]
         if not counts or step.kind not in ACQUISITION_KINDS or len(block) == 0:
+            if self._n == 0:
+                del self._readings[:-3]
             return
+        if self._step is not None and self._step != step.name:
+            self.flush()
+        self._step = step.name
+        self._times.append(block.time)
+        self._accel.append(block.accel)
+        self._n += len(block)
+        if self._n >= self._flush_n:
+            self.flush()
+
+    def on_step_end(self, step: Any, record: Any) -> None:
+        """Fuse what is buffered for the step."""
+        self.flush()
+
+    def flush(self) -> None:
+        """Fuse the buffered samples in one exact filter update and refresh the live display."""
+        if self._n == 0 or self._step is None:
+            return
+        t = np.concatenate(self._times)
         rd = self._readings
         angles, rates = interpolate_table(
-            block.time - self.latency,
+            t - self.latency,
             np.array([r.time for r in rd]),
             np.stack([r.angles for r in rd]),
             np.stack([r.rates for r in rd]),
         )
         f_ref, omega = reference_at(angles, rates, self.config.site.g, self.config.unit.mounting)
-        self.filter.update(block.accel, f_ref, omega, step.name, t=block.time)
+        self.filter.update(np.concatenate(self._accel), f_ref, omega, self._step, t=t)
+        self._times.clear()
+        self._accel.clear()
+        self._n = 0
+        del self._readings[:-3]
         if self.progress is not None:
             x, s = self.filter.estimate, self.filter.sigma
             parts = []
@@ -189,9 +225,6 @@ class LiveIdentifier:
                 unit, one = DISPLAY_UNITS[PARAM_KINDS[k]]
                 parts.append(f"{name} {x[k] / one:.4g}±{s[k] / one:.2g} {unit}")
             self.progress.extra(", ".join(parts))
-
-    def on_step_end(self, step: Any, record: Any) -> None:
-        """Nothing to do at step ends (the filter keeps per-step history itself)."""
 
 
 # ---- offline: recording → arrays -------------------------------------------------------------------------------------

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import re
 from pathlib import Path
 
@@ -37,11 +38,20 @@ def run_procedure(
     out: str = "run",
     transport: str | None = None,
     overrides: dict[str, float] | None = None,
+    observers: list | None = None,
 ) -> Path:
-    """Run ``procedure`` on ``bench`` (no identification during the run); return the run folder."""
+    """Run ``procedure`` on ``bench``; return the run folder. ``observers`` (e.g. a LiveIdentifier) see it."""
     prep = prepare(bench, procedure, overrides)
     folder = tmp_path / out
     folder.mkdir(parents=True, exist_ok=True)
-    result = execute(prep, folder, seed=seed, transport=transport, live=False, stream=open("/dev/null", "w"))
+    result = execute(
+        prep,
+        folder,
+        seed=seed,
+        transport=transport,
+        live=False,
+        stream=io.StringIO(),
+        observers=(lambda _progress: observers) if observers else None,
+    )
     assert result.status == "complete", result.reason
     return folder

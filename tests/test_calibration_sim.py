@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from analysis.accel_model import PARAM_NAMES
-from benches.identify import identify_run, plan_for
+from benches.identify import LiveIdentifier, identify_run, plan_for
 from benches.session import prepare
 from tests.simbench import bench_variant, run_procedure
 
@@ -15,11 +15,12 @@ from tests.simbench import bench_variant, run_procedure
 def fast_spin_run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("fastspin")
     bench = bench_variant(tmp, rate=100.0)
-    return bench, run_procedure(tmp, bench, "ten-step-fast-spin", seed=11)
+    live = LiveIdentifier(prepare(bench, "ten-step-fast-spin").config)
+    return bench, run_procedure(tmp, bench, "ten-step-fast-spin", seed=11, observers=[live]), live
 
 
 def test_ten_step_fast_spin_identifies_all_18_within_3_sigma(fast_spin_run):
-    bench, run = fast_spin_run
+    bench, run, _live = fast_spin_run
     result = identify_run(run, method="kalman")
     assert result["information"]["rank"] == 18
     assert result["information"]["unidentifiable"] == []
@@ -34,7 +35,7 @@ def test_ten_step_fast_spin_identifies_all_18_within_3_sigma(fast_spin_run):
 
 
 def test_kalman_equals_batch_on_a_recording(fast_spin_run):
-    _bench, run = fast_spin_run
+    _bench, run, _live = fast_spin_run
     k = identify_run(run, method="kalman")
     b = identify_run(run, method="batch")
     xk = np.array([k["parameters"][n]["value"] for n in PARAM_NAMES])
@@ -88,3 +89,13 @@ def test_sim_bench_states_its_units_latency():
     b, a = signal.butter(2, cfg.simulation.anti_alias_hz, fs=fs)
     _w, gd = signal.group_delay((b, a), w=[1e-3], fs=fs)
     assert cfg.unit.latency == pytest.approx(gd[0] / fs, rel=1e-3)
+
+
+def test_live_identification_during_the_run_equals_offline(fast_spin_run):
+    _bench, run, live = fast_spin_run
+    offline = identify_run(run)
+    x = np.array([offline["parameters"][n]["value"] for n in PARAM_NAMES])
+    s = np.array([offline["parameters"][n]["sigma_white"] for n in PARAM_NAMES])
+    assert live.filter.n_samples > 0
+    assert np.max(np.abs(live.filter.estimate - x) / s) < 1e-6
+    np.testing.assert_allclose(live.filter.sigma, s, rtol=1e-9)
