@@ -70,9 +70,17 @@ def body_rate(angles: ArrayLike, rates: ArrayLike, mounting: ArrayLike | None = 
 
 
 def gravity_in_body(angles: ArrayLike, g: float, mounting: ArrayLike | None = None) -> NDArray[np.float64]:
-    """Specific force of gravity at rest in the body frame, m/s²: C_n^b [0, 0, g]ᵀ, shape (..., 3)."""
-    c = body_to_nav(angles, mounting)
-    return g * c[..., 2, :]  # third row of C_b^n is C_n^b e_z
+    """Specific force of gravity at rest in the body frame, m/s²: C_n^b [0, 0, g]ᵀ, shape (..., 3).
+
+    Only the third row of C_b^n is needed: e_zᵀ R_z(ψ) R_x(θ) R_y(γ) = [−cos θ sin γ, sin θ, cos θ cos γ]
+    (heading does not move the vertical), then times the mounting C_b^t.
+    """
+    a = np.asarray(angles, dtype=float)
+    th, ga = a[..., 1], a[..., 2]
+    row = np.stack([-np.cos(th) * np.sin(ga), np.sin(th), np.cos(th) * np.cos(ga)], -1)
+    if mounting is not None:
+        row = row @ np.asarray(mounting, dtype=float)
+    return g * row
 
 
 def euler_from_body_to_nav(c_bn: ArrayLike, mounting: ArrayLike | None = None) -> NDArray[np.float64]:

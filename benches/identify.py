@@ -438,7 +438,9 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
             "identifiable": name not in unobs,
             "prior_sigma": float(math.sqrt(p0[k, k])),
         }
-    all_r = np.concatenate([w.f_out - predict(x, w.f_ref, w.omega) for w in rr.windows])
+    n_s = np.array([st["samples"] for st in per_step], dtype=float)
+    ms_s = np.array([st["rms"] for st in per_step]) ** 2
+    rms_all = np.sqrt((n_s[:, None] * ms_s).sum(0) / n_s.sum())
     truth_block = None
     if rr.truth is not None:
         xt = np.array([rr.truth[n_] for n_ in PARAM_NAMES])
@@ -478,7 +480,7 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
             "(analysis.batch_identifier.information_rank)",
         },
         "measurement_noise": {"variance": list(map(float, r_var)), "source": noise},
-        "residuals": {"rms": list(map(float, np.sqrt((all_r**2).mean(0)))), "per_step": per_step},
+        "residuals": {"rms": list(map(float, rms_all)), "per_step": per_step},
         "plan": {
             "predicted_sigma": {n_: float(actual.sigma_total[k]) for k, n_ in enumerate(PARAM_NAMES)},
             "rank": int(actual.rank),
