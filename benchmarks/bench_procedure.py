@@ -56,7 +56,8 @@ def main(argv: list[str] | None = None) -> int:
     body += (
         f"\n\nStreaming identifier (filterpy KF, block information updates) during the {rate_hi:.0f} Hz run: "
         f"**{100 * slowdown:+.0f} %** wall time (target ≤ +20 %). Targets: ≥ 100× in-process, ≥ 50× over the "
-        "transports; ≥ 1000× for offline identification. Each run records every sample to HDF5 and reads the table once per 0.2 s block."
+        "transports; ≥ 1000× for offline identification. Each run records every sample to HDF5 and reads the "
+        "table once per 0.2 s block."
     )
     write_section("procedure", "Full procedure on the simulated bench (issue 8)", body)
     print(body)
