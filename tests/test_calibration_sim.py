@@ -68,13 +68,21 @@ def test_nees_over_seeds_is_consistent_with_chi2(tmp_path):
     from scipy import stats
 
     bench = bench_variant(tmp_path, rate=100.0)
-    nees = []
+    prep = prepare(bench, "ten-step-fast-spin")
+    plan = plan_for(prep.compiled, prep.config)
+    nees, z = [], []
     for seed in range(8):
         run = run_procedure(tmp_path, bench, "ten-step-fast-spin", seed=100 + seed, out=f"r{seed}")
-        nees.append(identify_run(run)["truth"]["nees"])
+        r = identify_run(run)
+        nees.append(r["truth"]["nees"])
+        x = np.array([r["parameters"][n]["value"] for n in PARAM_NAMES])
+        t = np.array([r["truth"]["values"][n] for n in PARAM_NAMES])
+        z.append((x - t) / plan.sigma_total)
     # the mean of 8 χ²(18) draws: 99 % band of χ²(144)/8
     lo, hi = stats.chi2.ppf([0.005, 0.995], 18 * 8) / 8
     assert lo < np.mean(nees) < hi, nees
+    # achieved RMS error within 1.2× the plan's predicted σ, pooled over the 18 parameters and 8 runs
+    assert np.sqrt(np.mean(np.square(z))) <= 1.2
 
 
 def test_sim_bench_states_its_units_latency():
