@@ -52,6 +52,8 @@ def format_result(result: dict) -> str:
     lines.append(f"information rank {info['rank']}/18, condition {info['condition']:.3g}; method {result['method']}")
     if truth:
         lines.append(f"NEES {truth['nees']:.2f} over {truth['dof']} identified states (simulator truth)")
+    else:
+        lines.append("no simulator truth in the recording (a real bench): errors against truth not computed")
     lines += [f"warning: {w}" for w in result.get("warnings", [])]
     return "\n".join(lines)
 
