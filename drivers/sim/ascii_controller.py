@@ -223,37 +223,16 @@ class AsciiTableServer(SingleClientServer):
             self._watchdog_latched = True
             self._motion_commanded = False
 
-    def _serve(self) -> None:
-        while not self._stop.is_set():
-            self._check_watchdog()
-            r, _, _ = select.select([self._listener], [], [], 0.05)
-            if not r:
-                continue
-            try:
-                conn, _addr = self._listener.accept()
-            except OSError:
-                continue
-            conn.setblocking(True)
-            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            with self._client_lock:
-                self._client = conn
-            try:
-                self._handle(conn)
-            except OSError as exc:
-                log.info("simulated ASCII controller: client gone (%s)", exc)
-            except Exception:  # a bug must not kill the server thread silently
-                log.exception("simulated ASCII controller: internal error; dropping the client")
-            finally:
-                with self._client_lock:
-                    self._client = None
-                try:
-                    conn.close()
-                except OSError:
-                    pass
-                if self._motion_commanded and not self._stop.is_set():
-                    log.warning("simulated ASCII controller: client disconnected during motion; stopping the table")
-                    self.world.command_stop()
-                    self._motion_commanded = False
+    name = "simulated ASCII controller"
+
+    def _on_idle(self) -> None:
+        self._check_watchdog()
+
+    def _on_client_gone(self) -> None:
+        if self._motion_commanded and not self._stop.is_set():
+            log.warning("simulated ASCII controller: client disconnected during motion; stopping the table")
+            self.world.command_stop()
+            self._motion_commanded = False
 
     def _handle(self, conn: socket.socket) -> None:
         buf = b""

@@ -159,32 +159,7 @@ class SerialUnitServer(SingleClientServer):
         """Counts of injected faults so far (garbage insertions, flipped frames, dropped frames)."""
         return dict(self._corrupter.injected) if self._corrupter else {"garbage": 0, "flip": 0, "drop": 0}
 
-    # ---- serving -----------------------------------------------------------------------------------------
-    def _serve(self) -> None:
-        while not self._stop.is_set():
-            r, _, _ = select.select([self._listener], [], [], 0.05)
-            if not r:
-                continue
-            try:
-                conn, addr = self._listener.accept()
-            except OSError:
-                continue
-            conn.setblocking(True)
-            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            with self._client_lock:
-                self._client = conn
-            log.info("simulated unit: client %s connected", addr)
-            try:
-                self._handle(conn)
-            except OSError as exc:
-                log.info("simulated unit: client gone (%s)", exc)
-            finally:
-                with self._client_lock:
-                    self._client = None
-                try:
-                    conn.close()
-                except OSError:
-                    pass
+    name = "simulated unit"
 
     def _send(self, conn: socket.socket, n: int) -> None:
         frames = self.world.produce(n)

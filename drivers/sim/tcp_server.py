@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import logging
+import select
 import socket
 import threading
 from typing import Any
+
+log = logging.getLogger(__name__)
 
 
 class SingleClientServer:
@@ -19,6 +23,49 @@ class SingleClientServer:
     _stop: threading.Event
     _client: socket.socket | None
     _client_lock: threading.Lock
+
+    name: str = "simulated device"
+
+    def _handle(self, conn: socket.socket) -> None:
+        """Serve one connected client until it goes away or the server stops (subclasses)."""
+        raise NotImplementedError
+
+    def _on_idle(self) -> None:
+        """Called every 50 ms while no client is connected (e.g. a watchdog check)."""
+
+    def _on_client_gone(self) -> None:
+        """Called after a client has gone (e.g. stop the table if motion was commanded)."""
+
+    def _serve(self) -> None:
+        """Accept one client at a time and hand it to :meth:`_handle`; runs in ``_thread``."""
+        while not self._stop.is_set():
+            self._on_idle()
+            r, _, _ = select.select([self._listener], [], [], 0.05)
+            if not r:
+                continue
+            try:
+                conn, addr = self._listener.accept()
+            except OSError:
+                continue
+            conn.setblocking(True)
+            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            with self._client_lock:
+                self._client = conn
+            log.info("%s: client %s connected", self.name, addr)
+            try:
+                self._handle(conn)
+            except OSError as exc:
+                log.info("%s: client gone (%s)", self.name, exc)
+            except Exception:  # a bug must not kill the server thread silently
+                log.exception("%s: internal error; dropping the client", self.name)
+            finally:
+                with self._client_lock:
+                    self._client = None
+                try:
+                    conn.close()
+                except OSError:
+                    pass
+                self._on_client_gone()
 
     def disconnect(self) -> None:
         """Drop the current client connection (simulates a pulled cable); the server keeps listening."""
