@@ -345,6 +345,10 @@ class Runner:
                     self.rec.add_table(state)
             if self._recording:
                 self.rec.event(state.time, "info", "table at rest" if self._at_rest(state) else "table not at rest")
+        except KeyboardInterrupt:  # a second Ctrl-C: the stop was sent; do not wait for rest
+            log.warning("stop sent; not waiting for the table to come to rest (second interrupt)")
+            if self._recording:
+                self.rec.event(self._time(), "warning", "stop sent; wait for rest abandoned by a second interrupt")
         except Exception as exc:  # noqa: BLE001 - cleanup must go on
             log.error("while waiting for rest: %s", exc)
             if self._recording:
