@@ -34,6 +34,7 @@ from drivers.protocols import (
     TableStatus,
     Turntable,
 )
+from procedures.steps import Step
 
 from .progress import NullProgress, ProgressDisplay
 from .recording import Recorder, StepRecord
@@ -50,29 +51,14 @@ class RunAborted(RuntimeError):
         self.reason = reason
 
 
-class StepLike(Protocol):
-    """What the runner needs of a compiled step (``procedures.steps.Step``)."""
-
-    index: int
-    name: str
-    kind: str
-    group: str
-    angles: tuple[float, float, float] | None
-    axis: int | None
-    rate: float
-    duration: float
-    settle: float
-    text: str
-
-
 class SampleObserver(Protocol):
     """Receives the samples of the run as they arrive (e.g. the streaming identifier)."""
 
-    def on_block(self, step: StepLike, block: ImuBlock, table: TableState, counts: bool) -> None:
+    def on_block(self, step: Step, block: ImuBlock, table: TableState, counts: bool) -> None:
         """A block of samples and the table reading after it; ``counts``: inside the acquisition window."""
         ...
 
-    def on_step_end(self, step: StepLike, record: StepRecord) -> None:
+    def on_step_end(self, step: Step, record: StepRecord) -> None:
         """A step finished (any status)."""
         ...
 
@@ -88,7 +74,7 @@ class RunResult:
     reason: str = ""
 
 
-def check_commands(steps: Sequence[StepLike], limits: Sequence[AxisLimits]) -> list[str]:
+def check_commands(steps: Sequence[Step], limits: Sequence[AxisLimits]) -> list[str]:
     """Every position/rate the steps command, checked against the table's limits; returns problems (empty: ok)."""
     problems: list[str] = []
     for s in steps:
@@ -168,7 +154,7 @@ class Runner:
         self,
         turntable: Turntable,
         unit: InertialUnit,
-        steps: Sequence[StepLike],
+        steps: Sequence[Step],
         recorder: Recorder,
         *,
         position_tolerance: float,
@@ -199,7 +185,7 @@ class Runner:
         self._progress_base = 0.0
 
     # ---- acquisition primitives -----------------------------------------------------------------------------
-    def _read_block(self, step: StepLike, n: int, counts: bool) -> TableState:
+    def _read_block(self, step: Step, n: int, counts: bool) -> TableState:
         block = self.unit.read(n)
         state = self.table.read_state()
         self.table.heartbeat()
@@ -224,14 +210,14 @@ class Runner:
             raise RunAborted("failed", f"turntable fault: {state.fault_code.name} (status {int(state.status):#x})")
         return state
 
-    def _acquire(self, step: StepLike, n: int, counts: bool) -> None:
+    def _acquire(self, step: Step, n: int, counts: bool) -> None:
         left = int(n)
         while left > 0:
             k = min(self.block, left)
             self._read_block(step, k, counts)
             left -= k
 
-    def _wait_until(self, step: StepLike, predicate: Callable[[TableState], bool], timeout_s: float, what: str) -> None:
+    def _wait_until(self, step: Step, predicate: Callable[[TableState], bool], timeout_s: float, what: str) -> None:
         limit = self._sample + int(math.ceil(timeout_s * self.rate))
         state = self._state if self._state is not None else self.table.read_state()
         while not predicate(state):
@@ -255,7 +241,7 @@ class Runner:
     def _at_rest(self, s: TableState) -> bool:
         return bool(not s.status & TableStatus.MOVING and np.all(np.abs(s.rates) <= self.rest_rate))
 
-    def _move(self, step: StepLike, target: Sequence[float]) -> None:
+    def _move(self, step: Step, target: Sequence[float]) -> None:
         state = self._state if self._state is not None else self.table.read_state()
         if self._in_position(target)(state):
             return
@@ -263,7 +249,7 @@ class Runner:
         t = move_time(state.angles, np.asarray(target), self.limits)
         self._wait_until(step, self._in_position(target), 3 * t + 30.0, "reach position")
 
-    def _execute(self, step: StepLike) -> None:
+    def _execute(self, step: Step) -> None:
         kind = step.kind
         if kind == "note":
             if self._recording:
@@ -301,7 +287,7 @@ class Runner:
     def _time(self) -> float:
         return self._state.time if self._state is not None else 0.0
 
-    def _record_step(self, step: StepLike, status: str) -> StepRecord:
+    def _record_step(self, step: Step, status: str) -> StepRecord:
         acq = self._acq or (self._sample, self._sample)
         rec = StepRecord(
             index=int(step.index),
@@ -371,7 +357,7 @@ class Runner:
         completed: list[int] = []
         status, reason = "complete", ""
         self._sample = 0
-        current: StepLike | None = None
+        current: Step | None = None
         with _InterruptFlag() as flag:
             self._interrupt = flag
             try:

@@ -26,7 +26,7 @@ with that axis. Continuous axes are given in (−180°, 180°].
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -342,19 +342,25 @@ class _Compiler:
         )
         self.current, self.spun_axis = target, None
 
-    def hold(self, spec: HoldSpec, group: str, suffix: str) -> None:
-        name = self.full(group, spec.name or "hold", suffix)
-        cur = self.known_attitude(spec.line, name, "a hold")
+    def add_hold(
+        self, name: str, group: str, angles: Iterable[float], duration: float, settle: float | None, line: int | None
+    ) -> None:
+        """Append a static hold of ``duration`` s at gimbal ``angles`` (rad)."""
         self.add(
             name=name,
             kind="hold",
             group=group,
-            angles=tuple(float(x) for x in cur),
-            duration=spec.duration,
-            settle=self.settle_of(spec.settle),
-            line=spec.line,
-            text=f"hold {spec.duration:g} s",
+            angles=tuple(float(x) for x in angles),
+            duration=duration,
+            settle=self.settle_of(settle),
+            line=line,
+            text=f"hold {duration:g} s",
         )
+
+    def hold(self, spec: HoldSpec, group: str, suffix: str) -> None:
+        name = self.full(group, spec.name or "hold", suffix)
+        cur = self.known_attitude(spec.line, name, "a hold")
+        self.add_hold(name, group, cur, spec.duration, spec.settle, spec.line)
 
     def pick_gimbal(self, angles: np.ndarray, body_axis: str, line: int | None, name: str) -> tuple[int, float]:
         found = aligned_gimbals(angles, body_axis, self.mounting)
@@ -394,15 +400,8 @@ class _Compiler:
             )
             self.current = cur = target
             if spec.hold > 0:
-                self.add(
-                    name=self.full(group, f"{hold_base}-{k}", suffix),
-                    kind="hold",
-                    group=group,
-                    angles=tuple(float(x) for x in target),
-                    duration=spec.hold,
-                    settle=self.settle_of(spec.settle),
-                    line=spec.line,
-                    text=f"hold {spec.hold:g} s",
+                self.add_hold(
+                    self.full(group, f"{hold_base}-{k}", suffix), group, target, spec.hold, spec.settle, spec.line
                 )
 
     def spin(self, spec: SpinSpec, group: str, suffix: str) -> None:
