@@ -9,8 +9,8 @@ Every subcommand lives in its own module under :mod:`benches.commands` and defin
         p.set_defaults(func=run)          # run(args) -> int exit code
 
 Modules are discovered automatically. User errors are raised as :class:`UsageError` (or
-``procedures.yaml_source.ConfigError`` / ``analysis_input.InputError``) and printed as one clear line with
-exit code 2, never a traceback.
+``procedures.yaml_source.ConfigError`` / ``analysis_input.InputError`` / ``recording.RecordingError``) and
+printed as one clear line with exit code 2, never a traceback.
 """
 
 from __future__ import annotations
@@ -62,6 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the console script; returns the process exit code."""
     from benches.analysis_input import InputError
+    from benches.recording import RecordingError
 
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -71,7 +72,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     try:
         return int(func(args) or 0)
-    except (UsageError, ConfigError, InputError) as exc:
+    except (UsageError, ConfigError, InputError, RecordingError) as exc:
         print(f"tablebench {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

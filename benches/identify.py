@@ -98,11 +98,6 @@ def offset_covariance(windows: list[tuple[float, float]], b: NDArray[np.float64]
 # ---- the pre-run plan ------------------------------------------------------------------------------------------------
 
 
-def plan_steps_from_procedure(compiled: Any, config: Any, sample_rate: float | None = None) -> list[PlanStep]:
-    """Nominal samples of every hold and spin of a compiled procedure, as plan steps (body frame)."""
-    return [p for p, _w in _plan_steps_and_windows(compiled, config, sample_rate)]
-
-
 def _plan_steps_and_windows(
     compiled: Any, config: Any, sample_rate: float | None = None
 ) -> list[tuple[PlanStep, tuple[float, float]]]:

@@ -21,7 +21,7 @@ from typing import TextIO
 import h5py
 
 from .progress import ProgressDisplay
-from .recording import Hdf5Recorder, RecordingError, open_recording, read_steps
+from .recording import Hdf5Recorder, open_recording, read_steps
 from .runner import Runner, RunResult, SampleObserver
 
 DEFAULT_PROCEDURE = "ten-step"
@@ -226,7 +226,6 @@ def recording_status(path: Path) -> dict[str, object]:
 
 __all__ = [
     "Prepared",
-    "RecordingError",
     "SessionError",
     "copy_inputs",
     "execute",

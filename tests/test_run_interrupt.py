@@ -97,3 +97,12 @@ def test_bad_procedure_exits_2_and_nothing_moves(tmp_path):
     assert res.returncode == 2
     assert "bad.yaml:3" in res.stderr and "Traceback" not in res.stderr
     assert not (tmp_path / "r" / "recording.h5").exists()
+
+
+def test_resume_of_a_damaged_recording_is_a_clear_error(tmp_path):
+    run = tmp_path / "bad"
+    run.mkdir()
+    (run / "recording.h5").write_bytes(b"\x89HDF\r\n\x1a\n" + b"\0" * 100)
+    res = subprocess.run(CLI + ["run", "--resume", str(run)], cwd=tmp_path, capture_output=True, text=True)
+    assert res.returncode == 2
+    assert "recording.h5" in res.stderr and "Traceback" not in res.stderr
