@@ -442,13 +442,12 @@ def build_certificate(
     from .session import software_version
     from .uncertainty_budget import step_geometry
 
-    run = Path(run_dir)
-    if run.is_file():
-        run = run.parent
-    rec_path = run / "recording.h5"
+    given = Path(run_dir)
+    run = given.parent if given.is_file() else given
+    rec_path = given if given.is_file() else run / "recording.h5"
     cal_path = run / "calibration.json"
     if not rec_path.exists():
-        raise CertificateError(f"{run}: no recording.h5 here; give a run folder printed by 'tablebench run'")
+        raise CertificateError(f"{given}: no recording.h5 here; give a run folder printed by 'tablebench run'")
     if issue_date is None:
         issue_date = _dt.datetime.now(_dt.timezone.utc).date().isoformat()
     else:
@@ -756,10 +755,9 @@ def issue_certificate(
     """
     from .certificate_pdf import render_pdf
 
-    run = Path(run_dir)
-    if run.is_file():
-        run = run.parent
-    cert = build_certificate(run, issue_date=issue_date, allow_incomplete=allow_incomplete)
+    given = Path(run_dir)
+    run = given.parent if given.is_file() else given
+    cert = build_certificate(given, issue_date=issue_date, allow_incomplete=allow_incomplete)
     pdf_path = Path(out_pdf) if out_pdf is not None else run / "certificate.pdf"
     json_path = Path(out_json) if out_json is not None else pdf_path.with_suffix(".json")
     for p in (pdf_path, json_path):
