@@ -13,21 +13,27 @@ any unit; σ² is in that unit squared.
 - :func:`moment_estimates`: modified Yule–Walker (ρ_k = Σ φ_j ρ_{k−j}, k = q+1..q+p) for the AR part, then the
   MA part and σ² by the classical fixed-point iteration on the autocovariances of Y_t = x_t − Σ φ_j x_{t−j}
   (spectral factorisation when the iteration does not converge).
-- :func:`fit_arma`: conditional least squares (CSS, asymptotically maximum likelihood) started from the moment
-  estimates, by Levenberg–Marquardt with the analytic residual Jacobian, kept in the stationary/invertible
-  region, with standard errors σ² (JᵀJ)⁻¹.
+- :func:`fit_arma`: exact Gaussian maximum likelihood (default; :mod:`analysis.drift_arma_likelihood`) or
+  conditional least squares (CSS), by Levenberg–Marquardt kept in the stationary/invertible region, started
+  from the moment estimates (CSS) and the CSS solution (ML); standard errors σ² (JᵀJ)⁻¹ of the residual
+  Jacobian.
 - :func:`select_order`: all p, q ≤ 3 with p ≥ q by AIC = n ln σ̂² + 2(p+q+1) or BIC = n ln σ̂² + (p+q+1) ln n.
+  The spec does not say how σ̂² is estimated; by default it is the exact-ML prediction-error variance, for which
+  n ln σ̂² = −2 ln L − n(1 + ln 2π), i.e. the standard AIC/BIC (Akaike 1974; Box, Jenkins, Reinsel & Ljung
+  §6.2.1).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 
+from analysis.drift_arma_likelihood import exact_residuals
 from analysis.drift_preprocess import DriftInputError, check_series
 from analysis.drift_tests import autocovariance
 
@@ -310,24 +316,30 @@ def _normal_equations(jac: NDArray[np.float64], e: NDArray[np.float64]) -> tuple
     return A, g
 
 
+Residuals = Callable[[NDArray[np.float64]], NDArray[np.float64]]
+Jacobian = Callable[[NDArray[np.float64], NDArray[np.float64]], NDArray[np.float64]]
+
+
 def _levenberg_marquardt(
-    x: NDArray[np.float64], phi: NDArray[np.float64], theta: NDArray[np.float64], start: int, max_iter: int = 60
-) -> tuple[NDArray[np.float64], NDArray[np.float64], int, bool]:
-    """Minimise Σ e_t² (CSS) over (φ, θ) by Levenberg–Marquardt with the analytic Jacobian.
+    residuals: Residuals, jacobian: Jacobian, params: NDArray[np.float64], p: int, max_iter: int = 60
+) -> tuple[NDArray[np.float64], int, bool]:
+    """Minimise Σ e(params)² over params = (φ, θ) by Levenberg–Marquardt, staying stationary/invertible.
 
     Steps leaving the stationary/invertible region are rejected like cost increases. Converged when the
     relative cost decrease of an accepted step is below 1e-10 (a parameter error of ~0.01 standard error
     for n ~ 10⁴) or the step is below 1e-10.
+
+    Returns
+    -------
+    params, iterations, converged
     """
-    p = phi.size
-    params = np.r_[phi, theta]
-    e = css_residuals(x, phi, theta, start)
+    e = residuals(params)
     cost = _dot(e, e)
     mu = 1e-3
     for it in range(1, max_iter + 1):
-        jac = _jacobian(x, params[:p], params[p:], start)
-        A, g = _normal_equations(jac, e)
+        A, g = _normal_equations(jacobian(params, e), e)
         d = np.diag(A).copy()
+        d[d <= 0.0] = 1.0
         accepted = False
         for _ in range(30):
             try:
@@ -337,24 +349,79 @@ def _levenberg_marquardt(
                 continue
             new = params + step
             if _admissible(new[:p], new[p:]):
-                e_new = css_residuals(x, new[:p], new[p:], start)
+                e_new = residuals(new)
                 cost_new = _dot(e_new, e_new)
                 if cost_new <= cost:
                     accepted = True
                     break
             mu *= 10.0
         if not accepted:
-            return params[:p], params[p:], it, True  # no decrease possible: at the (boundary) minimum
+            return params, it, True  # no decrease possible: at the (boundary) minimum
         rel = (cost - cost_new) / max(cost, 1e-300)
         params, e, cost = new, e_new, cost_new
         mu = max(mu / 10.0, 1e-12)
         if rel < 1e-10 or float(np.max(np.abs(step))) < 1e-10:
-            return params[:p], params[p:], it, True
-    return params[:p], params[p:], max_iter, False
+            return params, it, True
+    return params, max_iter, False
 
 
-def fit_arma(x: ArrayLike, p: int, q: int, start: ArmaModel | None = None, condition: int | None = None) -> ArmaModel:
-    """Conditional-least-squares ARMA(p, q) fit with standard errors, started from the moment estimates.
+def _css_problem(x: NDArray[np.float64], p: int, start: int) -> tuple[Residuals, Jacobian]:
+    """CSS residuals e_t (t ≥ start) and their analytic Jacobian as functions of (φ, θ)."""
+
+    def residuals(par: NDArray[np.float64]) -> NDArray[np.float64]:
+        return css_residuals(x, par[:p], par[p:], start)
+
+    def jacobian(par: NDArray[np.float64], _e: NDArray[np.float64]) -> NDArray[np.float64]:
+        return _jacobian(x, par[:p], par[p:], start)
+
+    return residuals, jacobian
+
+
+def _ml_problem(x: NDArray[np.float64], p: int) -> tuple[Residuals, Jacobian]:
+    """Exact-likelihood residual vector (:mod:`analysis.drift_arma_likelihood`) and its Jacobian.
+
+    The Jacobian is by forward differences (backward where the forward point leaves the admissible region),
+    step 1e-7 in the coefficients: a relative error of ~1e-7/σ_coefficient ≪ 1. The most probable pre-sample
+    values are re-solved at each point; by the envelope theorem this does not bias the gradient.
+    """
+
+    def residuals(par: NDArray[np.float64]) -> NDArray[np.float64]:
+        return exact_residuals(x, par[:p], par[p:]).weighted()
+
+    def jacobian(par: NDArray[np.float64], e: NDArray[np.float64]) -> NDArray[np.float64]:
+        cols = []
+        for i in range(par.size):
+            bumped = par.copy()
+            h = 1e-7
+            bumped[i] += h
+            if not _admissible(bumped[:p], bumped[p:], 0.0):
+                h = -h
+                bumped[i] = par[i] + h
+            cols.append((residuals(bumped) - e) / h)
+        return np.stack(cols, axis=1)
+
+    return residuals, jacobian
+
+
+def _pad(model: ArmaModel, p: int, q: int) -> NDArray[np.float64]:
+    """Parameters of a nested ARMA(p', q') model as an ARMA(p, q) start (zero-padded; the same process)."""
+    return np.r_[model.phi, np.zeros(p - model.p), model.theta, np.zeros(q - model.q)]
+
+
+def _note(*parts: str) -> str:
+    return "; ".join(s for s in parts if s)
+
+
+def fit_arma(
+    x: ArrayLike,
+    p: int,
+    q: int,
+    start: ArmaModel | None = None,
+    condition: int | None = None,
+    method: str = "ml",
+    nested: ArmaModel | None = None,
+) -> ArmaModel:
+    """Fit ARMA(p, q) with standard errors: exact Gaussian maximum likelihood (default) or conditional least squares.
 
     Parameters
     ----------
@@ -363,50 +430,81 @@ def fit_arma(x: ArrayLike, p: int, q: int, start: ArmaModel | None = None, condi
     p, q : int
         Orders.
     start : ArmaModel, optional
-        Starting point (default: :func:`moment_estimates`).
+        Starting point of the CSS fit (default: :func:`moment_estimates`).
     condition : int, optional
-        Number of initial samples conditioned on (default p); σ² and the criteria use the n − condition
-        residuals. :func:`select_order` gives every candidate the same value.
+        CSS only: number of initial samples conditioned on (default p); σ² and the criteria use the
+        n − condition residuals.
+    method : {"ml", "css"}
+        ``"css"``: conditional least squares (e_t = 0 before the conditioning samples), Levenberg–Marquardt with
+        the analytic residual Jacobian from ``start``. ``"ml"``: exact likelihood
+        (:mod:`analysis.drift_arma_likelihood`), Levenberg–Marquardt on the weighted prediction errors started
+        from the CSS solution and, when given, from the ``nested`` model; the higher likelihood is kept.
+    nested : ArmaModel, optional
+        ML only: a fitted model of orders p' ≤ p, q' ≤ q, used (zero-padded) as a second start, so the
+        likelihood is never below that of a model it contains — order criteria then compare true maxima.
 
     Returns
     -------
     ArmaModel
-        ``method="css"``; σ² = mean of the squared conditional residuals; standard errors from σ²(JᵀJ)⁻¹;
-        ``n`` = number of residuals.
+        σ² = mean squared (prediction) residual; standard errors σ²(JᵀJ)⁻¹ from the residual Jacobian; ``aic``
+        and ``bic`` from n ln σ̂² (ML: σ̂²_eff, so n ln σ̂²_eff = −2 ln L − n(1 + ln 2π)); ``n`` = residuals used.
     """
+    if method not in ("ml", "css"):
+        raise DriftInputError(f"ARMA fit method must be 'ml' or 'css', got {method!r}")
     a = check_series(x)
     _check_orders(a, p, q)
     a = a - a.mean()
     if start is None:
         start = moment_estimates(a, p, q)
     note = start.note
-    s0 = p if condition is None else max(int(condition), p)
+    s0 = p if condition is None or method == "ml" else max(int(condition), p)
     if p + q == 0:
         tail = a[s0:]
         s2 = _dot(tail, tail) / tail.size
         aic, bic = _criteria(tail.size, s2, 1)
         z = np.zeros(0)
-        return ArmaModel(0, 0, z, z, s2, z, z, s2 * math.sqrt(2.0 / tail.size), tail.size, "css", aic, bic, note=note)
-    phi, theta, it, converged = _levenberg_marquardt(
-        a / math.sqrt(float(np.mean(a * a))),
-        _shrink_to_admissible(start.phi),
-        _shrink_to_admissible(start.theta),
-        s0,
+        return ArmaModel(0, 0, z, z, s2, z, z, s2 * math.sqrt(2.0 / tail.size), tail.size, method, aic, bic, note=note)
+    scaled = a / math.sqrt(float(np.mean(a * a)))
+    css = _css_problem(scaled, p, s0)
+    params, it, converged = _levenberg_marquardt(
+        *css, np.r_[_shrink_to_admissible(start.phi), _shrink_to_admissible(start.theta)], p
     )
-    e = css_residuals(a, phi, theta, s0)
-    s2 = _dot(e, e) / e.size
-    info, _ = _normal_equations(_jacobian(a, phi, theta, s0), e)
+    problem = css
+    if method == "ml":
+        problem = _ml_problem(scaled, p)
+        starts = [params] + ([_pad(nested, p, q)] if nested is not None else [])
+        best = None
+        for s in starts:
+            if not _admissible(s[:p], s[p:]):
+                continue
+            cand, it, converged = _levenberg_marquardt(*problem, s, p)
+            e = problem[0](cand)
+            if best is None or _dot(e, e) < best[0]:
+                best = (_dot(e, e), cand, it, converged)
+        _, params, it, converged = best
+    phi, theta = params[:p], params[p:]
+    if method == "ml":
+        ex = exact_residuals(a, phi, theta)
+        e = ex.weighted()
+        s2, s2_crit = ex.sigma2, ex.sigma2_eff
+        jac = problem[1](params, problem[0](params)) * math.sqrt(float(np.mean(a * a)))
+        m = ex.n
+    else:
+        e = css_residuals(a, phi, theta, s0)
+        s2 = s2_crit = _dot(e, e) / e.size
+        jac = _jacobian(a, phi, theta, s0)
+        m = e.size
+    info, _ = _normal_equations(jac, e)
     se = np.full(p + q, np.nan)
     try:
         cov = s2 * np.linalg.inv(info)
         se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     except np.linalg.LinAlgError:
-        note = (note + "; " if note else "") + "information matrix singular (over-parametrised model)"
+        note = _note(note, "information matrix singular (over-parametrised model)")
     if not converged:
-        note = (note + "; " if note else "") + f"least squares stopped after {it} iterations without converging"
-    m = e.size
-    aic, bic = _criteria(m, s2, p + q + 1)
-    return ArmaModel(p, q, phi, theta, s2, se[:p], se[p:], s2 * math.sqrt(2.0 / m), m, "css", aic, bic, note=note)
+        note = _note(note, f"least squares stopped after {it} iterations without converging")
+    aic, bic = _criteria(m, s2_crit, p + q + 1)
+    return ArmaModel(p, q, phi, theta, s2, se[:p], se[p:], s2 * math.sqrt(2.0 / m), m, method, aic, bic, note=note)
 
 
 @dataclass
@@ -437,16 +535,32 @@ def candidate_orders(max_p: int = 3, max_q: int = 3) -> list[tuple[int, int]]:
     return [(p, q) for p in range(max_p + 1) for q in range(max_q + 1) if p >= q]
 
 
-def select_order(x: ArrayLike, max_p: int = 3, max_q: int = 3, criterion: str = "bic") -> OrderSelection:
-    """Fit every ARMA(p, q), p, q ≤ 3, p ≥ q, by CSS and pick the order minimising AIC or BIC.
+def select_order(
+    x: ArrayLike, max_p: int = 3, max_q: int = 3, criterion: str = "bic", method: str = "ml"
+) -> OrderSelection:
+    """Fit every ARMA(p, q), p ≤ max_p, q ≤ max_q, p ≥ q, and pick the order minimising AIC or BIC.
 
-    All candidates use the residuals t ≥ max_p + max_q (same samples, MA start-up partly decayed). Orders
-    too large for the record length are skipped (at least ARMA(0,0) is always fitted).
+    Parameters
+    ----------
+    x : array_like
+        Scalar series (mean removed), any unit.
+    max_p, max_q : int
+        Largest orders (spec: 3).
+    criterion : {"bic", "aic"}
+        Which criterion chooses ``best``; both choices are returned.
+    method : {"ml", "css"}
+        ``"ml"`` (default): exact maximum likelihood on the whole record, each model also started from the
+        best nested model already fitted, so a larger model's likelihood is never below a model it contains.
+        ``"css"``: conditional least squares with every candidate conditioned on the first max_p + max_q
+        samples (same residual samples for all). Exact ML is the default because CSS over-fits under AIC
+        (measured: AIC picks the true ARMA(1,1) in ~50 % of runs with CSS, see ``benchmarks/RESULTS.md``).
+
+    Orders too large for the record length are skipped (at least ARMA(0,0) is always fitted).
     """
     if criterion not in ("aic", "bic"):
         raise DriftInputError(f"criterion must be 'aic' or 'bic', got {criterion!r}")
     a = check_series(x)
-    # Every candidate is conditioned on the same first samples, so σ̂² and the criteria compare like with
+    # CSS: every candidate is conditioned on the same first samples, so σ̂² and the criteria compare like with
     # like (otherwise a higher p silently drops early, transient-affected residuals and looks better).
     common = max_p + max_q
     models: dict[tuple[int, int], ArmaModel] = {}
@@ -455,7 +569,9 @@ def select_order(x: ArrayLike, max_p: int = 3, max_q: int = 3, criterion: str = 
             _check_orders(a, p, q)
         except DriftInputError:
             continue
-        models[(p, q)] = fit_arma(a, p, q, condition=common)
+        inner = [m for (pp, qq), m in models.items() if pp <= p and qq <= q]
+        nested = min(inner, key=lambda m: m.aic - 2.0 * (m.p + m.q + 1)) if inner else None
+        models[(p, q)] = fit_arma(a, p, q, condition=common, method=method, nested=nested)
     if not models:
         raise DriftInputError(f"series of {a.size} samples is too short for any ARMA model")
     by_aic = min(models, key=lambda k: models[k].aic)
