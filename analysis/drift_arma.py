@@ -278,11 +278,13 @@ def css_residuals(
 
 
 def _jacobian(
-    x: NDArray[np.float64], phi: NDArray[np.float64], theta: NDArray[np.float64], start: int
-) -> NDArray[np.float64]:
-    """∂e_t/∂(φ, θ) of the CSS residuals: −θ(B)⁻¹ x_{t−j} and +θ(B)⁻¹ e_{t−j}, θ(B) = 1 − Σ θ_j B^j."""
+    x: NDArray[np.float64], phi: NDArray[np.float64], theta: NDArray[np.float64], start: int, e: NDArray[np.float64]
+) -> list[NDArray[np.float64]]:
+    """Columns ∂e_t/∂(φ, θ) of the CSS residuals e (:func:`css_residuals` at the same point and ``start``).
+
+    ∂e_t/∂φ_j = −θ(B)⁻¹ x_{t−j} and ∂e_t/∂θ_j = +θ(B)⁻¹ e_{t−j}, θ(B) = 1 − Σ θ_j B^j.
+    """
     p, q = phi.size, theta.size
-    e = css_residuals(x, phi, theta, start)
     m = e.size
     cols = []
     den = np.r_[1.0, -theta]
@@ -290,9 +292,9 @@ def _jacobian(
         xs = x[start - j : start - j + m]
         cols.append(-signal.lfilter([1.0], den, xs))
     for j in range(1, q + 1):
-        es = np.r_[np.zeros(j), e[: m - j]]
+        es = np.concatenate((np.zeros(j), e[: m - j]))
         cols.append(signal.lfilter([1.0], den, es))
-    return np.stack(cols, axis=1) if cols else np.zeros((m, 0))
+    return cols
 
 
 def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
@@ -300,13 +302,12 @@ def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
     return float(np.einsum("i,i->", a, b))
 
 
-def _normal_equations(jac: NDArray[np.float64], e: NDArray[np.float64]) -> tuple[np.ndarray, np.ndarray]:
-    """JᵀJ and Jᵀe for a tall, thin J (≤ 6 columns) by 1-D dot products.
+def _normal_equations(cols: list[NDArray[np.float64]], e: NDArray[np.float64]) -> tuple[np.ndarray, np.ndarray]:
+    """JᵀJ and Jᵀe for a tall, thin J given as its (≤ 6) contiguous columns, by 1-D dot products.
 
     numpy's einsum loops avoid OpenBLAS, whose threaded GEMM/DOT is up to 100× slower for n × 6 on a loaded
-    2-core machine (measured).
+    2-core machine (measured); keeping J as separate columns avoids copying it.
     """
-    cols = [np.ascontiguousarray(jac[:, i]) for i in range(jac.shape[1])]
     k = len(cols)
     A = np.empty((k, k))
     for i in range(k):
@@ -317,7 +318,7 @@ def _normal_equations(jac: NDArray[np.float64], e: NDArray[np.float64]) -> tuple
 
 
 Residuals = Callable[[NDArray[np.float64]], NDArray[np.float64]]
-Jacobian = Callable[[NDArray[np.float64], NDArray[np.float64]], NDArray[np.float64]]
+Jacobian = Callable[[NDArray[np.float64], NDArray[np.float64]], list[NDArray[np.float64]]]
 
 
 def _levenberg_marquardt(
@@ -371,8 +372,8 @@ def _css_problem(x: NDArray[np.float64], p: int, start: int) -> tuple[Residuals,
     def residuals(par: NDArray[np.float64]) -> NDArray[np.float64]:
         return css_residuals(x, par[:p], par[p:], start)
 
-    def jacobian(par: NDArray[np.float64], _e: NDArray[np.float64]) -> NDArray[np.float64]:
-        return _jacobian(x, par[:p], par[p:], start)
+    def jacobian(par: NDArray[np.float64], e: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+        return _jacobian(x, par[:p], par[p:], start, e)
 
     return residuals, jacobian
 
@@ -388,7 +389,7 @@ def _ml_problem(x: NDArray[np.float64], p: int) -> tuple[Residuals, Jacobian]:
     def residuals(par: NDArray[np.float64]) -> NDArray[np.float64]:
         return exact_residuals(x, par[:p], par[p:]).weighted()
 
-    def jacobian(par: NDArray[np.float64], e: NDArray[np.float64]) -> NDArray[np.float64]:
+    def jacobian(par: NDArray[np.float64], e: NDArray[np.float64]) -> list[NDArray[np.float64]]:
         cols = []
         for i in range(par.size):
             bumped = par.copy()
@@ -398,7 +399,7 @@ def _ml_problem(x: NDArray[np.float64], p: int) -> tuple[Residuals, Jacobian]:
                 h = -h
                 bumped[i] = par[i] + h
             cols.append((residuals(bumped) - e) / h)
-        return np.stack(cols, axis=1)
+        return cols
 
     return residuals, jacobian
 
@@ -487,12 +488,13 @@ def fit_arma(
         ex = exact_residuals(a, phi, theta)
         e = ex.weighted()
         s2, s2_crit = ex.sigma2, ex.sigma2_eff
-        jac = problem[1](params, problem[0](params)) * math.sqrt(float(np.mean(a * a)))
+        scale = math.sqrt(float(np.mean(a * a)))
+        jac = [c * scale for c in problem[1](params, problem[0](params))]
         m = ex.n
     else:
         e = css_residuals(a, phi, theta, s0)
         s2 = s2_crit = _dot(e, e) / e.size
-        jac = _jacobian(a, phi, theta, s0)
+        jac = _jacobian(a, phi, theta, s0, e)
         m = e.size
     info, _ = _normal_equations(jac, e)
     se = np.full(p + q, np.nan)
@@ -536,7 +538,12 @@ def candidate_orders(max_p: int = 3, max_q: int = 3) -> list[tuple[int, int]]:
 
 
 def select_order(
-    x: ArrayLike, max_p: int = 3, max_q: int = 3, criterion: str = "bic", method: str = "ml"
+    x: ArrayLike,
+    max_p: int = 3,
+    max_q: int = 3,
+    criterion: str = "bic",
+    method: str = "ml",
+    progress: Callable[[tuple[int, int], int, int], None] | None = None,
 ) -> OrderSelection:
     """Fit every ARMA(p, q), p ≤ max_p, q ≤ max_q, p ≥ q, and pick the order minimising AIC or BIC.
 
@@ -555,6 +562,10 @@ def select_order(
         samples (same residual samples for all). Exact ML is the default because CSS over-fits under AIC
         (measured: AIC picks the true ARMA(1,1) in ~50 % of runs with CSS, see ``benchmarks/RESULTS.md``).
 
+    progress : callable, optional
+        Called as ``progress((p, q), k, total)`` after the k-th of ``total`` candidate fits (long records take
+        seconds per model).
+
     Orders too large for the record length are skipped (at least ARMA(0,0) is always fitted).
     """
     if criterion not in ("aic", "bic"):
@@ -564,7 +575,8 @@ def select_order(
     # like (otherwise a higher p silently drops early, transient-affected residuals and looks better).
     common = max_p + max_q
     models: dict[tuple[int, int], ArmaModel] = {}
-    for p, q in candidate_orders(max_p, max_q):
+    orders = candidate_orders(max_p, max_q)
+    for index, (p, q) in enumerate(orders, start=1):
         try:
             _check_orders(a, p, q)
         except DriftInputError:
@@ -572,6 +584,8 @@ def select_order(
         inner = [m for (pp, qq), m in models.items() if pp <= p and qq <= q]
         nested = min(inner, key=lambda m: m.aic - 2.0 * (m.p + m.q + 1)) if inner else None
         models[(p, q)] = fit_arma(a, p, q, condition=common, method=method, nested=nested)
+        if progress is not None:
+            progress((p, q), index, len(orders))
     if not models:
         raise DriftInputError(f"series of {a.size} samples is too short for any ARMA model")
     by_aic = min(models, key=lambda k: models[k].aic)

@@ -80,7 +80,7 @@ class ExactResiduals:
 
     def weighted(self) -> NDArray[np.float64]:
         """Residual vector whose sum of squares is n σ̂²_eff (the exact-ML least-squares objective)."""
-        return np.r_[self.residuals, self.presample] * float(np.exp(self.log_det / (2.0 * self.n)))
+        return np.concatenate((self.residuals, self.presample)) * float(np.exp(self.log_det / (2.0 * self.n)))
 
 
 def presample_covariance(phi: NDArray[np.float64], theta: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -23,7 +23,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -65,6 +65,8 @@ class DriftOptions:
         tones themselves belong to ``tablebench periodic``).
     max_p, max_q : largest ARMA orders tried (p ≥ q).
     criterion : "bic" or "aic".
+    fit_method : "ml" (exact maximum likelihood, default) or "css" (conditional least squares, faster on long
+        records; the two agree within a fraction of a standard error there, but the order choice can differ).
     nlags : lags of the ACF/PACF and Ljung–Box (None: min(40, n/10) for the plots, 20 for Ljung–Box).
     online : run the online RLS/ELS over the record.
     forgetting : forgetting factor λ of the online estimator.
@@ -83,6 +85,7 @@ class DriftOptions:
     max_p: int = 3
     max_q: int = 3
     criterion: str = "bic"
+    fit_method: str = "ml"
     nlags: int | None = None
     online: bool = True
     forgetting: float = 1.0
@@ -110,7 +113,11 @@ class ChannelDrift:
 
 
 def analyse_channel(
-    x: ArrayLike, rate: float, name: str = "series", options: DriftOptions | None = None
+    x: ArrayLike,
+    rate: float,
+    name: str = "series",
+    options: DriftOptions | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> ChannelDrift:
     """Run the drift chain on one channel (see the module docstring).
 
@@ -123,14 +130,22 @@ def analyse_channel(
     name : str
         Channel name for messages.
     options : DriftOptions, optional
+    progress : callable, optional
+        Called with a short message as each stage starts (tests, each ARMA candidate, online pass, smoother).
     """
     o = options or DriftOptions()
+
+    def say(msg: str) -> None:
+        if progress is not None:
+            progress(f"{name}: {msg}")
+
     if not (math.isfinite(rate) and rate > 0):
         raise DriftInputError(f"{name}: sample rate must be a positive number of Hz, got {rate}")
     a = check_series(x, name, min_samples=MIN_SAMPLES)
     n = a.size
     if n < 2 * o.segments:
         raise DriftInputError(f"{name}: {n} samples are too few for {o.segments} sub-series; use fewer segments")
+    say(f"pre-processing and tests ({n} samples)")
     out = replace_outliers(a, o.outlier_k, o.outlier_method)
     det = detrend(out.cleaned, rate, o.detrend_order)
     y = det.residual
@@ -161,7 +176,10 @@ def analyse_channel(
     if o.remove_tones and tones.extra["frequencies"]:
         y, removed = remove_tones(y, rate, tones.extra["frequencies"], rate / tones.extra["nperseg"])
 
-    sel = select_order(y, o.max_p, o.max_q, o.criterion)
+    say(f"fitting ARMA(p, q), p, q <= {o.max_p}, {o.max_q} ({o.fit_method.upper()})")
+    sel = select_order(
+        y, o.max_p, o.max_q, o.criterion, o.fit_method, lambda pq, k, tot: say(f"ARMA{pq} fitted ({k}/{tot})")
+    )
     model = sel.best
     moments = moment_estimates(y, model.p, model.q)
     resid = css_residuals(y - y.mean(), model.phi, model.theta)
@@ -176,6 +194,7 @@ def analyse_channel(
 
     online: dict = {"run": False}
     if o.online and model.p + model.q > 0:
+        say("online RLS/ELS pass")
         n0 = min(max(1000, n // 20), n // 2)
         try:
             est = OnlineArma(model.p, model.q, o.forgetting).initialise(y[:n0] - y.mean())
@@ -209,6 +228,7 @@ def analyse_channel(
         comp["std_after_filter"] = float(np.std(innov))
         ns = int(min(o.smoother_samples, n))
         if ns >= 2:
+            say(f"sliding-window smoother over {ns} samples")
             sm = sliding_window_smoother(ss, yc[:ns], o.window, min(o.stride, o.window))
             smoothed = sm.drift
             compensated = yc[:ns] - sm.drift

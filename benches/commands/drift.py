@@ -5,6 +5,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
+import time
+from collections.abc import Callable
 
 EXAMPLES = """examples:
   tablebench drift runs/static-noise-001                          # a recording, all six channels
@@ -39,6 +42,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_input_arguments(p)
     p.add_argument("--channel", dest="channels", help="same as --channels (one or more comma-separated names)")
     p.add_argument("--criterion", choices=("bic", "aic"), default="bic", help="ARMA order criterion (default bic)")
+    p.add_argument(
+        "--fit",
+        choices=("ml", "css"),
+        default="ml",
+        help="ARMA estimator: exact maximum likelihood (default) or conditional least squares (faster on long records)",
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.add_argument("--outliers", choices=("sigma", "mad"), default="sigma", help="outlier scale: 3σ or MAD")
     p.add_argument("--outlier-k", type=float, default=3.0, help="outlier threshold in scale units (default 3)")
     p.add_argument("--detrend", type=int, default=None, metavar="ORDER", help="polynomial order (default: by BIC)")
@@ -126,6 +136,16 @@ def format_report(result: dict, units: dict[str, str]) -> str:
     return "\n".join(lines)
 
 
+def _progress_printer() -> Callable[[str], None]:
+    """Progress lines on stderr with the elapsed wall time (the ARMA search takes tens of seconds on long records)."""
+    t0 = time.monotonic()
+
+    def show(msg: str) -> None:
+        print(f"[{time.monotonic() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
+
+    return show
+
+
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench drift``."""
     from analysis.drift_preprocess import DriftInputError
@@ -154,6 +174,7 @@ def run(args: argparse.Namespace) -> int:
         segments=args.segments,
         alpha=args.alpha,
         criterion=args.criterion,
+        fit_method=args.fit,
         online=not args.no_online,
         forgetting=args.forgetting,
         measurement_var=args.measurement_var,
@@ -163,7 +184,7 @@ def run(args: argparse.Namespace) -> int:
     summaries = {}
     for name, x in data.channels.items():
         try:
-            results[name] = analyse_channel(x, data.rate, name, opts)
+            results[name] = analyse_channel(x, data.rate, name, opts, None if args.quiet else _progress_printer())
         except DriftInputError as exc:
             raise InputError(f"{data.source}: {exc}") from None
         summaries[name] = results[name].summary
