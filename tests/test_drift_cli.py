@@ -34,7 +34,7 @@ def test_drift_command_writes_json_and_plots(record: Path, tmp_path: Path, capsy
     model = ch["model"]
     for key in ("p", "q", "phi", "theta", "sigma2", "criterion"):
         assert key in model
-    assert (model["p"], model["q"]) == (1, 1) and model["criterion"] == "bic"
+    assert (model["p"], model["q"]) == (1, 1) and model["criterion"] == "bic" and model["method"] == "ml"
     assert abs(model["phi"][0] - 0.9) < 3 * model["se_phi"][0] + 1e-9
     for name in ("daniel_mean", "reverse_arrangement_mean", "daniel_mean_square", "reverse_arrangement_mean_square",
                  "jarque_bera", "welch_periodicity", "ljung_box"):  # fmt: skip
@@ -56,6 +56,16 @@ def test_channel_alias_and_options(record: Path, tmp_path: Path) -> None:
     ch = doc["channels"]["gyro_a"]
     assert ch["model"]["criterion"] == "aic" and ch["outliers"]["method"] == "mad" and ch["detrend"]["order"] == 1
     assert ch["online"]["run"] is False
+
+
+def test_fit_method_and_progress(record: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    out = tmp_path / "o3"
+    assert main(["drift", str(record), "--rate", "100", "--channel", "gyro_a", "--fit", "css", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "gyro_a: ARMA(3, 3) fitted (10/10)" in err and "gyro_a: pre-processing" in err
+    assert json.loads((out / "drift.json").read_text())["channels"]["gyro_a"]["model"]["method"] == "css"
+    assert main(["drift", str(record), "--rate", "100", "--channel", "gyro_a", "--quiet", "--no-online"]) == 0
+    assert capsys.readouterr().err == ""
 
 
 @pytest.mark.parametrize(
