@@ -8,8 +8,8 @@ For every channel (a scalar series in SI: rad/s for gyros, m/s² for acceleromet
 4. periodicity: Welch peak significance, strong tones listed for ``tablebench periodic`` and (by default)
    subtracted by least squares before the ARMA modelling;
 5. normality: Jarque–Bera (with the large-n caveat);
-6. ACF / PACF with bands, ARMA order by AIC/BIC (p, q ≤ 3, p ≥ q), moment estimates and CSS refinement with
-   standard errors, Ljung–Box on the residuals;
+6. ACF / PACF with bands, ARMA order by AIC/BIC (p, q ≤ 3, p ≥ q) over exact maximum-likelihood fits (CSS on
+   request), moment estimates, standard errors, Ljung–Box on the residuals;
 7. online RLS / extended LS over the record (compared with the batch fit);
 8. compensation: state-space ARMA, steady-state Kalman filter over the record, sliding-window LM smoother
    over the first ``smoother_samples`` samples; standard deviations before and after.
