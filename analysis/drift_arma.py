@@ -323,7 +323,7 @@ Jacobian = Callable[[NDArray[np.float64], NDArray[np.float64]], list[NDArray[np.
 
 def _levenberg_marquardt(
     residuals: Residuals, jacobian: Jacobian, params: NDArray[np.float64], p: int, max_iter: int = 60
-) -> tuple[NDArray[np.float64], int, bool]:
+) -> tuple[NDArray[np.float64], float, int, bool]:
     """Minimise Σ e(params)² over params = (φ, θ) by Levenberg–Marquardt, staying stationary/invertible.
 
     Steps leaving the stationary/invertible region are rejected like cost increases. Converged when the
@@ -332,7 +332,7 @@ def _levenberg_marquardt(
 
     Returns
     -------
-    params, iterations, converged
+    params, cost (Σ e² at params), iterations, converged
     """
     e = residuals(params)
     cost = _dot(e, e)
@@ -357,13 +357,13 @@ def _levenberg_marquardt(
                     break
             mu *= 10.0
         if not accepted:
-            return params, it, True  # no decrease possible: at the (boundary) minimum
+            return params, cost, it, True  # no decrease possible: at the (boundary) minimum
         rel = (cost - cost_new) / max(cost, 1e-300)
         params, e, cost = new, e_new, cost_new
         mu = max(mu / 10.0, 1e-12)
         if rel < 1e-10 or float(np.max(np.abs(step))) < 1e-10:
-            return params, it, True
-    return params, max_iter, False
+            return params, cost, it, True
+    return params, cost, max_iter, False
 
 
 def _css_problem(x: NDArray[np.float64], p: int, start: int) -> tuple[Residuals, Jacobian]:
@@ -465,31 +465,23 @@ def fit_arma(
         aic, bic = _criteria(tail.size, s2, 1)
         z = np.zeros(0)
         return ArmaModel(0, 0, z, z, s2, z, z, s2 * math.sqrt(2.0 / tail.size), tail.size, method, aic, bic, note=note)
-    scaled = a / math.sqrt(float(np.mean(a * a)))
+    scale = math.sqrt(float(np.mean(a * a)))
+    scaled = a / scale
     css = _css_problem(scaled, p, s0)
-    params, it, converged = _levenberg_marquardt(
+    params, _, it, converged = _levenberg_marquardt(
         *css, np.r_[_shrink_to_admissible(start.phi), _shrink_to_admissible(start.theta)], p
     )
-    problem = css
     if method == "ml":
-        problem = _ml_problem(scaled, p)
+        ml = _ml_problem(scaled, p)
         starts = [params] + ([_pad(nested, p, q)] if nested is not None else [])
-        best = None
-        for s in starts:
-            if not _admissible(s[:p], s[p:]):
-                continue
-            cand, it, converged = _levenberg_marquardt(*problem, s, p)
-            e = problem[0](cand)
-            if best is None or _dot(e, e) < best[0]:
-                best = (_dot(e, e), cand, it, converged)
-        _, params, it, converged = best
+        fits = [_levenberg_marquardt(*ml, s, p) for s in starts if _admissible(s[:p], s[p:])]
+        params, _, it, converged = min(fits, key=lambda fit: fit[1])
     phi, theta = params[:p], params[p:]
     if method == "ml":
         ex = exact_residuals(a, phi, theta)
         e = ex.weighted()
         s2, s2_crit = ex.sigma2, ex.sigma2_eff
-        scale = math.sqrt(float(np.mean(a * a)))
-        jac = [c * scale for c in problem[1](params, problem[0](params))]
+        jac = [c * scale for c in ml[1](params, e / scale)]
         m = ex.n
     else:
         e = css_residuals(a, phi, theta, s0)
