@@ -476,14 +476,14 @@ def fit_arma(
         starts = [params] + ([_pad(nested, p, q)] if nested is not None else [])
         fits = [_levenberg_marquardt(*ml, s, p) for s in starts if _admissible(s[:p], s[p:])]
         params, _, it, converged = min(fits, key=lambda fit: fit[1])
-    phi, theta = params[:p], params[p:]
-    if method == "ml":
+        phi, theta = params[:p], params[p:]
         ex = exact_residuals(a, phi, theta)
         e = ex.weighted()
         s2, s2_crit = ex.sigma2, ex.sigma2_eff
         jac = [c * scale for c in ml[1](params, e / scale)]
         m = ex.n
     else:
+        phi, theta = params[:p], params[p:]
         e = css_residuals(a, phi, theta, s0)
         s2 = s2_crit = _dot(e, e) / e.size
         jac = _jacobian(a, phi, theta, s0, e)

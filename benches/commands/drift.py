@@ -182,9 +182,10 @@ def run(args: argparse.Namespace) -> int:
     )
     results = {}
     summaries = {}
+    progress = None if args.quiet else _progress_printer()
     for name, x in data.channels.items():
         try:
-            results[name] = analyse_channel(x, data.rate, name, opts, None if args.quiet else _progress_printer())
+            results[name] = analyse_channel(x, data.rate, name, opts, progress)
         except DriftInputError as exc:
             raise InputError(f"{data.source}: {exc}") from None
         summaries[name] = results[name].summary
