@@ -1,1 +1,2 @@
-"""Pure maths of inertial test: identification, noise, periodic error, drift (no I/O, no hardware)."""
+"""Pure maths of inertial test (no hardware): sub-packages ``identification``, ``noise``, ``periodic``, ``drift``,
+and the shared frames and units beside them (``units``, ``gimbal``, ``earth``)."""

@@ -22,6 +22,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from core.errors import UserError
+
 RECORDING_CHANNELS: tuple[str, ...] = ("accel_x", "accel_y", "accel_z", "gyro_x", "gyro_y", "gyro_z")
 CHANNEL_UNITS: dict[str, str] = {
     "accel_x": "m/s^2",
@@ -33,7 +35,7 @@ CHANNEL_UNITS: dict[str, str] = {
 }
 
 
-class InputError(ValueError):
+class InputError(UserError, ValueError):
     """An analysis input cannot be used; the message names the file and the fix."""
 
 

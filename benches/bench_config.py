@@ -1,6 +1,6 @@
 """Bench definitions: load a bench YAML file into frozen, SI dataclasses (format: ``benches/BENCH_FORMAT.md``).
 
-Every user error is a :class:`~procedures.yaml_source.ConfigError` naming file:line, the key path, what is
+Every user error is a :class:`~core.yaml_source.ConfigError` naming file:line, the key path, what is
 wrong and what is allowed. Display units appear only in the YAML, in the key names (``rate_max_dps``,
 ``bias_ug``, ``lever_arm_mm``…), and are converted once here through ``analysis.units``.
 """
@@ -29,6 +29,18 @@ from analysis.units import (
     UG_PER_G2,
     UG_PER_SQRT_HZ,
 )
+from core.yaml_source import (
+    ConfigError,
+    KeyPath,
+    SourceMap,
+    check_keys,
+    get_mapping,
+    get_number,
+    get_str,
+    get_vector,
+    load_yaml,
+    load_yaml_text,
+)
 from drivers.imu_counts import CountScale
 from drivers.protocols import AXIS_NAMES, AxisLimits, FaultCode
 from drivers.sim.config import (
@@ -43,18 +55,6 @@ from drivers.sim.config import (
     SimConfig,
     TableModel,
     TemperatureModel,
-)
-from procedures.yaml_source import (
-    ConfigError,
-    KeyPath,
-    SourceMap,
-    check_keys,
-    get_mapping,
-    get_number,
-    get_str,
-    get_vector,
-    load_yaml,
-    load_yaml_text,
 )
 
 __all__ = [

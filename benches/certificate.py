@@ -34,6 +34,8 @@ from typing import Any
 import numpy as np
 
 from analysis.units import ARCSEC, display_unit, kelvin_to_celsius, to_display
+from core.errors import UserError
+from core.provenance import file_sha256, software_version
 
 from .uncertainty_budget import PARAM_KINDS, PARAM_NAMES, UncertaintyBudget, build_budget, default_g_uncertainty
 
@@ -59,7 +61,7 @@ SIGN_CONVENTIONS: tuple[str, ...] = (
 )
 
 
-class CertificateError(RuntimeError):
+class CertificateError(UserError, RuntimeError):
     """A certificate cannot be issued from this run folder; the message says why and what to do."""
 
 
@@ -216,15 +218,6 @@ def _json_safe(obj: Any) -> Any:
 
 
 # ---- helpers -------------------------------------------------------------------------------------------------
-
-
-def file_sha256(path: Path) -> str:
-    """SHA-256 hex digest of a file (read in 1 MiB chunks)."""
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def format_with_uncertainty(value: float, expanded: float, digits: int = 2) -> tuple[str, str]:
@@ -439,7 +432,6 @@ def build_certificate(
         Missing/mismatched inputs, or an incomplete recording without ``allow_incomplete``.
     """
     from .recording import RecordingError, open_recording, read_steps
-    from .session import software_version
     from .uncertainty_budget import step_geometry
 
     given = Path(run_dir)

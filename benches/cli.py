@@ -8,9 +8,8 @@ Every subcommand lives in its own module under :mod:`benches.commands` and defin
         ...
         p.set_defaults(func=run)          # run(args) -> int exit code
 
-Modules are discovered automatically. User errors are raised as :class:`UsageError` (or
-``procedures.yaml_source.ConfigError`` / ``analysis_input.InputError`` / ``recording.RecordingError``) and
-printed as one clear line with exit code 2, never a traceback.
+Modules are discovered automatically. Every user error derives from
+:class:`core.errors.UserError` and is printed as one clear line with exit code 2, never a traceback.
 """
 
 from __future__ import annotations
@@ -21,20 +20,8 @@ import pkgutil
 import sys
 from collections.abc import Sequence
 
-from procedures.yaml_source import ConfigError
-
-
-class UsageError(Exception):
-    """A user error: bad arguments or input. Printed as one line; exit code 2."""
-
-
-def _version() -> str:
-    try:
-        from importlib.metadata import version
-
-        return version("tablebench")
-    except Exception:  # pragma: no cover - running from a source tree without install
-        return "0.0.0+source"
+from core.errors import UserError
+from core.provenance import software_version
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -45,7 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
         "analyse noise, and issue certificates. The simulated bench (benches/sim.yaml) is the default.",
         epilog="Run 'tablebench COMMAND --help' for a command's options and examples.",
     )
-    parser.add_argument("--version", action="version", version=f"tablebench {_version()}")
+    parser.add_argument("--version", action="version", version=f"tablebench {software_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     import benches.commands as commands_pkg
 
@@ -61,9 +48,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the console script; returns the process exit code."""
-    from benches.analysis_input import InputError
-    from benches.recording import RecordingError
-
     parser = build_parser()
     args = parser.parse_args(argv)
     func = getattr(args, "func", None)
@@ -72,7 +56,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     try:
         return int(func(args) or 0)
-    except (UsageError, ConfigError, InputError, RecordingError) as exc:
+    except UserError as exc:
         print(f"tablebench {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -26,8 +26,8 @@ import logging
 from dataclasses import dataclass, field
 from typing import Any
 
+from core.yaml_source import ConfigError
 from drivers.protocols import InertialUnit, LinkError, Turntable
-from procedures.yaml_source import ConfigError
 
 log = logging.getLogger(__name__)
 

@@ -1,7 +1,7 @@
 """Identification of the accelerometer model from a run: live during the run, and offline from a recording.
 
-This module joins the pure maths of :mod:`analysis.kalman_identifier`, :mod:`analysis.batch_identifier`
-and :mod:`analysis.identification_plan` to the bench: the prior P0 and the white noise R come from the
+This module joins the pure maths of :mod:`analysis.identification.kalman`, :mod:`analysis.identification.batch`
+and :mod:`analysis.identification.plan` to the bench: the prior P0 and the white noise R come from the
 bench file (or R from the warm-up record), the reference specific force and body rate from the table's own
 readings (:mod:`benches.reference`), and the samples from the acquisition windows of complete hold and spin
 steps (moves and settling excluded; the warm-up is used only to estimate R when asked).
@@ -24,12 +24,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from analysis.accel_model import PARAM_KINDS, PARAM_NAMES, predict
-from analysis.batch_identifier import batch_identify, information_rank, unobservable_parameters
-from analysis.bias_drift import flicker_components, window_mean_covariance
-from analysis.identification_plan import IdentificationPlan, PlanStep, plan_identification
-from analysis.kalman_identifier import StreamingIdentifier, estimate_measurement_noise
+from analysis.identification.batch import batch_identify, information_rank, unobservable_parameters
+from analysis.identification.bias_drift import flicker_components, window_mean_covariance
+from analysis.identification.kalman import StreamingIdentifier, estimate_measurement_noise
+from analysis.identification.model import PARAM_KINDS, PARAM_NAMES, predict
+from analysis.identification.plan import IdentificationPlan, PlanStep, plan_identification
 from analysis.units import DISPLAY_UNITS
+from core.errors import UserError
 from drivers.protocols import ImuBlock, TableState
 
 from .recording import RecordingError, open_recording, read_steps
@@ -43,7 +44,7 @@ ACQUISITION_KINDS = ("hold", "spin")
 _SI_UNITS = {"bias": "m/s^2", "scale": "1", "misalignment": "rad", "quadratic": "s^2/m", "size_effect": "m"}
 
 
-class IdentificationError(RuntimeError):
+class IdentificationError(UserError, RuntimeError):
     """The recording cannot be identified; the message says why and what to do."""
 
 
@@ -83,7 +84,7 @@ def bias_stability(config: Any) -> NDArray[np.float64]:
 def offset_covariance(windows: list[tuple[float, float]], b: NDArray[np.float64]) -> NDArray[np.float64]:
     """(3, K, K) covariance of the step-mean bias offsets over K acquisition windows (bench s), per body axis.
 
-    The unit's bias instability B (bench file) as flicker noise (:mod:`analysis.bias_drift`): correlated
+    The unit's bias instability B (bench file) as flicker noise (:mod:`analysis.identification.bias_drift`): correlated
     between steps, so slow wander across a sequence of positions is propagated, not assumed independent.
     """
     starts = np.array([w[0] for w in windows])
@@ -472,7 +473,7 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
             "condition": float(cond),
             "unidentifiable": sorted(unobs, key=PARAM_NAMES.index),
             "tolerance": "numerical rank of the noise-whitened data information, scaled per parameter kind "
-            "(analysis.batch_identifier.information_rank)",
+            "(analysis.identification.batch.information_rank)",
         },
         "measurement_noise": {"variance": list(map(float, r_var)), "source": noise},
         "residuals": {"rms": list(map(float, rms_all)), "per_step": per_step},

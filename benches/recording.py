@@ -18,6 +18,7 @@ from typing import Any, Protocol
 import h5py
 import numpy as np
 
+from core.errors import UserError
 from drivers.protocols import ImuBlock, TableState
 
 FORMAT = "tablebench-recording"
@@ -44,7 +45,7 @@ STEP_DTYPE = np.dtype(
 EVENT_DTYPE = np.dtype([("time", np.float64), ("wall_utc", _STR), ("level", _STR), ("message", _STR)])
 
 
-class RecordingError(RuntimeError):
+class RecordingError(UserError, RuntimeError):
     """A recording cannot be created, opened or resumed; the message names the file and the fix."""
 
 

@@ -20,6 +20,9 @@ from typing import TextIO
 
 import h5py
 
+from core.errors import UserError
+from core.provenance import software_version
+
 from .progress import ProgressDisplay
 from .recording import Hdf5Recorder, open_recording, read_steps
 from .runner import Runner, RunResult, SampleObserver
@@ -27,18 +30,8 @@ from .runner import Runner, RunResult, SampleObserver
 DEFAULT_PROCEDURE = "ten-step"
 
 
-class SessionError(RuntimeError):
+class SessionError(UserError, RuntimeError):
     """A run cannot start or resume; the message says why and what to do."""
-
-
-def software_version() -> str:
-    """The installed tablebench version."""
-    try:
-        from importlib.metadata import version
-
-        return version("tablebench")
-    except Exception:  # pragma: no cover
-        return "0.0.0+source"
 
 
 @dataclass

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.accel_model import PARAM_KINDS, PARAM_NAMES
+from analysis.identification.model import PARAM_KINDS, PARAM_NAMES
 from analysis.units import DISPLAY_UNITS
 from benches.identify import identify_run, plan_for
 from benches.session import prepare

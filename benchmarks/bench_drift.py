@@ -2,9 +2,9 @@
 
 Measured, each as a ratio against a reference in the same run:
 
-- online RLS / extended LS (``analysis.drift_rls``) fed a static record sample by sample: samples/s, against
+- online RLS / extended LS (``analysis.drift.rls``) fed a static record sample by sample: samples/s, against
   real time (the record's sample rate) and against a straightforward per-sample numpy implementation;
-- exact-ML and CSS ARMA(1,1) fits (``analysis.drift_arma.fit_arma``) against statsmodels' exact-ML ``ARIMA``
+- exact-ML and CSS ARMA(1,1) fits (``analysis.drift.arma.fit_arma``) against statsmodels' exact-ML ``ARIMA``
   fit, and the order search (``select_order``, ten models) on the same data;
 - the sliding-window LM graph smoother against filterpy's Kalman filter + RTS smoother;
 - the whole ``analyse_drift`` chain on a 30-minute record against the record's duration.
@@ -20,10 +20,10 @@ import warnings
 
 import numpy as np
 
-from analysis.drift_arma import fit_arma, select_order, simulate_arma
-from analysis.drift_report import analyse_drift
-from analysis.drift_rls import OnlineArma, batch_least_squares, lag_matrix
-from analysis.drift_smoother import arma_state_space, sliding_window_smoother
+from analysis.drift.arma import fit_arma, select_order, simulate_arma
+from analysis.drift.report import analyse_drift
+from analysis.drift.rls import OnlineArma, batch_least_squares, lag_matrix
+from analysis.drift.smoother import arma_state_space, sliding_window_smoother
 from benchmarks._results import write_section
 
 

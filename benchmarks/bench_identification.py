@@ -1,7 +1,7 @@
 """Benchmark: streaming Kalman identification of the 18 accelerometer parameters over the ten-step sequence.
 
 Feeds a synthetic ten-step run (holds + spins, noise 15 µg/√Hz) step by step into
-:class:`analysis.kalman_identifier.StreamingIdentifier` and reports, as ratios measured in the same run:
+:class:`analysis.identification.kalman.StreamingIdentifier` and reports, as ratios measured in the same run:
 
 * identification speed relative to real time (data duration / identification wall time; only the
   identifier's ``update`` calls are timed, not the data generation);
@@ -20,10 +20,10 @@ import time
 import numpy as np
 from filterpy.kalman import KalmanFilter
 
-from analysis import accel_model as am
-from analysis import batch_identifier as bi
-from analysis import identification_plan as ip
-from analysis.kalman_identifier import StreamingIdentifier
+from analysis.identification import batch as bi
+from analysis.identification import model as am
+from analysis.identification import plan as ip
+from analysis.identification.kalman import StreamingIdentifier
 from analysis.units import ARCSEC, DEG, MM, PPM, UG, UG_PER_G2
 from benchmarks._results import write_section
 

@@ -1,4 +1,4 @@
-"""Benchmark: Allan-family estimators (analysis/allan.py) against allantools on the same record and τ grid.
+"""Benchmark: Allan-family estimators (analysis/noise/allan.py) against allantools on the same record and τ grid.
 
 Both compute ADEV, OADEV, TOTDEV and MDEV of one 10⁷-sample rate record (white + random walk + ramp) on the
 same octave τ grid (m = 1 … N/3), side by side in one run. Reported: the time ratio, the largest relative
@@ -16,7 +16,7 @@ import tracemalloc
 
 import numpy as np
 
-from analysis.allan import allan_variances, tau_grid
+from analysis.noise.allan import allan_variances, tau_grid
 from benchmarks._results import write_section
 
 _AT = {"avar": "adev", "oavar": "oadev", "totvar": "totdev", "mvar": "mdev"}

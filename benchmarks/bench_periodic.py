@@ -3,7 +3,7 @@
 - Identification of the spec's 8 s, 1 kHz, 3-term sample: wall time of the grid-refinement method, as a
   fraction of real time (8 s of data) and against ``scipy.optimize.least_squares`` (LM, full nonlinear model,
   started from the same coarse frequencies) on the same sample, with both results' frequency errors in √CRB.
-- Compensation throughput (samples/s) of :class:`~analysis.periodic_compensator.PeriodicCompensator` on
+- Compensation throughput (samples/s) of :class:`~analysis.periodic.compensator.PeriodicCompensator` on
   blocks and sample by sample, against a direct vectorised ``np.cos`` evaluation of the same model, and the
   worst phase-accuracy error after 2 h at 1 kHz against a float-accumulated oscillator.
 
@@ -18,8 +18,8 @@ import time
 import numpy as np
 from scipy.optimize import least_squares
 
-from analysis.periodic_compensator import PeriodicCompensator, naive_accumulated_model
-from analysis.periodic_error import crb_frequency_sigma, find_peaks_psd, fit_fixed_frequencies, identify_periodic
+from analysis.periodic.compensator import PeriodicCompensator, naive_accumulated_model
+from analysis.periodic.error import crb_frequency_sigma, find_peaks_psd, fit_fixed_frequencies, identify_periodic
 from analysis.units import DEG
 from benchmarks._results import write_section
 

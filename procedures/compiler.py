@@ -33,6 +33,7 @@ import numpy as np
 
 from analysis.gimbal import body_to_nav, euler_from_body_to_nav, table_to_nav
 from analysis.units import DEG
+from core.yaml_source import ConfigError
 from drivers.protocols import AXIS_NAMES, AxisLimits
 
 from .loader import (
@@ -49,7 +50,6 @@ from .loader import (
     WarmupSpec,
 )
 from .steps import CompiledProcedure, Step, describe_attitude, spin_angle
-from .yaml_source import ConfigError
 
 ALIGN_TOL = 1e-9
 """Gimbal/body axis alignment tolerance on 1 − |cos| (≈ 0.009°)."""

@@ -2,7 +2,7 @@
 
 A procedure file is YAML with degrees, °/s and seconds; :func:`load_procedure` returns a
 :class:`Procedure` whose step specifications are SI (rad, rad/s, s) and remember their source line.
-Every mistake raises :class:`~procedures.yaml_source.ConfigError` naming file, line, step and what is
+Every mistake raises :class:`~core.yaml_source.ConfigError` naming file, line, step and what is
 allowed. Attitudes are not resolved here (that needs the bench's mounting and limits): see
 :mod:`procedures.compiler`.
 """
@@ -19,8 +19,7 @@ from typing import Any
 import numpy as np
 
 from analysis.units import from_display
-
-from .yaml_source import ConfigError, KeyPath, SourceMap, load_yaml, load_yaml_text
+from core.yaml_source import ConfigError, KeyPath, SourceMap, load_yaml, load_yaml_text
 
 STEP_KINDS: tuple[str, ...] = ("warmup", "orient", "hold", "step_rotate", "spin", "repeat", "group", "note")
 DIRECTION_WORDS: dict[str, tuple[int, int, int]] = {

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .yaml_source import ConfigError
+from core.yaml_source import ConfigError
 
 PACKAGE_PROCEDURES: Path = Path(__file__).resolve().parent
 """Folder of the shipped procedure files."""

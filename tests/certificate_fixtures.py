@@ -22,10 +22,11 @@ from benches.bench_config import load_bench
 from benches.recording import Hdf5Recorder, open_recording
 from benches.runner import Runner
 from benches.uncertainty_budget import PARAM_KINDS, PARAM_NAMES, data_information, step_geometry
+from tests import REPO_ROOT
 from tests.fakes import FakeClock, FakeStep, FakeTable, FakeUnit
 
 RATE = 100.0
-SIM_BENCH = Path(__file__).resolve().parent.parent / "benches" / "sim.yaml"
+SIM_BENCH = REPO_ROOT / "benches" / "sim.yaml"
 BENCH = load_bench(SIM_BENCH)
 G = BENCH.site.g
 TRUTH = np.array(

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from analysis import accel_model as am
-from analysis.identification_plan import PlanStep
+from analysis.identification import model as am
+from analysis.identification.plan import PlanStep
 from analysis.units import ARCSEC, MM, PPM, UG, UG_PER_G2
 
 G = 9.80

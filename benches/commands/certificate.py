@@ -42,8 +42,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench certificate``."""
     from benches.certificate import CertificateError, issue_certificate
-    from benches.cli import UsageError
     from benches.recording import RecordingError
+    from core.errors import UsageError
 
     if args.out is not None and not str(args.out).lower().endswith(".pdf"):
         raise UsageError(f"--out {args.out}: give a .pdf file name")

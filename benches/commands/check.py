@@ -6,13 +6,12 @@ import argparse
 import math
 from pathlib import Path
 
+from core.errors import UsageError
+from core.yaml_source import ConfigError
 from procedures.compiler import compile_procedure
 from procedures.loader import load_procedure
 from procedures.paths import default_bench_path, resolve_bench, resolve_procedure, shipped_procedures
 from procedures.steps import ACQUISITION_KINDS, CompiledProcedure
-from procedures.yaml_source import ConfigError
-
-from ..cli import UsageError
 
 EXAMPLES = """\
 examples:

@@ -37,8 +37,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def load_calibration_vector(path: str | Path) -> tuple[np.ndarray, list[str]]:
     """The 18-parameter vector of a calibration.json (not-identified parameters zeroed) and their names."""
-    from analysis.accel_model import PARAM_NAMES
-    from benches.cli import UsageError
+    from analysis.identification.model import PARAM_NAMES
+    from core.errors import UsageError
 
     try:
         cal = json.loads(Path(path).read_text(encoding="utf-8"))
@@ -56,9 +56,9 @@ def load_calibration_vector(path: str | Path) -> tuple[np.ndarray, list[str]]:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench correct``."""
-    from analysis.accel_model import correct
+    from analysis.identification.model import correct
     from benches.analysis_input import InputError, recording_path
-    from benches.cli import UsageError
+    from core.errors import UsageError
 
     x, skipped = load_calibration_vector(args.calibration)
     src = recording_path(args.input)

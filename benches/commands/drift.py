@@ -148,10 +148,10 @@ def _progress_printer() -> Callable[[str], None]:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench drift``."""
-    from analysis.drift_preprocess import DriftInputError
-    from analysis.drift_report import MIN_SAMPLES, DriftOptions, analyse_channel
+    from analysis.drift.preprocess import DriftInputError
+    from analysis.drift.report import MIN_SAMPLES, DriftOptions, analyse_channel
     from benches.analysis_input import InputError, load_input, output_dir
-    from benches.cli import UsageError
+    from core.errors import UsageError
 
     if not 0.0 < args.alpha < 0.5:
         raise UsageError(f"--alpha must be between 0 and 0.5 (e.g. 0.05), got {args.alpha}")
@@ -199,7 +199,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"{data.source}: {len(data.channels)} channel(s) at {data.rate:g} Hz")
     print(format_report(result, data.units))
     if out is not None:
-        from analysis.drift_plot import plot_channel
+        from analysis.drift.plot import plot_channel
 
         (out / "drift.json").write_text(json.dumps(_clean(result), indent=1, allow_nan=False), encoding="utf-8")
         written = [out / "drift.json"]

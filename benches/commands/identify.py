@@ -60,8 +60,8 @@ def format_result(result: dict) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench identify``."""
-    from benches.cli import UsageError
     from benches.identify import IdentificationError, identify_run, write_calibration
+    from core.errors import UsageError
 
     try:
         result = identify_run(args.run, method=args.method, noise=args.noise)

@@ -15,7 +15,7 @@ EXAMPLES = """examples:
 output: a table of noise terms per channel (fit by weighted non-negative least squares, each with 1σ), and
 with --out DIR: noise.json (SI; deviations in the data's unit) and noise.png (log-log Allan deviation with
 confidence band, fitted terms). Gyro terms are shown in arcsec, °/√h, °/h, °/h/√h, °/h²; accelerometer
-terms in mm/s, µg/√Hz, µg, µg/√s, µg/s. Estimators and EDF: analysis/allan.py.
+terms in mm/s, µg/√Hz, µg, µg/√s, µg/s. Estimators and EDF: analysis/noise/allan.py.
 """
 
 MIN_SAMPLES = 64
@@ -79,16 +79,16 @@ def format_table(result: dict) -> str:
 
 def to_display_value(term: str, value_si: float, unit: str) -> float:
     """A term value converted to its display unit."""
-    from analysis.noise_terms import to_display
+    from analysis.noise.terms import to_display
 
     return to_display(term, value_si, unit)[0]
 
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench noise``."""
-    from analysis.noise_terms import analyse_noise
+    from analysis.noise.terms import analyse_noise
     from benches.analysis_input import InputError, load_input, output_dir
-    from benches.cli import UsageError
+    from core.errors import UsageError
 
     if not 0.0 < args.confidence < 1.0:
         raise UsageError(f"--confidence must be between 0 and 1 (e.g. 0.683 or 0.95), got {args.confidence}")
@@ -114,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"{data.source}: {len(data.channels)} channel(s), {n} samples at {data.rate:g} Hz ({n / data.rate:.1f} s)")
     print(format_table(result))
     if out is not None:
-        from analysis.noise_plot import plot_noise
+        from analysis.noise.plot import plot_noise
 
         (out / "noise.json").write_text(json.dumps(result, indent=1, allow_nan=False), encoding="utf-8")
         plot_noise(result, out / "noise.png", title=f"Noise analysis: {data.source}")

@@ -59,9 +59,9 @@ def _display(unit: str) -> tuple[str, float]:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench periodic``."""
-    from analysis.periodic_error import PeriodicInputError, analyse_channel
+    from analysis.periodic.error import PeriodicInputError, analyse_channel
     from benches.analysis_input import load_input, output_dir
-    from benches.cli import UsageError
+    from core.errors import UsageError
 
     if args.terms is not None and not 0 <= args.terms <= 30:
         raise UsageError(f"--terms must be between 0 and 30, got {args.terms}")
@@ -88,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
     if out is not None:
         path = out / "periodic.json"
         path.write_text(json.dumps(result, indent=2, allow_nan=False, default=_json_default) + "\n", encoding="utf-8")
-        from analysis.periodic_plot import plot_channel
+        from analysis.periodic.plot import plot_channel
 
         pngs = []
         for name, res in analyses.items():

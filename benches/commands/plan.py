@@ -30,10 +30,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench plan``."""
-    from benches.cli import UsageError
     from benches.commands.check import parse_overrides
     from benches.identify import IdentificationError, plan_for
     from benches.session import prepare
+    from core.errors import UsageError
 
     prep = prepare(args.bench, args.procedure, parse_overrides(args.set))
     try:

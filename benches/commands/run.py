@@ -55,7 +55,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench run``."""
-    from benches.cli import UsageError
     from benches.commands.check import parse_overrides
     from benches.session import (
         SessionError,
@@ -66,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
         recorded_overrides,
         recording_status,
     )
+    from core.errors import UsageError
 
     if args.seed is not None and args.seed < 0:
         raise UsageError("--seed must be a non-negative integer")

@@ -27,8 +27,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench runs``."""
-    from benches.cli import UsageError
     from benches.session import recording_status
+    from core.errors import UsageError
 
     root = Path(args.folder)
     if not root.is_dir():

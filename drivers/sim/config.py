@@ -14,8 +14,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from analysis.accel_model import PARAM_NAMES
 from analysis.earth import normal_gravity
+from analysis.identification.model import PARAM_NAMES
 from analysis.units import ARCSEC, DEG, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, UG
 from drivers.imu_counts import CountScale
 from drivers.protocols import AxisLimits, FaultCode

@@ -1,0 +1,1 @@
+"""Drift modelling: pre-processing, hypothesis tests, ARMA order and estimates, RLS, smoother."""

@@ -1,0 +1,1 @@
+"""Noise analysis: the Allan / total variance family, confidence intervals and the noise-term fit."""

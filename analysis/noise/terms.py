@@ -1,0 +1,401 @@
+"""Noise terms of an Allan-variance curve: weighted non-negative least squares and the slope-line reading.
+
+IEEE 952 (gyros) / IEEE 1293 (accelerometers) model, ``/work/shared/spec/noise-variance.md``::
+
+    σ²(τ) = 3Q²/τ² + N²/τ + (2 ln2/π) B² + K² τ/3 + R² τ²/2  =  Σ_{n=−2}^{2} C_n τ^n
+
+All values SI for a record in the data unit u (rad/s for gyros, m/s² for accelerometers):
+
+====  ==========================  =========  ============  ==============================
+term  meaning                     SI unit    gyro display  accelerometer display
+====  ==========================  =========  ============  ==============================
+Q     quantisation                u·s        arcsec        mm/s
+N     white noise (ARW / VRW)     u·√s       °/√h          µg/√Hz
+B     bias instability (flicker)  u          °/h           µg
+K     rate / accel. random walk   u/√s       °/h/√h        µg/√s
+R     rate / accel. ramp          u/s        °/h²          µg/s
+====  ==========================  =========  ============  ==============================
+
+Uniform quantisation with step LSB (of the integrated quantity) gives Q = LSB/√12.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import nnls
+
+from analysis import units
+
+TERMS: tuple[str, ...] = ("Q", "N", "B", "K", "R")
+"""Noise terms in the order of the powers τ^−2 … τ^2."""
+POWERS: tuple[int, ...] = (-2, -1, 0, 1, 2)
+"""Power of τ of each term's Allan-variance contribution."""
+GAINS: tuple[float, ...] = (3.0, 1.0, 2.0 * math.log(2.0) / math.pi, 1.0 / 3.0, 0.5)
+"""C_n = GAINS[n] · term²."""
+SLOPES: dict[str, float] = {"Q": -1.0, "N": -0.5, "B": 0.0, "K": 0.5, "R": 1.0}
+"""Log-log slope of the Allan *deviation* of each term."""
+B_FLOOR: float = math.sqrt(2.0 * math.log(2.0) / math.pi)
+"""Flicker floor of the Allan deviation per unit bias instability, ≈ 0.6643."""
+
+_DISPLAY_KIND: dict[str, dict[str, str]] = {
+    "rad/s": {"Q": "angle_quantisation", "N": "arw", "B": "gyro_bias", "K": "rrw", "R": "rate_ramp"},
+    "m/s^2": {
+        "Q": "velocity_quantisation",
+        "N": "vrw",
+        "B": "acceleration",
+        "K": "accel_random_walk",
+        "R": "accel_ramp",
+    },
+}
+_SI_UNIT: dict[str, dict[str, str]] = {
+    "rad/s": {"Q": "rad", "N": "rad/s^0.5", "B": "rad/s", "K": "rad/s^1.5", "R": "rad/s^2"},
+    "m/s^2": {"Q": "m/s", "N": "m/s^1.5", "B": "m/s^2", "K": "m/s^2.5", "R": "m/s^3"},
+}
+
+
+def term_unit(term: str, data_unit: str) -> str:
+    """SI unit label of ``term`` for a record in ``data_unit`` ("rad/s", "m/s^2", or anything else)."""
+    if data_unit in _SI_UNIT:
+        return _SI_UNIT[data_unit][term]
+    u = f"({data_unit})" if data_unit not in ("SI", "") else "u"
+    return {"Q": f"{u}*s", "N": f"{u}*s^0.5", "B": u, "K": f"{u}/s^0.5", "R": f"{u}/s"}[term]
+
+
+def to_display(term: str, value_si: float, data_unit: str) -> tuple[float, str]:
+    """A term value in its conventional display unit (°/√h, °/h, µg/√Hz, µg …); SI unchanged otherwise."""
+    kinds = _DISPLAY_KIND.get(data_unit)
+    if kinds is None:
+        return value_si, term_unit(term, data_unit)
+    kind = kinds[term]
+    return units.to_display(kind, value_si), units.display_unit(kind)
+
+
+def noise_model(tau: ArrayLike, coefficients: ArrayLike) -> NDArray[np.float64]:
+    """σ²(τ) = Σ C_n τ^n for coefficients (C_−2 … C_2), u²."""
+    t = np.asarray(tau, dtype=np.float64)
+    c = np.asarray(coefficients, dtype=np.float64)
+    return sum(c[i] * t ** POWERS[i] for i in range(5))
+
+
+def term_contributions(tau: ArrayLike, coefficients: ArrayLike) -> dict[str, NDArray[np.float64]]:
+    """Allan deviation of each term alone, u, keyed by term name."""
+    t = np.asarray(tau, dtype=np.float64)
+    return {TERMS[i]: np.sqrt(max(float(coefficients[i]), 0.0) * t ** POWERS[i]) for i in range(5)}
+
+
+def coefficients_to_terms(c: ArrayLike, cov: ArrayLike) -> dict[str, tuple[float, float]]:
+    """Terms (value, 1σ) from C_n and their covariance.
+
+    Term = √(C/g); σ_term = σ_C/(2√(gC)). When C = 0 (at the non-negativity bound) the value is 0 and the
+    reported σ is √(σ_C/g): the term size that a 1σ coefficient would mean (an upper-bound scale).
+    """
+    c = np.asarray(c, dtype=np.float64)
+    sig = np.sqrt(np.clip(np.diag(np.asarray(cov, dtype=np.float64)), 0.0, None))
+    out: dict[str, tuple[float, float]] = {}
+    for i, name in enumerate(TERMS):
+        g = GAINS[i]
+        val = math.sqrt(max(c[i], 0.0) / g)
+        s = sig[i] / (2.0 * math.sqrt(g * c[i])) if c[i] > 0 else math.sqrt(sig[i] / g)
+        out[name] = (val, float(s))
+    return out
+
+
+@dataclass
+class NoiseFit:
+    """Result of :func:`fit_noise_terms` for one channel.
+
+    Attributes
+    ----------
+    coefficients : ndarray (5,)
+        C_−2 … C_2 (u²·s^−n), non-negative.
+    covariance : ndarray (5, 5)
+        Their covariance (diagonal-error sandwich; the correlation of Allan variances between τ is neglected).
+    terms : dict[str, tuple[float, float]]
+        Q, N, B, K, R: (value, 1σ), SI. σ is the larger of the covariance value and the single-best-point
+        bound (see :func:`fit_noise_terms`), because the sandwich alone is optimistic.
+    tau_used : ndarray
+        τ of the points that entered the fit, s.
+    chi2_red : float
+        Reduced χ² of the weighted residuals (≈ 1 when the model and the EDF are right).
+    """
+
+    coefficients: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    terms: dict[str, tuple[float, float]]
+    tau_used: NDArray[np.float64]
+    chi2_red: float
+
+
+def fit_noise_terms(
+    tau: ArrayLike,
+    var: ArrayLike,
+    record_time: float,
+    edf: ArrayLike | None = None,
+    terms: tuple[str, ...] = TERMS,
+    iterations: int = 4,
+) -> NoiseFit:
+    """Fit σ²(τ) = Σ C_n τ^n by weighted non-negative least squares.
+
+    Weights 1/(σ_j² √(τ_j/T)) as in the spec (the relative scatter of an Allan variance grows as √(τ/T));
+    unweighted least squares returns negative C_n. σ_j² is the measured variance in the first pass and the
+    fitted model in the following ``iterations`` − 1 passes (iteratively reweighted: weighting by the
+    measured value favours points that scattered low and biases the fit down).
+
+    Parameters
+    ----------
+    tau : array_like (M,)
+        Averaging times, s.
+    var : array_like (M,)
+        Allan variances (overlapping AVAR recommended), u².
+    record_time : float
+        Record length T = N T_s, s.
+    edf : array_like (M,), optional
+        Equivalent degrees of freedom per point, for the coefficient covariance (Var σ²_j = 2σ⁴_j/EDF_j);
+        default the white-noise value 1.5 T/τ.
+    terms : tuple of str
+        Terms to include (others fixed at 0).
+    iterations : int
+        Reweighting passes.
+
+    Returns
+    -------
+    NoiseFit
+    """
+    t = np.asarray(tau, dtype=np.float64)
+    v = np.asarray(var, dtype=np.float64)
+    ok = np.isfinite(v) & (v > 0) & np.isfinite(t) & (t > 0)
+    e = np.asarray(edf, dtype=np.float64)[ok] if edf is not None else 1.5 * record_time / t[ok]
+    t, v = t[ok], v[ok]
+    if t.size < 2:
+        raise ValueError("fewer than two usable Allan-variance points; record too short for a noise-term fit")
+    cols = [i for i, name in enumerate(TERMS) if name in terms]
+    a_full = np.stack([t**p for p in POWERS], axis=1)
+    a = a_full[:, cols]
+    ref = v.copy()
+    coef = np.zeros(5)
+    for _ in range(max(1, iterations)):
+        w = 1.0 / (ref * np.sqrt(t / record_time))
+        aw = a * w[:, None]
+        scale = np.linalg.norm(aw, axis=0)
+        scale[scale == 0] = 1.0
+        y, _ = nnls(aw / scale, v * w, maxiter=50 * len(cols) + 100)
+        coef = np.zeros(5)
+        coef[cols] = y / scale
+        model = a_full @ coef
+        if not np.all(model > 0):
+            break
+        ref = model
+    # covariance: sandwich with Var(σ²_j) = 2 σ⁴_j / EDF_j, model σ² where available
+    sig2 = np.where(a_full @ coef > 0, a_full @ coef, v) ** 2 * 2.0 / np.maximum(e, 1.0)
+    w = 1.0 / (ref * np.sqrt(t / record_time))
+    resid = (v - a_full @ coef) / np.sqrt(sig2)
+    dof = max(t.size - int(np.count_nonzero(coef)), 1)
+    chi2_red = float(resid @ resid / dof)
+    cov = np.zeros((5, 5))
+    aw = a * w[:, None]
+    scale = np.linalg.norm(aw, axis=0)
+    scale[scale == 0] = 1.0
+    aws = aw / scale
+    bread = np.linalg.pinv(aws.T @ aws, rcond=1e-13)
+    meat = (aws * (w**2 * sig2)[:, None]).T @ aws
+    cov_s = bread @ meat @ bread / np.outer(scale, scale)
+    cov[np.ix_(cols, cols)] = cov_s
+    terms_out = coefficients_to_terms(coef, cov)
+    # Allan variances at neighbouring τ are correlated, which the sandwich ignores: a term is not known better
+    # than from the single most informative point, where its share f_j of σ²_j and the EDF give
+    # δterm/term = 1/(f_j √(2 EDF_j)). The larger of the two is reported.
+    model = a_full @ coef
+    for i, name in enumerate(TERMS):
+        if coef[i] > 0 and np.all(model > 0):
+            share = coef[i] * t ** POWERS[i] / model
+            rel = float(np.min(1.0 / (share * np.sqrt(2.0 * np.maximum(e, 1.0)))))
+            val, sig = terms_out[name]
+            terms_out[name] = (val, max(sig, val * rel))
+    return NoiseFit(coef, cov, terms_out, t, chi2_red)
+
+
+def slope_terms(
+    tau: ArrayLike,
+    dev: ArrayLike,
+    lo: ArrayLike | None = None,
+    hi: ArrayLike | None = None,
+) -> dict[str, dict[str, float | bool]]:
+    """The classic slope-line reading of an Allan-deviation curve.
+
+    For each term, the straight line of its slope (−1, −½, 0, +½, +1 in log-log) is moved until it touches
+    the curve from below — the point where the curve's local slope equals the term's — and read at
+    τ = √3, 1, (floor), 3, √2 s: Q = σ τ/√3, N = σ √τ, B = min σ / 0.6643, K = σ √(3/τ), R = σ √2/τ.
+    Every term's own line lies under the noise-free curve, so each reading is an upper bound there (on a
+    measured curve the minimum also picks the point that scattered lowest: biased low by up to the
+    confidence half-width); ``observed`` tells
+    whether the curve's slope at the touching point is within ±0.2 of the term's (the term dominates there).
+    Only points whose confidence half-width is ≤ 25 % are read (without ``lo``/``hi``: τ ≤ 0.3 τ_max).
+
+    Parameters
+    ----------
+    tau, dev : array_like (M,)
+        Averaging times (s) and Allan deviations (u).
+    lo, hi : array_like (M,), optional
+        Confidence bounds of ``dev``; the reading's σ is half their spread, scaled to the reading.
+
+    Returns
+    -------
+    dict
+        term → {"value": SI, "sigma": SI, "tau": s, "observed": bool}.
+    """
+    t = np.asarray(tau, dtype=np.float64)
+    d = np.asarray(dev, dtype=np.float64)
+    ok = np.isfinite(d) & (d > 0)
+    t, d = t[ok], d[ok]
+    rel = np.full(t.shape, np.nan)
+    if lo is not None and hi is not None:
+        rel = 0.5 * (np.asarray(hi, dtype=np.float64)[ok] - np.asarray(lo, dtype=np.float64)[ok]) / d
+    local = np.gradient(np.log(d), np.log(t)) if t.size >= 2 else np.zeros(t.shape)
+    # read only where the curve is known well (CI half-width ≤ 25 %, or τ ≤ T/10 without CIs): the lowest
+    # point of a noisy tail would otherwise pull every reading down
+    good = rel <= 0.25 if np.any(np.isfinite(rel)) else t <= 0.1 * t.max() * 3.0
+    if np.count_nonzero(good) >= 2:
+        t, d, rel, local = t[good], d[good], rel[good], local[good]
+    factor = {
+        "Q": lambda tt: tt / math.sqrt(3.0),
+        "N": np.sqrt,
+        "B": lambda tt: np.full_like(tt, 1.0 / B_FLOOR),
+        "K": lambda tt: np.sqrt(3.0 / tt),
+        "R": lambda tt: math.sqrt(2.0) / tt,
+    }
+    out: dict[str, dict[str, float | bool]] = {}
+    if t.size == 0:
+        return out
+    for name, slope in SLOPES.items():
+        vals = d * factor[name](t)
+        j = int(np.argmin(vals))
+        out[name] = {
+            "value": float(vals[j]),
+            "sigma": float(vals[j] * rel[j]) if np.isfinite(rel[j]) else float("nan"),
+            "tau": float(t[j]),
+            "observed": bool(abs(local[j] - slope) <= 0.2),
+        }
+    return out
+
+
+def _jsonable(a: ArrayLike) -> list[float | None]:
+    """A 1-D array as a JSON list (NaN/inf → None)."""
+    return [float(v) if math.isfinite(v) else None for v in np.asarray(a, dtype=np.float64).ravel()]
+
+
+def analyse_noise(
+    channels: dict[str, ArrayLike],
+    rate: float,
+    units: dict[str, str] | str | None = None,
+    taus: str | ArrayLike = "octave",
+    confidence: float = 0.683,
+    terms: tuple[str, ...] = TERMS,
+    published_itotvar: bool = False,
+) -> dict:
+    """Allan-family deviations and fitted noise terms of named channels, as the ``noise.json`` structure.
+
+    Parameters
+    ----------
+    channels : dict[str, array_like (N,)]
+        Channel name → record (equal lengths), SI: rad/s for gyros, m/s² for accelerometers (body frame, each
+        axis analysed on its own).
+    rate : float
+        Sample rate, Hz.
+    units : dict[str, str] or str, optional
+        SI unit label per channel ("rad/s", "m/s^2", anything else is treated as a generic unit u); default
+        "SI".
+    taus : {"octave", "log", "all"} or array_like
+        τ grid (:func:`analysis.noise.allan.tau_grid`).
+    confidence : float
+        Two-sided probability of the confidence intervals.
+    terms : tuple of str
+        Terms included in the fit.
+    published_itotvar : bool
+        Also report ``itotdev_published``: the published "improved total variance" (a reproduction of the
+        paper, see :func:`analysis.noise.allan.improved_total_variance`; no better than ADEV).
+
+    Returns
+    -------
+    dict
+        ``{"rate_hz", "n_samples", "confidence", "channels": {NAME: {"unit", "tau", "adev", "oadev", "totdev",
+        "mdev", "terms": {TERM: {"value", "sigma", "unit"}}, "terms_display": {...}, "slope_terms": {...},
+        "ci": {EST: {"lo", "hi", "edf"}}, "fit": {"coefficients", "chi2_red", "tau_used"}}}}``; deviations and
+        terms in SI (the data's unit), JSON-safe (undefined values are ``None``).
+    """
+    from analysis.noise.allan import allan_variances
+
+    if not channels:
+        raise ValueError("no channels to analyse")
+    names = list(channels)
+    arrays = [np.asarray(channels[k], dtype=np.float64).ravel() for k in names]
+    n = arrays[0].size
+    bad = [k for k, a in zip(names, arrays, strict=True) if a.size != n]
+    if bad:
+        raise ValueError(f"channels {', '.join(bad)} differ in length from {names[0]} ({n} samples)")
+    if isinstance(units, str) or units is None:
+        unit_of = {k: units or "SI" for k in names}
+    else:
+        unit_of = {k: units.get(k, "SI") for k in names}
+    data = np.stack(arrays, axis=1)
+    del arrays
+    res = allan_variances(data, rate, taus, confidence=confidence)
+    itot = None
+    if published_itotvar:
+        from analysis.noise.allan import improved_total_variance
+
+        itot = improved_total_variance(data, rate, res.tau).var["itotvar"]
+    del data
+    record_time = n / rate
+    out_channels: dict[str, dict] = {}
+    est_key = {"avar": "adev", "oavar": "oadev", "totvar": "totdev", "mvar": "mdev"}
+    for j, name in enumerate(names):
+        unit = unit_of[name]
+        try:
+            fit = fit_noise_terms(res.tau, res.var["oavar"][:, j], record_time, res.edf["oavar"][:, j], terms)
+        except ValueError as exc:
+            raise ValueError(f"channel {name!r}: {exc} (is the channel constant?)") from None
+        ch: dict = {"unit": unit, "tau": _jsonable(res.tau)}
+        for est, key in est_key.items():
+            ch[key] = _jsonable(np.sqrt(res.var[est][:, j]))
+        if itot is not None:
+            ch["itotdev_published"] = _jsonable(np.sqrt(itot[:, j]))
+        ch["terms"] = {t: {"value": v, "sigma": s, "unit": term_unit(t, unit)} for t, (v, s) in fit.terms.items()}
+        disp = {}
+        for t, (v, s) in fit.terms.items():
+            dv, du = to_display(t, v, unit)
+            ds, _ = to_display(t, s, unit)
+            disp[t] = {"value": dv, "sigma": ds, "unit": du}
+        ch["terms_display"] = disp
+        slope = slope_terms(res.tau, np.sqrt(res.var["oavar"][:, j]), res.lo["oavar"][:, j], res.hi["oavar"][:, j])
+        ch["slope_terms"] = {
+            t: {
+                "value": d["value"],
+                "sigma": d["sigma"] if math.isfinite(float(d["sigma"])) else None,
+                "unit": term_unit(t, unit),
+                "tau": d["tau"],
+                "observed": d["observed"],
+            }
+            for t, d in slope.items()
+        }
+        ch["ci"] = {
+            key: {
+                "lo": _jsonable(res.lo[est][:, j]),
+                "hi": _jsonable(res.hi[est][:, j]),
+                "edf": _jsonable(res.edf[est][:, j]),
+            }
+            for est, key in est_key.items()
+        }
+        ch["noise_type_alpha"] = [int(a) for a in res.alpha[:, j]]
+        ch["fit"] = {
+            "estimator": "oadev",
+            "coefficients": _jsonable(fit.coefficients),
+            "powers": list(POWERS),
+            "chi2_red": fit.chi2_red,
+            "tau_used": _jsonable(fit.tau_used),
+        }
+        out_channels[name] = ch
+    return {"rate_hz": float(rate), "n_samples": int(n), "confidence": confidence, "channels": out_channels}

@@ -1,0 +1,1 @@
+"""Periodic error: identification of strong periodic terms and their online compensation."""

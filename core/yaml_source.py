@@ -1,0 +1,205 @@
+"""YAML loading that remembers where every value came from, for error messages a user can act on.
+
+Both bench files and procedure files are read through :func:`load_yaml`, which returns plain Python data
+plus a :class:`SourceMap` that answers "which line of which file holds the value at this key path?".
+Errors are raised as :class:`ConfigError`, whose message always names the file and line, what is wrong
+and what is allowed, e.g.::
+
+    benches/sim.yaml:12: site.latitude_deg: expected a number between -90 and 90, got 'north'
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from core.errors import UserError
+
+KeyPath = tuple[str | int, ...]
+
+
+class ConfigError(UserError, ValueError):
+    """A bench or procedure file is wrong; the message names file, line and the fix."""
+
+    def __init__(self, file: str | Path | None, line: int | None, message: str) -> None:
+        self.file = str(file) if file is not None else None
+        self.line = line
+        self.detail = message
+        where = self.file or "<input>"
+        if line is not None:
+            where = f"{where}:{line}"
+        super().__init__(f"{where}: {message}")
+
+
+@dataclass
+class SourceMap:
+    """Line numbers (1-based) of every mapping key / sequence item, by key path."""
+
+    file: str
+    lines: dict[KeyPath, int] = field(default_factory=dict)
+
+    def line(self, path: Sequence[str | int]) -> int | None:
+        """Line of the value at ``path``, or of its nearest ancestor that has one."""
+        p = tuple(path)
+        while p:
+            if p in self.lines:
+                return self.lines[p]
+            p = p[:-1]
+        return self.lines.get((), None)
+
+    def error(self, path: Sequence[str | int], message: str) -> ConfigError:
+        """A :class:`ConfigError` located at ``path``, with the dotted path in the message."""
+        dotted = ".".join(str(k) if isinstance(k, str) else f"[{k}]" for k in path).replace(".[", "[")
+        text = f"{dotted}: {message}" if dotted else message
+        return ConfigError(self.file, self.line(path), text)
+
+
+def _walk(node: yaml.Node, path: KeyPath, out: dict[KeyPath, int]) -> None:
+    out.setdefault(path, node.start_mark.line + 1)
+    if isinstance(node, yaml.MappingNode):
+        for key_node, value_node in node.value:
+            key = key_node.value
+            out[path + (key,)] = key_node.start_mark.line + 1
+            _walk(value_node, path + (key,), out)
+            out[path + (key,)] = key_node.start_mark.line + 1
+    elif isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            _walk(item, path + (i,), out)
+
+
+def load_yaml_text(text: str, file: str | Path = "<input>") -> tuple[Any, SourceMap]:
+    """Parse YAML ``text``; return (data, source map). Syntax errors become :class:`ConfigError`."""
+    smap = SourceMap(str(file))
+    try:
+        node = yaml.compose(text, Loader=yaml.SafeLoader)
+        data = yaml.safe_load(text)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        line = mark.line + 1 if mark is not None else None
+        problem = exc.problem or str(exc)
+        raise ConfigError(file, line, f"YAML syntax error: {problem} (check indentation, colons and quotes)") from None
+    except yaml.YAMLError as exc:  # pragma: no cover - non-marked errors are rare
+        raise ConfigError(file, None, f"YAML error: {exc}") from None
+    if node is not None:
+        _walk(node, (), smap.lines)
+    return data, smap
+
+
+def load_yaml(path: str | Path) -> tuple[Any, SourceMap, str]:
+    """Read and parse a YAML file; return (data, source map, raw text).
+
+    Raises
+    ------
+    ConfigError
+        If the file cannot be read, is not UTF-8, or is not valid YAML.
+    """
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(p, None, "file not found (check the path)") from None
+    except IsADirectoryError:
+        raise ConfigError(p, None, "is a directory, expected a YAML file") from None
+    except UnicodeDecodeError:
+        raise ConfigError(p, None, "is not UTF-8 text; expected a YAML file") from None
+    except OSError as exc:
+        raise ConfigError(p, None, f"cannot be read: {exc.strerror}") from None
+    data, smap = load_yaml_text(text, p)
+    return data, smap, text
+
+
+# ---- small typed accessors used by both bench and procedure schemas ------------------------------
+
+_MISSING = object()
+
+
+def get_mapping(data: Any, smap: SourceMap, path: KeyPath) -> dict[str, Any]:
+    """Require ``data`` (found at ``path``) to be a mapping."""
+    if not isinstance(data, dict):
+        raise smap.error(path, f"expected a mapping (key: value lines), got {type(data).__name__}")
+    return data
+
+
+def check_keys(data: dict[str, Any], smap: SourceMap, path: KeyPath, allowed: Sequence[str]) -> None:
+    """Reject keys not in ``allowed``, listing what is allowed."""
+    for key in data:
+        if key not in allowed:
+            raise smap.error(path + (str(key),), f"unknown key {key!r}; allowed here: {', '.join(allowed)}")
+
+
+def get_number(
+    data: dict[str, Any],
+    smap: SourceMap,
+    path: KeyPath,
+    key: str,
+    default: Any = _MISSING,
+    *,
+    minimum: float | None = None,
+    maximum: float | None = None,
+    exclusive_minimum: bool = False,
+) -> float:
+    """Read a finite number at ``data[key]`` with optional bounds; message names the range allowed."""
+    if key not in data or data[key] is None:
+        if default is _MISSING:
+            raise smap.error(path + (key,), "is required (a number)")
+        return default
+    value = data[key]
+    where = path + (key,)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise smap.error(where, f"expected a number, got {value!r}")
+    v = float(value)
+    if v != v or v in (float("inf"), float("-inf")):
+        raise smap.error(where, f"expected a finite number, got {value!r}")
+    low_ok = minimum is None or (v > minimum if exclusive_minimum else v >= minimum)
+    high_ok = maximum is None or v <= maximum
+    if not (low_ok and high_ok):
+        lo = "-inf" if minimum is None else f"{minimum:g}"
+        hi = "+inf" if maximum is None else f"{maximum:g}"
+        bracket = "(" if exclusive_minimum else "["
+        raise smap.error(where, f"{v:g} is out of range; allowed {bracket}{lo}, {hi}]")
+    return v
+
+
+def get_str(
+    data: dict[str, Any],
+    smap: SourceMap,
+    path: KeyPath,
+    key: str,
+    default: Any = _MISSING,
+    *,
+    choices: Sequence[str] | None = None,
+) -> str:
+    """Read a string at ``data[key]``, optionally one of ``choices``."""
+    if key not in data or data[key] is None:
+        if default is _MISSING:
+            raise smap.error(path + (key,), "is required (text)")
+        return default
+    value = data[key]
+    if not isinstance(value, str):
+        raise smap.error(path + (key,), f"expected text, got {value!r}")
+    if choices is not None and value not in choices:
+        raise smap.error(path + (key,), f"{value!r} is not allowed; choose one of: {', '.join(choices)}")
+    return value
+
+
+def get_vector(
+    data: dict[str, Any], smap: SourceMap, path: KeyPath, key: str, length: int = 3, default: Any = _MISSING
+) -> list[float]:
+    """Read a list of ``length`` finite numbers at ``data[key]``."""
+    if key not in data or data[key] is None:
+        if default is _MISSING:
+            raise smap.error(path + (key,), f"is required (a list of {length} numbers)")
+        return default
+    value = data[key]
+    if not isinstance(value, list) or len(value) != length:
+        raise smap.error(path + (key,), f"expected a list of {length} numbers like [0, 0, 0], got {value!r}")
+    out: list[float] = []
+    for i, item in enumerate(value):
+        if isinstance(item, bool) or not isinstance(item, (int, float)) or item != item:
+            raise smap.error(path + (key, i), f"expected a number, got {item!r}")
+        out.append(float(item))
+    return out

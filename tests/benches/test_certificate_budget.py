@@ -1,0 +1,205 @@
+"""GUM budget: the design matrix against the model, sensitivities against a re-solved estimator, mismatch."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from analysis.gimbal import body_rate, body_to_nav, gravity_in_body
+from analysis.units import ARCSEC, MM, PPM, UG, UG_PER_G2
+from benches.uncertainty_budget import (
+    PARAM_NAMES,
+    StepGeometry,
+    attitude_sensitivity,
+    build_budget,
+    data_information,
+    design_matrix,
+    gravity_sensitivity,
+    residual_mismatch,
+    scatter_excess_covariance,
+    step_offset_sensitivity,
+)
+
+G = 9.80744
+X_TRUE = np.array(
+    [100 * UG, -80 * UG, 120 * UG, 200 * PPM, -150 * PPM, 250 * PPM]
+    + [30 * ARCSEC, -25 * ARCSEC, 20 * ARCSEC, 35 * ARCSEC, -30 * ARCSEC, 15 * ARCSEC]
+    + [20 * UG_PER_G2, -15 * UG_PER_G2, 10 * UG_PER_G2, -30 * MM, -28 * MM, -32 * MM]
+)
+PRIOR = np.array([1000 * UG] * 3 + [1000 * PPM] * 3 + [200 * ARCSEC] * 6 + [100 * UG_PER_G2] * 3 + [100 * MM] * 3)
+NOISE_VAR = np.full(3, (15 * UG) ** 2 * 100.0)
+
+
+def _model(x: np.ndarray, f: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """f_out written out term by term from the spec (independent of design_matrix)."""
+    b, s, t, d, r = x[0:3], x[3:6], x[6:12], x[12:15], x[15:18]
+    tmat = np.array([[0, t[0], t[1]], [t[2], 0, t[3]], [t[4], t[5], 0]])
+    c = np.stack([w[:, 1] ** 2 + w[:, 2] ** 2, w[:, 2] ** 2 + w[:, 0] ** 2, w[:, 0] ** 2 + w[:, 1] ** 2], 1)
+    return f + f * s + f @ tmat.T + b + d * f * f + r * c
+
+
+def _ten_step_angles() -> list[tuple[str, str, np.ndarray, np.ndarray]]:
+    """(name, kind, angles (m,3), rates (m,3)) of a ten-step-like sequence at 30 °/s."""
+    r = math.radians
+    out = []
+    for grp, base, axis in (("A", (0, 0, 0), 2), ("B", (r(-90), r(-90), 0), 1), ("C", (r(90), 0, r(90)), 1)):
+        for k in range(8):
+            a = np.array(base, float)
+            a[axis] += r(45 * k)
+            out.append((f"{grp}/hold-{k}", "hold", a[None, :], np.zeros((1, 3))))
+        phase = np.linspace(0, 2 * np.pi, 180, endpoint=False)
+        a = np.tile(np.array(base, float), (180, 1))
+        a[:, axis] += phase
+        rates = np.zeros((180, 3))
+        rates[:, axis] = r(30)
+        out.append((f"{grp}/spin", "spin", a, rates))
+    return out
+
+
+def _geometry(g: float = G, dang: dict[str, np.ndarray] | None = None) -> list[StepGeometry]:
+    geo = []
+    for name, kind, ang, rat in _ten_step_angles():
+        a = ang + (dang or {}).get(name, 0.0)
+        m = ang.shape[0]
+        geo.append(
+            StepGeometry(name, kind, gravity_in_body(a, g), body_rate(a, rat), np.full(m, 2000.0 / m), body_to_nav(a))
+        )
+    return geo
+
+
+def _solve(geo_ref: list[StepGeometry], geo_true: list[StepGeometry]) -> tuple[np.ndarray, np.ndarray]:
+    """Noise-free information solution with z = f_out(true geometry) − f_ref (reference geometry)."""
+    ri = 1.0 / NOISE_VAR
+    a = np.diag(1.0 / PRIOR**2)
+    v = np.zeros(18)
+    for gr, gt in zip(geo_ref, geo_true, strict=True):
+        z = _model(X_TRUE, gt.f, gt.omega) - gr.f
+        h = design_matrix(gr.f, gr.omega)
+        hw = np.transpose(h, (0, 2, 1)) * ri * gr.weight[:, None, None]
+        a += np.einsum("kpa,kaq->pq", hw, h)
+        v += np.einsum("kpa,ka->p", hw, z)
+    p = np.linalg.inv(a)
+    return p @ v, p
+
+
+def test_design_matrix_is_the_jacobian_of_the_model():
+    rng = np.random.default_rng(1)
+    f = rng.normal(0, 6, (5, 3))
+    w = rng.normal(0, 1, (5, 3))
+    h = design_matrix(f, w)
+    # the model is linear in x: f_out − f = H x exactly
+    np.testing.assert_allclose(np.einsum("kaq,q->ka", h, X_TRUE), _model(X_TRUE, f, w) - f, rtol=1e-12, atol=1e-18)
+    # misalignment convention δf_i += τ_ij f_j: τ_xy couples f_y into the x output only
+    e = np.zeros(18)
+    e[PARAM_NAMES.index("tau_xy")] = 1.0
+    np.testing.assert_allclose(np.einsum("kaq,q->ka", h, e), np.stack([f[:, 1], 0 * f[:, 1], 0 * f[:, 1]], 1))
+
+
+def test_design_matrix_matches_the_identification_model_if_present():
+    from analysis.identification import model as accel_model
+    rng = np.random.default_rng(2)
+    f, w = rng.normal(0, 6, (7, 3)), rng.normal(0, 1, (7, 3))
+    np.testing.assert_allclose(design_matrix(f, w), accel_model.design_matrix(f, w), rtol=1e-12, atol=0)
+
+
+def test_gravity_sensitivity_equals_the_re_solved_estimator():
+    geo = _geometry()
+    x0, p = _solve(geo, geo)
+    np.testing.assert_allclose(x0, X_TRUE, rtol=1e-3)  # noise-free, full rank: the truth (up to the prior's pull)
+    dg = 5e-4
+    x1, _ = _solve(geo, _geometry(G + dg))  # the reference uses G, the world has G + dg
+    s = gravity_sensitivity(p, geo, NOISE_VAR, G)
+    # the estimator sees the reference too low by dg: δx̂ = −s·(−dg)... i.e. x̂(g_ref) − x̂ = s (g_ref − g_true)
+    np.testing.assert_allclose(x1 - x0, s * (G - (G + dg)), rtol=2e-3, atol=1e-3 * np.abs(s).max() * dg)
+    # and it lands on the scale factors: S_i moves by −δg/g·(1 + S_i) to first order
+    np.testing.assert_allclose((x1 - x0)[3:6], dg / G * np.ones(3), rtol=2e-3)
+
+
+def test_attitude_sensitivity_equals_the_re_solved_estimator():
+    """Per-step nav-frame tilt δφ (C_b^n,true = R(δφ) C_b^n,reported): holds and spins."""
+    geo = _geometry()
+    _, p = _solve(geo, geo)
+    rng = np.random.default_rng(4)
+    dphi = {g.name: rng.normal(0, 5 * ARCSEC, 3) for g in geo}
+    geo_true = []
+    for g in geo:
+        c_bn_true = Rotation.from_rotvec(dphi[g.name]).as_matrix() @ g.c_bn
+        f_true = np.einsum("kab,a->kb", c_bn_true, np.array([0.0, 0.0, G]))  # C_n^b g_n
+        geo_true.append(StepGeometry(g.name, g.kind, f_true, g.omega, g.weight, g.c_bn))
+    x1, _ = _solve(geo, geo_true)
+    sens = attitude_sensitivity(p, geo, NOISE_VAR)
+    pred = sum(c @ dphi[g.name] for c, g in zip(sens, geo, strict=True))
+    # first order: the neglected (S + T, D) × reference-error terms are ≲ 0.3 % of the effect
+    np.testing.assert_allclose(x1 - _solve(geo, geo)[0], pred, rtol=1e-2, atol=1e-3 * np.abs(pred).max())
+
+
+def test_budget_components_add_in_quadrature_and_attitude_scales_with_accuracy():
+    geo = _geometry()
+    _, p = _solve(geo, geo)
+    kw = dict(g=G, g_uncertainty=3e-4, g_source="WGS-84", residuals_per_step=())
+    b1 = build_budget(p, geo, NOISE_VAR, attitude_accuracy=1 * ARCSEC, **kw)
+    b2 = build_budget(p, geo, NOISE_VAR, attitude_accuracy=10 * ARCSEC, **kw)
+    std1 = {c.key: c.std for c in b1.components}
+    std2 = {c.key: c.std for c in b2.components}
+    np.testing.assert_allclose(std2["attitude"], 10 * std1["attitude"], rtol=1e-12)
+    np.testing.assert_allclose(std1["estimation"], np.sqrt(np.diag(p)))
+    np.testing.assert_allclose(b1.combined**2, sum(v**2 for v in std1.values()), rtol=1e-12)
+    np.testing.assert_allclose(b1.expanded, 2 * b1.combined)
+    # local g at 30 mGal dominates the scale factors (≈ 30.6 ppm) and does nothing to the biases
+    assert np.all(np.abs(std1["local_g"][3:6] / PPM - 3e-4 / G / PPM) < 0.5)
+    assert np.all(std1["local_g"][0:3] < 1e-3 * std1["estimation"][0:3])
+
+
+def test_residual_mismatch_recovers_an_injected_step_offset_scatter():
+    rng = np.random.default_rng(5)
+    n, k = 2000, 300
+    sig_dc = np.array([4 * UG, 0.0, 2 * UG])
+    rows = []
+    for _ in range(k):
+        mean = rng.normal(0, np.sqrt(NOISE_VAR / n)) + rng.normal(0, 1, 3) * sig_dc
+        rms = np.sqrt(NOISE_VAR * 1.21 + mean**2)
+        rows.append({"samples": n, "mean": mean.tolist(), "rms": rms.tolist()})
+    dc, beta = residual_mismatch(rows, NOISE_VAR)
+    np.testing.assert_allclose(np.sqrt(dc[[0, 2]]), sig_dc[[0, 2]], rtol=0.15)
+    assert math.sqrt(dc[1]) < 1.0 * UG
+    np.testing.assert_allclose(beta, 1.21, rtol=1e-9)
+
+
+def test_scatter_excess_is_the_sandwich_and_equals_birge_inflation_for_uniform_excess():
+    geo = _geometry()
+    _, p = _solve(geo, geo)
+    rows = [
+        {"name": g.name, "samples": g.samples, "mean": [0.0] * 3, "rms": list(np.sqrt(1.44 * NOISE_VAR))} for g in geo
+    ]
+    got = scatter_excess_covariance(p, geo, NOISE_VAR, rows)
+    data_part = p - p @ np.diag(1 / PRIOR**2) @ p  # P (ΣHᵀR⁻¹H) P
+    np.testing.assert_allclose(got, 0.44 * data_part, rtol=1e-8, atol=1e-12 * np.abs(data_part).max())
+    # excess only in the spins: only spin-determined parameters (r) gain much
+    rows_spin = [dict(r, rms=list(np.sqrt(NOISE_VAR))) if "hold" in r["name"] else r for r in rows]
+    spin_only = np.sqrt(np.diag(scatter_excess_covariance(p, geo, NOISE_VAR, rows_spin)))
+    rel = spin_only / np.sqrt(np.diag(p))
+    assert rel[15:18].min() > 3 * rel[0:3].max()
+
+
+def test_step_offsets_propagate_like_a_re_solved_estimator():
+    geo = _geometry()
+    _, p = _solve(geo, geo)
+    rng = np.random.default_rng(6)
+    off = {g.name: rng.normal(0, 3 * UG, 3) for g in geo}
+    ri = 1.0 / NOISE_VAR
+    v = np.zeros(18)
+    for g in geo:
+        h = design_matrix(g.f, g.omega)
+        v += np.einsum("kpa,a->p", np.transpose(h, (0, 2, 1)) * ri * g.weight[:, None, None], off[g.name])
+    direct = p @ v
+    pred = sum(b @ off[g.name] for b, g in zip(step_offset_sensitivity(p, geo, NOISE_VAR), geo, strict=True))
+    np.testing.assert_allclose(pred, direct, rtol=1e-10, atol=1e-20)
+    np.testing.assert_allclose(np.linalg.inv(p) - np.diag(1 / PRIOR**2), data_information(geo, NOISE_VAR), rtol=1e-9)
+
+
+def test_bad_covariance_is_refused_with_a_clear_message():
+    with pytest.raises(ValueError, match="18 × 18"):
+        build_budget(np.eye(3), [], NOISE_VAR, g=G, g_uncertainty=1e-6, g_source="measured", attitude_accuracy=0.0)
