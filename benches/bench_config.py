@@ -48,6 +48,7 @@ from drivers.sim.config import (
     CHANNELS,
     AccelTruth,
     ArmaDrift,
+    BudgetInputs,
     GyroTruth,
     NoiseTruth,
     PeriodicTerm,
@@ -92,6 +93,17 @@ class Site:
     latitude: float
     height: float
     g_measured: float | None = None
+    g_uncertainty_given: float | None = None
+
+    @property
+    def g_uncertainty(self) -> float:
+        """Standard uncertainty of :attr:`g`, m/s²: the bench's ``g_uncertainty_mgal`` if given, else 0.1 mGal
+        for a measured g and 30 mGal (a typical free-air anomaly) for WGS-84 normal gravity."""
+        from analysis.identification.budget import default_g_uncertainty
+
+        if self.g_uncertainty_given is not None:
+            return self.g_uncertainty_given
+        return default_g_uncertainty(self.g_measured is not None)
 
     @property
     def g(self) -> float:
@@ -121,6 +133,8 @@ class TurntableSpec:
     model: str = ""
     serial_number: str = ""
     float_word_order: str = "big"
+    rate_accuracy: float = 0.0
+    """Rate accuracy bound of the table (relative, ±; bench key ``rate_accuracy_ppm``); 0: not stated."""
 
 
 @dataclass(frozen=True)
@@ -248,13 +262,15 @@ def _opt_str(data: dict, smap: SourceMap, path: KeyPath, key: str) -> str | None
 
 def _site(d: dict, smap: SourceMap) -> Site:
     p: KeyPath = ("site",)
-    check_keys(d, smap, p, ["name", "latitude_deg", "height_m", "g_measured_mps2"])
+    check_keys(d, smap, p, ["name", "latitude_deg", "height_m", "g_measured_mps2", "g_uncertainty_mgal"])
     g = get_number(d, smap, p, "g_measured_mps2", None, minimum=9.7, maximum=9.9)
+    ug = get_number(d, smap, p, "g_uncertainty_mgal", None, minimum=0, exclusive_minimum=True, maximum=1000)
     return Site(
         name=get_str(d, smap, p, "name", ""),
         latitude=get_number(d, smap, p, "latitude_deg", minimum=-90, maximum=90) * DEG,
         height=get_number(d, smap, p, "height_m", 0.0, minimum=-500, maximum=9000),
         g_measured=g,
+        g_uncertainty_given=None if ug is None else ug * 1e-5,
     )
 
 
@@ -292,6 +308,7 @@ def _turntable(d: dict, smap: SourceMap) -> TurntableSpec:
             "position_tolerance_arcsec",
             "in_position_time_s",
             "attitude_accuracy_arcsec",
+            "rate_accuracy_ppm",
             "heartbeat_period_s",
             "watchdog_s",
             "float_word_order",
@@ -328,6 +345,7 @@ def _turntable(d: dict, smap: SourceMap) -> TurntableSpec:
         model=str(d.get("model") or ""),
         serial_number=str(d.get("serial_number") or ""),
         float_word_order=get_str(d, smap, p, "float_word_order", "big", choices=["big", "little"]),
+        rate_accuracy=get_number(d, smap, p, "rate_accuracy_ppm", 0.0, minimum=0, maximum=1e5) * 1e-6,
     )
 
 
@@ -459,6 +477,7 @@ def _simulation(d: dict, smap: SourceMap, site: Site, table: TurntableSpec, unit
             "drop_probability",
             "table",
             "faults",
+            "realise_uncertainty_inputs",
         ],
     )
     fs = unit.sample_rate
@@ -650,6 +669,22 @@ def _simulation(d: dict, smap: SourceMap, site: Site, table: TurntableSpec, unit
         faults=tuple(faults),
         seed=_int(d, smap, p, "seed", 0, 0, 2**63 - 1),
         transport=get_str(d, smap, p, "transport", "in-process", choices=["in-process", "loopback"]),
+        budget_inputs=_budget_inputs(d, smap, p, site, table),
+    )
+
+
+def _budget_inputs(d: dict, smap: SourceMap, p: KeyPath, site: Site, table: TurntableSpec) -> BudgetInputs | None:
+    """``realise_uncertainty_inputs: true``: the simulator draws (seeded) every type-B input the certificate's
+    budget claims, within the bench's own stated uncertainties (local g anomaly, table attitude and rate)."""
+    v = d.get("realise_uncertainty_inputs", False)
+    if not isinstance(v, bool):
+        raise smap.error(p + ("realise_uncertainty_inputs",), f"expected true or false, got {v!r}")
+    if not v:
+        return None
+    return BudgetInputs(
+        gravity_anomaly_std=site.g_uncertainty,
+        attitude_error_bound=table.attitude_accuracy,
+        rate_error_bound=table.rate_accuracy,
     )
 
 

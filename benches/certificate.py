@@ -37,7 +37,7 @@ from analysis.units import ARCSEC, display_unit, kelvin_to_celsius, to_display
 from core.errors import UserError
 from core.provenance import file_sha256, software_version
 
-from .uncertainty_budget import PARAM_KINDS, PARAM_NAMES, UncertaintyBudget, build_budget, default_g_uncertainty
+from .uncertainty_budget import PARAM_KINDS, PARAM_NAMES, UncertaintyBudget, budget_for_run, default_g_uncertainty
 
 FORMAT = "tablebench-certificate"
 FORMAT_VERSION = 1
@@ -99,6 +99,8 @@ class BenchInfo:
     unit_serial: str
     source: str
     bias_instability: list[float] | None = None
+    rate_accuracy: float = 0.0
+    latency: float = 0.0
 
 
 @dataclass
@@ -273,7 +275,7 @@ def bench_info(bench_text: str, cal_run: dict[str, Any], rec_attrs: dict[str, An
     if cfg is not None:
         s, t, u = cfg.site, cfg.turntable, cfg.unit
         g_src = str(s.g_source)
-        g_unc = getattr(s, "g_uncertainty", None)
+        g_unc = float(s.g_uncertainty)
         return BenchInfo(
             name=str(cfg.name),
             limits={str(k): float(v) for k, v in dict(cfg.limits or {}).items()},
@@ -284,13 +286,15 @@ def bench_info(bench_text: str, cal_run: dict[str, Any], rec_attrs: dict[str, An
             height_m=float(s.height),
             g=float(s.g),
             g_source=g_src,
-            g_uncertainty=float(g_unc) if g_unc else default_g_uncertainty(g_src),
+            g_uncertainty=g_unc,
             table_model=str(getattr(t, "model", "") or ""),
             table_serial=str(getattr(t, "serial_number", "") or ""),
             unit_model=str(getattr(u, "model", "") or ""),
             unit_serial=str(getattr(u, "serial_number", "") or ""),
             source="bench file recorded in the recording",
             bias_instability=np.asarray(u.noise.bias_instability, dtype=float).tolist(),
+            rate_accuracy=float(getattr(t, "rate_accuracy", 0.0) or 0.0),
+            latency=float(getattr(u, "latency", 0.0) or 0.0),
         )
     g = float(site.get("g") or rec_attrs.get("site_g") or 0.0)
     if not g > 0:
@@ -306,7 +310,7 @@ def bench_info(bench_text: str, cal_run: dict[str, Any], rec_attrs: dict[str, An
         height_m=site.get("height_m"),
         g=g,
         g_source=g_src,
-        g_uncertainty=float(site.get("g_uncertainty") or default_g_uncertainty(g_src)),
+        g_uncertainty=float(site.get("g_uncertainty") or default_g_uncertainty(g_src.startswith("measured"))),
         table_model=str(table.get("model", "")),
         table_serial=str(table.get("serial_number", "")),
         unit_model=str(unit.get("model", "")),
@@ -487,7 +491,7 @@ def build_certificate(
         binfo = bench or bench_info(bench_text, dict(cal.get("run") or {}), attrs)
         used = [str(p.get("name")) for p in (cal.get("residuals") or {}).get("per_step", [])]
         geometry = step_geometry(f, binfo.g, None if binfo.mounting is None else np.asarray(binfo.mounting),
-                                 names=used or None)  # fmt: skip
+                                 latency=binfo.latency, names=used or None)  # fmt: skip
         temp = _temperature_stats(f)
         n_samples = int(f["imu/time"].shape[0])
         t_span = float(f["imu/time"][-1] - f["imu/time"][0]) if n_samples > 1 else 0.0
@@ -499,20 +503,16 @@ def build_certificate(
         ]
 
     params, x, cov, noise_var, per_step = _calibration_arrays(cal, names, cal_path)
-    prior = [params[n].get("prior_sigma") for n in names]
-    prior_ok = all(isinstance(p, int | float) and p > 0 for p in prior)
     try:
-        budget: UncertaintyBudget = build_budget(
-            cov,
+        budget: UncertaintyBudget = budget_for_run(
+            cal,
             geometry,
-            noise_var,
-            prior_sigma=np.asarray(prior, dtype=float) if prior_ok else None,
-            bias_instability=None if binfo.bias_instability is None else np.asarray(binfo.bias_instability),
             g=binfo.g,
             g_uncertainty=binfo.g_uncertainty,
             g_source=binfo.g_source,
             attitude_accuracy=binfo.attitude_accuracy,
-            residuals_per_step=per_step,
+            rate_accuracy=binfo.rate_accuracy,
+            bias_instability=None if binfo.bias_instability is None else np.asarray(binfo.bias_instability),
         )
     except ValueError as exc:
         raise CertificateError(f"{cal_path}: {exc}") from None

@@ -34,7 +34,7 @@ from core.errors import UserError
 from drivers.protocols import ImuBlock, TableState
 
 from .recording import RecordingError, open_recording, read_steps
-from .reference import interpolate_table, reference_at
+from .reference import reference_at, reference_for_samples
 
 MODEL_TEXT = (
     "f_out = f + (S + T) f + b + D (f∘f) + diag(r) c(ω), body frame; c(ω) = [ω_y²+ω_z², ω_z²+ω_x², ω_x²+ω_y²]; "
@@ -141,6 +141,19 @@ def plan_for(compiled: Any, config: Any) -> IdentificationPlan:
     )
 
 
+def acquisition_span(t_first: float, t_last: float, latency: float, sample_rate: float) -> tuple[float, float]:
+    """Bench-time span (s) of the table readings that belong to an acquisition window's own motion state.
+
+    From 1.5 sample periods before the first sample's reference time (t_first − latency) to 1.5 sample
+    periods after the last sample: the reading the runner takes with each block is stamped at the next
+    sample, so it closes the window (the half period covers the unit's time-stamp jitter); a reading later
+    than that may already belong to the next motion and is never used
+    (:func:`benches.reference.interpolate_table` extrapolates with the reported rate instead).
+    """
+    dt = 1.5 / sample_rate
+    return (t_first - latency - dt, t_last + dt)
+
+
 # ---- live identification during the run ---------------------------------------------------------------------------
 
 
@@ -174,6 +187,7 @@ class LiveIdentifier:
         self._accel: list[NDArray[np.float64]] = []
         self._n = 0
         self._step: str | None = None
+        self._acq_t0 = 0.0
 
     def on_block(self, step: Any, block: ImuBlock, table: TableState, counts: bool) -> None:
         """Buffer the block if it is inside a hold/spin acquisition window; fuse when enough is buffered."""
@@ -184,6 +198,8 @@ class LiveIdentifier:
             return
         if self._step is not None and self._step != step.name:
             self.flush()
+        if self._step != step.name:
+            self._acq_t0 = float(block.time[0])
         self._step = step.name
         self._times.append(block.time)
         self._accel.append(block.accel)
@@ -201,13 +217,16 @@ class LiveIdentifier:
             return
         t = np.concatenate(self._times)
         rd = self._readings
-        angles, rates = interpolate_table(
-            t - self.latency,
+        f_ref, omega, _ang = reference_for_samples(
+            t,
             np.array([r.time for r in rd]),
             np.stack([r.angles for r in rd]),
             np.stack([r.rates for r in rd]),
+            g=self.config.site.g,
+            mounting=self.config.unit.mounting,
+            latency=self.latency,
+            span=acquisition_span(self._acq_t0, float(t[-1]), self.latency, float(self.config.unit.sample_rate)),
         )
-        f_ref, omega = reference_at(angles, rates, self.config.site.g, self.config.unit.mounting)
         self.filter.update(np.concatenate(self._accel), f_ref, omega, self._step, t=t)
         self._times.clear()
         self._accel.clear()
@@ -236,6 +255,7 @@ class StepWindow:
     f_out: NDArray[np.float64]
     f_ref: NDArray[np.float64]
     omega: NDArray[np.float64]
+    angles: NDArray[np.float64] | None = None
 
 
 @dataclass
@@ -301,9 +321,11 @@ def load_run(run: str | Path) -> RecordedRun:
                 continue
             t = f["imu/time"][s.acq_start : s.acq_end]
             fo = f["imu/accel"][s.acq_start : s.acq_end]
-            ang, rat = interpolate_table(t - latency, table_t, table_a, table_r)
-            fr, om = reference_at(ang, rat, config.site.g, config.unit.mounting)
-            windows.append(StepWindow(s.name, s.kind, t, fo, fr, om))
+            span = acquisition_span(float(t[0]), float(t[-1]), latency, float(config.unit.sample_rate))
+            fr, om, ang = reference_for_samples(
+                t, table_t, table_a, table_r, g=config.site.g, mounting=config.unit.mounting, latency=latency, span=span
+            )
+            windows.append(StepWindow(s.name, s.kind, t, fo, fr, om, ang))
         truth = None
         if "truth" in f:
             ta = f["truth"].attrs
@@ -468,6 +490,7 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
         "parameter_names": list(PARAM_NAMES),
         "parameters": params,
         "covariance": [list(map(float, row)) for row in p_total],
+        "covariance_white": [list(map(float, row)) for row in p_white],
         "information": {
             "rank": int(rank),
             "condition": float(cond),

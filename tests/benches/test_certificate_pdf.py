@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 import re
 import shutil
@@ -86,22 +87,24 @@ def test_pdf_text_has_every_parameter_with_uncertainty_and_unit(issued):
         assert must in text, must
 
 
-def test_budget_is_consistent_and_estimation_is_not_the_only_component(issued):
+def test_budget_starts_from_the_identification_covariance(issued):
     _, js, _ = issued
     cert = json.loads(js.read_text(encoding="utf-8"))
     keys = [c["key"] for c in cert["uncertainty_budget"]["components"]]
-    assert keys == ["estimation", "bias_instability", "attitude", "local_g", "model_mismatch"]
+    assert keys == ["white_noise", "bias_instability", "attitude", "local_g", "model_mismatch"]
     cal = json.loads((js.parent / "calibration.json").read_text(encoding="utf-8"))
     for name, p in cert["parameters"].items():
         b = p["budget"]
-        assert b["estimation"] == pytest.approx(cal["parameters"][name]["sigma"], rel=1e-9)
+        # white noise ⊕ bias instability is the identification's own u, exactly
+        assert math.hypot(b["white_noise"], b["bias_instability"]) == pytest.approx(
+            cal["parameters"][name]["sigma"], rel=1e-9
+        )
         assert p["standard_uncertainty"] == pytest.approx(np.sqrt(sum(v**2 for v in b.values())), rel=1e-9)
     # WGS-84 normal gravity (30 mGal) dominates the scale factors; the attitude (1″) matters for misalignments
-    assert cert["parameters"]["S_x"]["budget"]["local_g"] > cert["parameters"]["S_x"]["budget"]["estimation"]
+    assert cert["parameters"]["S_x"]["budget"]["local_g"] > cert["parameters"]["S_x"]["budget"]["white_noise"]
     assert (
-        cert["parameters"]["tau_xy"]["budget"]["attitude"] > 0.1 * cert["parameters"]["tau_xy"]["budget"]["estimation"]
+        cert["parameters"]["tau_xy"]["budget"]["attitude"] > 0.1 * cert["parameters"]["tau_xy"]["budget"]["white_noise"]
     )
-    assert "consistency" in " ".join(cert["uncertainty_budget"]["notes"])
 
 
 def test_same_recording_gives_the_same_bytes_apart_from_the_issue_date(run_ok, issued, tmp_path):
