@@ -11,13 +11,9 @@ certificate number is ``TB-`` + the first 10 hex digits of the recording's SHA-2
 the recording's creation time, and plots are rendered deterministically, so a pinned ``issue_date`` gives
 byte-identical PDF and JSON files.
 
-Decision rule (ILAC-G8:09/2019, simple acceptance): a parameter with a limit L passes when |x̂| ≤ L; when
-|x̂| ≤ L < |x̂| + U the pass is reported as "PASS (conditional)" (the expanded uncertainty straddles the
-limit). A parameter the data do not identify, or whose expanded uncertainty U is not smaller than its limit
-(U ≥ L: no measurement outcome could demonstrate conformity), is "NOT VERIFIED". Overall
-verdict: FAIL if any parameter exceeds its limit; else INCOMPLETE for an incomplete run; else INCONCLUSIVE
-if a limited parameter is not verified (conformity not established, e.g. the size effect at slow spins);
-else PASS (NO LIMITS when the bench gives none).
+Decision rule: :mod:`analysis.identification.decision` (ILAC-G8:09/2019, guarded acceptance with w = U):
+per parameter PASS / FAIL / UNDECIDED (U straddles the limit) / NOT EVALUATED (the procedure cannot identify
+it) / INVALID (non-finite, failed integrity); overall PASS only when every limited parameter passes.
 """
 
 from __future__ import annotations
@@ -33,6 +29,14 @@ from typing import Any
 
 import numpy as np
 
+from analysis.identification.decision import (
+    FAIL,
+    INVALID,
+    NOT_EVALUATED,
+    UNDECIDED,
+    decide,
+    overall_verdict,
+)
 from analysis.units import ARCSEC, display_unit, kelvin_to_celsius, to_display
 from core.errors import UserError
 from core.provenance import file_sha256, software_version
@@ -503,6 +507,7 @@ def build_certificate(
         ]
 
     params, x, cov, noise_var, per_step = _calibration_arrays(cal, names, cal_path)
+    integrity_ok = True  # the recording reader (benches/recording.py) raises on a failed checksum
     try:
         budget: UncertaintyBudget = budget_for_run(
             cal,
@@ -530,27 +535,17 @@ def build_certificate(
         lim = binfo.limits.get(name)
         dv, du = to_display(kind, x[i]), to_display(kind, exp_u[i])
         v_txt, u_txt = format_with_uncertainty(dv, du)
-        if lim is None:
-            verdict = "—"
-        elif not ident:
-            verdict = "NOT VERIFIED"
-            unverified.append(f"{name}: not identified by this procedure, cannot be verified against its limit")
-        elif abs(x[i]) > lim and (exp_u[i] < lim or abs(x[i]) - exp_u[i] > lim):
-            verdict = "FAIL"
-            reasons.append(
-                f"{name} = {v_txt} {display_unit(kind)} exceeds the limit ±{to_display(kind, lim):.4g} "
-                f"{display_unit(kind)}"
-            )
-        elif exp_u[i] >= lim:
-            verdict = "NOT VERIFIED"
-            unverified.append(
-                f"{name}: expanded uncertainty {u_txt} {display_unit(kind)} is not smaller than the limit "
-                f"±{to_display(kind, lim):.4g} {display_unit(kind)}; this procedure cannot verify it"
-            )
-        elif abs(x[i]) + exp_u[i] > lim:
-            verdict = "PASS (conditional)"
-        else:
-            verdict = "PASS"
+        conf = decide(
+            float(x[i]), float(exp_u[i]), lim, identified=ident, integrity_ok=integrity_ok, full_rank=True
+        )
+        verdict = conf.verdict
+        lim_txt = "" if lim is None else f"±{to_display(kind, lim):.4g} {display_unit(kind)}"
+        if verdict == FAIL:
+            reasons.append(f"{name} = {v_txt} ± {u_txt} {display_unit(kind)} (U, k = 2) exceeds the limit {lim_txt}")
+        elif verdict == INVALID:
+            reasons.append(f"{name}: {conf.reason}")
+        elif verdict in (UNDECIDED, NOT_EVALUATED) and lim is not None:
+            unverified.append(f"{name} ({verdict.lower()}): {conf.reason}; limit {lim_txt}")
         results.append(
             ParameterResult(
                 name=name,
@@ -572,14 +567,16 @@ def build_certificate(
                 display_budget={k: float(to_display(kind, v[i])) for k, v in comp_std.items()},
             )
         )
-    if reasons:
-        verdict = "FAIL"
-    elif not complete:
-        verdict = "INCOMPLETE"
-    elif unverified:
-        verdict = "INCONCLUSIVE"
-    else:
-        verdict = "PASS" if binfo.limits else "NO LIMITS"
+    rank = int((cal.get("information") or {}).get("rank", 18) or 0)
+    verdict = overall_verdict(
+        [p.verdict for p in results],
+        [p.limit is not None for p in results],
+        complete=complete,
+        integrity_ok=integrity_ok,
+        full_rank=rank == 18,
+    )
+    if rank != 18:
+        unverified.append(f"the identification has information rank {rank} < 18: no overall PASS is possible")
     reasons.extend(unverified)
 
     warnings = list(dict.fromkeys([*(cal.get("plan") or {}).get("warnings", []), *cal.get("warnings", [])]))

@@ -344,10 +344,12 @@ def _results_page(pdf: _CertificatePdf, c: Certificate) -> None:
     )
     pdf.ln(1.5)
     pdf.para(
-        "Decision rule (ILAC-G8:09/2019, simple acceptance): a parameter passes when |value| ≤ limit. "
-        '"PASS (conditional)": the value is within the limit but the expanded uncertainty interval extends beyond '
-        "it. A parameter not identified by the procedure, or with U ≥ limit, cannot be verified (NOT VERIFIED): "
-        "the overall result is then INCONCLUSIVE unless another parameter fails. Values in SI and the full "
+        "Decision rule (ILAC-G8:09/2019, non-binary statement with guard band w = U, k = 2): PASS when "
+        "|value| + U ≤ limit; FAIL when |value| − U > limit; UNDECIDED when U straddles the limit (conditional "
+        "pass or fail: the reason names the side) or U ≥ limit; NOT EVALUATED when this procedure cannot identify "
+        "the parameter; INVALID for a non-finite value or uncertainty or a recording that failed its integrity "
+        "check. The overall result is PASS only when every limited parameter passes; UNDECIDED or NOT EVALUATED "
+        "make it INCONCLUSIVE, FAIL makes it FAIL, INVALID makes it INVALID. Values in SI and the full "
         "covariance are in the machine-readable certificate (JSON). µg = 9.80665e-6 m/s²; ppm = 1e-6; ″ = arcsecond.",
         size=7.6,
     )

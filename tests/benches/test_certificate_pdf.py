@@ -146,7 +146,7 @@ def test_incomplete_recording_needs_allow_incomplete_and_says_so_on_page_one(tmp
     assert main(["certificate", str(run), "--issue-date", DATE, "--allow-incomplete"]) == 0
     cert = json.loads((run / "certificate.json").read_text(encoding="utf-8"))
     assert cert["complete"] is False and cert["verdict"] == "INCOMPLETE"
-    assert cert["incomplete_reason"] and any("not identified" in r for r in cert["reasons"])
+    assert cert["incomplete_reason"] and any("cannot identify" in r for r in cert["reasons"])
     first = _text(run / "certificate.pdf")[0]
     assert "INCOMPLETE RUN" in first and "failed" in first
 
@@ -196,7 +196,7 @@ def test_an_unidentified_limited_parameter_makes_the_result_inconclusive(run_ok,
     (run / "calibration.json").write_text(json.dumps(cal), encoding="utf-8")
     cert = build_certificate(run, issue_date=DATE, with_plots=False)
     assert cert.verdict == "INCONCLUSIVE"
-    assert [p.verdict for p in cert.parameters if p.name.startswith("r_")] == ["NOT VERIFIED"] * 3
+    assert [p.verdict for p in cert.parameters if p.name.startswith("r_")] == ["NOT EVALUATED"] * 3
     assert any("r_x, r_y, r_z" in w for w in cert.warnings)
     js = json.loads(cert.to_json())
     assert js["compensation"]["use"][15:] == [False] * 3 and all(js["compensation"]["use"][:15])
@@ -213,10 +213,10 @@ def test_decision_rule_with_an_uncertainty_as_large_as_the_limit(run_ok, tmp_pat
     x = {p.name: p.value for p in first.parameters}
     base = bench_info(BENCH_TEXT, {}, {})
     cases = {
-        "b_y": (0.9 * u["b_y"], "NOT VERIFIED"),  # |x| = 0 but U ≥ L: no outcome could show conformity
-        "b_z": (abs(x["b_z"]) + 0.5 * u["b_z"], "PASS (conditional)"),
+        "b_y": (0.9 * u["b_y"], "UNDECIDED"),  # |x| = 0 but U ≥ L: no outcome could show conformity
+        "b_z": (abs(x["b_z"]) + 0.5 * u["b_z"], "UNDECIDED"),  # inside, U straddles (conditional pass)
         "b_x": (abs(x["b_x"]) + 2 * u["b_x"], "PASS"),
-        "S_x": (abs(x["S_x"]) - 0.5 * u["S_x"], "FAIL"),
+        "S_x": (abs(x["S_x"]) - 0.5 * u["S_x"], "UNDECIDED"),  # outside, U straddles (conditional fail)
         "tau_xy": (0.5 * u["tau_xy"], "FAIL"),  # U ≥ L, but |x| − U > L: certainly out
     }
     bench = dataclasses.replace(base, limits={k: v[0] for k, v in cases.items()})
