@@ -41,6 +41,7 @@ from analysis.units import ARCSEC, display_unit, kelvin_to_celsius, to_display
 from core.errors import UserError
 from core.provenance import file_sha256, software_version
 
+from .calibration_result import CalibrationFormatError, CalibrationResult
 from .uncertainty_budget import PARAM_KINDS, PARAM_NAMES, UncertaintyBudget, budget_for_run, default_g_uncertainty
 
 FORMAT = "tablebench-certificate"
@@ -479,9 +480,11 @@ def build_certificate(
             )
         if not cal_path.exists():
             raise CertificateError(f"{run}: no calibration.json; identify first ('tablebench identify {run}')")
-        cal = _load_json(cal_path, "calibration")
-        if cal.get("format") != "tablebench-calibration":
-            raise CertificateError(f"{cal_path}: not a tablebench calibration file (format key)")
+        try:
+            cal_result = CalibrationResult.load(cal_path)
+        except CalibrationFormatError as exc:
+            raise CertificateError(str(exc)) from None
+        cal = cal_result.to_dict()
         if cal.get("recording_sha256") and cal["recording_sha256"] != rec_sha:
             raise CertificateError(
                 f"{cal_path}: was identified from a different recording (SHA-256 differs from recording.h5); "
@@ -506,11 +509,12 @@ def build_certificate(
             if _attr_str(e["level"]).lower() in ("warning", "error")
         ]
 
-    params, x, cov, noise_var, per_step = _calibration_arrays(cal, names, cal_path)
+    per_step = _per_step_rows(cal, cal_path)
+    x, noise_var = cal_result.x, cal_result.noise_variance
     integrity_ok = True  # the recording reader (benches/recording.py) raises on a failed checksum
     try:
         budget: UncertaintyBudget = budget_for_run(
-            cal,
+            cal_result,
             geometry,
             g=binfo.g,
             g_uncertainty=binfo.g_uncertainty,
@@ -530,8 +534,8 @@ def build_certificate(
     reasons: list[str] = []
     unverified: list[str] = []
     for i, (name, kind) in enumerate(zip(names, PARAM_KINDS, strict=True)):
-        pr = params[name]
-        ident = bool(pr.get("identifiable", True))
+        pr = cal["parameters"][name]
+        ident = cal_result.parameters[name].identified
         lim = binfo.limits.get(name)
         dv, du = to_display(kind, x[i]), to_display(kind, exp_u[i])
         v_txt, u_txt = format_with_uncertainty(dv, du)
@@ -678,41 +682,24 @@ def build_certificate(
     return cert
 
 
-def _calibration_arrays(
-    cal: dict[str, Any], names: list[str], path: Path
-) -> tuple[dict[str, Any], np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
-    """Parameters, estimate (18,), covariance (18, 18), noise variance (3,), per-step residuals; checked."""
-    where = "parameters"
+def _per_step_rows(cal: dict[str, Any], path: Path) -> list[dict[str, Any]]:
+    """calibration.json residuals.per_step, checked (name, samples, mean (3), rms (3), SI)."""
     try:
-        params = cal["parameters"]
-        for n in names:
-            where = f"parameters.{n}.value"
-            float(params[n]["value"])
-        x = np.array([float(params[n]["value"]) for n in names])
-        where = "covariance"
-        cov = np.asarray(cal["covariance"], dtype=float)
-        where = "measurement_noise.variance"
-        noise_var = np.asarray(cal["measurement_noise"]["variance"], dtype=float)
-        where = "residuals.per_step"
         per_step = list((cal.get("residuals") or {}).get("per_step") or [])
         for row in per_step:
-            (
-                int(row["samples"]),
-                np.asarray(row["mean"], dtype=float).reshape(3),
-                np.asarray(row["rms"], float).reshape(3),
+            ok = (
+                int(row["samples"]) >= 0
+                and np.all(np.isfinite(np.asarray(row["mean"], dtype=float).reshape(3)))
+                and np.all(np.isfinite(np.asarray(row["rms"], dtype=float).reshape(3)))
             )
+            if not ok:
+                raise ValueError(f"row {row.get('name')!r} has non-finite statistics")
     except (KeyError, TypeError, ValueError) as exc:
         raise CertificateError(
-            f"{path}: {where} is missing or malformed ({exc.__class__.__name__}: {exc}); see "
+            f"{path}: residuals.per_step is missing or malformed ({exc.__class__.__name__}: {exc}); see "
             "benches/CALIBRATION_FORMAT.md, or identify the run again"
         ) from None
-    if cov.shape != (18, 18) or not np.all(np.isfinite(cov)):
-        raise CertificateError(f"{path}: covariance must be a finite 18 × 18 matrix")
-    if noise_var.shape != (3,) or not np.all(noise_var > 0):
-        raise CertificateError(f"{path}: measurement_noise.variance must be 3 positive numbers")
-    if not np.all(np.isfinite(x)):
-        raise CertificateError(f"{path}: a parameter value is not finite")
-    return params, x, cov, noise_var, per_step
+    return per_step
 
 
 def _attr_str(v: Any) -> str:

@@ -150,7 +150,11 @@ class _CertificatePdf(FPDF):
 
 
 def _fmt_opt(v: object, spec: str, suffix: str = "") -> str:
-    return "—" if v is None else f"{format(float(v), spec)}{suffix}"  # type: ignore[arg-type]
+    if v is None:
+        return "—"
+    if isinstance(v, str):
+        return v
+    return f"{format(float(v), spec)}{suffix}"  # type: ignore[arg-type]
 
 
 def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:

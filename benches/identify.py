@@ -15,7 +15,6 @@ Results: ``calibration.json`` (format ``benches/CALIBRATION_FORMAT.md``).
 from __future__ import annotations
 
 import hashlib
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +32,7 @@ from analysis.units import DISPLAY_UNITS
 from core.errors import UserError
 from drivers.protocols import ImuBlock, TableState
 
+from .calibration_result import CalibrationResult
 from .recording import RecordingError, open_recording, read_steps
 from .reference import reference_at, reference_for_samples
 
@@ -359,8 +359,8 @@ def _display(k: int, value: float) -> float:
     return value / DISPLAY_UNITS[PARAM_KINDS[k]][1]
 
 
-def identify_run(run: str | Path, method: str = "kalman", noise: str = "configured") -> dict[str, Any]:
-    """Identify the 18 parameters from a recording; returns the ``calibration.json`` content.
+def identify_run(run: str | Path, method: str = "kalman", noise: str = "configured") -> CalibrationResult:
+    """Identify the 18 parameters from a recording; returns the typed calibration result.
 
     Parameters
     ----------
@@ -446,14 +446,14 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
         unit, _one = DISPLAY_UNITS[kind]
         params[name] = {
             "value": float(x[k]),
-            "sigma": float(sigma[k]),
-            "sigma_white": float(sigma_white[k]),
+            "u": float(sigma[k]),
+            "u_white": float(sigma_white[k]),
             "unit": _SI_UNITS[kind],
             "kind": kind,
             "display_unit": unit,
             "display_value": _display(k, x[k]),
-            "display_sigma": _display(k, sigma[k]),
-            "identifiable": name not in unobs,
+            "display_u": _display(k, sigma[k]),
+            "identified": name not in unobs,
             "prior_sigma": float(math.sqrt(p0[k, k])),
         }
     n_s = np.array([st["samples"] for st in per_step], dtype=float)
@@ -463,13 +463,13 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
     if rr.truth is not None:
         xt = np.array([rr.truth[n_] for n_ in PARAM_NAMES])
         err = x - xt
-        ident = np.array([params[n_]["identifiable"] for n_ in PARAM_NAMES])
+        ident = np.array([params[n_]["identified"] for n_ in PARAM_NAMES])
         idx = np.flatnonzero(ident)
         sub = p_total[np.ix_(idx, idx)]
         nees = float(err[idx] @ np.linalg.solve(sub, err[idx]))
         truth_block = {
             "values": rr.truth,
-            "error_sigma": {n_: float(err[k] / sigma[k]) for k, n_ in enumerate(PARAM_NAMES)},
+            "error_over_u": {n_: float(err[k] / sigma[k]) for k, n_ in enumerate(PARAM_NAMES)},
             "nees": nees,
             "dof": int(idx.size),
             "nees_states": [PARAM_NAMES[i] for i in idx],
@@ -481,7 +481,7 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
     temp = rr.temperature
     result = {
         "format": "tablebench-calibration",
-        "format_version": 1,
+        "format_version": 2,
         "recording": rr.path.name,
         "recording_sha256": _sha256_file(rr.path),
         "software_version": str(a.get("software_version", "")),
@@ -536,24 +536,14 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
         },
         "warnings": warnings,
     }
-    return result
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(p_total)) and np.all(np.isfinite(p_white))):
+        raise IdentificationError(
+            f"{rr.path}: the identification produced non-finite estimates or covariance (damaged data?); "
+            "nothing was written"
+        )
+    return CalibrationResult.from_dict(result, str(rr.path))
 
 
-def _json_safe(obj: Any) -> Any:
-    """Non-finite numbers (an unobservable parameter's predicted σ is ∞) become null in JSON."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_json_safe(v) for v in obj]
-    return obj
-
-
-def write_calibration(result: dict[str, Any], out: str | Path) -> Path:
-    """Write ``calibration.json`` (sorted keys, stable float formatting)."""
-    p = Path(out)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    text = json.dumps(_json_safe(result), indent=1, ensure_ascii=False, allow_nan=False)
-    p.write_text(text + "\n", encoding="utf-8")
-    return p
+def write_calibration(result: CalibrationResult, out: str | Path) -> Path:
+    """Write ``calibration.json`` (strict: a non-finite number raises; :meth:`CalibrationResult.save`)."""
+    return result.save(out)

@@ -9,8 +9,7 @@ uncertainties (table attitude and rate accuracy, local g, unit bias instability)
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Sequence
 
 import h5py
 import numpy as np
@@ -22,10 +21,10 @@ from analysis.identification.budget import (
     StepGeometry,
     UncertaintyBudget,
     build_budget,
-    data_information,
     default_g_uncertainty,
 )
 from analysis.identification.model import PARAM_KINDS, PARAM_NAMES
+from benches.calibration_result import CalibrationResult
 
 __all__ = [
     "PARAM_KINDS",
@@ -133,7 +132,7 @@ def flicker_step_variance(
 
 
 def budget_for_run(
-    cal: Mapping[str, Any],
+    cal: CalibrationResult,
     geometry: Sequence[StepGeometry],
     *,
     g: float,
@@ -145,23 +144,14 @@ def budget_for_run(
 ) -> UncertaintyBudget:
     """The budget of one identified run (calibration.json mapping + its step geometry + bench inputs).
 
-    The identification's covariance and its white-noise part come from calibration.json; a file written
-    before ``covariance_white`` existed gets the white part rebuilt from the recorded geometry and the prior.
+    The identification's covariance and its white-noise part come from calibration.json (typed).
     """
-    x = np.array([float(cal["parameters"][n]["value"]) for n in PARAM_NAMES])
-    p_id = np.asarray(cal["covariance"], dtype=float)
-    nv = np.asarray(cal["measurement_noise"]["variance"], dtype=float)
+    x = cal.x
+    p_id = cal.covariance
+    nv = cal.noise_variance
     notes: list[str] = []
-    if cal.get("covariance_white") is not None:
-        p_w = np.asarray(cal["covariance_white"], dtype=float)
-    else:
-        prior = np.array([float(cal["parameters"][n].get("prior_sigma") or np.nan) for n in PARAM_NAMES])
-        if not np.all(np.isfinite(prior) & (prior > 0)):
-            raise ValueError("calibration.json has neither covariance_white nor a prior_sigma per parameter")
-        p_w = np.linalg.inv(np.diag(1.0 / prior**2) + data_information(geometry, nv))
-        p_w = 0.5 * (p_w + p_w.T)
-        notes.append("white-noise covariance rebuilt from the recorded geometry (calibration.json predates it)")
-    per_step = list((cal.get("residuals") or {}).get("per_step") or [])
+    p_w = cal.covariance_white
+    per_step = list((cal.extra.get("residuals") or {}).get("per_step") or [])
     budget = build_budget(
         p_id,
         p_w,

@@ -19,6 +19,7 @@ import numpy as np
 
 from analysis.identification.model import PARAM_KINDS, PARAM_NAMES
 from analysis.units import DISPLAY_UNITS
+from benches.calibration_result import CalibrationResult
 from benches.identify import identify_run, plan_for
 from benches.session import prepare
 from benchmarks._results import write_section
@@ -67,11 +68,9 @@ def coverage_section(n_runs: int, rate: float = 100.0) -> str:
     return body
 
 
-def _errors(result: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    x = np.array([result["parameters"][n]["value"] for n in PARAM_NAMES])
-    s = np.array([result["parameters"][n]["sigma"] for n in PARAM_NAMES])
-    t = np.array([result["truth"]["values"][n] for n in PARAM_NAMES])
-    return x - t, s, np.array([result["parameters"][n]["identifiable"] for n in PARAM_NAMES])
+def _errors(result: CalibrationResult) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    t = np.array([result.extra["truth"]["values"][n] for n in PARAM_NAMES])
+    return result.x - t, result.u, result.identified
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -97,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
         r = identify_run(folder)
         e, _s, _i = _errors(r)
         errs.append(e)
-        nees.append(r["truth"]["nees"])
+        nees.append(r.extra["truth"]["nees"])
         print(f"seed {k}: NEES {nees[-1]:.1f}")
     errs_a = np.array(errs)
     rms = np.sqrt((errs_a**2).mean(0))

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -37,21 +36,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def load_calibration_vector(path: str | Path) -> tuple[np.ndarray, list[str]]:
     """The 18-parameter vector of a calibration.json (not-identified parameters zeroed) and their names."""
-    from analysis.identification.model import PARAM_NAMES
-    from core.errors import UsageError
+    from benches.calibration_result import CalibrationResult
 
-    try:
-        cal = json.loads(Path(path).read_text(encoding="utf-8"))
-        params = cal["parameters"]
-        x = np.array([float(params[n]["value"]) for n in PARAM_NAMES])
-        skipped = [n for n in PARAM_NAMES if not params[n].get("identifiable", True)]
-    except FileNotFoundError:
-        raise UsageError(f"{path}: no such calibration file") from None
-    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
-        raise UsageError(f"{path}: not a tablebench calibration.json ({exc.__class__.__name__}: {exc})") from None
-    for n in skipped:
-        x[PARAM_NAMES.index(n)] = 0.0
-    return x, skipped
+    return CalibrationResult.load(path).compensation_vector()
 
 
 def run(args: argparse.Namespace) -> int:

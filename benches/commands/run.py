@@ -147,11 +147,9 @@ def run(args: argparse.Namespace) -> int:
             # the live filter saw the same samples and readings (except replayed ones on resume)
             import numpy as np
 
-            offline = np.array([result["parameters"][n]["value"] for n in result["parameter_names"]])
-            diff = np.abs(live[0].filter.estimate - offline) / np.array(
-                [result["parameters"][n]["sigma_white"] for n in result["parameter_names"]]
-            )
-            result["live_vs_offline_max_sigma"] = float(diff.max())
+            u_white = np.array([p.u_white for p in result.parameters.values()])
+            diff = np.abs(live[0].filter.estimate - result.x) / u_white
+            result.extra["live_vs_offline_max_u"] = float(diff.max())
         path = write_calibration(result, folder / "calibration.json")
         from benches.commands.identify import format_result
 

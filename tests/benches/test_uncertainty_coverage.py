@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from analysis.units import ARCSEC
-from benchmarks.coverage import CLASSES, coverage_bench, run_coverage
 from benches.bench_config import load_bench
+from benchmarks.coverage import CLASSES, coverage_bench, run_coverage
 from drivers.sim.world import SimulatedWorld
 
 
