@@ -238,15 +238,6 @@ def format_with_uncertainty(value: float, expanded: float, digits: int = 2) -> t
     return v_txt, f"{u_r:.{decimals}f}"
 
 
-def _attr(f: Any, key: str, default: Any = "") -> Any:
-    v = f.attrs.get(key, default)
-    if isinstance(v, bytes):
-        return v.decode("utf-8")
-    if isinstance(v, np.generic):
-        return v.item()
-    return v
-
-
 def _load_bench_config(text: str) -> Any:
     """The recorded bench text through ``benches.bench_config`` (ConfigError names the recording's copy)."""
     from .bench_config import load_bench_text
@@ -313,20 +304,6 @@ def bench_info(bench_text: str, cal_run: dict[str, Any], rec_attrs: dict[str, An
         unit_serial=str(unit.get("serial_number", "")),
         source="calibration.json run block (bench loader not available: no pass/fail limits)",
     )
-
-
-def _temperature_stats(f: Any) -> dict[str, float]:
-    """Mean/min/max of the unit's temperature over the recording (K), read in chunks."""
-    d = f["imu/temperature"]
-    n = int(d.shape[0])
-    if n == 0:
-        return {}
-    tot, lo, hi = 0.0, math.inf, -math.inf
-    for a in range(0, n, 1 << 20):
-        x = d[a : a + (1 << 20)]
-        tot += float(x.sum())
-        lo, hi = min(lo, float(x.min())), max(hi, float(x.max()))
-    return {"mean": tot / n, "min": lo, "max": hi}
 
 
 def _load_json(path: Path, what: str) -> dict[str, Any]:
@@ -431,7 +408,7 @@ def build_certificate(
     CertificateError
         Missing/mismatched inputs, or an incomplete recording without ``allow_incomplete``.
     """
-    from .recording import RecordingError, open_recording, read_steps
+    from .recording import RecordingError, open_recording
     from .uncertainty_budget import step_geometry
 
     given = Path(run_dir)
@@ -453,8 +430,9 @@ def build_certificate(
     except RecordingError as exc:
         raise CertificateError(str(exc)) from None
     with f:
-        attrs = {k: _attr(f, k) for k in f.attrs}
-        steps = read_steps(f)
+        attrs = f.header.as_dict()
+        attrs["seed"] = -1 if attrs.get("seed") is None else attrs["seed"]
+        steps = f.steps
         run_status = str(attrs.get("status", "?"))
         bad = [s for s in steps if s.status != "complete"]
         complete = run_status == "complete" and not bad
@@ -482,21 +460,20 @@ def build_certificate(
         names = list(cal.get("parameter_names") or PARAM_NAMES)
         if tuple(names) != PARAM_NAMES:
             raise CertificateError(f"{cal_path}: parameter_names must be the 18 names of CALIBRATION_FORMAT.md")
-        bench_text = f["bench_yaml"][()] if "bench_yaml" in f else b""
-        bench_text = bench_text.decode("utf-8") if isinstance(bench_text, bytes) else str(bench_text)
+        bench_text = f.bench_text
         binfo = bench or bench_info(bench_text, dict(cal.get("run") or {}), attrs)
         used = [str(p.get("name")) for p in (cal.get("residuals") or {}).get("per_step", [])]
         geometry = step_geometry(f, binfo.g, None if binfo.mounting is None else np.asarray(binfo.mounting),
                                  names=used or None)  # fmt: skip
-        temp = _temperature_stats(f)
-        n_samples = int(f["imu/time"].shape[0])
-        t_span = float(f["imu/time"][-1] - f["imu/time"][0]) if n_samples > 1 else 0.0
-        events = f["events"][()] if "events" in f else []
+        temp = f.temperature_stats()
+        n_samples = f.n_samples
+        ends = f.samples(fields=("time",), index=[0, n_samples - 1]).time if n_samples > 1 else None
+        t_span = float(ends[-1] - ends[0]) if ends is not None else 0.0
         event_warnings = [
-            f"bench t = {float(e['time']):.1f} s: {_attr_str(e['message'])}"
-            for e in events
-            if _attr_str(e["level"]).lower() in ("warning", "error")
+            f"bench t = {e.time:.1f} s: {e.message}" for e in f.events() if e.level.lower() in ("warning", "error")
         ]
+        integrity = {"verified": f.integrity_verified, "note": f.integrity_note}
+        overrides = dict(f.header.procedure_overrides)
 
     params, x, cov, noise_var, per_step = _calibration_arrays(cal, names, cal_path)
     prior = [params[n].get("prior_sigma") for n in names]
@@ -632,6 +609,7 @@ def build_certificate(
         procedure={
             "name": str(attrs.get("procedure_name", "")),
             "sha256": str(attrs.get("procedure_sha256", "")),
+            "procedure_overrides": overrides,
         },
         recording={
             "file": "recording.h5",
@@ -644,6 +622,8 @@ def build_certificate(
             "samples": n_samples,
             "duration_s": t_span,
             "sample_rate_hz": float(attrs.get("sample_rate_hz", 0.0) or 0.0),
+            "integrity_verified": integrity["verified"],
+            "integrity_note": integrity["note"],
             "steps_complete": sum(s.status == "complete" for s in steps),
             "steps": len(steps),
         },
@@ -716,10 +696,6 @@ def _calibration_arrays(
     if not np.all(np.isfinite(x)):
         raise CertificateError(f"{path}: a parameter value is not finite")
     return params, x, cov, noise_var, per_step
-
-
-def _attr_str(v: Any) -> str:
-    return v.decode("utf-8") if isinstance(v, bytes) else str(v)
 
 
 def _creation_datetime(created_utc: str) -> _dt.datetime:

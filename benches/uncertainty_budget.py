@@ -47,12 +47,15 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
-import h5py
 import numpy as np
 from numpy.typing import NDArray
 
 from analysis.units import ARCSEC, UG
+
+if TYPE_CHECKING:
+    from benches.recording import Recording
 
 PARAM_NAMES: tuple[str, ...] = (
     "b_x", "b_y", "b_z", "S_x", "S_y", "S_z", "tau_xy", "tau_xz", "tau_yx", "tau_yz", "tau_zx", "tau_zy",
@@ -139,7 +142,7 @@ class StepGeometry:
 
 
 def step_geometry(
-    f: h5py.File,
+    f: Recording,
     g: float,
     mounting: NDArray[np.float64] | None,
     *,
@@ -150,8 +153,8 @@ def step_geometry(
 
     Parameters
     ----------
-    f : h5py.File
-        An open recording (``benches/RECORDING.md``).
+    f : benches.recording.Recording
+        An open recording (:func:`benches.recording.open_recording`).
     g : float
         Local gravity used by the identification, m/s².
     mounting : (3, 3) array or None
@@ -162,16 +165,14 @@ def step_geometry(
         Reference points per step (evenly spaced sample centres).
     """
     from analysis.gimbal import body_to_nav
-    from benches.recording import read_steps
     from benches.reference import interpolate_table, reference_at
 
     wanted = set(names) if names is not None else None
-    tt = f["table/time"][()]
-    ta = f["table/angles"][()]
-    tr = f["table/rates"][()]
+    table = f.table()
+    tt, ta, tr = table.time, table.angles, table.rates
     out: list[StepGeometry] = []
-    n_imu = int(f["imu/time"].shape[0])
-    for s in read_steps(f):
+    n_imu = f.n_samples
+    for s in f.steps:
         if s.status != "complete" or s.kind not in ("hold", "spin"):
             continue
         if wanted is not None and s.name not in wanted:
@@ -183,7 +184,7 @@ def step_geometry(
         m = min(n, max_points)
         edges = a0 + (np.arange(m + 1) * n) // m
         idx = (edges[:-1] + edges[1:] - 1) // 2
-        t = f["imu/time"][idx]
+        t = f.samples(fields=("time",), index=idx).time
         ang, rat = interpolate_table(t, tt, ta, tr)
         fr, om = reference_at(ang, rat, g, mounting)
         out.append(StepGeometry(s.name, s.kind, fr, om, np.diff(edges).astype(float), body_to_nav(ang, mounting)))
