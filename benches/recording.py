@@ -802,14 +802,15 @@ class Recording:
 
     def _check_layout(self) -> None:
         f = self._f
-        if "imu" not in f or "time" not in f["imu"] or "accel" not in f["imu"]:
-            raise RecordingError(f"{self.path}: the recording holds no unit samples (/imu/time, /imu/accel missing)")
-        self.n_samples = int(f["imu/time"].shape[0])
+        if "imu" not in f or "accel" not in f["imu"]:
+            raise RecordingError(f"{self.path}: the recording holds no unit samples (/imu/accel missing)")
+        self.n_samples = int(f["imu/accel"].shape[0])
+        self.sample_fields: tuple[str, ...] = tuple(n for n in IMU_FIELDS if n in f["imu"])
         self._quanta: dict[str, float] = {}
         for name, d in f["imu"].items():
             if d.shape[0] != self.n_samples:
                 raise RecordingDamaged(
-                    f"{self.path}: dataset /imu/{name} has {d.shape[0]} rows but /imu/time {self.n_samples}; "
+                    f"{self.path}: dataset /imu/{name} has {d.shape[0]} rows but /imu/accel {self.n_samples}; "
                     f"the file is damaged or truncated; {self._fix()}"
                 )
             if name in QUANTISED_FIELDS and np.issubdtype(d.dtype, np.integer):
@@ -899,14 +900,16 @@ class Recording:
             Naming the file, the dataset and the step. Format-1 recordings: only the readability is checked.
         """
         last_imu, last_tab = 0, 0
+        v2 = self.header.format_version >= 2
         for s in self.steps:
             if s.status != "complete":
                 continue
             h = _StepHasher()
-            for chunk in self.iter_samples(start=s.start_sample, stop=s.end_sample, step=s):
-                for name in IMU_FIELDS:
-                    h.update("imu", name, getattr(chunk, name))
-            if self.header.format_version >= 2:
+            for chunk in self.iter_samples(s.start_sample, s.end_sample, self.sample_fields, step=s):
+                if v2:
+                    for name in IMU_FIELDS:
+                        h.update("imu", name, getattr(chunk, name))
+            if v2:
                 with self._guard("/table", s):
                     t = self._table_rows(s.table_start, s.table_end)
                 for name in TABLE_FIELDS:
@@ -920,7 +923,7 @@ class Recording:
                 last_tab = s.table_end
             last_imu = s.end_sample
         # rows after the last complete step, the table (format 1), events, texts and truth: readability
-        for _chunk in self.iter_samples(start=last_imu):
+        for _chunk in self.iter_samples(start=last_imu, fields=self.sample_fields):
             pass
         with self._guard("/table"):
             self._table_rows(last_tab, self.n_table)
@@ -964,8 +967,15 @@ class Recording:
                 return s
         raise RecordingError(f"{self.path}: no step named {name!r}; steps: {', '.join(s.name for s in self.steps)}")
 
+    def _imu_dataset(self, name: str) -> h5py.Dataset:
+        if name not in self._f["imu"]:
+            raise RecordingError(
+                f"{self.path}: dataset /imu/{name} is missing; this use of the recording needs it (RECORDING.md)"
+            )
+        return self._f["imu"][name]
+
     def _imu_rows(self, name: str, a: int, b: int) -> NDArray[Any]:
-        d = self._f["imu"][name]
+        d = self._imu_dataset(name)
         if name in self._quanta:
             c = d[a:b]
             r = self._f["imu"][name + "_residual"][a:b]
@@ -990,11 +1000,11 @@ class Recording:
                 if index is not None:
                     idx = np.asarray(index)
                     if name in self._quanta:
-                        c = self._f["imu"][name][idx]
+                        c = self._imu_dataset(name)[idx]
                         r = self._f["imu"][name + "_residual"][idx]
                         v = _dequantise(c, r, self._quanta[name])
                     else:
-                        v = np.asarray(self._f["imu"][name][idx], dtype=_IMU_DTYPES[name])
+                        v = np.asarray(self._imu_dataset(name)[idx], dtype=_IMU_DTYPES[name])
                 else:
                     v = self._imu_rows(name, start, max(start, stop))
                 setattr(out, name, v)

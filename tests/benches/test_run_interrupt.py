@@ -8,11 +8,10 @@ import subprocess
 import sys
 import time
 
-import h5py
 import numpy as np
 import pytest
 
-from benches.recording import read_steps
+from benches.recording import open_recording
 from tests.simbench import bench_variant
 
 CLI = [sys.executable, "-m", "benches.cli"]
@@ -36,10 +35,11 @@ def _wait_for_step(proc: subprocess.Popen, marker: str, timeout: float = 120.0) 
 
 
 def _steps_and_data(path):
-    with h5py.File(path, "r") as f:
-        steps = read_steps(f)
+    with open_recording(path) as rec:
+        steps = rec.steps
         end = steps[-1].end_sample if steps else 0
-        return f.attrs["status"], steps, f["imu/accel"][:end], f["imu/counter"][:end]
+        smp = rec.samples(0, end, ("accel", "counter"))
+        return rec.header.status, steps, smp.accel, smp.counter
 
 
 @pytest.fixture(scope="module")
