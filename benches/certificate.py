@@ -6,10 +6,14 @@ table accuracy, site), and the optional analyses ``RUN/noise/noise.json``, ``RUN
 ``RUN/drift/drift.json`` (with their PNG plots), and returns a :class:`Certificate`. The PDF
 (:mod:`benches.certificate_pdf`) and the JSON (:meth:`Certificate.to_json`) are two renderings of it.
 
-Determinism: everything on the certificate is derived from the run folder except the issue date; the
-certificate number is ``TB-`` + the first 10 hex digits of the recording's SHA-256, the PDF's creation date is
-the recording's creation time, and plots are rendered deterministically, so a pinned ``issue_date`` gives
-byte-identical PDF and JSON files.
+Document control: :func:`issue_certificate` takes the certificate number from the register in the runs
+folder (:mod:`benches.certificate_register`: monotonic, never reused); a re-issue gets a new number and names
+the one it supersedes; an existing certificate file is never overwritten.
+
+Determinism: everything on the certificate is derived from the run folder except the issue date and the
+number (a :class:`Certificate` built by :func:`build_certificate` carries a provisional ``TB-`` + 10 hex digits
+of the recording's SHA-256 until it is issued); the PDF's creation date is the recording's creation time and
+plots are rendered deterministically, so a pinned ``issue_date`` and number give byte-identical files.
 
 Decision rule (ILAC-G8:09/2019, simple acceptance): a parameter with a limit L passes when |x̂| ≤ L; when
 |x̂| ≤ L < |x̂| + U the pass is reported as "PASS (conditional)" (the expanded uncertainty straddles the
@@ -26,7 +30,6 @@ import datetime as _dt
 import hashlib
 import json
 import math
-import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -151,6 +154,7 @@ class Certificate:
     creation_date: str
     plots: dict[str, bytes] = field(default_factory=dict)
     analysis_plots: list[tuple[str, bytes]] = field(default_factory=list)
+    supersedes: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """The machine-readable certificate (SI values; plots by name and SHA-256)."""
@@ -158,6 +162,7 @@ class Certificate:
             "format": FORMAT,
             "format_version": FORMAT_VERSION,
             "certificate_number": self.number,
+            "supersedes": self.supersedes,
             "issue_date": self.issue_date,
             "verdict": self.verdict,
             "reasons": self.reasons,
@@ -722,23 +727,33 @@ def issue_certificate(
         verdict: "PASS", "FAIL", "INCONCLUSIVE", "INCOMPLETE" or "NO LIMITS".
     """
     from .certificate_pdf import render_pdf
+    from .certificate_register import CertificateRegister, RegisterError, free_paths, write_new
 
     given = Path(run_dir)
     run = given.parent if given.is_file() else given
     cert = build_certificate(given, issue_date=issue_date, allow_incomplete=allow_incomplete)
-    pdf_path = Path(out_pdf) if out_pdf is not None else run / "certificate.pdf"
-    json_path = Path(out_json) if out_json is not None else pdf_path.with_suffix(".json")
-    for p in (pdf_path, json_path):
-        p.parent.mkdir(parents=True, exist_ok=True)
-    _atomic_write(pdf_path, render_pdf(cert))
-    _atomic_write(json_path, cert.to_json().encode("utf-8"))
+
+    def paths(number: str) -> tuple[Path, Path]:
+        if out_pdf is None:
+            return free_paths(run, number)
+        pdf = Path(out_pdf)
+        return pdf, Path(out_json) if out_json is not None else pdf.with_suffix(".json")
+
+    if out_pdf is not None:
+        for p in paths(""):
+            if p.exists():
+                raise CertificateError(f"{p}: already exists; a certificate is never overwritten (choose another name)")
+    try:
+        reg = CertificateRegister.for_run(run).allocate(run, str(cert.recording.get("sha256", "")), paths)
+        cert.number, cert.supersedes = reg.number, reg.supersedes
+        pdf_path, json_path = Path(reg.pdf), Path(reg.json)
+        for p in (pdf_path, json_path):
+            p.parent.mkdir(parents=True, exist_ok=True)
+        write_new(pdf_path, render_pdf(cert))
+        write_new(json_path, cert.to_json().encode("utf-8"))
+    except (RegisterError, OSError) as exc:
+        raise CertificateError(str(exc)) from None
     return pdf_path, json_path, cert.verdict
-
-
-def _atomic_write(path: Path, data: bytes) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
 
 
 __all__ = [

@@ -995,8 +995,8 @@ class Recording:
         stop = self.n_samples if stop is None else min(int(stop), self.n_samples)
         start = max(0, int(start))
         out = Samples(start=start)
-        with self._guard("/imu", self._step_at(start)):
-            for name in fields:
+        for name in fields:
+            with self._guard(f"/imu/{name}", self._step_at(start)):
                 if index is not None:
                     idx = np.asarray(index)
                     if name in self._quanta:
@@ -1025,8 +1025,8 @@ class Recording:
         while a < stop:
             b = min(stop, a + int(chunk))
             out = Samples(start=a)
-            with self._guard("/imu", step or self._step_at(a)):
-                for name in fields:
+            for name in fields:
+                with self._guard(f"/imu/{name}", step or self._step_at(a)):
                     setattr(out, name, self._imu_rows(name, a, b))
             yield out
             a = b
@@ -1108,6 +1108,10 @@ def open_recording(path: str | Path, *, verify: bool = True) -> Recording:
         f = h5py.File(p, "r")
     except _H5_ERRORS as exc:
         msg = str(exc).split("\n")[0]
+        if "unable to lock file" in msg:
+            raise RecordingError(
+                f"{p}: in use by another process (a run still writing it?); try again when that process ends"
+            ) from None
         raise RecordingError(
             f"{p}: not a readable HDF5 recording ({msg}); it may be truncated, damaged or not a recording"
         ) from None
