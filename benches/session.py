@@ -86,8 +86,29 @@ def new_run_folder(out: str | Path | None, procedure_name: str) -> Path:
             folder = Path("runs") / f"{stamp}-{procedure_name}-{k}"
     if (folder / "recording.h5").exists():
         raise SessionError(f"{folder} already holds a recording; choose another --out or use --resume {folder}")
-    folder.mkdir(parents=True, exist_ok=True)
+    if folder.exists() and not folder.is_dir():
+        raise SessionError(f"--out {folder}: is a file, not a folder; choose a folder for the run")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SessionError(f"--out {folder}: cannot create the run folder ({exc.strerror}); choose another") from None
     return folder
+
+
+def check_seed(seed: int | None) -> None:
+    """A simulator seed must be an integer in [0, 2**64); SessionError otherwise (before anything is created)."""
+    if seed is not None and not 0 <= seed < 2**64:
+        raise SessionError(f"--seed {seed}: must be an integer from 0 to 2**64 - 1 (18446744073709551615)")
+
+
+def unfinished_work(folder: Path) -> list[str]:
+    """What a run with a complete recording has not done yet: "identification" and/or "certificate"."""
+    todo = []
+    if not (folder / "calibration.json").exists():
+        todo.append("identification")
+    if not any(folder.glob("certificate*.pdf")):
+        todo.append("certificate")
+    return todo
 
 
 def _sha256(text: str) -> str:
@@ -231,6 +252,8 @@ def recording_status(path: Path) -> dict[str, object]:
 __all__ = [
     "Prepared",
     "SessionError",
+    "check_seed",
+    "unfinished_work",
     "copy_inputs",
     "execute",
     "new_run_folder",
