@@ -6,10 +6,14 @@ table accuracy, site), and the optional analyses ``RUN/noise/noise.json``, ``RUN
 ``RUN/drift/drift.json`` (with their PNG plots), and returns a :class:`Certificate`. The PDF
 (:mod:`benches.certificate_pdf`) and the JSON (:meth:`Certificate.to_json`) are two renderings of it.
 
-Determinism: everything on the certificate is derived from the run folder except the issue date; the
-certificate number is ``TB-`` + the first 10 hex digits of the recording's SHA-256, the PDF's creation date is
-the recording's creation time, and plots are rendered deterministically, so a pinned ``issue_date`` gives
-byte-identical PDF and JSON files.
+Document control: :func:`issue_certificate` takes the certificate number from the register in the runs
+folder (:mod:`benches.certificate_register`: monotonic, never reused); a re-issue gets a new number and names
+the one it supersedes; an existing certificate file is never overwritten.
+
+Determinism: everything on the certificate is derived from the run folder except the issue date and the
+number (a :class:`Certificate` built by :func:`build_certificate` carries a provisional ``TB-`` + 10 hex digits
+of the recording's SHA-256 until it is issued); the PDF's creation date is the recording's creation time and
+plots are rendered deterministically, so a pinned ``issue_date`` and number give byte-identical files.
 
 Decision rule: :mod:`analysis.identification.decision` (ILAC-G8:09/2019, guarded acceptance with w = U):
 per parameter PASS / FAIL / UNDECIDED (U straddles the limit) / NOT EVALUATED (the procedure cannot identify
@@ -22,7 +26,6 @@ import datetime as _dt
 import hashlib
 import json
 import math
-import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -158,6 +161,7 @@ class Certificate:
     creation_date: str
     plots: dict[str, bytes] = field(default_factory=dict)
     analysis_plots: list[tuple[str, bytes]] = field(default_factory=list)
+    supersedes: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """The machine-readable certificate (SI values; plots by name and SHA-256)."""
@@ -165,6 +169,7 @@ class Certificate:
             "format": FORMAT,
             "format_version": FORMAT_VERSION,
             "certificate_number": self.number,
+            "supersedes": self.supersedes,
             "issue_date": self.issue_date,
             "verdict": self.verdict,
             "reasons": self.reasons,
@@ -245,15 +250,6 @@ def format_with_uncertainty(value: float, expanded: float, digits: int = 2) -> t
     return v_txt, f"{u_r:.{decimals}f}"
 
 
-def _attr(f: Any, key: str, default: Any = "") -> Any:
-    v = f.attrs.get(key, default)
-    if isinstance(v, bytes):
-        return v.decode("utf-8")
-    if isinstance(v, np.generic):
-        return v.item()
-    return v
-
-
 def _load_bench_config(text: str) -> Any:
     """The recorded bench text through ``benches.bench_config`` (ConfigError names the recording's copy)."""
     from .bench_config import load_bench_text
@@ -322,20 +318,6 @@ def bench_info(bench_text: str, cal_run: dict[str, Any], rec_attrs: dict[str, An
         unit_serial=str(unit.get("serial_number", "")),
         source="calibration.json run block (bench loader not available: no pass/fail limits)",
     )
-
-
-def _temperature_stats(f: Any) -> dict[str, float]:
-    """Mean/min/max of the unit's temperature over the recording (K), read in chunks."""
-    d = f["imu/temperature"]
-    n = int(d.shape[0])
-    if n == 0:
-        return {}
-    tot, lo, hi = 0.0, math.inf, -math.inf
-    for a in range(0, n, 1 << 20):
-        x = d[a : a + (1 << 20)]
-        tot += float(x.sum())
-        lo, hi = min(lo, float(x.min())), max(hi, float(x.max()))
-    return {"mean": tot / n, "min": lo, "max": hi}
 
 
 def _load_json(path: Path, what: str) -> dict[str, Any]:
@@ -440,7 +422,7 @@ def build_certificate(
     CertificateError
         Missing/mismatched inputs, or an incomplete recording without ``allow_incomplete``.
     """
-    from .recording import RecordingError, open_recording, read_steps
+    from .recording import RecordingError, open_recording
     from .uncertainty_budget import step_geometry
 
     given = Path(run_dir)
@@ -462,8 +444,9 @@ def build_certificate(
     except RecordingError as exc:
         raise CertificateError(str(exc)) from None
     with f:
-        attrs = {k: _attr(f, k) for k in f.attrs}
-        steps = read_steps(f)
+        attrs = f.header.as_dict()
+        attrs["seed"] = -1 if attrs.get("seed") is None else attrs["seed"]
+        steps = f.steps
         run_status = str(attrs.get("status", "?"))
         bad = [s for s in steps if s.status != "complete"]
         complete = run_status == "complete" and not bad
@@ -493,25 +476,24 @@ def build_certificate(
         names = list(cal.get("parameter_names") or PARAM_NAMES)
         if tuple(names) != PARAM_NAMES:
             raise CertificateError(f"{cal_path}: parameter_names must be the 18 names of CALIBRATION_FORMAT.md")
-        bench_text = f["bench_yaml"][()] if "bench_yaml" in f else b""
-        bench_text = bench_text.decode("utf-8") if isinstance(bench_text, bytes) else str(bench_text)
+        bench_text = f.bench_text
         binfo = bench or bench_info(bench_text, dict(cal.get("run") or {}), attrs)
         used = [str(p.get("name")) for p in (cal.get("residuals") or {}).get("per_step", [])]
         geometry = step_geometry(f, binfo.g, None if binfo.mounting is None else np.asarray(binfo.mounting),
                                  latency=binfo.latency, names=used or None)  # fmt: skip
-        temp = _temperature_stats(f)
-        n_samples = int(f["imu/time"].shape[0])
-        t_span = float(f["imu/time"][-1] - f["imu/time"][0]) if n_samples > 1 else 0.0
-        events = f["events"][()] if "events" in f else []
+        temp = f.temperature_stats()
+        n_samples = f.n_samples
+        ends = f.samples(fields=("time",), index=[0, n_samples - 1]).time if n_samples > 1 else None
+        t_span = float(ends[-1] - ends[0]) if ends is not None else 0.0
         event_warnings = [
-            f"bench t = {float(e['time']):.1f} s: {_attr_str(e['message'])}"
-            for e in events
-            if _attr_str(e["level"]).lower() in ("warning", "error")
+            f"bench t = {e.time:.1f} s: {e.message}" for e in f.events() if e.level.lower() in ("warning", "error")
         ]
+        integrity = {"verified": f.integrity_verified, "note": f.integrity_note}
+        overrides = dict(f.header.procedure_overrides)
 
     per_step = _per_step_rows(cal, cal_path)
     x, noise_var = cal_result.x, cal_result.noise_variance
-    integrity_ok = True  # the recording reader (benches/recording.py) raises on a failed checksum
+    integrity_ok = True  # open_recording() verified every checksum (a damaged recording raised above)
     try:
         budget: UncertaintyBudget = budget_for_run(
             cal_result,
@@ -633,6 +615,7 @@ def build_certificate(
         procedure={
             "name": str(attrs.get("procedure_name", "")),
             "sha256": str(attrs.get("procedure_sha256", "")),
+            "procedure_overrides": overrides,
         },
         recording={
             "file": "recording.h5",
@@ -645,6 +628,8 @@ def build_certificate(
             "samples": n_samples,
             "duration_s": t_span,
             "sample_rate_hz": float(attrs.get("sample_rate_hz", 0.0) or 0.0),
+            "integrity_verified": integrity["verified"],
+            "integrity_note": integrity["note"],
             "steps_complete": sum(s.status == "complete" for s in steps),
             "steps": len(steps),
         },
@@ -702,10 +687,6 @@ def _per_step_rows(cal: dict[str, Any], path: Path) -> list[dict[str, Any]]:
     return per_step
 
 
-def _attr_str(v: Any) -> str:
-    return v.decode("utf-8") if isinstance(v, bytes) else str(v)
-
-
 def _creation_datetime(created_utc: str) -> _dt.datetime:
     """The recording's creation time (fixed PDF creation date); the epoch if unreadable."""
     try:
@@ -730,23 +711,33 @@ def issue_certificate(
         verdict: "PASS", "FAIL", "INCONCLUSIVE", "INCOMPLETE" or "NO LIMITS".
     """
     from .certificate_pdf import render_pdf
+    from .certificate_register import CertificateRegister, RegisterError, free_paths, write_new
 
     given = Path(run_dir)
     run = given.parent if given.is_file() else given
     cert = build_certificate(given, issue_date=issue_date, allow_incomplete=allow_incomplete)
-    pdf_path = Path(out_pdf) if out_pdf is not None else run / "certificate.pdf"
-    json_path = Path(out_json) if out_json is not None else pdf_path.with_suffix(".json")
-    for p in (pdf_path, json_path):
-        p.parent.mkdir(parents=True, exist_ok=True)
-    _atomic_write(pdf_path, render_pdf(cert))
-    _atomic_write(json_path, cert.to_json().encode("utf-8"))
+
+    def paths(number: str) -> tuple[Path, Path]:
+        if out_pdf is None:
+            return free_paths(run, number)
+        pdf = Path(out_pdf)
+        return pdf, Path(out_json) if out_json is not None else pdf.with_suffix(".json")
+
+    if out_pdf is not None:
+        for p in paths(""):
+            if p.exists():
+                raise CertificateError(f"{p}: already exists; a certificate is never overwritten (choose another name)")
+    try:
+        reg = CertificateRegister.for_run(run).allocate(run, str(cert.recording.get("sha256", "")), paths)
+        cert.number, cert.supersedes = reg.number, reg.supersedes
+        pdf_path, json_path = Path(reg.pdf), Path(reg.json)
+        for p in (pdf_path, json_path):
+            p.parent.mkdir(parents=True, exist_ok=True)
+        write_new(pdf_path, render_pdf(cert))
+        write_new(json_path, cert.to_json().encode("utf-8"))
+    except (RegisterError, OSError) as exc:
+        raise CertificateError(str(exc)) from None
     return pdf_path, json_path, cert.verdict
-
-
-def _atomic_write(path: Path, data: bytes) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
 
 
 __all__ = [

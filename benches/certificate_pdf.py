@@ -171,7 +171,8 @@ def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
     pdf.multi_cell(
         pdf.epw - 119,
         4.2,
-        f"Certificate No. {c.number}\nIssue date {c.issue_date}\nPage 1 of {{nb}}",
+        f"Certificate No. {c.number}\nIssue date {c.issue_date}\nPage 1 of {{nb}}"
+        + (f"\nSupersedes No. {c.supersedes}" if getattr(c, "supersedes", "") else ""),
         align="R",
     )
     pdf.set_xy(pdf.l_margin + 4, 23)

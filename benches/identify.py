@@ -33,7 +33,7 @@ from core.errors import UserError
 from drivers.protocols import ImuBlock, TableState
 
 from .calibration_result import CalibrationResult
-from .recording import RecordingError, open_recording, read_steps
+from .recording import RecordingError, open_recording
 from .reference import reference_at, reference_for_samples
 
 MODEL_TEXT = (
@@ -281,28 +281,31 @@ def _sha256_file(path: Path) -> str:
 
 
 def load_run(run: str | Path) -> RecordedRun:
-    """Read a recording's acquisition windows and reference; clear errors for unusable recordings."""
+    """Read a recording's acquisition windows and reference; clear errors for unusable recordings.
+
+    The recording is verified first (every checksum): identification never runs on damaged data.
+    """
     from benches.bench_config import load_bench_text
 
     try:
-        f = open_recording(run)
+        rec = open_recording(run)
     except RecordingError as exc:
         raise IdentificationError(str(exc)) from None
-    path = Path(f.filename)
-    with f:
-        attrs = {k: (v.item() if hasattr(v, "item") else v) for k, v in f.attrs.items()}
-        if "bench_yaml" not in f or "imu" not in f or "table" not in f:
+    path = rec.path
+    with rec:
+        hdr = rec.header
+        attrs = hdr.as_dict()
+        attrs["integrity_verified"] = rec.integrity_verified
+        attrs["integrity_note"] = rec.integrity_note
+        bench_text = rec.bench_text
+        if not bench_text or rec.n_table == 0:
             raise IdentificationError(f"{path}: the recording lacks its bench text, samples or table readings")
-        bench_text = f["bench_yaml"][()]
-        bench_text = bench_text.decode() if isinstance(bench_text, bytes) else str(bench_text)
         config = load_bench_text(bench_text, f"{path}:/bench_yaml")
-        steps = read_steps(f)
+        steps = rec.steps
         if not steps:
             raise IdentificationError(f"{path}: no completed step in the recording (was the run stopped at once?)")
-        n = f["imu/time"].shape[0]
-        table_t = f["table/time"][()]
-        table_a = f["table/angles"][()]
-        table_r = f["table/rates"][()]
+        n = rec.n_samples
+        table = rec.table()
         latency = unit_latency(config)
         windows: list[StepWindow] = []
         warm: NDArray[np.float64] | None = None
@@ -310,28 +313,26 @@ def load_run(run: str | Path) -> RecordedRun:
         for s in steps:
             if s.status != "complete" or s.acq_end <= s.acq_start:
                 continue
-            if s.acq_end > n:
-                raise IdentificationError(
-                    f"{path}: step {s.name!r} ends at sample {s.acq_end} but the file holds {n}; it is truncated"
-                )
             if s.kind == "warmup":
-                warm = f["imu/accel"][s.acq_start : s.acq_end]
+                warm = rec.samples(s.acq_start, s.acq_end, ("accel",)).accel
                 continue
             if s.kind not in ACQUISITION_KINDS:
                 continue
-            t = f["imu/time"][s.acq_start : s.acq_end]
-            fo = f["imu/accel"][s.acq_start : s.acq_end]
+            smp = rec.samples(s.acq_start, s.acq_end, ("time", "accel"))
+            t, fo = smp.time, smp.accel
+            assert t is not None and fo is not None
             span = acquisition_span(float(t[0]), float(t[-1]), latency, float(config.unit.sample_rate))
             fr, om, ang = reference_for_samples(
-                t, table_t, table_a, table_r, g=config.site.g, mounting=config.unit.mounting, latency=latency, span=span
-            )
+                t, table.time, table.angles, table.rates, g=config.site.g, mounting=config.unit.mounting,
+                latency=latency, span=span,
+            )  # fmt: skip
             windows.append(StepWindow(s.name, s.kind, t, fo, fr, om, ang))
+        tr = rec.truth()
         truth = None
-        if "truth" in f:
-            ta = f["truth"].attrs
-            if all(n_ in ta for n_ in PARAM_NAMES):
-                truth = {n_: float(ta[n_]) for n_ in PARAM_NAMES}
-        temp = f["imu/temperature"][:: max(1, n // 10000)] if n else np.zeros(0)
+        if tr is not None and all(n_ in tr.parameters for n_ in PARAM_NAMES):
+            truth = {n_: float(tr.parameters[n_]) for n_ in PARAM_NAMES}
+        temp = rec.samples(fields=("temperature",), index=np.arange(0, n, max(1, n // 10000))).temperature
+        temp = temp if temp is not None else np.zeros(0)
     if not windows:
         raise IdentificationError(
             f"{path}: no complete hold or spin step to identify from (procedure {attrs.get('procedure_name')!r}); "
@@ -512,7 +513,10 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
             "bench_name": str(a.get("bench_name", "")),
             "procedure_name": str(a.get("procedure_name", "")),
             "procedure_sha256": str(a.get("procedure_sha256", "")),
-            "seed": int(a.get("seed", -1)),
+            "procedure_overrides": dict(a.get("procedure_overrides") or {}),
+            "integrity_verified": bool(a.get("integrity_verified", False)),
+            "integrity_note": str(a.get("integrity_note", "")),
+            "seed": -1 if a.get("seed") is None else int(a["seed"]),
             "created_utc": str(a.get("created_utc", "")),
             "transport": str(a.get("transport", "")),
             "site": {

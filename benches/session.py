@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import datetime as _dt
 import hashlib
-import json
 import shutil
 import sys
 from collections.abc import Callable, Iterable
@@ -18,13 +17,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
-import h5py
-
 from core.errors import UserError
 from core.provenance import software_version
 
 from .progress import ProgressDisplay
-from .recording import Hdf5Recorder, open_recording, read_steps
+from .recording import Hdf5Recorder, RecordingError, open_recording
 from .runner import Runner, RunResult, SampleObserver
 
 DEFAULT_PROCEDURE = "ten-step"
@@ -72,9 +69,8 @@ def prepare(
 
 def recorded_overrides(folder: Path) -> dict[str, float]:
     """The procedure parameter overrides a run was started with (stored in its recording)."""
-    with open_recording(folder / "recording.h5") as f:
-        text = f.attrs.get("procedure_overrides", "{}")
-    return {str(k): float(v) for k, v in json.loads(text).items()}
+    with open_recording(folder / "recording.h5") as rec:
+        return dict(rec.header.procedure_overrides)
 
 
 def new_run_folder(out: str | Path | None, procedure_name: str) -> Path:
@@ -90,8 +86,29 @@ def new_run_folder(out: str | Path | None, procedure_name: str) -> Path:
             folder = Path("runs") / f"{stamp}-{procedure_name}-{k}"
     if (folder / "recording.h5").exists():
         raise SessionError(f"{folder} already holds a recording; choose another --out or use --resume {folder}")
-    folder.mkdir(parents=True, exist_ok=True)
+    if folder.exists() and not folder.is_dir():
+        raise SessionError(f"--out {folder}: is a file, not a folder; choose a folder for the run")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SessionError(f"--out {folder}: cannot create the run folder ({exc.strerror}); choose another") from None
     return folder
+
+
+def check_seed(seed: int | None) -> None:
+    """A simulator seed must be an integer in [0, 2**64); SessionError otherwise (before anything is created)."""
+    if seed is not None and not 0 <= seed < 2**64:
+        raise SessionError(f"--seed {seed}: must be an integer from 0 to 2**64 - 1 (18446744073709551615)")
+
+
+def unfinished_work(folder: Path) -> list[str]:
+    """What a run with a complete recording has not done yet: "identification" and/or "certificate"."""
+    todo = []
+    if not (folder / "calibration.json").exists():
+        todo.append("identification")
+    if not any(folder.glob("certificate*.pdf")):
+        todo.append("certificate")
+    return todo
 
 
 def _sha256(text: str) -> str:
@@ -124,14 +141,18 @@ def execute(
     replay: list[int] = []
     start_sample = 0
     if resume:
-        with open_recording(rec_path) as f:
-            done = [s for s in read_steps(f) if s.status == "complete"]
-            if f.attrs.get("status") == "complete":
+        with open_recording(rec_path) as rec:
+            done = rec.complete_steps()
+            if rec.header.status == "complete":
                 raise SessionError(f"{folder}: the run is already complete; nothing to resume")
-            if f.attrs.get("procedure_sha256") != compiled.sha256:
+            if rec.header.procedure_sha256 != compiled.sha256:
                 raise SessionError(f"{folder}: the procedure text differs from the recorded one; cannot resume")
-            seed = int(f.attrs.get("seed", -1))
-            seed = None if seed < 0 else seed
+            if seed is not None and seed != rec.header.seed:
+                raise SessionError(
+                    f"{folder}: --seed {seed} differs from the recorded seed {rec.header.seed}; a resumed run must "
+                    "continue with the same seed (omit --seed)"
+                )
+            seed = rec.header.seed
         start_sample = done[-1].end_sample if done else 0
         done_idx = [s.index for s in done]
         if config.simulation is not None:
@@ -156,7 +177,7 @@ def execute(
                 "procedure_name": compiled.name,
                 "procedure_file": str(prep.procedure_path),
                 "procedure_sha256": compiled.sha256,
-                "procedure_overrides": json.dumps(prep.overrides, sort_keys=True),
+                "procedure_overrides": dict(prep.overrides),
                 "bench_sha256": _sha256(config.text),
                 "sample_rate_hz": float(config.unit.sample_rate),
                 "simulated": world is not None,
@@ -164,8 +185,17 @@ def execute(
                 "site_g": float(config.site.g),
                 "site_g_source": config.site.g_source,
             }
+            scale = getattr(config.unit, "scale", None)
+            quanta = {"time": 1e-9}  # the unit clock in ns (drivers decode time stamps as ns · 1e-9)
+            if scale is not None:
+                quanta.update(accel=scale.accel_lsb, gyro=scale.gyro_lsb)
             recorder = Hdf5Recorder(
-                rec_path, attrs=attrs, bench_text=config.text, procedure_text=compiled.text, truth=truth
+                rec_path,
+                attrs=attrs,
+                bench_text=config.text,
+                procedure_text=compiled.text,
+                truth=truth,
+                quanta=quanta,
             )
         try:
             progress = ProgressDisplay(prep.estimated_s, stream=stream, live=live)
@@ -199,27 +229,31 @@ def copy_inputs(prep: Prepared, folder: Path) -> None:
 
 
 def recording_status(path: Path) -> dict[str, object]:
-    """Summary of one recording for ``tablebench runs``."""
+    """Summary of one recording for ``tablebench runs`` (verified; a damaged one says so in ``problem``)."""
     try:
-        with h5py.File(path, "r") as f:
-            steps = read_steps(f)
-            rate = float(f.attrs.get("sample_rate_hz", 0.0)) or 1.0
+        with open_recording(path) as rec:
+            h = rec.header
             return {
                 "path": str(path.parent),
-                "status": str(f.attrs.get("status", "?")),
-                "procedure": str(f.attrs.get("procedure_name", "?")),
-                "bench": str(f.attrs.get("bench_name", "?")),
-                "created": str(f.attrs.get("created_utc", "?")),
-                "steps_done": sum(s.status == "complete" for s in steps),
-                "bench_s": f["imu/time"].shape[0] / rate,
+                "status": h.status,
+                "procedure": h.procedure_name or "?",
+                "bench": h.bench_name or "?",
+                "created": h.created_utc or "?",
+                "steps_done": len(rec.complete_steps()),
+                "bench_s": rec.n_samples / h.sample_rate_hz,
+                "overrides": dict(h.procedure_overrides),
+                "seed": h.seed,
+                "integrity": "verified" if rec.integrity_verified else "not verifiable",
             }
-    except (OSError, KeyError) as exc:
-        return {"path": str(path.parent), "status": f"unreadable ({exc.__class__.__name__})"}
+    except RecordingError as exc:
+        return {"path": str(path.parent), "status": "DAMAGED", "problem": str(exc)}
 
 
 __all__ = [
     "Prepared",
     "SessionError",
+    "check_seed",
+    "unfinished_work",
     "copy_inputs",
     "execute",
     "new_run_folder",

@@ -10,8 +10,8 @@ uncertainties (table attitude and rate accuracy, local g, unit bias instability)
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
-import h5py
 import numpy as np
 from numpy.typing import NDArray
 
@@ -25,6 +25,9 @@ from analysis.identification.budget import (
 )
 from analysis.identification.model import PARAM_KINDS, PARAM_NAMES
 from benches.calibration_result import CalibrationResult
+
+if TYPE_CHECKING:  # pragma: no cover
+    from benches.recording import Recording
 
 __all__ = [
     "PARAM_KINDS",
@@ -40,7 +43,7 @@ __all__ = [
 
 
 def step_geometry(
-    f: h5py.File,
+    f: Recording,
     g: float,
     mounting: NDArray[np.float64] | None,
     *,
@@ -52,8 +55,8 @@ def step_geometry(
 
     Parameters
     ----------
-    f : h5py.File
-        An open recording (``benches/RECORDING.md``).
+    f : benches.recording.Recording
+        An open recording (:func:`benches.recording.open_recording`).
     g : float
         Local gravity used by the identification, m/s².
     mounting : (3, 3) array or None
@@ -67,17 +70,15 @@ def step_geometry(
     """
     from analysis.gimbal import body_to_nav
     from benches.identify import acquisition_span
-    from benches.recording import read_steps
     from benches.reference import reference_for_samples
 
     wanted = set(names) if names is not None else None
-    tt = f["table/time"][()]
-    ta = f["table/angles"][()]
-    tr = f["table/rates"][()]
-    fs = float(f.attrs.get("sample_rate_hz", 0) or 0)
+    table = f.table()
+    tt, ta, tr = table.time, table.angles, table.rates
+    fs = float(f.header.sample_rate_hz)
     out: list[StepGeometry] = []
-    n_imu = int(f["imu/time"].shape[0])
-    for s in read_steps(f):
+    n_imu = f.n_samples
+    for s in f.steps:
         if s.status != "complete" or s.kind not in ("hold", "spin"):
             continue
         if wanted is not None and s.name not in wanted:
@@ -86,12 +87,15 @@ def step_geometry(
         n = a1 - a0
         if n <= 0:
             continue
-        t_first, t_last = float(f["imu/time"][a0]), float(f["imu/time"][a1 - 1])
+        ends = f.samples(fields=("time",), index=np.array([a0, a1 - 1])).time
+        assert ends is not None
+        t_first, t_last = float(ends[0]), float(ends[1])
         rate = fs if fs > 0 else max((n - 1) / max(t_last - t_first, 1e-12), 1.0)
         m = min(n, max_points)
         edges = a0 + (np.arange(m + 1) * n) // m
         idx = (edges[:-1] + edges[1:] - 1) // 2
-        t = f["imu/time"][idx]
+        t = f.samples(fields=("time",), index=idx).time
+        assert t is not None
         fr, om, ang = reference_for_samples(
             t, tt, ta, tr, g=g, mounting=mounting, latency=latency,
             span=acquisition_span(t_first, t_last, latency, rate),

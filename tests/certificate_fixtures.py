@@ -165,7 +165,7 @@ def calibration_fixture(run: Path, *, seed: int = 3, shift: dict[str, float] | N
         }
     unident = [n for n, ok in zip(PARAM_NAMES, identifiable, strict=True) if not ok]
     with open_recording(run / "recording.h5") as f:
-        status = str(f.attrs["status"])
+        status = f.header.status
     return {
         "format": "tablebench-calibration",
         "format_version": 1,

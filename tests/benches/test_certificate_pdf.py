@@ -109,17 +109,26 @@ def test_budget_starts_from_the_identification_covariance(issued):
 
 def test_same_recording_gives_the_same_bytes_apart_from_the_issue_date(run_ok, issued, tmp_path):
     pdf1, js1, _ = issued
-    # another process, another hash seed: the same bytes
-    cmd = [sys.executable, "-m", "benches.cli", "certificate", str(run_ok), "--issue-date", DATE]
-    cmd += ["--out", str(tmp_path / "again.pdf")]
-    env = dict(os.environ, PYTHONHASHSEED="12345")
-    subprocess.run(cmd, check=True, env=env, capture_output=True, timeout=300)
+    number = json.loads(js1.read_text(encoding="utf-8"))["certificate_number"]
+    # another process, another hash seed, the same number: the same bytes
+    code = (
+        "import sys; from pathlib import Path; from benches.certificate import build_certificate; "
+        "from benches.certificate_pdf import render_pdf; c = build_certificate(sys.argv[1], issue_date=sys.argv[2]); "
+        "c.number = sys.argv[3]; Path(sys.argv[4]).write_bytes(render_pdf(c)); "
+        "Path(sys.argv[5]).write_text(c.to_json(), encoding='utf-8')"
+    )
     pdf2, js2 = tmp_path / "again.pdf", tmp_path / "again.json"
+    env = dict(os.environ, PYTHONHASHSEED="12345")
+    cmd = [sys.executable, "-c", code, str(run_ok), DATE, number, str(pdf2), str(js2)]
+    subprocess.run(cmd, check=True, env=env, capture_output=True, timeout=300)
     assert pdf1.read_bytes() == pdf2.read_bytes()
     assert js1.read_bytes() == js2.read_bytes()
+    # a re-issue: a new number that names the one it supersedes, otherwise the same content
     _, js3, _ = issue_certificate(run_ok, tmp_path / "later.pdf", tmp_path / "later.json", issue_date="2027-01-05")
     a, b = json.loads(js1.read_text(encoding="utf-8")), json.loads(js3.read_text(encoding="utf-8"))
     assert a.pop("issue_date") == DATE and b.pop("issue_date") == "2027-01-05"
+    assert b.pop("supersedes") == a.pop("certificate_number") != b.pop("certificate_number")
+    a.pop("supersedes")
     assert a == b
 
 
