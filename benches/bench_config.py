@@ -7,6 +7,7 @@ wrong and what is allowed. Display units appear only in the YAML, in the key nam
 
 from __future__ import annotations
 
+import datetime as _dt
 import math
 import re
 from dataclasses import dataclass, field
@@ -180,6 +181,30 @@ class BenchConfig:
     unit: UnitSpec
     limits: dict[str, float]
     simulation: SimConfig | None
+    reference_standards: tuple[ReferenceStandard, ...] = ()
+
+
+@dataclass(frozen=True)
+class ReferenceStandard:
+    """A reference standard the bench's traceability rests on (bench key ``reference_standards``).
+
+    Attributes
+    ----------
+    name : str
+        What it is and what it provides (e.g. "turntable angle encoders (attitude)", "site gravimeter survey").
+    serial_number, certificate : str
+        Its identification and the calibration certificate that makes it traceable.
+    calibrated_by : str
+        The laboratory that calibrated it.
+    due : datetime.date
+        Calibration due date; a calibration performed after it is flagged on the certificate.
+    """
+
+    name: str
+    serial_number: str
+    certificate: str
+    calibrated_by: str
+    due: _dt.date
 
 
 # ---- small helpers ---------------------------------------------------------------------------------
@@ -722,7 +747,7 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
         raise ConfigError(smap.file, None, "the bench file is empty; see benches/BENCH_FORMAT.md")
     data = _coerce_floats(data)
     root = get_mapping(data, smap, ())
-    check_keys(root, smap, (), ["name", "site", "turntable", "unit", "limits", "simulation"])
+    check_keys(root, smap, (), ["name", "site", "turntable", "unit", "limits", "simulation", "reference_standards"])
     name = get_str(root, smap, (), "name")
     site = _site(_section(root, smap, (), "site"), smap)  # type: ignore[arg-type]
     table = _turntable(_section(root, smap, (), "turntable"), smap)  # type: ignore[arg-type]
@@ -736,5 +761,38 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
         raise smap.error(("simulation",), "is only allowed when both turntable.driver and unit.driver are 'sim'")
     sim = _simulation(sim_d, smap, site, table, unit) if sim_d is not None else None
     return BenchConfig(
-        name=name, path=path, text=text, site=site, turntable=table, unit=unit, limits=limits, simulation=sim
+        name=name,
+        path=path,
+        text=text,
+        site=site,
+        turntable=table,
+        unit=unit,
+        limits=limits,
+        simulation=sim,
+        reference_standards=_reference_standards(root, smap),
     )
+
+
+def _reference_standards(d: dict, smap: SourceMap) -> tuple[ReferenceStandard, ...]:
+    """``reference_standards:`` (optional): a list of {name, serial_number, certificate, calibrated_by, due}."""
+    out = []
+    for ip, item in _list_of_maps(d, smap, (), "reference_standards"):
+        check_keys(item, smap, ip, ["name", "serial_number", "certificate", "calibrated_by", "due"])
+        due_v = item.get("due")
+        if isinstance(due_v, _dt.date):
+            due = due_v
+        else:
+            try:
+                due = _dt.date.fromisoformat(str(due_v))
+            except ValueError:
+                raise smap.error(ip + ("due",), f"expected a calibration due date YYYY-MM-DD, got {due_v!r}") from None
+        out.append(
+            ReferenceStandard(
+                name=get_str(item, smap, ip, "name"),
+                serial_number=get_str(item, smap, ip, "serial_number", ""),
+                certificate=get_str(item, smap, ip, "certificate"),
+                calibrated_by=get_str(item, smap, ip, "calibrated_by", ""),
+                due=due,
+            )
+        )
+    return tuple(out)

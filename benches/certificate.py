@@ -109,6 +109,7 @@ class BenchInfo:
     bias_instability: list[float] | None = None
     rate_accuracy: float = 0.0
     latency: float = 0.0
+    reference_standards: list[dict[str, str]] = field(default_factory=list)
 
 
 @dataclass
@@ -295,6 +296,11 @@ def bench_info(bench_text: str, cal_run: dict[str, Any], rec_attrs: dict[str, An
             source="bench file recorded in the recording",
             bias_instability=np.asarray(u.noise.bias_instability, dtype=float).tolist(),
             rate_accuracy=float(getattr(t, "rate_accuracy", 0.0) or 0.0),
+            reference_standards=[
+                {"name": r.name, "serial_number": r.serial_number, "certificate": r.certificate,
+                 "calibrated_by": r.calibrated_by, "due": r.due.isoformat()}
+                for r in getattr(cfg, "reference_standards", ())
+            ],  # fmt: skip
             latency=float(getattr(u, "latency", 0.0) or 0.0),
         )
     g = float(site.get("g") or rec_attrs.get("site_g") or 0.0)
@@ -334,6 +340,16 @@ def _fmt(x: Any) -> str:
         return str(x)
 
 
+def _twice(x: Any) -> Any:
+    """2·x for a number (the expanded uncertainty of a standard uncertainty, k = 2), else x unchanged."""
+    return 2.0 * float(x) if isinstance(x, int | float) and not isinstance(x, bool) else x
+
+
+def _si_unit(channel: str) -> str:
+    """SI unit of an analysis channel's values (analysis JSON files are SI)."""
+    return "rad/s" if channel.startswith("gyro") else "m/s²" if channel.startswith("accel") else "(SI)"
+
+
 def _analysis_rows(kind: str, data: dict[str, Any]) -> list[dict[str, str]]:
     """Summary rows of a noise / periodic / drift JSON (formats in the analysis commands' docs)."""
     rows: list[dict[str, str]] = []
@@ -347,7 +363,8 @@ def _analysis_rows(kind: str, data: dict[str, Any]) -> list[dict[str, str]]:
                     {
                         "channel": ch,
                         "item": str(term),
-                        "value": f"{_fmt(t.get('value'))} ± {_fmt(t.get('sigma'))} {t.get('unit', '')}".strip(),
+                        "value": f"{_fmt(t.get('value'))} ± {_fmt(_twice(t.get('sigma')))} {t.get('unit', '')} "
+                        "(U, k = 2)",
                     }
                 )
         elif kind == "periodic":
@@ -356,8 +373,9 @@ def _analysis_rows(kind: str, data: dict[str, Any]) -> list[dict[str, str]]:
                     {
                         "channel": ch,
                         "item": f"tone {i + 1}",
-                        "value": f"{_fmt(t.get('frequency_hz'))} ± {_fmt(t.get('frequency_sigma_hz'))} Hz, "
-                        f"amplitude {_fmt(t.get('amplitude'))}, phase {_fmt(t.get('phase_rad'))} rad",
+                        "value": f"{_fmt(t.get('frequency_hz'))} ± {_fmt(_twice(t.get('frequency_sigma_hz')))} Hz "
+                        f"(U, k = 2), amplitude {_fmt(t.get('amplitude'))} {_si_unit(ch)}, "
+                        f"phase {_fmt(t.get('phase_rad'))} rad",
                     }
                 )
             if "residual_rms_before" in c:
@@ -365,7 +383,8 @@ def _analysis_rows(kind: str, data: dict[str, Any]) -> list[dict[str, str]]:
                     {
                         "channel": ch,
                         "item": "residual RMS",
-                        "value": f"{_fmt(c.get('residual_rms_before'))} → {_fmt(c.get('residual_rms_after'))}",
+                        "value": f"{_fmt(c.get('residual_rms_before'))} → {_fmt(c.get('residual_rms_after'))} "
+                        f"{_si_unit(ch)}",
                     }
                 )
         elif kind == "drift":
@@ -611,6 +630,11 @@ def build_certificate(
             "transport": str(attrs.get("transport", "")),
             "limits": binfo.limits,
             "source": binfo.source,
+            "rate_accuracy_ppm": binfo.rate_accuracy * 1e6,
+            "reference_standards": [
+                {**r, "overdue": bool(r["due"] < str(attrs.get("created_utc", ""))[:10])}
+                for r in binfo.reference_standards
+            ],
         },
         procedure={
             "name": str(attrs.get("procedure_name", "")),

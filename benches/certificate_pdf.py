@@ -56,6 +56,15 @@ class _CertificatePdf(FPDF):
         self.alias_nb_pages()
 
     def header(self) -> None:
+        if self.cert.bench.get("simulated"):
+            # on EVERY page: a simulated bench calibrates no physical unit
+            y = self.get_y()
+            self.set_y(5)
+            self.set_font(_FONT, "B", 8)
+            self.set_text_color(160, 40, 0)
+            self.cell(0, 4, "SIMULATED BENCH — NOT A CALIBRATION OF A PHYSICAL UNIT", align="C")
+            self.set_text_color(0, 0, 0)
+            self.set_y(max(y, 10))
         if self.page_no() == 1:
             return
         self.set_font(_FONT, "", 7.5)
@@ -74,10 +83,11 @@ class _CertificatePdf(FPDF):
         self.set_y(-13)
         self.set_font(_FONT, "", 7)
         self.set_text_color(90, 90, 90)
+        sim = " · SIMULATED BENCH" if self.cert.bench.get("simulated") else ""
         self.cell(
             0,
             4,
-            f"{self.cert.number} · This certificate shall not be reproduced except in full without the written "
+            f"{self.cert.number}{sim} · This certificate shall not be reproduced except in full without the written "
             "approval of the issuing laboratory.",
             align="L",
         )
@@ -255,14 +265,22 @@ def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
         )
         if x
     )
-    unit_txt = f"Accelerometer triad {c.unit.get('model', '')}, serial No. {c.unit.get('serial_number', '')}"
+    unit_txt = (
+        f"Accelerometer triad of {c.unit.get('model', '')}, serial No. {c.unit.get('serial_number', '')} "
+        "(only the accelerometer triad is calibrated by this certificate; any gyro triad of the unit is not)"
+    )
+    rate_acc = b.get("rate_accuracy_ppm") or 0
     bench_txt = (
         f"{b.get('name', '')}: turntable {b.get('table_model', '')}, serial No. {b.get('table_serial_number', '')}; "
         f"attitude accuracy ±{b.get('attitude_accuracy_arcsec', 0):.2f}″"
+        + (f", rate accuracy ±{rate_acc:.3g} ppm" if rate_acc else ", rate accuracy not stated")
     )
-    g_txt = f"{b['g']:.6f} m/s² — {b.get('g_source', '')}; standard uncertainty {b.get('g_uncertainty', 0):.1e} m/s²"
+    g_txt = (
+        f"{b['g']:.6f} m/s² — {b.get('g_source', '')}; standard uncertainty u(g) = {b.get('g_uncertainty', 0):.1e} m/s²"
+    )
     rec_txt = (
-        f"{rec.get('file')} ({rec.get('status')}, {rec.get('steps_complete')}/{rec.get('steps')} steps, "
+        f"{rec.get('file')} ({rec.get('status')}, {rec.get('steps_complete')} of {rec.get('steps')} procedure "
+        "steps completed, "
         f"{rec.get('samples')} samples at {rec.get('sample_rate_hz', 0):g} Hz, "
         f"{rec.get('duration_s', 0) / 60:.1f} min)\nSHA-256 {rec.get('sha256')}"
     )
@@ -354,7 +372,11 @@ def _results_page(pdf: _CertificatePdf, c: Certificate) -> None:
         "pass or fail: the reason names the side) or U ≥ limit; NOT EVALUATED when this procedure cannot identify "
         "the parameter; INVALID for a non-finite value or uncertainty or a recording that failed its integrity "
         "check. The overall result is PASS only when every limited parameter passes; UNDECIDED or NOT EVALUATED "
-        "make it INCONCLUSIVE, FAIL makes it FAIL, INVALID makes it INVALID. Values in SI and the full "
+        "make it INCONCLUSIVE, FAIL makes it FAIL, INVALID makes it INVALID. Uncertainty figures: the live "
+        "display during the run shows the filter's white-noise ± (standard, k = 1); 'tablebench identify' and "
+        "calibration.json give u, the identification's combined standard uncertainty (white noise ⊕ bias "
+        "instability, k = 1); this certificate's U adds the type-B components of the budget (table, gravity, "
+        "model mismatch) and is expanded, U = 2u. Values in SI and the full "
         "covariance are in the machine-readable certificate (JSON). µg = 9.80665e-6 m/s²; ppm = 1e-6; ″ = arcsecond.",
         size=7.6,
     )
@@ -446,6 +468,37 @@ def _warnings_and_analyses(pdf: _CertificatePdf, c: Certificate) -> None:
                     pdf.add_page()
                 pdf.figure(png, 150)
     pdf.section("Traceability")
+    b = c.bench
+    rate_acc = b.get("rate_accuracy_ppm") or 0
+    statement = (
+        "Metrological traceability: the reference specific force is computed from the turntable's reported "
+        f"attitude (stated accuracy ±{b.get('attitude_accuracy_arcsec', 0):.2f}″ per axis) and the local gravity "
+        f"g = {b.get('g', 0):.6f} m/s² ({b.get('g_source', '')}, u(g) = {b.get('g_uncertainty', 0):.1e} m/s²); the "
+        "centripetal reference from the turntable's reported rate"
+        + (f" (stated accuracy ±{rate_acc:.3g} ppm)" if rate_acc else " (rate accuracy not stated in the bench file)")
+        + ". Each enters the uncertainty budget as a type-B component."
+    )
+    stds = b.get("reference_standards") or []
+    if b.get("simulated"):
+        statement += (
+            " SIMULATED BENCH: no physical reference standard is involved (the simulator realises these stated "
+            "accuracies only when the bench sets realise_uncertainty_inputs), so this certificate is not traceable "
+            "to SI."
+        )
+    elif stds:
+        statement += " Reference standards (bench file):"
+        for r in stds:
+            overdue = " — CALIBRATION OVERDUE at the date of calibration" if r.get("overdue") else ""
+            statement += (
+                f"\n• {r['name']}, S/N {r.get('serial_number') or '—'}, certificate {r['certificate']}"
+                f"{' by ' + r['calibrated_by'] if r.get('calibrated_by') else ''}, due {r['due']}{overdue}"
+            )
+    else:
+        statement += (
+            " The bench file lists no reference standards (reference_standards): traceability of the table "
+            "and of g to SI is not documented by this certificate."
+        )
+    pdf.para(statement, size=7.8)
     pdf.para(
         f"Recording SHA-256: {c.recording.get('sha256')}\n"
         f"Calibration file SHA-256: {c.identification.get('calibration_sha256')}\n"

@@ -157,3 +157,19 @@ def test_defaults_when_simulation_noise_omitted() -> None:
     assert b.simulation is not None
     np.testing.assert_allclose(b.simulation.accel_noise.white, b.unit.noise.vrw)
     assert b.simulation.anti_alias_hz is None and math.isclose(b.simulation.table.overshoot, 5 * ARCSEC)
+
+
+def test_reference_standards_are_validated() -> None:
+    text = (BENCHES / "sim.yaml").read_text(encoding="utf-8")
+    good = text + (
+        "reference_standards:\n"
+        "  - {name: angle encoders, serial_number: E1, certificate: C-1, calibrated_by: Lab, due: 2027-03-01}\n"
+    )
+    cfg = load_bench_text(good, "good.yaml")
+    assert cfg.reference_standards[0].due.isoformat() == "2027-03-01"
+    bad = text + "reference_standards:\n  - {name: encoders, certificate: C-1, due: next spring}\n"
+    with pytest.raises(ConfigError, match="due.*YYYY-MM-DD"):
+        load_bench_text(bad, "bad.yaml")
+    missing = text + "reference_standards:\n  - {name: encoders, due: 2027-03-01}\n"
+    with pytest.raises(ConfigError, match="certificate"):
+        load_bench_text(missing, "missing.yaml")

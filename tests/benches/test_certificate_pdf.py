@@ -188,12 +188,13 @@ def test_noise_periodic_and_drift_analyses_are_included_when_present(tmp_path):
     pdf, js, _ = issue_certificate(run, issue_date=DATE)
     cert = json.loads(js.read_text(encoding="utf-8"))
     assert set(cert["analyses"]) == {"noise", "periodic", "drift"}
-    assert {"channel": "accel_x", "item": "N", "value": "14.99 ± 0.015 µg/√Hz"} in cert["analyses"]["noise"]
+    # k = 2 for every ± on the certificate (the analysis file holds the standard uncertainty 0.015)
+    assert {"channel": "accel_x", "item": "N", "value": "14.99 ± 0.03 µg/√Hz (U, k = 2)"} in cert["analyses"]["noise"]
     assert any("12.5" in r["value"] for r in cert["analyses"]["periodic"])
     assert any(r["item"] == "ARMA(1,1)" for r in cert["analyses"]["drift"])
     assert list(cert["analysis_plots"]) == ["noise/noise.png"]
     text = "\n".join(_text(pdf))
-    assert "Noise analysis" in text and "14.99 ± 0.015 µg/√Hz" in text and "ARMA(1,1)" in text
+    assert "Noise analysis" in text and "14.99 ± 0.03 µg/√Hz (U, k = 2)" in text and "ARMA(1,1)" in text
 
 
 def test_an_unidentified_limited_parameter_makes_the_result_inconclusive(run_ok, tmp_path):
@@ -233,3 +234,31 @@ def test_decision_rule_with_an_uncertainty_as_large_as_the_limit(run_ok, tmp_pat
     got = {p.name: p.verdict for p in cert.parameters if p.name in cases}
     assert got == {k: v[1] for k, v in cases.items()}
     assert cert.verdict == "FAIL"
+
+
+def test_simulated_on_every_page_and_a_traceability_statement(issued):
+    pdf, js, _ = issued
+    pages = _text(pdf)
+    assert len(pages) > 2 and all("SIMULATED BENCH" in p for p in pages)
+    text = " ".join("\n".join(pages).split())
+    assert "Metrological traceability" in text and "attitude accuracy" in text and "u(g)" in text
+    assert "not traceable to SI" in text  # a simulated bench
+    assert "only the accelerometer triad is calibrated" in text
+    assert "procedure steps completed" in text
+    # the legend reconciling the three uncertainty figures
+    assert "live display" in text and "calibration.json give u" in text and "U = 2u" in text
+
+
+def test_reference_standards_from_the_bench_file_with_due_dates(run_ok, tmp_path):
+    run = tmp_path / "real"
+    shutil.copytree(run_ok, run)
+    base = bench_info(BENCH_TEXT, {}, {})
+    keys = ("name", "serial_number", "certificate", "calibrated_by", "due")
+    stds = [
+        dict(zip(keys, ("angle encoders", "E1", "C-1", "Lab", "2000-01-01"), strict=True)),
+        dict(zip(keys, ("gravimeter survey", "", "G-7", "", "2999-01-01"), strict=True)),
+    ]
+    bench = dataclasses.replace(base, reference_standards=stds)
+    cert = build_certificate(run, issue_date=DATE, bench=bench, with_plots=False)
+    got = {r["certificate"]: r["overdue"] for r in cert.bench["reference_standards"]}
+    assert got == {"C-1": True, "G-7": False}
