@@ -251,6 +251,24 @@ def format_with_uncertainty(value: float, expanded: float, digits: int = 2) -> t
     return v_txt, f"{u_r:.{decimals}f}"
 
 
+def _procedure_step_count(procedure_text: Any, overrides: dict[str, float], bench_text: str) -> int | None:
+    """Number of steps of the recorded procedure (with its overrides), compiled for the recorded bench; None
+    when the recording carries no procedure text that compiles (another tool's recording)."""
+    from core.errors import UserError as _UserError
+    from procedures.compiler import compile_procedure
+    from procedures.loader import load_procedure_text
+
+    try:
+        text = procedure_text() if callable(procedure_text) else str(procedure_text or "")
+        if not text.strip() or not bench_text.strip():
+            return None
+        cfg = _load_bench_config(bench_text)
+        proc = load_procedure_text(text, "recording.h5:/procedure_yaml", overrides or None)
+        return len(compile_procedure(proc, limits=cfg.turntable.limits, mounting=cfg.unit.mounting).steps)
+    except (_UserError, ValueError):
+        return None
+
+
 def _load_bench_config(text: str) -> Any:
     """The recorded bench text through ``benches.bench_config`` (ConfigError names the recording's copy)."""
     from .bench_config import load_bench_text
@@ -496,6 +514,7 @@ def build_certificate(
         if tuple(names) != PARAM_NAMES:
             raise CertificateError(f"{cal_path}: parameter_names must be the 18 names of CALIBRATION_FORMAT.md")
         bench_text = f.bench_text
+        procedure_steps = _procedure_step_count(f.procedure_text, dict(f.header.procedure_overrides), bench_text)
         binfo = bench or bench_info(bench_text, dict(cal.get("run") or {}), attrs)
         used = [str(p.get("name")) for p in (cal.get("residuals") or {}).get("per_step", [])]
         geometry = step_geometry(f, binfo.g, None if binfo.mounting is None else np.asarray(binfo.mounting),
@@ -655,7 +674,8 @@ def build_certificate(
             "integrity_verified": integrity["verified"],
             "integrity_note": integrity["note"],
             "steps_complete": sum(s.status == "complete" for s in steps),
-            "steps": len(steps),
+            "steps": procedure_steps if procedure_steps is not None else len(steps),
+            "steps_recorded": len(steps),
         },
         environment={
             "unit_temperature_k": temp,
