@@ -15,7 +15,7 @@ import sys
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
 from core.errors import UserError
 from core.provenance import software_version
@@ -46,7 +46,10 @@ class Prepared:
 def prepare(
     bench: str | Path | None, procedure: str | Path | None, overrides: dict[str, float] | None = None
 ) -> Prepared:
-    """Load the bench and the procedure (with parameter overrides), compile and check; ConfigError if wrong."""
+    """THE preparation step of ``check``, ``plan`` and ``run``: load the bench and the procedure (with parameter
+    overrides), compile it for the bench's table and mounting, and check it against the unit (every acquisition
+    lasts at least one sample). All three commands accept and reject exactly the same inputs; ConfigError if
+    wrong."""
     from benches.bench_config import load_bench
     from procedures.compiler import compile_procedure
     from procedures.loader import load_procedure
@@ -57,6 +60,7 @@ def prepare(
     config = load_bench(bench_path)
     proc = load_procedure(procedure_path, overrides or None)
     compiled = compile_procedure(proc, limits=config.turntable.limits, mounting=config.unit.mounting)
+    check_against_unit(compiled, float(config.unit.sample_rate))
     return Prepared(
         bench_path,
         procedure_path,
@@ -65,6 +69,21 @@ def prepare(
         compiled.estimated_duration(config.turntable.limits),
         dict(overrides or {}),
     )
+
+
+def check_against_unit(compiled: Any, sample_rate: float) -> None:
+    """Every acquisition step must last at least one sample period of the unit; ConfigError otherwise."""
+    from core.yaml_source import ConfigError
+    from procedures.steps import ACQUISITION_KINDS
+
+    for s in compiled.steps:
+        if s.kind in ACQUISITION_KINDS and s.duration * sample_rate < 1.0:
+            raise ConfigError(
+                compiled.path,
+                s.line,
+                f"step {s.name!r}: {s.duration:g} s is shorter than one sample at the unit's {sample_rate:g} Hz; "
+                f"allowed: at least {1.0 / sample_rate:g} s",
+            )
 
 
 def recorded_overrides(folder: Path) -> dict[str, float]:
