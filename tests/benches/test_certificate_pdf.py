@@ -113,7 +113,7 @@ def test_same_recording_gives_the_same_bytes_apart_from_the_issue_date(run_ok, i
     # another process, another hash seed, the same number: the same bytes
     code = (
         "import sys; from pathlib import Path; from benches.certificate import build_certificate; "
-        "from benches.certificate_pdf import render_pdf; c = build_certificate(sys.argv[1], issue_date=sys.argv[2]); "
+        "from benches.certificate.pdf import render_pdf; c = build_certificate(sys.argv[1], issue_date=sys.argv[2]); "
         "c.number = sys.argv[3]; Path(sys.argv[4]).write_bytes(render_pdf(c)); "
         "Path(sys.argv[5]).write_text(c.to_json(), encoding='utf-8')"
     )

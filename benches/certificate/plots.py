@@ -20,9 +20,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
+from analysis.identification.budget import StepGeometry
 from analysis.units import UG, display_unit, to_display
-
-from .uncertainty_budget import StepGeometry
 
 _RC: dict[str, Any] = {
     "font.family": "DejaVu Sans",

@@ -15,7 +15,7 @@ from pathlib import Path
 import matplotlib
 from fpdf import FPDF, FontFace, XPos, YPos
 
-from .certificate import MODEL_TEXT, SIGN_CONVENTIONS, Certificate
+from .content import MODEL_TEXT, SIGN_CONVENTIONS, Certificate
 
 _FONT = "DejaVu"
 _GREY = (235, 235, 235)
