@@ -731,18 +731,28 @@ class Recording:
             self._f.close()
 
     @contextlib.contextmanager
-    def _guard(self, where: str, step: StepRecord | None = None) -> Iterator[None]:
+    def _guard(self, where: str, step: StepRecord | None = None, rows: tuple[int, int] | None = None) -> Iterator[None]:
         try:
             yield
         except RecordingError:
             raise
         except _H5_ERRORS as exc:
             at = f", step {step.index} {step.name!r}" if step is not None else ""
+            if rows is not None:
+                at = f" rows {rows[0]}–{rows[1]}{self._steps_text(*rows)}"
             msg = str(exc).split("\n")[0]
             raise RecordingDamaged(
                 f"{self.path}: dataset {where}{at} is damaged or unreadable ({exc.__class__.__name__}: {msg}); "
                 f"{self._fix()}"
             ) from None
+
+    def _steps_text(self, a: int, b: int) -> str:
+        hit = [s for s in self.steps if s.start_sample < b and s.end_sample > a]
+        if not hit:
+            return " (after the last recorded step)"
+        if len(hit) == 1:
+            return f" (step {hit[0].index} {hit[0].name!r})"
+        return f" (steps {hit[0].index} {hit[0].name!r} to {hit[-1].index} {hit[-1].name!r})"
 
     def _fix(self) -> str:
         return (
@@ -835,6 +845,30 @@ class Recording:
                         f"{self.path}: dataset /{name} has no Fletcher-32 checksum in a format-2 recording; "
                         f"{self._fix()}"
                     )
+                self._check_chunks(name, obj)
+
+    def _check_chunks(self, name: str, d: h5py.Dataset) -> None:
+        """Every chunk of the dataset's extent is indexed exactly once, at its place, with every filter applied.
+
+        The chunk index (a B-tree) carries no checksum of its own: a damaged key would silently turn a chunk
+        into fill values, a damaged filter mask would skip the Fletcher-32 check.
+        """
+        rows = int(d.shape[0]) if d.shape else 1
+        step = int(d.chunks[0]) if d.chunks else rows
+        want = list(range(0, rows, step)) if d.shape else [0]
+        n = d.id.get_num_chunks()
+        got = []
+        for i in range(n):
+            info = d.id.get_chunk_info(i)
+            if info.filter_mask != 0 or any(info.chunk_offset[1:]) or info.size <= 0:
+                got = None
+                break
+            got.append(int(info.chunk_offset[0]) if d.shape else 0)
+        if got is None or sorted(got) != want:
+            raise RecordingDamaged(
+                f"{self.path}: dataset /{name}: its chunk index is damaged (chunks missing, misplaced or unfiltered); "
+                f"{self._fix()}"
+            )
 
     def _read_steps(self) -> list[StepRecord]:
         if "steps" not in self._f:
@@ -894,46 +928,42 @@ class Recording:
     def verify(self) -> None:
         """Read every dataset (Fletcher-32 of every chunk) and check every complete step's SHA-256.
 
+        The samples are read once, in large chunk-aligned blocks, each step's rows hashed as they pass.
+
         Raises
         ------
         RecordingDamaged
             Naming the file, the dataset and the step. Format-1 recordings: only the readability is checked.
         """
-        last_imu, last_tab = 0, 0
         v2 = self.header.format_version >= 2
-        for s in self.steps:
-            if s.status != "complete":
-                continue
-            h = _StepHasher()
-            for chunk in self.iter_samples(s.start_sample, s.end_sample, self.sample_fields, step=s):
-                if v2:
-                    for name in IMU_FIELDS:
-                        h.update("imu", name, getattr(chunk, name))
-            if v2:
-                with self._guard("/table", s):
-                    t = self._table_rows(s.table_start, s.table_end)
-                for name in TABLE_FIELDS:
-                    h.update("table", name, getattr(t, name))
-                if h.hexdigest() != s.sha256:
-                    raise RecordingDamaged(
-                        f"{self.path}: step {s.index} {s.name!r}: the SHA-256 of its rows (/imu "
-                        f"{s.start_sample}–{s.end_sample}, /table {s.table_start}–{s.table_end}) does not match the "
-                        f"one stored when the step closed; the data are damaged; {self._fix()}"
-                    )
-                last_tab = s.table_end
-            last_imu = s.end_sample
-        # rows after the last complete step, the table (format 1), events, texts and truth: readability
-        for _chunk in self.iter_samples(start=last_imu, fields=self.sample_fields):
-            pass
-        with self._guard("/table"):
-            self._table_rows(last_tab, self.n_table)
-        with self._guard("/events"):
-            self.events()
-        with self._guard("/bench_yaml, /procedure_yaml"):
-            self.bench_text  # noqa: B018 - read for the checksum
-            self.procedure_text  # noqa: B018
-        with self._guard("/truth"):
-            self.truth()
+        done = [s for s in self.steps if s.status == "complete"] if v2 else []
+        hashers = [_StepHasher() for _ in done]
+        first = 0
+        for chunk in self.iter_samples(fields=self.sample_fields):
+            a, b = chunk.start, chunk.start + len(chunk)
+            while first < len(done) and done[first].end_sample <= a:
+                first += 1
+            k = first
+            while k < len(done) and done[k].start_sample < b:
+                s = done[k]
+                lo, hi = max(a, s.start_sample) - a, min(b, s.end_sample) - a
+                for name in IMU_FIELDS:
+                    hashers[k].update("imu", name, getattr(chunk, name)[lo:hi])
+                k += 1
+        table = self.table()
+        for s, h in zip(done, hashers, strict=True):
+            for name in TABLE_FIELDS:
+                h.update("table", name, getattr(table, name)[s.table_start : s.table_end])
+            if h.hexdigest() != s.sha256:
+                raise RecordingDamaged(
+                    f"{self.path}: step {s.index} {s.name!r}: the SHA-256 of its rows (/imu "
+                    f"{s.start_sample}–{s.end_sample}, /table {s.table_start}–{s.table_end}) does not match the "
+                    f"one stored when the step closed; the data are damaged; {self._fix()}"
+                )
+        self.events()
+        self.bench_text  # noqa: B018 - read for its checksums
+        self.procedure_text  # noqa: B018
+        self.truth()
 
     # ---- typed access ------------------------------------------------------------------------------------
     def _read_text(self, name: str) -> str:
@@ -948,13 +978,23 @@ class Recording:
         """The bench file's text as recorded ('' if absent); checked against ``bench_sha256`` when given."""
         with self._guard("/bench_yaml"):
             text = self._read_text("bench_yaml")
+        self._check_text("bench_yaml", text, self.header.bench_sha256)
         return text
 
     @property
     def procedure_text(self) -> str:
         """The procedure file's text as recorded ('' if absent)."""
         with self._guard("/procedure_yaml"):
-            return self._read_text("procedure_yaml")
+            text = self._read_text("procedure_yaml")
+        self._check_text("procedure_yaml", text, self.header.procedure_sha256)
+        return text
+
+    def _check_text(self, name: str, text: str, sha: str) -> None:
+        if self.header.format_version >= 2 and len(sha) == 64:
+            if hashlib.sha256(text.encode("utf-8")).hexdigest() != sha:
+                raise RecordingDamaged(
+                    f"{self.path}: dataset /{name}: the text does not match its SHA-256 in the header; {self._fix()}"
+                )
 
     def complete_steps(self) -> list[StepRecord]:
         """The steps with status "complete", in order."""
@@ -996,7 +1036,7 @@ class Recording:
         start = max(0, int(start))
         out = Samples(start=start)
         for name in fields:
-            with self._guard(f"/imu/{name}", self._step_at(start)):
+            with self._guard(f"/imu/{name}", rows=(start, stop)):
                 if index is not None:
                     idx = np.asarray(index)
                     if name in self._quanta:
@@ -1026,16 +1066,10 @@ class Recording:
             b = min(stop, a + int(chunk))
             out = Samples(start=a)
             for name in fields:
-                with self._guard(f"/imu/{name}", step or self._step_at(a)):
+                with self._guard(f"/imu/{name}", step, rows=None if step else (a, b)):
                     setattr(out, name, self._imu_rows(name, a, b))
             yield out
             a = b
-
-    def _step_at(self, sample: int) -> StepRecord | None:
-        for s in self.steps:
-            if s.start_sample <= sample < s.end_sample:
-                return s
-        return None
 
     def _table_rows(self, a: int, b: int) -> TableReadings:
         if self.n_table == 0:
