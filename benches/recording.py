@@ -276,26 +276,41 @@ def recording_file(path: str | Path) -> Path:
     return p / RECORDING_NAME if p.is_dir() else p
 
 
-def _quantise(v: NDArray[np.float64], lsb: float, dtype: Any = np.int32) -> tuple[NDArray[Any], NDArray[np.float64]]:
-    """Counts and residual with ``where(c == 0, r, c * lsb + r) == v`` bit for bit (checked)."""
+EXC_DTYPE = np.dtype([("row", np.int64), ("col", np.int8), ("value", np.float64)])
+
+
+def _quantise(v: NDArray[np.float64], lsb: float, dtype: Any = np.int32) -> tuple[NDArray[Any], NDArray[Any]]:
+    """Counts ``c`` with ``c * lsb == v`` bit for bit, and the exceptions (row, col, value) where it is not."""
     v = np.ascontiguousarray(v, dtype=np.float64)
     limit = float(np.iinfo(dtype).max) / 2
     with np.errstate(invalid="ignore", over="ignore"):
         q = np.rint(v / lsb)
         ok = np.isfinite(q) & (np.abs(q) < limit)
         c = np.where(ok, q, 0).astype(dtype)
-        r = v - c * lsb
-        r[c == 0] = v[c == 0]
-        back = _dequantise(c, r, lsb)
+        back = c.astype(np.float64) * lsb
     bad = back.view(np.uint64) != v.view(np.uint64)
-    if bad.any():
-        c[bad] = 0
-        r[bad] = v[bad]
-    return c, r
+    if not bad.any():
+        return c, np.zeros(0, EXC_DTYPE)
+    c[bad] = 0
+    pos = np.nonzero(bad.reshape(v.shape[0], -1))
+    exc = np.zeros(pos[0].size, EXC_DTYPE)
+    exc["row"], exc["col"] = pos[0], pos[1]
+    exc["value"] = v.reshape(v.shape[0], -1)[pos]
+    return c, exc
 
 
-def _dequantise(c: NDArray[Any], r: NDArray[np.float64], lsb: float) -> NDArray[np.float64]:
-    return np.where(c == 0, r, c.astype(np.float64) * lsb + r)
+def _dequantise(c: NDArray[Any], lsb: float, exc: NDArray[Any] | None, rows: NDArray[np.int64]) -> NDArray[np.float64]:
+    """Values of counts ``c`` at recording rows ``rows`` (sorted), exceptions applied."""
+    v = c.astype(np.float64) * lsb
+    if exc is not None and exc.size:
+        lo, hi = np.searchsorted(exc["row"], [rows[0], rows[-1] + 1]) if rows.size else (0, 0)
+        if hi > lo:
+            e = exc[lo:hi]
+            where = np.searchsorted(rows, e["row"])
+            hit = (where < rows.size) & (rows[np.minimum(where, rows.size - 1)] == e["row"])
+            v2 = v.reshape(v.shape[0], -1)
+            v2[where[hit], e["col"][hit]] = e["value"][hit]
+    return v
 
 
 _COUNT_DTYPE = {"time": np.int64, "accel": np.int32, "gyro": np.int32}
@@ -471,7 +486,9 @@ class Hdf5Recorder:
             if lsb is not None and math.isfinite(lsb) and lsb > 0:
                 self._dataset(imu, name, _COUNT_DTYPE[name], _WIDTH.get(name), IMU_CHUNK)
                 imu[name].attrs["lsb"] = float(lsb)
-                self._dataset(imu, name + "_residual", np.float64, _WIDTH.get(name), IMU_CHUNK)
+                imu.create_dataset(
+                    name + "_exceptions", shape=(0,), maxshape=(None,), dtype=EXC_DTYPE, chunks=(1024,), **self._filters
+                )
                 self._quanta[name] = float(lsb)
             else:
                 self._dataset(imu, name, _IMU_DTYPES[name], _WIDTH.get(name), IMU_CHUNK)
@@ -514,6 +531,10 @@ class Hdf5Recorder:
                 d.resize(min(cut, d.shape[0]), axis=0)
                 if name in QUANTISED_FIELDS and "lsb" in d.attrs:
                     self._quanta[name] = float(d.attrs["lsb"])
+            for name in list(self._quanta):
+                d = f["imu"][name + "_exceptions"]
+                rows = d["row"] if d.shape[0] else np.zeros(0, np.int64)
+                d.resize(int(np.searchsorted(rows, cut)), axis=0)
             for d in f["table"].values():
                 d.resize(min(keep_t, d.shape[0]), axis=0)
             f["steps"].resize(len(complete), axis=0)
@@ -573,9 +594,11 @@ class Hdf5Recorder:
                 for name in IMU_FIELDS:
                     data = cols[name][:k]
                     if name in self._quanta:
-                        c, r = _quantise(data, self._quanta[name], _COUNT_DTYPE[name])
+                        c, exc = _quantise(data, self._quanta[name], _COUNT_DTYPE[name])
+                        if exc.size:
+                            exc["row"] += self._written
+                            self._append(f["imu"][name + "_exceptions"], exc)
                         self._append(f["imu"][name], c)
-                        self._append(f["imu"][name + "_residual"], r)
                     else:
                         self._append(f["imu"][name], data)
                 self._written += k
@@ -817,7 +840,10 @@ class Recording:
         self.n_samples = int(f["imu/accel"].shape[0])
         self.sample_fields: tuple[str, ...] = tuple(n for n in IMU_FIELDS if n in f["imu"])
         self._quanta: dict[str, float] = {}
+        self._exc: dict[str, NDArray[Any]] = {}
         for name, d in f["imu"].items():
+            if name.endswith("_exceptions"):
+                continue
             if d.shape[0] != self.n_samples:
                 raise RecordingDamaged(
                     f"{self.path}: dataset /imu/{name} has {d.shape[0]} rows but /imu/accel {self.n_samples}; "
@@ -825,9 +851,20 @@ class Recording:
                 )
             if name in QUANTISED_FIELDS and np.issubdtype(d.dtype, np.integer):
                 lsb = float(d.attrs["lsb"])
-                if not (math.isfinite(lsb) and lsb > 0) or f"{name}_residual" not in f["imu"]:
-                    raise RecordingDamaged(f"{self.path}: dataset /imu/{name}: counts without a valid lsb/residual")
+                if not (math.isfinite(lsb) and lsb > 0) or f"{name}_exceptions" not in f["imu"]:
+                    raise RecordingDamaged(f"{self.path}: dataset /imu/{name}: counts without a valid lsb/exceptions")
                 self._quanta[name] = lsb
+                with self._guard(f"/imu/{name}_exceptions"):
+                    exc = np.asarray(f["imu"][name + "_exceptions"][()], dtype=EXC_DTYPE)
+                width = 1 if d.ndim == 1 else d.shape[1]
+                if exc.size and (
+                    np.any(np.diff(exc["row"]) < 0)
+                    or exc["row"][0] < 0
+                    or exc["row"][-1] >= self.n_samples
+                    or np.any((exc["col"] < 0) | (exc["col"] >= width))
+                ):
+                    raise RecordingDamaged(f"{self.path}: dataset /imu/{name}_exceptions: rows out of order or range")
+                self._exc[name] = exc
         if "table" in f and "time" in f["table"]:
             self.n_table = int(f["table/time"].shape[0])
             for name, d in f["table"].items():
@@ -1017,9 +1054,7 @@ class Recording:
     def _imu_rows(self, name: str, a: int, b: int) -> NDArray[Any]:
         d = self._imu_dataset(name)
         if name in self._quanta:
-            c = d[a:b]
-            r = self._f["imu"][name + "_residual"][a:b]
-            return _dequantise(c, r, self._quanta[name])
+            return _dequantise(d[a:b], self._quanta[name], self._exc.get(name), np.arange(a, max(a, b)))
         return np.asarray(d[a:b], dtype=_IMU_DTYPES[name])
 
     def samples(
@@ -1041,8 +1076,7 @@ class Recording:
                     idx = np.asarray(index)
                     if name in self._quanta:
                         c = self._imu_dataset(name)[idx]
-                        r = self._f["imu"][name + "_residual"][idx]
-                        v = _dequantise(c, r, self._quanta[name])
+                        v = _dequantise(c, self._quanta[name], self._exc.get(name), idx.astype(np.int64))
                     else:
                         v = np.asarray(self._imu_dataset(name)[idx], dtype=_IMU_DTYPES[name])
                 else:
@@ -1066,10 +1100,22 @@ class Recording:
             b = min(stop, a + int(chunk))
             out = Samples(start=a)
             for name in fields:
-                with self._guard(f"/imu/{name}", step, rows=None if step else (a, b)):
-                    setattr(out, name, self._imu_rows(name, a, b))
+                try:
+                    with self._guard(f"/imu/{name}", step, rows=None if step else (a, b)):
+                        setattr(out, name, self._imu_rows(name, a, b))
+                except RecordingDamaged:
+                    self._locate(name, a, b, step)
+                    raise
             yield out
             a = b
+
+    def _locate(self, name: str, a: int, b: int, step: StepRecord | None) -> None:
+        """Re-read rows [a, b) chunk by chunk; raise naming the first damaged chunk's rows and steps."""
+        c0 = a - a % IMU_CHUNK
+        for lo in range(c0, b, IMU_CHUNK):
+            lo, hi = max(lo, a), min(lo + IMU_CHUNK, b)
+            with self._guard(f"/imu/{name}", step, rows=None if step else (lo, hi)):
+                self._imu_rows(name, lo, hi)
 
     def _table_rows(self, a: int, b: int) -> TableReadings:
         if self.n_table == 0:
