@@ -466,7 +466,7 @@ class Hdf5Recorder:
         truth: dict[str, Any] | None,
         quanta: dict[str, float],
     ) -> h5py.File:
-        f = h5py.File(self.path, "w", libver=("v108", "v108"))
+        f = _new_file(self.path)
         root = {
             "format": FORMAT,
             "format_version": FORMAT_VERSION,
@@ -480,31 +480,29 @@ class Hdf5Recorder:
             _set_attr(f, k, "" if v is None else v)
         _write_text(f, "bench_yaml", bench_text, self._filters)
         _write_text(f, "procedure_yaml", procedure_text, self._filters)
-        imu = f.create_group("imu")
+        imu = _group(f, "imu")
         for name in IMU_FIELDS:
             lsb = quanta.get(name) if name in QUANTISED_FIELDS else None
             if lsb is not None and math.isfinite(lsb) and lsb > 0:
                 self._dataset(imu, name, _COUNT_DTYPE[name], _WIDTH.get(name), IMU_CHUNK)
                 imu[name].attrs["lsb"] = float(lsb)
-                imu.create_dataset(
-                    name + "_exceptions", shape=(0,), maxshape=(None,), dtype=EXC_DTYPE, chunks=(1024,), **self._filters
+                exg = imu["exceptions"] if "exceptions" in imu else _group(imu, "exceptions")
+                exg.create_dataset(
+                    name, shape=(0,), maxshape=(None,), dtype=EXC_DTYPE, chunks=(1024,), **self._filters
                 )
                 self._quanta[name] = float(lsb)
             else:
                 self._dataset(imu, name, _IMU_DTYPES[name], _WIDTH.get(name), IMU_CHUNK)
-        tab = f.create_group("table")
+        tab = _group(f, "table")
         for name in TABLE_FIELDS:
             self._dataset(tab, name, _TABLE_DTYPES[name], _WIDTH.get(name), TABLE_CHUNK)
         f.create_dataset("steps", shape=(0,), maxshape=(None,), dtype=STEP_DTYPE, chunks=(64,), fletcher32=True)
         f.create_dataset("events", shape=(0,), maxshape=(None,), dtype=EVENT_DTYPE, chunks=(64,), fletcher32=True)
         if truth is not None:
-            g = f.create_group("truth")
+            g = _group(f, "truth")
             for k, v in truth.items():
                 arr = np.asarray(v, dtype=np.float64)
-                if arr.ndim == 0:
-                    g.attrs[k] = float(arr)
-                else:
-                    g.create_dataset(k, data=arr, chunks=arr.shape, fletcher32=True)
+                g.attrs[k] = float(arr) if arr.ndim == 0 else arr  # attributes: in the checksummed header
         f.flush()
         return f
 
@@ -528,11 +526,13 @@ class Hdf5Recorder:
             raise RecordingError(f"{self.path}: cannot open the recording to resume it ({exc})") from None
         try:
             for name, d in f["imu"].items():
+                if not isinstance(d, h5py.Dataset):
+                    continue
                 d.resize(min(cut, d.shape[0]), axis=0)
                 if name in QUANTISED_FIELDS and "lsb" in d.attrs:
                     self._quanta[name] = float(d.attrs["lsb"])
             for name in list(self._quanta):
-                d = f["imu"][name + "_exceptions"]
+                d = f["imu/exceptions"][name]
                 rows = d["row"] if d.shape[0] else np.zeros(0, np.int64)
                 d.resize(int(np.searchsorted(rows, cut)), axis=0)
             for d in f["table"].values():
@@ -597,7 +597,7 @@ class Hdf5Recorder:
                         c, exc = _quantise(data, self._quanta[name], _COUNT_DTYPE[name])
                         if exc.size:
                             exc["row"] += self._written
-                            self._append(f["imu"][name + "_exceptions"], exc)
+                            self._append(f["imu/exceptions"][name], exc)
                         self._append(f["imu"][name], c)
                     else:
                         self._append(f["imu"][name], data)
@@ -678,6 +678,28 @@ class Hdf5Recorder:
         finally:
             self._file.close()
             self._closed = True
+
+
+_COMPACT = (4096, 4000)  # attributes kept in the (checksummed) object header, never in a fractal heap
+
+
+def _new_file(path: Path) -> h5py.File:
+    """A new file in HDF5 1.8 format (metadata checksums, no consistency flags that a killed writer would leave)
+    whose root group keeps its attributes and links compact (inside its checksummed object header)."""
+    fcpl = h5py.h5p.create(h5py.h5p.FILE_CREATE)
+    fcpl.set_attr_phase_change(*_COMPACT)  # (the root's 7 links stay compact by HDF5's default of ≤ 8)
+    fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
+    fapl.set_libver_bounds(h5py.h5f.LIBVER_V18, h5py.h5f.LIBVER_V18)
+    fid = h5py.h5f.create(str(path).encode(), h5py.h5f.ACC_EXCL, fcpl=fcpl, fapl=fapl)
+    return h5py.File(fid)
+
+
+def _group(parent: h5py.Group, name: str) -> h5py.Group:
+    """A group whose attributes stay compact (checksummed object header); callers keep ≤ 8 links per group."""
+    gcpl = h5py.h5p.create(h5py.h5p.GROUP_CREATE)
+    gcpl.set_attr_phase_change(*_COMPACT)  # links: every group holds ≤ 8, compact by HDF5's default
+    h5py.h5g.create(parent.id, name.encode(), gcpl=gcpl)
+    return parent[name]
 
 
 def _set_attr(f: h5py.File, key: str, value: Any) -> None:
@@ -842,7 +864,7 @@ class Recording:
         self._quanta: dict[str, float] = {}
         self._exc: dict[str, NDArray[Any]] = {}
         for name, d in f["imu"].items():
-            if name.endswith("_exceptions"):
+            if not isinstance(d, h5py.Dataset):
                 continue
             if d.shape[0] != self.n_samples:
                 raise RecordingDamaged(
@@ -851,11 +873,12 @@ class Recording:
                 )
             if name in QUANTISED_FIELDS and np.issubdtype(d.dtype, np.integer):
                 lsb = float(d.attrs["lsb"])
-                if not (math.isfinite(lsb) and lsb > 0) or f"{name}_exceptions" not in f["imu"]:
+                has_exc = "exceptions" in f["imu"] and name in f["imu/exceptions"]
+                if not (math.isfinite(lsb) and lsb > 0) or not has_exc:
                     raise RecordingDamaged(f"{self.path}: dataset /imu/{name}: counts without a valid lsb/exceptions")
                 self._quanta[name] = lsb
-                with self._guard(f"/imu/{name}_exceptions"):
-                    exc = np.asarray(f["imu"][name + "_exceptions"][()], dtype=EXC_DTYPE)
+                with self._guard(f"/imu/exceptions/{name}"):
+                    exc = np.asarray(f["imu/exceptions"][name][()], dtype=EXC_DTYPE)
                 width = 1 if d.ndim == 1 else d.shape[1]
                 if exc.size and (
                     np.any(np.diff(exc["row"]) < 0)
@@ -863,7 +886,7 @@ class Recording:
                     or exc["row"][-1] >= self.n_samples
                     or np.any((exc["col"] < 0) | (exc["col"] >= width))
                 ):
-                    raise RecordingDamaged(f"{self.path}: dataset /imu/{name}_exceptions: rows out of order or range")
+                    raise RecordingDamaged(f"{self.path}: dataset /imu/exceptions/{name}: rows out of order or range")
                 self._exc[name] = exc
         if "table" in f and "time" in f["table"]:
             self.n_table = int(f["table/time"].shape[0])
@@ -1151,8 +1174,14 @@ class Recording:
             return None
         with self._guard("/truth"):
             g = self._f["truth"]
-            params = {str(k): float(v) for k, v in g.attrs.items()}
-            arrays = {str(k): np.asarray(d[()], dtype=np.float64) for k, d in g.items()}
+            params, arrays = {}, {}
+            for k, v in g.attrs.items():
+                a = np.asarray(v, dtype=np.float64)
+                if a.ndim == 0:
+                    params[str(k)] = float(a)
+                else:
+                    arrays[str(k)] = a
+            arrays.update({str(k): np.asarray(d[()], dtype=np.float64) for k, d in g.items()})
         return Truth(params, arrays)
 
     def temperature_stats(self) -> dict[str, float]:
