@@ -276,26 +276,41 @@ def recording_file(path: str | Path) -> Path:
     return p / RECORDING_NAME if p.is_dir() else p
 
 
-def _quantise(v: NDArray[np.float64], lsb: float, dtype: Any = np.int32) -> tuple[NDArray[Any], NDArray[np.float64]]:
-    """Counts and residual with ``where(c == 0, r, c * lsb + r) == v`` bit for bit (checked)."""
+EXC_DTYPE = np.dtype([("row", np.int64), ("col", np.int8), ("value", np.float64)])
+
+
+def _quantise(v: NDArray[np.float64], lsb: float, dtype: Any = np.int32) -> tuple[NDArray[Any], NDArray[Any]]:
+    """Counts ``c`` with ``c * lsb == v`` bit for bit, and the exceptions (row, col, value) where it is not."""
     v = np.ascontiguousarray(v, dtype=np.float64)
     limit = float(np.iinfo(dtype).max) / 2
     with np.errstate(invalid="ignore", over="ignore"):
         q = np.rint(v / lsb)
         ok = np.isfinite(q) & (np.abs(q) < limit)
         c = np.where(ok, q, 0).astype(dtype)
-        r = v - c * lsb
-        r[c == 0] = v[c == 0]
-        back = _dequantise(c, r, lsb)
+        back = c.astype(np.float64) * lsb
     bad = back.view(np.uint64) != v.view(np.uint64)
-    if bad.any():
-        c[bad] = 0
-        r[bad] = v[bad]
-    return c, r
+    if not bad.any():
+        return c, np.zeros(0, EXC_DTYPE)
+    c[bad] = 0
+    pos = np.nonzero(bad.reshape(v.shape[0], -1))
+    exc = np.zeros(pos[0].size, EXC_DTYPE)
+    exc["row"], exc["col"] = pos[0], pos[1]
+    exc["value"] = v.reshape(v.shape[0], -1)[pos]
+    return c, exc
 
 
-def _dequantise(c: NDArray[Any], r: NDArray[np.float64], lsb: float) -> NDArray[np.float64]:
-    return np.where(c == 0, r, c.astype(np.float64) * lsb + r)
+def _dequantise(c: NDArray[Any], lsb: float, exc: NDArray[Any] | None, rows: NDArray[np.int64]) -> NDArray[np.float64]:
+    """Values of counts ``c`` at recording rows ``rows`` (sorted), exceptions applied."""
+    v = c.astype(np.float64) * lsb
+    if exc is not None and exc.size:
+        lo, hi = np.searchsorted(exc["row"], [rows[0], rows[-1] + 1]) if rows.size else (0, 0)
+        if hi > lo:
+            e = exc[lo:hi]
+            where = np.searchsorted(rows, e["row"])
+            hit = (where < rows.size) & (rows[np.minimum(where, rows.size - 1)] == e["row"])
+            v2 = v.reshape(v.shape[0], -1)
+            v2[where[hit], e["col"][hit]] = e["value"][hit]
+    return v
 
 
 _COUNT_DTYPE = {"time": np.int64, "accel": np.int32, "gyro": np.int32}
@@ -451,7 +466,7 @@ class Hdf5Recorder:
         truth: dict[str, Any] | None,
         quanta: dict[str, float],
     ) -> h5py.File:
-        f = h5py.File(self.path, "w", libver=("v108", "v108"))
+        f = _new_file(self.path)
         root = {
             "format": FORMAT,
             "format_version": FORMAT_VERSION,
@@ -465,29 +480,29 @@ class Hdf5Recorder:
             _set_attr(f, k, "" if v is None else v)
         _write_text(f, "bench_yaml", bench_text, self._filters)
         _write_text(f, "procedure_yaml", procedure_text, self._filters)
-        imu = f.create_group("imu")
+        imu = _group(f, "imu")
         for name in IMU_FIELDS:
             lsb = quanta.get(name) if name in QUANTISED_FIELDS else None
             if lsb is not None and math.isfinite(lsb) and lsb > 0:
                 self._dataset(imu, name, _COUNT_DTYPE[name], _WIDTH.get(name), IMU_CHUNK)
                 imu[name].attrs["lsb"] = float(lsb)
-                self._dataset(imu, name + "_residual", np.float64, _WIDTH.get(name), IMU_CHUNK)
+                exg = imu["exceptions"] if "exceptions" in imu else _group(imu, "exceptions")
+                exg.create_dataset(
+                    name, shape=(0,), maxshape=(None,), dtype=EXC_DTYPE, chunks=(1024,), **self._filters
+                )
                 self._quanta[name] = float(lsb)
             else:
                 self._dataset(imu, name, _IMU_DTYPES[name], _WIDTH.get(name), IMU_CHUNK)
-        tab = f.create_group("table")
+        tab = _group(f, "table")
         for name in TABLE_FIELDS:
             self._dataset(tab, name, _TABLE_DTYPES[name], _WIDTH.get(name), TABLE_CHUNK)
         f.create_dataset("steps", shape=(0,), maxshape=(None,), dtype=STEP_DTYPE, chunks=(64,), fletcher32=True)
         f.create_dataset("events", shape=(0,), maxshape=(None,), dtype=EVENT_DTYPE, chunks=(64,), fletcher32=True)
         if truth is not None:
-            g = f.create_group("truth")
+            g = _group(f, "truth")
             for k, v in truth.items():
                 arr = np.asarray(v, dtype=np.float64)
-                if arr.ndim == 0:
-                    g.attrs[k] = float(arr)
-                else:
-                    g.create_dataset(k, data=arr, chunks=arr.shape, fletcher32=True)
+                g.attrs[k] = float(arr) if arr.ndim == 0 else arr  # attributes: in the checksummed header
         f.flush()
         return f
 
@@ -511,9 +526,15 @@ class Hdf5Recorder:
             raise RecordingError(f"{self.path}: cannot open the recording to resume it ({exc})") from None
         try:
             for name, d in f["imu"].items():
+                if not isinstance(d, h5py.Dataset):
+                    continue
                 d.resize(min(cut, d.shape[0]), axis=0)
                 if name in QUANTISED_FIELDS and "lsb" in d.attrs:
                     self._quanta[name] = float(d.attrs["lsb"])
+            for name in list(self._quanta):
+                d = f["imu/exceptions"][name]
+                rows = d["row"] if d.shape[0] else np.zeros(0, np.int64)
+                d.resize(int(np.searchsorted(rows, cut)), axis=0)
             for d in f["table"].values():
                 d.resize(min(keep_t, d.shape[0]), axis=0)
             f["steps"].resize(len(complete), axis=0)
@@ -573,9 +594,11 @@ class Hdf5Recorder:
                 for name in IMU_FIELDS:
                     data = cols[name][:k]
                     if name in self._quanta:
-                        c, r = _quantise(data, self._quanta[name], _COUNT_DTYPE[name])
+                        c, exc = _quantise(data, self._quanta[name], _COUNT_DTYPE[name])
+                        if exc.size:
+                            exc["row"] += self._written
+                            self._append(f["imu/exceptions"][name], exc)
                         self._append(f["imu"][name], c)
-                        self._append(f["imu"][name + "_residual"], r)
                     else:
                         self._append(f["imu"][name], data)
                 self._written += k
@@ -657,6 +680,28 @@ class Hdf5Recorder:
             self._closed = True
 
 
+_COMPACT = (4096, 4000)  # attributes kept in the (checksummed) object header, never in a fractal heap
+
+
+def _new_file(path: Path) -> h5py.File:
+    """A new file in HDF5 1.8 format (metadata checksums, no consistency flags that a killed writer would leave)
+    whose root group keeps its attributes and links compact (inside its checksummed object header)."""
+    fcpl = h5py.h5p.create(h5py.h5p.FILE_CREATE)
+    fcpl.set_attr_phase_change(*_COMPACT)  # (the root's 7 links stay compact by HDF5's default of ≤ 8)
+    fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
+    fapl.set_libver_bounds(h5py.h5f.LIBVER_V18, h5py.h5f.LIBVER_V18)
+    fid = h5py.h5f.create(str(path).encode(), h5py.h5f.ACC_EXCL, fcpl=fcpl, fapl=fapl)
+    return h5py.File(fid)
+
+
+def _group(parent: h5py.Group, name: str) -> h5py.Group:
+    """A group whose attributes stay compact (checksummed object header); callers keep ≤ 8 links per group."""
+    gcpl = h5py.h5p.create(h5py.h5p.GROUP_CREATE)
+    gcpl.set_attr_phase_change(*_COMPACT)  # links: every group holds ≤ 8, compact by HDF5's default
+    h5py.h5g.create(parent.id, name.encode(), gcpl=gcpl)
+    return parent[name]
+
+
 def _set_attr(f: h5py.File, key: str, value: Any) -> None:
     """Strings as fixed-length UTF-8 (stored inside the checksummed object header, not the global heap)."""
     if isinstance(value, str):
@@ -731,18 +776,28 @@ class Recording:
             self._f.close()
 
     @contextlib.contextmanager
-    def _guard(self, where: str, step: StepRecord | None = None) -> Iterator[None]:
+    def _guard(self, where: str, step: StepRecord | None = None, rows: tuple[int, int] | None = None) -> Iterator[None]:
         try:
             yield
         except RecordingError:
             raise
         except _H5_ERRORS as exc:
             at = f", step {step.index} {step.name!r}" if step is not None else ""
+            if rows is not None:
+                at = f" rows {rows[0]}–{rows[1]}{self._steps_text(*rows)}"
             msg = str(exc).split("\n")[0]
             raise RecordingDamaged(
                 f"{self.path}: dataset {where}{at} is damaged or unreadable ({exc.__class__.__name__}: {msg}); "
                 f"{self._fix()}"
             ) from None
+
+    def _steps_text(self, a: int, b: int) -> str:
+        hit = [s for s in self.steps if s.start_sample < b and s.end_sample > a]
+        if not hit:
+            return " (after the last recorded step)"
+        if len(hit) == 1:
+            return f" (step {hit[0].index} {hit[0].name!r})"
+        return f" (steps {hit[0].index} {hit[0].name!r} to {hit[-1].index} {hit[-1].name!r})"
 
     def _fix(self) -> str:
         return (
@@ -807,7 +862,10 @@ class Recording:
         self.n_samples = int(f["imu/accel"].shape[0])
         self.sample_fields: tuple[str, ...] = tuple(n for n in IMU_FIELDS if n in f["imu"])
         self._quanta: dict[str, float] = {}
+        self._exc: dict[str, NDArray[Any]] = {}
         for name, d in f["imu"].items():
+            if not isinstance(d, h5py.Dataset):
+                continue
             if d.shape[0] != self.n_samples:
                 raise RecordingDamaged(
                     f"{self.path}: dataset /imu/{name} has {d.shape[0]} rows but /imu/accel {self.n_samples}; "
@@ -815,9 +873,21 @@ class Recording:
                 )
             if name in QUANTISED_FIELDS and np.issubdtype(d.dtype, np.integer):
                 lsb = float(d.attrs["lsb"])
-                if not (math.isfinite(lsb) and lsb > 0) or f"{name}_residual" not in f["imu"]:
-                    raise RecordingDamaged(f"{self.path}: dataset /imu/{name}: counts without a valid lsb/residual")
+                has_exc = "exceptions" in f["imu"] and name in f["imu/exceptions"]
+                if not (math.isfinite(lsb) and lsb > 0) or not has_exc:
+                    raise RecordingDamaged(f"{self.path}: dataset /imu/{name}: counts without a valid lsb/exceptions")
                 self._quanta[name] = lsb
+                with self._guard(f"/imu/exceptions/{name}"):
+                    exc = np.asarray(f["imu/exceptions"][name][()], dtype=EXC_DTYPE)
+                width = 1 if d.ndim == 1 else d.shape[1]
+                if exc.size and (
+                    np.any(np.diff(exc["row"]) < 0)
+                    or exc["row"][0] < 0
+                    or exc["row"][-1] >= self.n_samples
+                    or np.any((exc["col"] < 0) | (exc["col"] >= width))
+                ):
+                    raise RecordingDamaged(f"{self.path}: dataset /imu/exceptions/{name}: rows out of order or range")
+                self._exc[name] = exc
         if "table" in f and "time" in f["table"]:
             self.n_table = int(f["table/time"].shape[0])
             for name, d in f["table"].items():
@@ -835,6 +905,30 @@ class Recording:
                         f"{self.path}: dataset /{name} has no Fletcher-32 checksum in a format-2 recording; "
                         f"{self._fix()}"
                     )
+                self._check_chunks(name, obj)
+
+    def _check_chunks(self, name: str, d: h5py.Dataset) -> None:
+        """Every chunk of the dataset's extent is indexed exactly once, at its place, with every filter applied.
+
+        The chunk index (a B-tree) carries no checksum of its own: a damaged key would silently turn a chunk
+        into fill values, a damaged filter mask would skip the Fletcher-32 check.
+        """
+        rows = int(d.shape[0]) if d.shape else 1
+        step = int(d.chunks[0]) if d.chunks else rows
+        want = list(range(0, rows, step)) if d.shape else [0]
+        n = d.id.get_num_chunks()
+        got = []
+        for i in range(n):
+            info = d.id.get_chunk_info(i)
+            if info.filter_mask != 0 or any(info.chunk_offset[1:]) or info.size <= 0:
+                got = None
+                break
+            got.append(int(info.chunk_offset[0]) if d.shape else 0)
+        if got is None or sorted(got) != want:
+            raise RecordingDamaged(
+                f"{self.path}: dataset /{name}: its chunk index is damaged (chunks missing, misplaced or unfiltered); "
+                f"{self._fix()}"
+            )
 
     def _read_steps(self) -> list[StepRecord]:
         if "steps" not in self._f:
@@ -894,46 +988,42 @@ class Recording:
     def verify(self) -> None:
         """Read every dataset (Fletcher-32 of every chunk) and check every complete step's SHA-256.
 
+        The samples are read once, in large chunk-aligned blocks, each step's rows hashed as they pass.
+
         Raises
         ------
         RecordingDamaged
             Naming the file, the dataset and the step. Format-1 recordings: only the readability is checked.
         """
-        last_imu, last_tab = 0, 0
         v2 = self.header.format_version >= 2
-        for s in self.steps:
-            if s.status != "complete":
-                continue
-            h = _StepHasher()
-            for chunk in self.iter_samples(s.start_sample, s.end_sample, self.sample_fields, step=s):
-                if v2:
-                    for name in IMU_FIELDS:
-                        h.update("imu", name, getattr(chunk, name))
-            if v2:
-                with self._guard("/table", s):
-                    t = self._table_rows(s.table_start, s.table_end)
-                for name in TABLE_FIELDS:
-                    h.update("table", name, getattr(t, name))
-                if h.hexdigest() != s.sha256:
-                    raise RecordingDamaged(
-                        f"{self.path}: step {s.index} {s.name!r}: the SHA-256 of its rows (/imu "
-                        f"{s.start_sample}–{s.end_sample}, /table {s.table_start}–{s.table_end}) does not match the "
-                        f"one stored when the step closed; the data are damaged; {self._fix()}"
-                    )
-                last_tab = s.table_end
-            last_imu = s.end_sample
-        # rows after the last complete step, the table (format 1), events, texts and truth: readability
-        for _chunk in self.iter_samples(start=last_imu, fields=self.sample_fields):
-            pass
-        with self._guard("/table"):
-            self._table_rows(last_tab, self.n_table)
-        with self._guard("/events"):
-            self.events()
-        with self._guard("/bench_yaml, /procedure_yaml"):
-            self.bench_text  # noqa: B018 - read for the checksum
-            self.procedure_text  # noqa: B018
-        with self._guard("/truth"):
-            self.truth()
+        done = [s for s in self.steps if s.status == "complete"] if v2 else []
+        hashers = [_StepHasher() for _ in done]
+        first = 0
+        for chunk in self.iter_samples(fields=self.sample_fields):
+            a, b = chunk.start, chunk.start + len(chunk)
+            while first < len(done) and done[first].end_sample <= a:
+                first += 1
+            k = first
+            while k < len(done) and done[k].start_sample < b:
+                s = done[k]
+                lo, hi = max(a, s.start_sample) - a, min(b, s.end_sample) - a
+                for name in IMU_FIELDS:
+                    hashers[k].update("imu", name, getattr(chunk, name)[lo:hi])
+                k += 1
+        table = self.table()
+        for s, h in zip(done, hashers, strict=True):
+            for name in TABLE_FIELDS:
+                h.update("table", name, getattr(table, name)[s.table_start : s.table_end])
+            if h.hexdigest() != s.sha256:
+                raise RecordingDamaged(
+                    f"{self.path}: step {s.index} {s.name!r}: the SHA-256 of its rows (/imu "
+                    f"{s.start_sample}–{s.end_sample}, /table {s.table_start}–{s.table_end}) does not match the "
+                    f"one stored when the step closed; the data are damaged; {self._fix()}"
+                )
+        self.events()
+        self.bench_text  # noqa: B018 - read for its checksums
+        self.procedure_text  # noqa: B018
+        self.truth()
 
     # ---- typed access ------------------------------------------------------------------------------------
     def _read_text(self, name: str) -> str:
@@ -948,13 +1038,23 @@ class Recording:
         """The bench file's text as recorded ('' if absent); checked against ``bench_sha256`` when given."""
         with self._guard("/bench_yaml"):
             text = self._read_text("bench_yaml")
+        self._check_text("bench_yaml", text, self.header.bench_sha256)
         return text
 
     @property
     def procedure_text(self) -> str:
         """The procedure file's text as recorded ('' if absent)."""
         with self._guard("/procedure_yaml"):
-            return self._read_text("procedure_yaml")
+            text = self._read_text("procedure_yaml")
+        self._check_text("procedure_yaml", text, self.header.procedure_sha256)
+        return text
+
+    def _check_text(self, name: str, text: str, sha: str) -> None:
+        if self.header.format_version >= 2 and len(sha) == 64:
+            if hashlib.sha256(text.encode("utf-8")).hexdigest() != sha:
+                raise RecordingDamaged(
+                    f"{self.path}: dataset /{name}: the text does not match its SHA-256 in the header; {self._fix()}"
+                )
 
     def complete_steps(self) -> list[StepRecord]:
         """The steps with status "complete", in order."""
@@ -977,9 +1077,7 @@ class Recording:
     def _imu_rows(self, name: str, a: int, b: int) -> NDArray[Any]:
         d = self._imu_dataset(name)
         if name in self._quanta:
-            c = d[a:b]
-            r = self._f["imu"][name + "_residual"][a:b]
-            return _dequantise(c, r, self._quanta[name])
+            return _dequantise(d[a:b], self._quanta[name], self._exc.get(name), np.arange(a, max(a, b)))
         return np.asarray(d[a:b], dtype=_IMU_DTYPES[name])
 
     def samples(
@@ -996,13 +1094,12 @@ class Recording:
         start = max(0, int(start))
         out = Samples(start=start)
         for name in fields:
-            with self._guard(f"/imu/{name}", self._step_at(start)):
+            with self._guard(f"/imu/{name}", rows=(start, stop)):
                 if index is not None:
                     idx = np.asarray(index)
                     if name in self._quanta:
                         c = self._imu_dataset(name)[idx]
-                        r = self._f["imu"][name + "_residual"][idx]
-                        v = _dequantise(c, r, self._quanta[name])
+                        v = _dequantise(c, self._quanta[name], self._exc.get(name), idx.astype(np.int64))
                     else:
                         v = np.asarray(self._imu_dataset(name)[idx], dtype=_IMU_DTYPES[name])
                 else:
@@ -1026,16 +1123,22 @@ class Recording:
             b = min(stop, a + int(chunk))
             out = Samples(start=a)
             for name in fields:
-                with self._guard(f"/imu/{name}", step or self._step_at(a)):
-                    setattr(out, name, self._imu_rows(name, a, b))
+                try:
+                    with self._guard(f"/imu/{name}", step, rows=None if step else (a, b)):
+                        setattr(out, name, self._imu_rows(name, a, b))
+                except RecordingDamaged:
+                    self._locate(name, a, b, step)
+                    raise
             yield out
             a = b
 
-    def _step_at(self, sample: int) -> StepRecord | None:
-        for s in self.steps:
-            if s.start_sample <= sample < s.end_sample:
-                return s
-        return None
+    def _locate(self, name: str, a: int, b: int, step: StepRecord | None) -> None:
+        """Re-read rows [a, b) chunk by chunk; raise naming the first damaged chunk's rows and steps."""
+        c0 = a - a % IMU_CHUNK
+        for lo in range(c0, b, IMU_CHUNK):
+            lo, hi = max(lo, a), min(lo + IMU_CHUNK, b)
+            with self._guard(f"/imu/{name}", step, rows=None if step else (lo, hi)):
+                self._imu_rows(name, lo, hi)
 
     def _table_rows(self, a: int, b: int) -> TableReadings:
         if self.n_table == 0:
@@ -1071,8 +1174,14 @@ class Recording:
             return None
         with self._guard("/truth"):
             g = self._f["truth"]
-            params = {str(k): float(v) for k, v in g.attrs.items()}
-            arrays = {str(k): np.asarray(d[()], dtype=np.float64) for k, d in g.items()}
+            params, arrays = {}, {}
+            for k, v in g.attrs.items():
+                a = np.asarray(v, dtype=np.float64)
+                if a.ndim == 0:
+                    params[str(k)] = float(a)
+                else:
+                    arrays[str(k)] = a
+            arrays.update({str(k): np.asarray(d[()], dtype=np.float64) for k, d in g.items()})
         return Truth(params, arrays)
 
     def temperature_stats(self) -> dict[str, float]:

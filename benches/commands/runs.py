@@ -94,10 +94,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"{'':50s} resume: tablebench run --resume {r['path']}")
     damaged = [r for r in rows if r["status"] == "DAMAGED"]
     if damaged:
-        print(
-            f"tablebench runs: error: {len(damaged)} damaged recording(s); salvage the intact steps with "
-            f"'tablebench runs --salvage RUN'",
-            file=sys.stderr,
-        )
+        more = f" (and {len(damaged) - 1} more damaged recording(s), listed above)" if len(damaged) > 1 else ""
+        print(f"tablebench runs: error: {damaged[0]['problem']}{more}", file=sys.stderr)
         return 2
     return 0
