@@ -105,6 +105,34 @@ class CalibrationResult:
             x[PARAM_NAMES.index(n)] = 0.0
         return x, skipped
 
+    def summary(self) -> str:
+        """A readable table (display units; u = the identification's combined standard uncertainty, k = 1)."""
+        from analysis.units import DISPLAY_UNITS
+
+        result = self
+        lines = [f"{'param':8s} {'value':>12s} {'u (k=1)':>10s} {'unit':7s} {'err/u':>7s}  note"]
+        truth = result.extra.get("truth") or {}
+        for name, p in result.parameters.items():
+            unit, one = DISPLAY_UNITS[p.kind]
+            e = truth.get("error_over_u", {}).get(name)
+            note = "" if p.identified else "NOT IDENTIFIED (prior-dominated; not applied)"
+            e_txt = "" if e is None else f"{e:7.2f}"
+            lines.append(f"{name:8s} {p.value / one:12.4f} {p.u / one:10.4f} {unit:7s} {e_txt:>7s}  {note}")
+        info = result.extra.get("information") or {}
+        cond = info.get("condition")
+        cond_txt = f"{cond:.3g}" if isinstance(cond, float) else str(cond)
+        lines.append(f"information rank {info.get('rank')}/18, condition {cond_txt}; method {result.method}")
+        lines.append(
+            "u = the identification's combined standard uncertainty (white noise ⊕ correlated bias instability, "
+            "k = 1); the certificate adds table, gravity and model components and states U = 2u"
+        )
+        if truth:
+            lines.append(f"NEES {truth['nees']:.2f} over {truth['dof']} identified states (simulator truth)")
+        else:
+            lines.append("no simulator truth in the recording (a real bench): errors against truth not computed")
+        lines += [f"warning: {w}" for w in result.extra.get("warnings", [])]
+        return "\n".join(lines)
+
     # ---- (de)serialisation -------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         """calibration.json content (format version :data:`FORMAT_VERSION`)."""

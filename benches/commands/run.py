@@ -191,80 +191,19 @@ def run(args: argparse.Namespace) -> int:
     return _finish(args, folder, prep, live, todo)
 
 
-def verdict_explanation(certificate_json: Path, verdict: str) -> list[str]:
-    """Plain words for the run's closing lines: why the certificate says what it says, and what to do."""
-    import json
-
-    if verdict != "INCONCLUSIVE":
-        return []
-    try:
-        cert = json.loads(Path(certificate_json).read_text(encoding="utf-8"))
-        params = cert.get("parameters") or {}
-    except (OSError, ValueError):
-        return [f"the certificate is INCONCLUSIVE: conformity not shown for every parameter ({certificate_json})"]
-    not_eval = [n for n, p in params.items() if p.get("verdict") == "NOT EVALUATED" and p.get("limit") is not None]
-    undecided = [n for n, p in params.items() if p.get("verdict") == "UNDECIDED"]
-    out = ["the certificate is INCONCLUSIVE — this is not a failure: no parameter is outside its limit, but "
-           "conformity could not be shown for all of them."]  # fmt: skip
-    if not_eval:
-        sizes = [n for n in not_eval if n.startswith("r_")]
-        if sizes:
-            out.append(
-                f"  {', '.join(sizes)}: the size effect (the accelerometers' offsets from the rotation centre) "
-                "cannot be identified by this procedure: its spins are too slow (at the published 1.6 °/s the "
-                "effect is a few µg, below the unit's bias stability)."
-            )
-            out.append(
-                "  To calibrate it as well, run the procedure with fast spins: "
-                "tablebench run --procedure ten-step-fast-spin"
-            )
-        others = [n for n in not_eval if not n.startswith("r_")]
-        if others:
-            out.append(f"  {', '.join(others)}: not identified by this procedure (see the plan's warnings).")
-    if undecided:
-        out.append(
-            f"  {', '.join(undecided)}: the expanded uncertainty U straddles the limit (undecided); a longer or "
-            "better-conditioned procedure reduces U."
-        )
-    return out
-
-
 def _finish(args: argparse.Namespace, folder: Path, prep, live: list, todo: list[str]) -> int:
-    """Identify and certify a run whose recording is complete; an interruption says what is left to do."""
-    from benches.identify import IdentificationError, identify_run, write_calibration
+    """Identify and certify a run whose recording is complete (:func:`benches.session.identify_and_certify`);
+    an interruption says what is left to do."""
+    from benches.session import identify_and_certify
 
+    if args.no_certificate:
+        todo = [t for t in todo if t != "certificate"]
     done: list[str] = []
     try:
         with _StopSignalsRaise():
-            if "identification" in todo:
-                try:
-                    result = identify_run(folder, method="kalman")
-                except IdentificationError as exc:
-                    _say(f"identification not possible: {exc}")
-                    return 0
-                if live and live[0].filter.n_samples:
-                    # the live filter saw the same samples and readings (except replayed ones on resume)
-                    import numpy as np
-
-                    u_white = np.array([p.u_white for p in result.parameters.values()])
-                    diff = np.abs(live[0].filter.estimate - result.x) / u_white
-                    result.extra["live_vs_offline_max_u"] = float(diff.max())
-                path = write_calibration(result, folder / "calibration.json")
-                done.append("identification")
-                from benches.commands.identify import format_result
-
-                _say(format_result(result))
-                _say(f"calibration: {path}", err=False)
-            if "certificate" in todo and not args.no_certificate:
-                from benches.certificate import issue_certificate
-
-                pdf, js, verdict = issue_certificate(folder)
-                done.append("certificate")
-                _say(f"certificate: {pdf} ({verdict})", err=False)
-                for line in verdict_explanation(js, verdict):
-                    _say(line)
+            identify_and_certify(folder, todo, live=live[0] if live else None, say=_say, done=done)
     except KeyboardInterrupt:
-        left = [t for t in todo if t not in done and not (t == "certificate" and args.no_certificate)]
+        left = [t for t in todo if t not in done]
         _say(
             f"interrupted after the recording completed ({folder}/recording.h5 is complete and intact); "
             f"not done: {', '.join(left)}"

@@ -7,7 +7,7 @@ import json
 import numpy as np
 
 from benches.cli import main
-from benches.commands.run import verdict_explanation
+from benches.session import verdict_explanation
 from tests.certificate_fixtures import make_run_folder
 
 
