@@ -509,8 +509,10 @@ def build_certificate(
         from .plots import plot_convergence, plot_coverage, plot_residuals
 
         cert.plots["residuals"] = plot_residuals(per_step, noise_var)
-        if cal.get("history"):
-            cert.plots["convergence"] = plot_convergence(cal["history"], names, PARAM_KINDS, x)
+        if len((cal.get("history") or {}).get("time") or []) >= 2:  # a single update has nothing to converge
+            cert.plots["convergence"] = plot_convergence(
+                cal["history"], names, PARAM_KINDS, x, identified=list(cal_result.identified)
+            )
         cert.plots["coverage"] = plot_coverage(geometry)
     return cert
 
