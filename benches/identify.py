@@ -6,10 +6,11 @@ bench file (or R from the warm-up record), the reference specific force and body
 readings (:mod:`benches.reference`), and the samples from the acquisition windows of complete hold and spin
 steps (moves and settling excluded; the warm-up is used only to estimate R when asked).
 
-Uncertainty reported (``sigma``): the filter's covariance (white noise) plus the systematic term of the
-unit's bias instability (an unmodelled DC offset per step of σ = the bench's ``bias_instability``),
-propagated through the estimator exactly as the plan does. ``sigma_white`` is the filter's own 1σ.
-Results: ``calibration.json`` (format ``benches/CALIBRATION_FORMAT.md``).
+Uncertainty reported (``u``): the identification's combined standard uncertainty — the filter's covariance
+(white noise, ``u_white``) plus the unit's bias instability as correlated flicker between the steps'
+acquisition windows (:mod:`analysis.identification.bias_drift`), propagated through the estimator exactly as
+the plan does. The live display shows the filter's white-noise 1σ. Results: :class:`CalibrationResult`
+(``calibration.json``, ``benches/CALIBRATION_FORMAT.md``).
 """
 
 from __future__ import annotations
@@ -239,7 +240,7 @@ class LiveIdentifier:
                 k = PARAM_NAMES.index(name)
                 unit, one = DISPLAY_UNITS[PARAM_KINDS[k]]
                 parts.append(f"{name} {x[k] / one:.4g}±{s[k] / one:.2g} {unit}")
-            self.progress.extra(", ".join(parts))
+            self.progress.extra(", ".join(parts) + " (± = filter white-noise 1σ, k = 1)")
 
 
 # ---- offline: recording → arrays -------------------------------------------------------------------------------------
