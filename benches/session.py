@@ -347,7 +347,7 @@ def verdict_explanation(certificate_json: Path, verdict: str) -> list[str]:
         return [f"the certificate is INCONCLUSIVE: conformity not shown for every parameter ({certificate_json})"]
     not_eval = [n for n, p in params.items() if p.get("verdict") == "NOT EVALUATED" and p.get("limit") is not None]
     undecided = [n for n, p in params.items() if p.get("verdict") == "UNDECIDED"]
-    out = ["the certificate is INCONCLUSIVE — this is not a failure: no parameter is outside its limit, but "
+    out = ["the certificate is INCONCLUSIVE — this is not a failure: no parameter failed its limit, but "
            "conformity could not be shown for all of them."]  # fmt: skip
     if not_eval:
         sizes = [n for n in not_eval if n.startswith("r_")]

@@ -28,8 +28,9 @@ _VERDICT_COLOURS = {
     "NO LIMITS": (90, 90, 90),
 }
 _COMPONENT_SHORT = {
-    "estimation": "Estimation",
+    "white_noise": "White noise",
     "bias_instability": "Bias inst.",
+    "rate": "Table rate",
     "attitude": "Attitude",
     "local_g": "Local g",
     "model_mismatch": "Mismatch",
@@ -87,8 +88,8 @@ class _CertificatePdf(FPDF):
         self.cell(
             0,
             4,
-            f"{self.cert.number}{sim} · This certificate shall not be reproduced except in full without the written "
-            "approval of the issuing laboratory.",
+            f"{self.cert.number}{sim} · Not to be reproduced except in full without the issuing laboratory's "
+            "written approval.",
             align="L",
         )
         self.set_x(self.l_margin)
@@ -384,9 +385,9 @@ def _results_page(pdf: _CertificatePdf, c: Certificate) -> None:
 
 def _budget_page(pdf: _CertificatePdf, c: Certificate) -> None:
     pdf.add_page()
-    pdf.section("Uncertainty budget (standard uncertainties, display units)")
+    pdf.section("Uncertainty budget (standard uncertainties u, k = 1, display units; U = 2u)")
     keys = [comp["key"] for comp in c.budget_components]
-    head = ["Parameter", "Unit"] + [_COMPONENT_SHORT.get(k, k) for k in keys] + ["u_c", f"U (k={c.coverage_factor:g})"]
+    head = ["Parameter", "Unit"] + [_COMPONENT_SHORT.get(k, k) for k in keys] + ["u", f"U (k={c.coverage_factor:g})"]
     rows = []
     for p in c.parameters:
         u_c = p.display_expanded / c.coverage_factor
@@ -412,15 +413,16 @@ def _budget_page(pdf: _CertificatePdf, c: Certificate) -> None:
         pdf.para(f"• {comp['label']} (type {comp['type']}): {comp['source']}", size=7.8)
     pdf.ln(1)
     pdf.para(
-        "Method (GUM law of propagation, linearised estimator): the identification is the information "
-        "(Kalman/least-squares) solution x̂ = P(P0⁻¹x0 + ΣHᵀR⁻¹z), z = f_out − f_ref, so an error e in the reference "
-        "specific force moves the estimate by δx̂ = −PΣHᵀR⁻¹e. Table attitude: a small navigation-frame tilt δφ per "
-        "step, independent between steps, e = −[f×]C_n^b δφ, u = bound/√3 (rectangular). Local g: e = f·δg/g, fully "
-        "correlated over the run. Bias instability: an unknown constant offset per step and axis. Model mismatch: "
-        "per-step residual means scattering beyond noise and bias instability (propagated as per-step offsets), "
-        "plus residual variance beyond the noise model per step (sandwich P(ΣHᵀR⁻¹(β−1)H)P). u_c is the root sum "
-        "of squares of the components (they are uncorrelated by construction); the full combined covariance is "
-        "in the JSON certificate.",
+        "Method (GUM law of propagation, linear estimator): the budget starts from the identification's own "
+        "covariance — white noise (its posterior P) and the unit's bias instability as flicker correlated between "
+        "the steps, exactly as identified — and adds the type-B components through the same 18-parameter model: "
+        "an error e of the measurement equation z = f_out − f_ref moves the estimate by δx̂ = PΣHᵀR⁻¹e. Table "
+        "attitude: a small navigation-frame tilt δφ per step, independent between steps, e = [f×]C_n^b δφ, "
+        "u = bound/√3 (rectangular). Local g: e = f·δg/g, one δg for the run. Table rate (size effect): e = −2ε r̂∘c "
+        "during spins about the axis with rate error ε, u(ε) = bound/√3. Model mismatch: per-step residual means "
+        "scattering beyond what noise, flicker and attitude explain, propagated as per-step offsets. u is the root "
+        "sum of squares of the components (they are uncorrelated by construction), U = 2u; the full combined "
+        "covariance is in the JSON certificate.",
         size=7.6,
     )
     for n in c.budget_notes:
