@@ -81,10 +81,23 @@ def test_without_realisation_the_simulator_streams_are_unchanged(tmp_path):
     assert not np.any(a._dphi)
 
 
+def _gravity_draws(seeds: list[int]) -> np.ndarray:
+    import tempfile
+    from pathlib import Path
+
+    cfg = load_bench(coverage_bench(Path(tempfile.mkdtemp())))
+    return np.array(
+        [float(SimulatedWorld.from_bench(cfg, s).truth_arrays()["gravity_anomaly"]) for s in seeds]
+    ) / cfg.site.g_uncertainty
+
+
 @pytest.mark.slow
 def test_certificate_uncertainty_covers_the_truth_over_30_seeded_runs():
     res = run_coverage(32)
     report = {c: (round(res.fraction_outside(c), 3), round(res.rms_normalised(c), 2)) for c in CLASSES}
+    # the realised gravity anomalies (in u(g)): the three scale factors of a run share one draw, so the S class
+    # has an effective sample of ~32 runs, and a few large draws move its fraction by several %
+    report["g draws / u(g) beyond ±2"] = int(np.sum(np.abs(_gravity_draws(res.seeds)) > 2))
     for cls in CLASSES:
         frac, rms = res.fraction_outside(cls), res.rms_normalised(cls)
         assert 0.02 <= frac <= 0.09, report
