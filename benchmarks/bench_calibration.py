@@ -23,7 +23,7 @@ from benches.calibration_result import CalibrationResult
 from benches.identify import identify_run, plan_for
 from benches.session import prepare
 from benchmarks._results import write_section
-from benchmarks.coverage import CLASSES, REALISED, run_coverage
+from benchmarks.coverage import CLASSES, REALISED, gravity_draw_line, run_coverage
 from benchmarks.simruns import bench_at_rate, timed_run
 
 TARGET_OUTSIDE = (0.02, 0.09)
@@ -52,6 +52,7 @@ def coverage_section(n_runs: int, rate: float = 100.0) -> str:
         shares = ", ".join(f"{k} {100 * v:.0f} %" for k, v in res.share(cls).items() if v >= 0.005)
         n = res.errors.shape[0] * (sl.stop - sl.start)
         lines.append(f"| {cls} | {n} | {100 * frac:.1f} % | {rms:.2f} | {'yes' if ok else 'NO'} | {shares} |")
+    lines += ["", gravity_draw_line(res.seeds, rate)]
     lines += ["", "How the simulated bench exercises each budget component:", ""]
     for key, how in REALISED.items():
         lines.append(f"- `{key}`: {how}")
