@@ -455,6 +455,8 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
     warnings = list(actual.warnings)
     if rr.incomplete_steps:
         warnings.insert(0, f"recording incomplete: step(s) {', '.join(rr.incomplete_steps)} not completed")
+    if not rr.attrs.get("integrity_verified", False):
+        warnings.insert(0, str(rr.attrs.get("integrity_note") or "recording integrity cannot be verified"))
     a = rr.attrs
     temp = rr.temperature
     result = {
