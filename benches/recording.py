@@ -552,22 +552,16 @@ class Hdf5Recorder:
         return self._written + self._buffered
 
     def add_samples(self, block: ImuBlock) -> None:
-        """Buffer unit samples (hashed now, written at the next checkpoint)."""
+        """Buffer unit samples (hashed and written at the next checkpoint)."""
         if len(block) == 0:
             return
-        for name in IMU_FIELDS:
-            self._hasher.update("imu", name, getattr(block, name))
         self._buf_imu.append(block)
         self._buffered += len(block)
         if self._buffered >= self.checkpoint_samples:
             self.checkpoint(full=False)
 
     def add_table(self, state: TableState) -> None:
-        """Buffer one table reading."""
-        self._hasher.update("table", "time", np.array([state.time]))
-        self._hasher.update("table", "angles", np.asarray(state.angles, dtype=np.float64).reshape(1, 3))
-        self._hasher.update("table", "rates", np.asarray(state.rates, dtype=np.float64).reshape(1, 3))
-        self._hasher.update("table", "status", np.array([int(state.status)], dtype=np.uint16))
+        """Buffer one table reading (hashed and written at the next step-boundary checkpoint)."""
         self._buf_table.append(state)
 
     def event(self, time: float, level: str, message: str) -> None:
@@ -593,6 +587,7 @@ class Hdf5Recorder:
             if k > 0:
                 for name in IMU_FIELDS:
                     data = cols[name][:k]
+                    self._hasher.update("imu", name, data)
                     if name in self._quanta:
                         c, exc = _quantise(data, self._quanta[name], _COUNT_DTYPE[name])
                         if exc.size:
@@ -611,10 +606,15 @@ class Hdf5Recorder:
             return
         if self._buf_table:
             b = self._buf_table
-            self._append(f["table/time"], np.array([s.time for s in b], dtype=np.float64))
-            self._append(f["table/angles"], np.array([s.angles for s in b], dtype=np.float64).reshape(-1, 3))
-            self._append(f["table/rates"], np.array([s.rates for s in b], dtype=np.float64).reshape(-1, 3))
-            self._append(f["table/status"], np.array([int(s.status) for s in b], dtype=np.uint16))
+            tcols = {
+                "time": np.array([s.time for s in b], dtype=np.float64),
+                "angles": np.array([s.angles for s in b], dtype=np.float64).reshape(-1, 3),
+                "rates": np.array([s.rates for s in b], dtype=np.float64).reshape(-1, 3),
+                "status": np.array([int(s.status) for s in b], dtype=np.uint16),
+            }
+            for name, data in tcols.items():
+                self._hasher.update("table", name, data)
+                self._append(f["table"][name], data)
             self._table_written += len(b)
             self._buf_table.clear()
         if self._buf_events:
