@@ -27,6 +27,7 @@ import datetime as _dt
 import hashlib
 import json
 import math
+import zlib
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -339,6 +340,96 @@ class _StepHasher:
 # ---- writing -------------------------------------------------------------------------------------------------------
 
 
+def _fletcher32(data: bytes) -> int:
+    """HDF5's Fletcher-32 (``H5_checksum_fletcher32``): 16-bit big-endian words, folded every 360 words."""
+    b = np.frombuffer(data, np.uint8)
+    n = b.size // 2
+    w = (b[0 : 2 * n : 2].astype(np.uint64) << np.uint64(8)) | b[1 : 2 * n : 2]
+    sum1 = sum2 = 0
+    full = n // 360
+    weights = np.arange(360, 0, -1, dtype=np.uint64)
+    if full:
+        blk = w[: full * 360].reshape(full, 360)
+        s1, s2 = blk.sum(1).tolist(), (blk * weights).sum(1).tolist()
+        for a, c in zip(s1, s2, strict=True):
+            sum2 += 360 * sum1 + c
+            sum1 += a
+            sum1, sum2 = (sum1 & 0xFFFF) + (sum1 >> 16), (sum2 & 0xFFFF) + (sum2 >> 16)
+    rest = w[full * 360 :]
+    if rest.size:
+        t = rest.size
+        sum2 += t * sum1 + int((rest * weights[360 - t :]).sum())
+        sum1 += int(rest.sum())
+        sum1, sum2 = (sum1 & 0xFFFF) + (sum1 >> 16), (sum2 & 0xFFFF) + (sum2 >> 16)
+    if b.size % 2:
+        sum1 += int(b[-1]) << 8
+        sum2 += sum1
+        sum1, sum2 = (sum1 & 0xFFFF) + (sum1 >> 16), (sum2 & 0xFFFF) + (sum2 >> 16)
+    sum1, sum2 = (sum1 & 0xFFFF) + (sum1 >> 16), (sum2 & 0xFFFF) + (sum2 >> 16)
+    return ((sum2 << 16) | sum1) & 0xFFFFFFFF
+
+
+def _encode_chunk(chunk: NDArray[Any]) -> bytes:
+    """One chunk through HDF5's pipeline shuffle → deflate (level 1) → Fletcher-32, as the library would."""
+    it = chunk.dtype.itemsize
+    raw = np.ascontiguousarray(chunk).view(np.uint8).reshape(-1, it).T.tobytes()
+    z = zlib.compress(raw, 1)
+    return z + _fletcher32(z).to_bytes(4, "little")
+
+
+class _ChunkWriter:
+    """Writes the /imu datasets as whole encoded chunks; the encoding (shuffle, deflate, Fletcher-32 — the
+    filters the file declares, so any HDF5 reader decodes them) runs in a worker thread, because zlib
+    releases the GIL and h5py does not: compression then overlaps the run instead of slowing it.
+
+    Rows of the last, partly filled chunk are kept (``tail``) and that chunk is re-encoded when rows follow.
+    Chunks are written in submission order; :meth:`drain` with ``wait`` writes everything (step boundary).
+    """
+
+    def __init__(self, f: h5py.File, names: Sequence[str], chunk: int) -> None:
+        from collections import deque
+        from concurrent.futures import ThreadPoolExecutor
+
+        self.chunk = chunk
+        self.ds = {n: f["imu"][n] for n in names}
+        self.rows = {n: int(d.shape[0]) for n, d in self.ds.items()}
+        self.tail = {n: d[self.rows[n] - self.rows[n] % chunk : self.rows[n]] for n, d in self.ds.items()}
+        self.pending: Any = deque()
+        self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="recording-encoder")
+
+    def append(self, name: str, data: NDArray[Any]) -> None:
+        """Queue rows of dataset ``name`` (stored dtype) for encoding."""
+        d = self.ds[name]
+        tail = self.tail[name]
+        new = np.asarray(data, dtype=d.dtype)
+        rows = np.concatenate([tail, new]) if len(tail) else new
+        r0 = self.rows[name] - len(tail)
+        for off in range(0, len(rows), self.chunk):
+            part = rows[off : off + self.chunk]
+            buf = np.zeros((self.chunk, *d.shape[1:]), dtype=d.dtype)
+            buf[: len(part)] = part
+            self.pending.append((self.pool.submit(_encode_chunk, buf), name, r0 + off, r0 + off + len(part)))
+        left = len(rows) % self.chunk
+        self.tail[name] = rows[len(rows) - left :] if left else rows[:0]
+        self.rows[name] += len(new)
+
+    def drain(self, wait: bool) -> None:
+        """Write the encoded chunks (in order): those ready, or all of them with ``wait``."""
+        while self.pending and (wait or self.pending[0][0].done()):
+            fut, name, r0, r1 = self.pending.popleft()
+            d = self.ds[name]
+            if d.shape[0] < r1:
+                d.resize(r1, axis=0)
+            d.id.write_direct_chunk((r0,) + (0,) * (d.ndim - 1), fut.result(), 0)
+
+    def close(self) -> None:
+        """Write everything pending and stop the worker."""
+        try:
+            self.drain(True)
+        finally:
+            self.pool.shutdown(wait=True)
+
+
 class Recorder(Protocol):
     """What the runner writes a run through."""
 
@@ -449,6 +540,9 @@ class Hdf5Recorder:
             raise RecordingError(f"{self.path}: cannot write the recording ({exc})") from None
         self._written = int(self._file["imu/time"].shape[0])
         self._table_written = int(self._file["table/time"].shape[0])
+        self._chunks: _ChunkWriter | None = None
+        if self._filters.get("compression") == "gzip":
+            self._chunks = _ChunkWriter(self._file, IMU_FIELDS, IMU_CHUNK)
         self._table_step_start = self._table_written
 
     # ---- creation / resume -------------------------------------------------------------------------------
@@ -593,7 +687,9 @@ class Hdf5Recorder:
                         if exc.size:
                             exc["row"] += self._written
                             self._append(f["imu/exceptions"][name], exc)
-                        self._append(f["imu"][name], c)
+                        data = c
+                    if self._chunks is not None:
+                        self._chunks.append(name, data)
                     else:
                         self._append(f["imu"][name], data)
                 self._written += k
@@ -601,6 +697,8 @@ class Hdf5Recorder:
                 self._buffered = n - k
                 if k < n:
                     self._buf_imu.append(ImuBlock(**{name: cols[name][k:] for name in IMU_FIELDS}))
+        if self._chunks is not None:
+            self._chunks.drain(wait=full)
         if not full:
             f.flush()
             return
@@ -676,8 +774,12 @@ class Hdf5Recorder:
         try:
             self.checkpoint()
         finally:
-            self._file.close()
-            self._closed = True
+            try:
+                if self._chunks is not None:
+                    self._chunks.close()
+            finally:
+                self._file.close()
+                self._closed = True
 
 
 _COMPACT = (4096, 4000)  # attributes kept in the (checksummed) object header, never in a fractal heap
