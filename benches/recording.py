@@ -668,6 +668,24 @@ class Hdf5Recorder:
         d[n0:] = data
 
     def checkpoint(self, full: bool = True) -> None:
+        """Write buffered samples, table readings and events, then flush the file (RecordingError if it fails)."""
+        with self._writing():
+            self._checkpoint(full)
+
+    @contextlib.contextmanager
+    def _writing(self) -> Iterator[None]:
+        try:
+            yield
+        except RecordingError:
+            raise
+        except _H5_ERRORS as exc:
+            msg = str(exc).split("\n")[0]
+            raise RecordingError(
+                f"{self.path}: cannot write the recording ({exc.__class__.__name__}: {msg}); is the disk full? "
+                "The completed steps are kept; free space and resume the run"
+            ) from None
+
+    def _checkpoint(self, full: bool = True) -> None:
         """Write buffered samples, table readings and events, then flush the file.
 
         ``full=False`` (the periodic checkpoint inside a long step) writes only whole chunks of samples, so a
@@ -753,8 +771,9 @@ class Hdf5Recorder:
             ],
             dtype=STEP_DTYPE,
         )
-        self._append(self._file["steps"], row)
-        self._file.flush()
+        with self._writing():
+            self._append(self._file["steps"], row)
+            self._file.flush()
         self._hasher = _StepHasher()
         self._table_step_start = self._table_written
 
@@ -763,9 +782,10 @@ class Hdf5Recorder:
         if status not in STATUS_VALUES:
             raise ValueError(f"status must be one of {STATUS_VALUES}")
         self.checkpoint()
-        _set_attr(self._file, "status", status)
-        _set_attr(self._file, "updated_utc", _utc_now())
-        self._file.flush()
+        with self._writing():
+            _set_attr(self._file, "status", status)
+            _set_attr(self._file, "updated_utc", _utc_now())
+            self._file.flush()
 
     def close(self) -> None:
         """Flush and close; safe to call more than once."""
