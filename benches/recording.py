@@ -283,12 +283,9 @@ EXC_DTYPE = np.dtype([("row", np.int64), ("col", np.int8), ("value", np.float64)
 def _quantise(v: NDArray[np.float64], lsb: float, dtype: Any = np.int32) -> tuple[NDArray[Any], NDArray[Any]]:
     """Counts ``c`` with ``c * lsb == v`` bit for bit, and the exceptions (row, col, value) where it is not."""
     v = np.ascontiguousarray(v, dtype=np.float64)
-    limit = float(np.iinfo(dtype).max) / 2
     with np.errstate(invalid="ignore", over="ignore"):
-        q = np.rint(v / lsb)
-        ok = np.isfinite(q) & (np.abs(q) < limit)
-        c = np.where(ok, q, 0).astype(dtype)
-        back = c.astype(np.float64) * lsb
+        c = np.rint(v / lsb).astype(dtype)  # NaN, inf, out of range: garbage counts, caught just below
+        back = c * lsb
     bad = back.view(np.uint64) != v.view(np.uint64)
     if not bad.any():
         return c, np.zeros(0, EXC_DTYPE)
