@@ -177,6 +177,8 @@ class FrameDecoder:
         self._sync = np.frombuffer(desc.sync, np.uint8)
         self._trailer = np.frombuffer(desc.trailer, np.uint8)
         self._carry = np.zeros(0, dtype=np.uint8)
+        self._pos = 0  # stream offset of the carry-over's first byte
+        self._reject_end = 0  # stream offset where the span of the last counted reject ends
         self.total = DecodeStats()
 
     @property
@@ -186,11 +188,13 @@ class FrameDecoder:
 
     def reset(self) -> None:
         """Forget the carry-over buffer (after a reconnect)."""
+        self._pos += self._carry.size
         self._carry = np.zeros(0, dtype=np.uint8)
 
     def flush(self) -> DecodeStats:
         """End of stream: the carried bytes can never complete a frame; count them as garbage."""
         st = DecodeStats(garbage_bytes=int(self._carry.size))
+        self._pos += self._carry.size
         self._carry = np.zeros(0, dtype=np.uint8)
         self.total.add(st)
         return st
@@ -228,8 +232,11 @@ class FrameDecoder:
             decided_end = max(int(good[-1]) + L, m)
         else:
             decided_end = m
+        bad = bad[bad + self._pos >= self._reject_end]  # inside a reject counted in an earlier feed
         if bad.size > 1 and np.any(np.diff(bad) < L):
             bad = bad[_non_overlapping(bad, L)]  # a damaged frame is one reject, whatever its payload holds
+        if bad.size:
+            self._reject_end = max(self._reject_end, int(bad[-1]) + L + self._pos)
         stats.rejected = int(bad.size)
         stats.frames = int(good.size)
         trailer_bytes = 0
@@ -249,6 +256,7 @@ class FrameDecoder:
         garbage = decided_end - good.size * L - trailer_bytes
         stats.garbage_bytes = int(garbage)
         self._carry = buf[decided_end:].copy()
+        self._pos += decided_end
         batch = (
             FrameBatch(self.codec.values(good_rows), good_rows)
             if good.size

@@ -256,9 +256,9 @@ def load_frame(name_or_path: str, base_dir: str | Path | None = None) -> FrameDe
         path = frame_path(name_or_path, base_dir)
     except KeyError:
         raise ConfigError(
+            str(name_or_path),
             None,
-            None,
-            f"unknown frame format {name_or_path!r}; shipped: {', '.join(shipped_frames())} "
+            f"unknown frame format; shipped: {', '.join(shipped_frames())} "
             "(or give a path to a .yaml description)",
         ) from None
     data, smap, _text = load_yaml(path)

@@ -87,6 +87,8 @@ class SampleConverter:
         c = d.counter
         self.tracker = CounterTracker(c.modulus if c else 0, fmt.counter_step, start_index)
         self._last_temp: float | None = None
+        carried = {c.channel for c in fmt.conversions.values()}
+        self._absent = np.uint16(sum(1 << FLAG_BITS[ch] for ch in RECORDED if ch not in carried))
         self._time_last_raw: int | None = None
         self._time_unwrapped = 0
 
@@ -103,9 +105,10 @@ class SampleConverter:
             raw_counter = np.zeros(n, np.int64)
             chk = self.tracker.update_uncounted(n)
         keep = chk.keep
-        accel = np.zeros((n, 3))
-        gyro = np.zeros((n, 3))
-        status = np.zeros(n, dtype=np.uint16)
+        # a channel the format does not carry (STIM300 0x90 has no accelerometers) is NaN and flagged
+        accel = np.full((n, 3), np.nan)
+        gyro = np.full((n, 3), np.nan)
+        status = np.full(n, self._absent, dtype=np.uint16)
         temps: list[NDArray[np.float64]] = []
         extras: dict[str, NDArray] = {}
         time_si: NDArray[np.float64] | None = None
@@ -150,7 +153,8 @@ class SampleConverter:
                 for ch, bit in s.bits:
                     status[((raw >> bit) & 1) == 0] |= np.uint16(1 << FLAG_BITS[ch])
         temperature = self._temperature(temps, n)
-        status[~np.isfinite(temperature)] |= _TEMP_FLAG
+        if temps:  # a format without a temperature records NaN (not measured), which is not a fault
+            status[~np.isfinite(temperature)] |= _TEMP_FLAG
         index = chk.index
         if time_si is None:
             time_si = index.astype(np.float64) / rate
@@ -266,7 +270,9 @@ def encode_samples(
             raw = _raw_for(si[c.channel], c, rate, f.type)
             if c.channel == "time":
                 bits = 8 * TYPES[f.type][1]
-                raw = np.rint(si["time"] / c.factor).astype(np.int64) % (1 << min(bits, 63))
+                raw = np.rint(si["time"] / c.factor).astype(np.int64)
+                if bits < 63:
+                    raw = raw % (1 << bits)
             values[f.name] = raw
             continue
         values[f.name] = np.full(n, f.sim_value)
