@@ -70,10 +70,6 @@ class FrameBatch:
         return int(self.rows.shape[0])
 
 
-def _native(dt: np.dtype) -> np.dtype:
-    return dt.newbyteorder("=") if dt.byteorder not in ("=", "|") else dt
-
-
 class FrameCodec:
     """The compiled layout of one description: structured dtype, 24-bit fields, checksum engine."""
 
@@ -91,6 +87,11 @@ class FrameCodec:
             else:
                 formats.append(f.dtype())
         self.dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": desc.length})
+        self._wide_idx = np.array(
+            [[f.offset + i for i in ((0, 1, 2) if f.byte_order == "big" else (2, 1, 0))] for f in self.wide],
+            dtype=np.intp,
+        ).reshape(-1, 3)
+        self._wide_signed = np.array([f.type == "int24" for f in self.wide], dtype=np.int32)
         cs = desc.checksum
         self.crc = CrcEngine(cs.spec) if cs is not None else None
         if cs is not None:
@@ -100,22 +101,17 @@ class FrameCodec:
 
     # ---- fields ------------------------------------------------------------------------------------------
     def values(self, rows: NDArray[np.uint8]) -> dict[str, NDArray]:
-        """Field values of contiguous frame rows (k, length)."""
+        """Field values of contiguous frame rows (k, length): strided views of one structured view; the
+        24-bit fields of the frame are gathered and sign-extended together."""
         rec = np.ascontiguousarray(rows).view(self.dtype).reshape(-1)
-        out: dict[str, NDArray] = {}
-        wide = {f.name: f for f in self.wide}
-        for f in self.desc.fields:
-            if f.name in wide:
-                b = rec[f.name].astype(np.int64)
-                if f.byte_order == "big":
-                    v = (b[:, 0] << 16) | (b[:, 1] << 8) | b[:, 2]
-                else:
-                    v = (b[:, 2] << 16) | (b[:, 1] << 8) | b[:, 0]
-                if f.type == "int24":
-                    v = np.where(v >= 1 << 23, v - (1 << 24), v)
-                out[f.name] = v.astype(np.int32 if f.type == "int24" else np.uint32)
-            else:
-                out[f.name] = rec[f.name].astype(_native(f.dtype()))
+        out: dict[str, NDArray] = {f.name: rec[f.name] for f in self.desc.fields if f.size != 3}
+        if self.wide:
+            b = rows[:, self._wide_idx].astype(np.int32)  # (k, n_wide, 3), bytes in big-endian order
+            v = (b[:, :, 0] << 16) | (b[:, :, 1] << 8) | b[:, :, 2]
+            if self._wide_signed.any():
+                v -= (v >= 1 << 23) * self._wide_signed * (1 << 24)
+            for j, f in enumerate(self.wide):
+                out[f.name] = v[:, j] if f.type == "int24" else v[:, j].astype(np.uint32)
         return out
 
     def checksums_ok(self, rows: NDArray[np.uint8]) -> NDArray[np.bool_]:

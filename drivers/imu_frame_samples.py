@@ -91,6 +91,43 @@ class SampleConverter:
         self._absent = np.uint16(sum(1 << FLAG_BITS[ch] for ch in RECORDED if ch not in carried))
         self._time_last_raw: int | None = None
         self._time_unwrapped = 0
+        # plain (non-multiplexed) converted fields become the columns of one matrix, converted at once
+        plain = [
+            (f, fmt.conversions[f.name])
+            for f in d.fields
+            if not f.mux and f.name in fmt.conversions and f.name != d.time_field
+        ]
+        self._names = [f.name for f, _ in plain]
+        self._factor = np.array([c.factor * (fmt.sample_rate if c.increment else 1.0) for _, c in plain])
+        off = np.array([c.offset for _, c in plain])
+        self._offset = off if np.any(off) else None
+        col = {c.channel: j for j, (_, c) in enumerate(plain) if c.channel in RECORDED}
+        self._accel_cols = [col.get(f"accel_{a}", -1) for a in "xyz"]
+        self._gyro_cols = [col.get(f"gyro_{a}", -1) for a in "xyz"]
+        self._float_cols = [
+            (j, FLAG_BITS[c.channel])
+            for j, (f, c) in enumerate(plain)
+            if c.channel in RECORDED and f.type.startswith("float")
+        ]
+        self._temp_cols = [j for j, (_, c) in enumerate(plain) if c.channel == "temperature"]
+        self._extra_cols: list[tuple[str, int]] = []
+        seen: set[str] = set()
+        for j, (f, c) in enumerate(plain):
+            if c.channel not in RECORDED and c.channel != "temperature":
+                self._extra_cols.append((c.channel if c.channel not in seen else f.name, j))
+                seen.add(c.channel)
+        self._mux = [f for f in d.fields if f.mux]
+        self._has_temp = bool(self._temp_cols) or any(ch == "temperature" for f in self._mux for _, ch, _s, _u in f.mux)
+        self._status_masks = [(s, np.uint16(sum(1 << FLAG_BITS[ch] for ch in s.channels))) for s in d.status]
+
+    def _triad(self, si: NDArray[np.float64], cols: list[int], n: int) -> NDArray[np.float64]:
+        if min(cols) >= 0:
+            return si[:, cols]
+        out = np.full((n, 3), np.nan)  # a channel the format does not carry is NaN (and flagged)
+        for i, c in enumerate(cols):
+            if c >= 0:
+                out[:, i] = si[:, c]
+        return out
 
     def convert(self, batch: FrameBatch) -> Samples:
         """SI samples of ``batch`` (in stream order, duplicates removed)."""
@@ -104,74 +141,73 @@ class SampleConverter:
         else:
             raw_counter = np.zeros(n, np.int64)
             chk = self.tracker.update_uncounted(n)
-        keep = chk.keep
-        # a channel the format does not carry (STIM300 0x90 has no accelerometers) is NaN and flagged
-        accel = np.full((n, 3), np.nan)
-        gyro = np.full((n, 3), np.nan)
+        if self._names and n:
+            si = np.column_stack([vals[name] for name in self._names]) * self._factor
+            if self._offset is not None:
+                si += self._offset
+        else:
+            si = np.zeros((n, len(self._names)))
+        accel = self._triad(si, self._accel_cols, n)
+        gyro = self._triad(si, self._gyro_cols, n)
         status = np.full(n, self._absent, dtype=np.uint16)
+        for j, bit in self._float_cols:  # a non-finite float (KVH) flags its channel
+            bad = ~np.isfinite(si[:, j])
+            if bad.any():
+                status[bad] |= np.uint16(1 << bit)
         temps: list[NDArray[np.float64]] = []
-        extras: dict[str, NDArray] = {}
-        time_si: NDArray[np.float64] | None = None
-        for f in d.fields:
+        if len(self._temp_cols) == 1:
+            temps.append(si[:, self._temp_cols[0]])
+        elif self._temp_cols:
+            temps.append(si[:, self._temp_cols].mean(axis=1))
+        extras: dict[str, NDArray] = {name: si[:, j] for name, j in self._extra_cols}
+        for f in self._mux:
             raw = vals[f.name]
-            if f.mux:
-                sel = vals[f.mux_selector].astype(np.int64) % f.mux_modulus  # type: ignore[index]
-                for slot, ch, _s, _u in f.mux:
-                    c = fmt.conversions[(f.name, slot)]
-                    v = np.where(sel == slot, _si(raw, c, rate), np.nan)
-                    if ch == "temperature":
-                        temps.append(v)
-                    else:
-                        extras[ch] = v
-                continue
-            c = fmt.conversions.get(f.name)
-            if c is None:
-                continue
-            v = _si(raw, c, rate)
-            ch = c.channel
-            if ch in RECORDED:
-                i = RECORDED.index(ch)
-                (accel if i < 3 else gyro)[:, i % 3] = v
-                bad = ~np.isfinite(v)
-                if bad.any():
-                    status[bad] |= np.uint16(1 << FLAG_BITS[ch])
-            elif ch == "temperature":
-                temps.append(v)
-            elif ch == "time" and f.name == d.time_field:
-                time_si = self._time(raw, c)
+            sel = vals[f.mux_selector].astype(np.int64) % f.mux_modulus  # type: ignore[index]
+            for slot, ch, _s, _u in f.mux:
+                v = np.where(sel == slot, _si(raw, fmt.conversions[(f.name, slot)], rate), np.nan)
+                if ch == "temperature":
+                    temps.append(v)
+                else:
+                    extras[ch] = v
+        time_si: NDArray[np.float64] | None = None
+        if d.time_field is not None and n:
+            time_si = self._time(vals[d.time_field], fmt.conversions[d.time_field])
+        for st, mask in self._status_masks:
+            raw = vals[st.field]
+            extras[f"status:{st.field}"] = raw
+            if st.valid == "flags":
+                status |= (raw.astype(np.int64) & 0xFFFF).astype(np.uint16)
+            elif st.valid == "zero":
+                if mask:
+                    status[raw != 0] |= mask
             else:
-                extras[ch if ch not in extras else f.name] = v
-        for s in d.status:
-            raw = vals[s.field].astype(np.int64)
-            extras[f"status:{s.field}"] = vals[s.field]
-            if s.valid == "flags":
-                status |= (raw & 0xFFFF).astype(np.uint16)
-            elif s.valid == "zero":
-                mask = np.uint16(sum(1 << FLAG_BITS[ch] for ch in s.channels))
-                status[raw != 0] |= mask
-            else:
-                for ch, bit in s.bits:
-                    status[((raw >> bit) & 1) == 0] |= np.uint16(1 << FLAG_BITS[ch])
+                r = raw.astype(np.int64)
+                for ch, bit in st.bits:
+                    status[((r >> bit) & 1) == 0] |= np.uint16(1 << FLAG_BITS[ch])
         temperature = self._temperature(temps, n)
-        if temps:  # a format without a temperature records NaN (not measured), which is not a fault
+        if self._has_temp:  # a format without a temperature records NaN (not measured), which is not a fault
             status[~np.isfinite(temperature)] |= _TEMP_FLAG
         index = chk.index
         if time_si is None:
             time_si = index.astype(np.float64) / rate
-        out = Samples(
-            index=index[keep],
-            counter=raw_counter[keep],
-            time=time_si[keep],
-            accel=accel[keep],
-            gyro=gyro[keep],
-            temperature=temperature[keep],
-            status=status[keep],
-            extras={k: v[keep] for k, v in extras.items()},
+        if chk.duplicates:
+            keep = chk.keep
+            index, raw_counter, time_si = index[keep], raw_counter[keep], time_si[keep]
+            accel, gyro, temperature, status = accel[keep], gyro[keep], temperature[keep], status[keep]
+            extras = {k: v[keep] for k, v in extras.items()}
+        return Samples(
+            index=index,
+            counter=raw_counter,
+            time=time_si,
+            accel=accel,
+            gyro=gyro,
+            temperature=temperature,
+            status=status,
+            extras=extras,
             gaps=chk.gaps,
             resets=chk.resets,
             duplicates=chk.duplicates,
         )
-        return out
 
     def _time(self, raw: NDArray, c: Conversion) -> NDArray[np.float64]:
         """Time stamps in s; a wrapping stamp (``time.modulus``) is unwrapped across feeds."""
@@ -191,7 +227,7 @@ class SampleConverter:
     def _temperature(self, temps: list[NDArray[np.float64]], n: int) -> NDArray[np.float64]:
         if not temps:
             return np.full(n, np.nan)
-        t = temps[0] if len(temps) == 1 else np.nanmean(np.stack(temps), axis=0) if n else np.zeros(0)
+        t = temps[0] if len(temps) == 1 else np.nanmean(np.stack(temps), axis=0)
         if n and np.isnan(t).any():
             # multiplexed temperature: hold the last value sent (the first ones take the first value sent)
             ok = ~np.isnan(t)
