@@ -92,7 +92,8 @@ def main(argv: list[str] | None = None) -> None:
             f"| {rt_whole:,.0f}× |"
         )
         print(
-            f"{name:16s} {fmt.length:3d} B  0.2 s feeds {rt_block:6.0f}×, 1 s feeds {rt_second:6.0f}×, one feed {rt_whole:6.0f}×"
+            f"{name:16s} {fmt.length:3d} B  0.2 s feeds {rt_block:6.0f}×, 1 s feeds {rt_second:6.0f}×, "
+            f"one feed {rt_whole:6.0f}×"
         )
     body = [
         f"{seconds:.0f} s of 1 kHz frames per format (1 % preceded by garbage, 0.1 % with a flipped bit), decoded to "
