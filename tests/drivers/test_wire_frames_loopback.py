@@ -84,3 +84,36 @@ def test_ten_step_over_loopback_in_a_real_format_equals_in_process(tmp_path, ben
     sb = np.array([b["parameters"][p]["sigma_white"] for p in PARAM_NAMES])
     assert np.max(np.abs(xa - xb) / sb) < 0.05
     assert a["information"]["rank"] == b["information"]["rank"] == 18
+
+
+def test_samples_flagged_invalid_are_never_used(tmp_path):
+    """Samples whose status flags the accelerometers are left out of the identification and refused by the
+    analysis inputs; the same corrupted samples unflagged would wreck the estimate."""
+    import shutil
+
+    from benches.analysis_input import InputError, load_input
+
+    proc = _short_ten_step(tmp_path)
+    bench = _bench(tmp_path, "sim-kvh.yaml")
+    run = run_procedure(tmp_path, bench, str(proc), seed=5, out="clean", transport="in-process")
+    base = identify_run(run)
+    flagged, unflagged = tmp_path / "flagged", tmp_path / "unflagged"
+    for folder, flag in ((flagged, True), (unflagged, False)):
+        shutil.copytree(run, folder)
+        with h5py.File(folder / "recording.h5", "r+") as f:
+            steps = f["steps"][()]
+            row = steps[[s.decode() if isinstance(s, bytes) else s for s in steps["name"]].index("A/hold-1")]
+            a, b = int(row["acq_start"]), int(row["acq_start"]) + 100
+            f["imu/accel"][a:b, 0] += 1.0  # 0.1 g of rubbish on x
+            if flag:
+                f["imu/status"][a:b] = 1  # accel_x invalid
+    xs = {}
+    for key, folder in (("base", None), ("flagged", flagged), ("unflagged", unflagged)):
+        r = base if folder is None else identify_run(folder)
+        xs[key] = np.array([r["parameters"][p]["value"] for p in PARAM_NAMES])
+    sigma = np.array([base["parameters"][p]["sigma_white"] for p in PARAM_NAMES])
+    assert np.max(np.abs(xs["flagged"] - xs["base"]) / sigma) < 0.5
+    assert np.max(np.abs(xs["unflagged"] - xs["base"]) / sigma) > 5.0
+    with pytest.raises(InputError, match=r"100 sample\(s\) of accel_x flagged invalid"):
+        load_input(flagged, channels="accel_x")
+    assert load_input(flagged, channels="gyro_x").channels["gyro_x"].size > 0  # other channels stay usable
