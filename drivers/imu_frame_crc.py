@@ -95,6 +95,7 @@ class CrcEngine:
         self._dtype = {8: np.uint8, 16: np.uint16, 32: np.uint32}.get(w, np.uint32)
         self._fixed: dict[int, tuple[NDArray[np.unsignedinteger], int]] = {}
         self._offsets: dict[int, NDArray[np.intp]] = {}
+        self._flat: dict[int, NDArray[np.unsignedinteger]] = {}
         if spec.algorithm == "sum8":
             return
         top = 1 << (w - 1)
@@ -136,7 +137,8 @@ class CrcEngine:
         for _ in range(m):  # the init value pushed through m zero bytes
             const = self.table[const] if w == 8 else (const << eight) ^ self.table[np.uint8(const >> top)]
         self._fixed[m] = (tables, int(const))
-        self._offsets[m] = np.arange(m, dtype=np.intp) * 256
+        self._offsets[m] = (np.arange(m) * 256).astype(np.uint16 if m <= 256 else np.intp)
+        self._flat[m] = tables.ravel()
         return tables, int(const)
 
     def __call__(self, data: NDArray[np.uint8]) -> NDArray[np.unsignedinteger]:
@@ -150,8 +152,8 @@ class CrcEngine:
             return (d.sum(axis=1, dtype=np.uint64) & 0xFF).astype(np.uint8)
         if d.shape[1] <= 512:
             tables, const = self._position_tables(d.shape[1])
-            flat, offs = tables.ravel(), self._offsets[d.shape[1]]
-            contrib = np.ascontiguousarray(flat[d + offs].T)  # (m, k): reduce over the contiguous axis 0
+            flat, offs = self._flat[d.shape[1]], self._offsets[d.shape[1]]
+            contrib = flat[np.ascontiguousarray(d.T) + offs[:, None]]  # (m, k): reduce over the contiguous axis 0
             crc = np.bitwise_xor.reduce(contrib, axis=0) ^ self._dtype(const)
             crc = crc.astype(self._dtype)
             if s.refout:

@@ -150,10 +150,9 @@ class SampleConverter:
         accel = self._triad(si, self._accel_cols, n)
         gyro = self._triad(si, self._gyro_cols, n)
         status = np.full(n, self._absent, dtype=np.uint16)
-        for j, bit in self._float_cols:  # a non-finite float (KVH) flags its channel
-            bad = ~np.isfinite(si[:, j])
-            if bad.any():
-                status[bad] |= np.uint16(1 << bit)
+        if self._float_cols and not np.isfinite(si[:, [j for j, _ in self._float_cols]]).all():
+            for j, bit in self._float_cols:  # a non-finite float (KVH) flags its channel
+                status[~np.isfinite(si[:, j])] |= np.uint16(1 << bit)
         temps: list[NDArray[np.float64]] = []
         if len(self._temp_cols) == 1:
             temps.append(si[:, self._temp_cols[0]])
@@ -178,12 +177,14 @@ class SampleConverter:
             if st.valid == "flags":
                 status |= (raw.astype(np.int64) & 0xFFFF).astype(np.uint16)
             elif st.valid == "zero":
-                if mask:
+                if mask and raw.any():
                     status[raw != 0] |= mask
             else:
                 r = raw.astype(np.int64)
-                for ch, bit in st.bits:
-                    status[((r >> bit) & 1) == 0] |= np.uint16(1 << FLAG_BITS[ch])
+                valid_bits = sum(1 << bit for _ch, bit in st.bits)
+                if ((~r) & valid_bits).any():  # some channel not valid (rare): flag it
+                    for ch, bit in st.bits:
+                        status[((r >> bit) & 1) == 0] |= np.uint16(1 << FLAG_BITS[ch])
         temperature = self._temperature(temps, n)
         if self._has_temp:  # a format without a temperature records NaN (not measured), which is not a fault
             status[~np.isfinite(temperature)] |= _TEMP_FLAG

@@ -362,3 +362,12 @@ def test_a_users_description_file_decodes():
     rows = FrameCodec(fmt.desc).encode({"a": np.array([1000, -1000]), "c": np.array([7, 8])}, 2)
     s = SampleConverter(fmt).convert(FrameDecoder(fmt.desc).feed(b"\x01\x02" + rows.tobytes())[0])
     assert s.accel[:, 0].tolist() == [1000 * G0, -1000 * G0] and s.counter.tolist() == [7, 8]
+
+
+@pytest.mark.parametrize("name", ["crc-32/mpeg-2", "crc-16/ccitt-false", "crc-32", "crc-16/xmodem", "crc-8"])
+def test_per_position_crc_tables_equal_the_byte_loop(name):
+    engine = CrcEngine(CrcSpec.named(name))
+    rng = np.random.default_rng(7)
+    for m in (1, 2, 17, 55, 600):  # 600: beyond the table path, the byte loop itself
+        rows = rng.integers(0, 256, (40, m), dtype=np.uint8)
+        assert np.array_equal(engine(rows), engine._bytewise(rows))
