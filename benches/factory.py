@@ -143,7 +143,8 @@ def _open_simulated(config: Any, seed: int | None, transport: str, run_folder: A
             unit,
             world,
             "in-process",
-            f"{config.name}: simulated bench, in-process drivers",
+            f"{config.name}: simulated bench, in-process drivers (no byte stream: unit.frame "
+            f"{getattr(config.unit, 'frame', 'tablebench-v1')} and unit.keep_raw apply over loopback)",
             [table.close, unit.close],
         )
     from drivers.sim.loopback import Loopback

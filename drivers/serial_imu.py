@@ -225,6 +225,8 @@ class SerialInertialUnit:
                 reqs = [min(MAX_BURST, want - k) for k in range(0, want, MAX_BURST)]
                 self._io(self.port.write, "".join(f"BURST {r}\r\n" for r in reqs).encode("ascii"))
             deadline = time.monotonic() + self.timeout
+            frame_deadline = deadline  # bytes that never form a valid frame must not keep the read alive
+            garbage_seen = 0
             idle_since: float | None = None
             while have < n:
                 chunk = self._io(self.port.read, max(L, (n - have) * L - self.decoder.pending_bytes))
@@ -237,7 +239,15 @@ class SerialInertialUnit:
                     idle_since = None
                     batch, st = self.decoder.feed(chunk)
                     stats.add(st)
+                    garbage_seen += st.garbage_bytes
+                    if not len(batch) and now >= frame_deadline:
+                        raise LinkError(
+                            f"{self.name}: {garbage_seen} byte(s) received in {self.timeout:.3g} s but no valid "
+                            f"{self.format.name} frame; check the frame format and options, the baud rate and "
+                            "the unit's output configuration (tablebench decode on a capture shows what arrives)"
+                        )
                     if len(batch):
+                        frame_deadline = now + self.timeout
                         s = self.converter.convert(batch)
                         got.append(s)
                         have += len(s)

@@ -174,3 +174,24 @@ def test_decode_bad_input_is_one_line_exit_2(tmp_path, args, words):
     rc, _out, err = _cli(*argv)
     assert rc == 2 and err.count("\n") == 1 and "Traceback" not in err
     assert all(w in err for w in words), err
+
+
+def test_a_unit_speaking_another_format_is_a_link_error_not_a_hang():
+    import time
+
+    from drivers.protocols import LinkError
+
+    world = make_world(2)
+    kvh = compile_format(load_frame("kvh-1750-a"), None, world.sample_rate)
+    srv = SerialUnitServer(world, frame=kvh, stream_factor=5.0)  # streams KVH frames
+    port = serial.serial_for_url(srv.url, timeout=0.02)
+    try:
+        stim = compile_format(load_frame("stim300-0x93"), None, world.sample_rate)
+        unit = SerialInertialUnit(port, stim, world.sample_rate, timeout=0.5, polled=False)
+        t0 = time.monotonic()
+        with pytest.raises(LinkError, match="no valid stim300-0x93 frame"):
+            unit.read(100_000)
+        assert time.monotonic() - t0 < 3.0
+    finally:
+        port.close()
+        srv.close()
