@@ -1,9 +1,11 @@
-"""Raw inertial-unit output (integer counts, as on the wire) and its conversion to SI.
+"""Raw inertial-unit output of the simulated unit (integer counts) and its conversion to SI; counter checks.
 
-The simulated unit produces :class:`RawFrames`; the serial frame codec encodes and decodes exactly these;
-the in-process simulated unit and the serial driver both convert them to an SI
-:class:`~drivers.protocols.ImuBlock` with :func:`frames_to_block` and the unit's :class:`CountScale`, so
-both paths give identical samples.
+The simulated unit produces :class:`RawFrames` (counts in the bench's :class:`CountScale`); the in-process
+driver converts them to an SI :class:`~drivers.protocols.ImuBlock` with :func:`frames_to_block`, and the
+simulated serial unit puts them on the wire in the project's frame ``tablebench-v1`` unchanged (so both paths
+give identical samples) or re-quantised to another described format (:mod:`drivers.sim.serial_unit`).
+
+:class:`CounterTracker` judges a wrapping frame counter: gaps, resets and duplicates counted separately.
 """
 
 from __future__ import annotations

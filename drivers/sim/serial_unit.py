@@ -32,9 +32,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drivers.imu_counts import RawFrames, frames_to_block
+from drivers.imu_counts import CountScale, RawFrames, frames_to_block
 from drivers.imu_frame import FrameCodec
-from drivers.imu_frame_desc import FrameFormat
+from drivers.imu_frame_desc import DEFAULT_FRAME, FrameFormat, load_frame
 from drivers.imu_frame_samples import encode_samples
 from drivers.serial_imu import MAX_BURST, count_format
 from drivers.sim.tcp_server import SingleClientServer
@@ -70,7 +70,7 @@ class Corruption:
 
 
 def encode_frames(
-    frames: RawFrames, fmt: FrameFormat | None = None, scale: object = None, codec: FrameCodec | None = None
+    frames: RawFrames, fmt: FrameFormat | None = None, scale: CountScale | None = None, codec: FrameCodec | None = None
 ) -> bytes:
     """Wire bytes of simulated frames in format ``fmt`` (None: ``tablebench-v1``).
 
@@ -78,8 +78,8 @@ def encode_frames(
     ``scale``, a CountScale) quantised to its own fields, with the frame counter ``index × step mod modulus``.
     """
     n = len(frames)
-    if fmt is None or fmt.desc.name == "tablebench-v1":
-        codec = codec or FrameCodec(fmt.desc if fmt is not None else count_format_desc())
+    if fmt is None or fmt.desc.name == DEFAULT_FRAME:
+        codec = codec or FrameCodec(fmt.desc if fmt is not None else load_frame(DEFAULT_FRAME))
         c = frames.counts
         values = {
             "counter": frames.counter,
@@ -96,16 +96,9 @@ def encode_frames(
         return codec.encode(values, n).tobytes()
     if scale is None:
         raise ValueError("encoding simulated counts into another format needs the count scale")
-    b = frames_to_block(frames, scale)  # type: ignore[arg-type]
+    b = frames_to_block(frames, scale)
     rows = encode_samples(fmt, frames.counter.astype(np.int64), b.time, b.accel, b.gyro, b.temperature, codec=codec)
     return rows.tobytes()
-
-
-def count_format_desc():  # noqa: ANN201 - tiny helper
-    """The ``tablebench-v1`` description."""
-    from drivers.imu_frame_desc import load_frame
-
-    return load_frame("tablebench-v1")
 
 
 class _Corrupter:
