@@ -20,6 +20,7 @@ EXAMPLES = """examples:
   tablebench decode --frame stim300-0x93 --option accel_range_g=30 --rate 500 capture.bin --out s.npy
   tablebench decode --unit-config benches/sim-kvh.yaml runs/RUN/unit-raw.bin --out samples.npy
   tablebench decode --frame my-unit.yaml capture.bin          # summary only
+  tablebench decode --frame auto capture.bin                  # which shipped format is the unit sending?
 """
 
 CHUNK = 1 << 18
@@ -39,7 +40,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("capture", metavar="CAPTURE.bin", help="raw bytes as read from the unit")
-    p.add_argument("--frame", default=None, metavar="FORMAT|FILE.yaml", help="frame format (default: the bench's)")
+    p.add_argument(
+        "--frame",
+        default=None,
+        metavar="FORMAT|FILE.yaml",
+        help="frame format: a shipped name, a description .yaml, or 'auto' (detect among the shipped ones)",
+    )
     p.add_argument(
         "--unit-config",
         default=None,
@@ -85,11 +91,46 @@ def _format(args: argparse.Namespace):  # noqa: ANN202 - returns FrameFormat
     rate = 1000.0 if rate is None else rate
     if not np.isfinite(rate) or rate <= 0:
         raise UsageError(f"--rate must be a positive number of Hz, got {rate}")
+    if frame == "auto":
+        frame = _detect(Path(args.capture))
     desc = load_frame(frame, Path.cwd())
     try:
         return compile_format(desc, options, rate, where="--option")
     except ValueError as exc:
         raise UsageError(str(exc)) from None
+
+
+def detect_formats(data: bytes) -> list[tuple[int, str]]:
+    """(frames with a valid checksum, name) of every shipped format in ``data``, most frames first."""
+    from drivers.imu_frame import FrameDecoder
+    from drivers.imu_frame_desc import load_frame, shipped_frames
+
+    found = []
+    for name in shipped_frames():
+        dec = FrameDecoder(load_frame(name))
+        dec.feed(data)
+        if dec.total.frames:
+            found.append((dec.total.frames, name))
+    return sorted(found, reverse=True)
+
+
+def _detect(path: Path) -> str:
+    try:
+        with path.open("rb") as fh:
+            head = fh.read(1 << 16)
+    except OSError as exc:
+        raise UsageError(f"{path}: cannot read the capture ({exc.strerror})") from None
+    found = detect_formats(head)
+    if not found:
+        raise UsageError(
+            f"{path}: no shipped frame format found in the first {len(head)} bytes; check the baud rate, or give "
+            "--frame FILE.yaml for the unit's own format"
+        )
+    print(
+        f"detected {found[0][1]} ({found[0][0]} frames in the first {len(head)} bytes); the output units and "
+        "range are the unit's configuration, not in the frame: give them with --option"
+    )
+    return found[0][1]
 
 
 def decode_file(path: Path, fmt):  # noqa: ANN001, ANN201 - (Samples, DecodeStats)

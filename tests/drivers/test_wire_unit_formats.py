@@ -195,3 +195,11 @@ def test_a_unit_speaking_another_format_is_a_link_error_not_a_hang():
     finally:
         port.close()
         srv.close()
+
+
+@pytest.mark.parametrize("name", ["kvh-1750-c", "stim300-0x93", "stim300-0xf5", "tablebench-v1"])
+def test_decode_auto_detects_the_shipped_format(tmp_path, name):
+    cap = _capture(tmp_path, name)
+    rc, out, err = _cli("decode", "--frame", "auto", str(cap))
+    assert rc == 0, err
+    assert out.startswith(f"detected {name} (") and "frames 351," in out
