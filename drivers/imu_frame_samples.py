@@ -114,8 +114,9 @@ class SampleConverter:
         seen: set[str] = set()
         for j, (f, c) in enumerate(plain):
             if c.channel not in RECORDED and c.channel != "temperature":
-                self._extra_cols.append((c.channel if c.channel not in seen else f.name, j))
-                seen.add(c.channel)
+                ch = "unit_time" if c.channel == "time" else c.channel  # a time stamp not used as bench time
+                self._extra_cols.append((ch if ch not in seen else f.name, j))
+                seen.add(ch)
         self._mux = [f for f in d.fields if f.mux]
         self._has_temp = bool(self._temp_cols) or any(ch == "temperature" for f in self._mux for _, ch, _s, _u in f.mux)
         self._status_masks = [(s, np.uint16(sum(1 << FLAG_BITS[ch] for ch in s.channels))) for s in d.status]
