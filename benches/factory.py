@@ -91,7 +91,8 @@ def _raw_sink(config: Any, run_folder: Any, closers: list[Any]) -> tuple[Any, st
     except OSError as exc:
         raise _bad(config, f"unit.keep_raw: cannot write {path} ({exc.strerror})") from None
     closers.append(fh.close)
-    return fh, RAW_FILE
+    start = fh.seek(0, 2)  # a resumed run appends: say where this session's bytes begin
+    return fh, RAW_FILE if start == 0 else f"{RAW_FILE} (this session from byte {start})"
 
 
 def open_bench(config: Any, *, seed: int | None = None, transport: str | None = None, run_folder: Any = None) -> Bench:
