@@ -56,7 +56,7 @@ def count_format(scale: CountScale, sample_rate: float) -> FrameFormat:
     return compile_format(load_frame("tablebench-v1"), opts, sample_rate)
 
 
-def _empty(n_extra: dict[str, Any] | None = None) -> Samples:
+def _empty() -> Samples:
     z = np.zeros(0)
     return Samples(
         np.zeros(0, np.int64), np.zeros(0, np.int64), z, np.zeros((0, 3)), np.zeros((0, 3)), z, np.zeros(0, np.uint16)
