@@ -213,26 +213,26 @@ class FrameDecoder:
         cand = np.flatnonzero(hit)
         rows = buf[cand[:, None] + np.arange(L)] if cand.size else np.zeros((0, L), np.uint8)
         ok = self.codec.checksums_ok(rows)
-        good, bad = cand[ok], cand[~ok]
-        if good.size > 1 and np.any(np.diff(good) < L):
+        if ok.all():  # the common case of a clean stream with a multi-byte sync
+            good, bad, good_rows = cand, cand[:0], rows
+        else:
+            good, bad, good_rows = cand[ok], cand[~ok], rows[ok]
+        if good.size > 1 and (np.diff(good) < L).any():
             keep = _non_overlapping(good, L)
-            good_rows = rows[ok][keep]
+            good_rows = good_rows[keep]
             good = good[keep]
-        else:
-            good_rows = rows[ok]
-        if good.size:
-            # candidates inside an accepted frame are payload, not rejects
-            inside = np.searchsorted(good, bad, side="right") - 1
-            covered = (inside >= 0) & (bad < good[np.maximum(inside, 0)] + L)
-            bad = bad[~covered]
-            decided_end = max(int(good[-1]) + L, m)
-        else:
-            decided_end = m
-        bad = bad[bad + self._pos >= self._reject_end]  # inside a reject counted in an earlier feed
-        if bad.size > 1 and np.any(np.diff(bad) < L):
-            bad = bad[_non_overlapping(bad, L)]  # a damaged frame is one reject, whatever its payload holds
+        decided_end = max(int(good[-1]) + L, m) if good.size else m
         if bad.size:
-            self._reject_end = max(self._reject_end, int(bad[-1]) + L + self._pos)
+            if good.size:
+                # candidates inside an accepted frame are payload, not rejects
+                inside = np.searchsorted(good, bad, side="right") - 1
+                covered = (inside >= 0) & (bad < good[np.maximum(inside, 0)] + L)
+                bad = bad[~covered]
+            bad = bad[bad + self._pos >= self._reject_end]  # inside a reject counted in an earlier feed
+            if bad.size > 1 and (np.diff(bad) < L).any():
+                bad = bad[_non_overlapping(bad, L)]  # a damaged frame is one reject, whatever its payload holds
+            if bad.size:
+                self._reject_end = max(self._reject_end, int(bad[-1]) + L + self._pos)
         stats.rejected = int(bad.size)
         stats.frames = int(good.size)
         trailer_bytes = 0
@@ -241,8 +241,8 @@ class FrameDecoder:
             ends = good + L
             fits = ends + t <= n
             e = ends[fits]
-            tr = np.ones(e.size, dtype=bool)
-            for j in range(t):
+            tr = buf[e] == self._trailer[0]
+            for j in range(1, t if tr.any() else 0):
                 tr &= buf[e + j] == self._trailer[j]
             nxt = np.append(good[1:], np.iinfo(np.int64).max)[fits]
             tr &= e + t <= nxt  # the trailer must not overlap the next frame
