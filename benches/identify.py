@@ -260,6 +260,11 @@ def _sha256_file(path: Path) -> str:
     return h.hexdigest()
 
 
+ACCEL_INVALID = 0b111
+"""``/imu/status`` bits of the accelerometer channels (bit set = sample invalid, drivers.imu_frame_desc.FLAG_BITS):
+flagged samples are left out of the identification, never silently used."""
+
+
 def load_run(run: str | Path) -> RecordedRun:
     """Read a recording's acquisition windows and reference; clear errors for unusable recordings.
 
@@ -298,9 +303,14 @@ def load_run(run: str | Path) -> RecordedRun:
                 continue
             if s.kind not in ACQUISITION_KINDS:
                 continue
-            smp = rec.samples(s.acq_start, s.acq_end, ("time", "accel"))
-            t, fo = smp.time, smp.accel
-            assert t is not None and fo is not None
+            smp = rec.samples(s.acq_start, s.acq_end, ("time", "accel", "status"))
+            t, fo, st = smp.time, smp.accel, smp.status
+            assert t is not None and fo is not None and st is not None
+            valid = (st & ACCEL_INVALID) == 0  # flagged by the unit
+            if not valid.all():
+                t, fo = t[valid], fo[valid]
+                if t.size == 0:
+                    continue
             ang, rat = interpolate_table(t - latency, table.time, table.angles, table.rates)
             fr, om = reference_at(ang, rat, config.site.g, config.unit.mounting)
             windows.append(StepWindow(s.name, s.kind, t, fo, fr, om))
