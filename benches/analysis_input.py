@@ -169,11 +169,13 @@ def _load_recording(path: Path, rate: float | None, wanted: str | None, step: st
             except RecordingError as exc:
                 raise InputError(str(exc)) from None
             start, stop = s.start_sample, s.end_sample
+        fields = ("accel", "gyro", "status") if "status" in rec.sample_fields else ("accel", "gyro")
         try:
-            smp = rec.samples(start, stop, ("accel", "gyro"))
+            smp = rec.samples(start, stop, fields)
         except RecordingError as exc:
             raise InputError(str(exc)) from None
     accel, gyro = smp.accel, smp.gyro
+    status = smp.status if smp.status is not None else np.zeros(0, np.uint16)
     assert accel is not None and gyro is not None
     channels = {
         "accel_x": accel[:, 0],
@@ -185,6 +187,13 @@ def _load_recording(path: Path, rate: float | None, wanted: str | None, step: st
     }
     channels = {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in channels.items()}
     sel = _select(channels, wanted, source)
+    mask = sum(1 << RECORDING_CHANNELS.index(s) for s in sel)  # status bit i = channel i invalid
+    flagged = np.flatnonzero(status & mask)
+    if flagged.size:
+        raise InputError(
+            f"{source}: {flagged.size} sample(s) of {', '.join(sel)} flagged invalid by the unit's status, first at "
+            f"sample {start + int(flagged[0])}; analyse a clean step with --step NAME"
+        )
     data = np.stack([channels[s] for s in sel], axis=1) if sel else np.zeros((0, 0))
     _finite_columns(data, sel, source)
     result = AnalysisInput(source, file_rate, {s: channels[s] for s in sel}, {s: CHANNEL_UNITS[s] for s in sel})

@@ -281,6 +281,11 @@ def _sha256_file(path: Path) -> str:
     return h.hexdigest()
 
 
+ACCEL_INVALID = 0b111
+"""``/imu/status`` bits of the accelerometer channels (bit set = sample invalid, drivers.imu_frame_desc.FLAG_BITS):
+flagged samples are left out of the identification, never silently used."""
+
+
 def load_run(run: str | Path) -> RecordedRun:
     """Read a recording's acquisition windows and reference; clear errors for unusable recordings.
 
@@ -319,9 +324,14 @@ def load_run(run: str | Path) -> RecordedRun:
                 continue
             if s.kind not in ACQUISITION_KINDS:
                 continue
-            smp = rec.samples(s.acq_start, s.acq_end, ("time", "accel"))
-            t, fo = smp.time, smp.accel
-            assert t is not None and fo is not None
+            smp = rec.samples(s.acq_start, s.acq_end, ("time", "accel", "status"))
+            t, fo, st = smp.time, smp.accel, smp.status
+            assert t is not None and fo is not None and st is not None
+            valid = (st & ACCEL_INVALID) == 0  # flagged by the unit
+            if not valid.all():
+                t, fo = t[valid], fo[valid]
+                if t.size == 0:
+                    continue
             span = acquisition_span(float(t[0]), float(t[-1]), latency, float(config.unit.sample_rate))
             fr, om, ang = reference_for_samples(
                 t, table.time, table.angles, table.rates, g=config.site.g, mounting=config.unit.mounting,
@@ -479,6 +489,8 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
     warnings = list(actual.warnings)
     if rr.incomplete_steps:
         warnings.insert(0, f"recording incomplete: step(s) {', '.join(rr.incomplete_steps)} not completed")
+    if not rr.attrs.get("integrity_verified", False):
+        warnings.insert(0, str(rr.attrs.get("integrity_note") or "recording integrity cannot be verified"))
     a = rr.attrs
     temp = rr.temperature
     result = {

@@ -27,6 +27,7 @@ import datetime as _dt
 import hashlib
 import json
 import math
+import zlib
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -282,12 +283,9 @@ EXC_DTYPE = np.dtype([("row", np.int64), ("col", np.int8), ("value", np.float64)
 def _quantise(v: NDArray[np.float64], lsb: float, dtype: Any = np.int32) -> tuple[NDArray[Any], NDArray[Any]]:
     """Counts ``c`` with ``c * lsb == v`` bit for bit, and the exceptions (row, col, value) where it is not."""
     v = np.ascontiguousarray(v, dtype=np.float64)
-    limit = float(np.iinfo(dtype).max) / 2
     with np.errstate(invalid="ignore", over="ignore"):
-        q = np.rint(v / lsb)
-        ok = np.isfinite(q) & (np.abs(q) < limit)
-        c = np.where(ok, q, 0).astype(dtype)
-        back = c.astype(np.float64) * lsb
+        c = np.rint(v / lsb).astype(dtype)  # NaN, inf, out of range: garbage counts, caught just below
+        back = c * lsb
     bad = back.view(np.uint64) != v.view(np.uint64)
     if not bad.any():
         return c, np.zeros(0, EXC_DTYPE)
@@ -337,6 +335,96 @@ class _StepHasher:
 
 
 # ---- writing -------------------------------------------------------------------------------------------------------
+
+
+def _fletcher32(data: bytes) -> int:
+    """HDF5's Fletcher-32 (``H5_checksum_fletcher32``): 16-bit big-endian words, folded every 360 words."""
+    b = np.frombuffer(data, np.uint8)
+    n = b.size // 2
+    w = (b[0 : 2 * n : 2].astype(np.uint64) << np.uint64(8)) | b[1 : 2 * n : 2]
+    sum1 = sum2 = 0
+    full = n // 360
+    weights = np.arange(360, 0, -1, dtype=np.uint64)
+    if full:
+        blk = w[: full * 360].reshape(full, 360)
+        s1, s2 = blk.sum(1).tolist(), (blk * weights).sum(1).tolist()
+        for a, c in zip(s1, s2, strict=True):
+            sum2 += 360 * sum1 + c
+            sum1 += a
+            sum1, sum2 = (sum1 & 0xFFFF) + (sum1 >> 16), (sum2 & 0xFFFF) + (sum2 >> 16)
+    rest = w[full * 360 :]
+    if rest.size:
+        t = rest.size
+        sum2 += t * sum1 + int((rest * weights[360 - t :]).sum())
+        sum1 += int(rest.sum())
+        sum1, sum2 = (sum1 & 0xFFFF) + (sum1 >> 16), (sum2 & 0xFFFF) + (sum2 >> 16)
+    if b.size % 2:
+        sum1 += int(b[-1]) << 8
+        sum2 += sum1
+        sum1, sum2 = (sum1 & 0xFFFF) + (sum1 >> 16), (sum2 & 0xFFFF) + (sum2 >> 16)
+    sum1, sum2 = (sum1 & 0xFFFF) + (sum1 >> 16), (sum2 & 0xFFFF) + (sum2 >> 16)
+    return ((sum2 << 16) | sum1) & 0xFFFFFFFF
+
+
+def _encode_chunk(chunk: NDArray[Any]) -> bytes:
+    """One chunk through HDF5's pipeline shuffle → deflate (level 1) → Fletcher-32, as the library would."""
+    it = chunk.dtype.itemsize
+    raw = np.ascontiguousarray(chunk).view(np.uint8).reshape(-1, it).T.tobytes()
+    z = zlib.compress(raw, 1)
+    return z + _fletcher32(z).to_bytes(4, "little")
+
+
+class _ChunkWriter:
+    """Writes the /imu datasets as whole encoded chunks; the encoding (shuffle, deflate, Fletcher-32 — the
+    filters the file declares, so any HDF5 reader decodes them) runs in a worker thread, because zlib
+    releases the GIL and h5py does not: compression then overlaps the run instead of slowing it.
+
+    Rows of the last, partly filled chunk are kept (``tail``) and that chunk is re-encoded when rows follow.
+    Chunks are written in submission order; :meth:`drain` with ``wait`` writes everything (step boundary).
+    """
+
+    def __init__(self, f: h5py.File, names: Sequence[str], chunk: int) -> None:
+        from collections import deque
+        from concurrent.futures import ThreadPoolExecutor
+
+        self.chunk = chunk
+        self.ds = {n: f["imu"][n] for n in names}
+        self.rows = {n: int(d.shape[0]) for n, d in self.ds.items()}
+        self.tail = {n: d[self.rows[n] - self.rows[n] % chunk : self.rows[n]] for n, d in self.ds.items()}
+        self.pending: Any = deque()
+        self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="recording-encoder")
+
+    def append(self, name: str, data: NDArray[Any]) -> None:
+        """Queue rows of dataset ``name`` (stored dtype) for encoding."""
+        d = self.ds[name]
+        tail = self.tail[name]
+        new = np.asarray(data, dtype=d.dtype)
+        rows = np.concatenate([tail, new]) if len(tail) else new
+        r0 = self.rows[name] - len(tail)
+        for off in range(0, len(rows), self.chunk):
+            part = rows[off : off + self.chunk]
+            buf = np.zeros((self.chunk, *d.shape[1:]), dtype=d.dtype)
+            buf[: len(part)] = part
+            self.pending.append((self.pool.submit(_encode_chunk, buf), name, r0 + off, r0 + off + len(part)))
+        left = len(rows) % self.chunk
+        self.tail[name] = rows[len(rows) - left :] if left else rows[:0]
+        self.rows[name] += len(new)
+
+    def drain(self, wait: bool) -> None:
+        """Write the encoded chunks (in order): those ready, or all of them with ``wait``."""
+        while self.pending and (wait or self.pending[0][0].done()):
+            fut, name, r0, r1 = self.pending.popleft()
+            d = self.ds[name]
+            if d.shape[0] < r1:
+                d.resize(r1, axis=0)
+            d.id.write_direct_chunk((r0,) + (0,) * (d.ndim - 1), fut.result(), 0)
+
+    def close(self) -> None:
+        """Write everything pending and stop the worker."""
+        try:
+            self.drain(True)
+        finally:
+            self.pool.shutdown(wait=True)
 
 
 class Recorder(Protocol):
@@ -449,6 +537,9 @@ class Hdf5Recorder:
             raise RecordingError(f"{self.path}: cannot write the recording ({exc})") from None
         self._written = int(self._file["imu/time"].shape[0])
         self._table_written = int(self._file["table/time"].shape[0])
+        self._chunks: _ChunkWriter | None = None
+        if self._filters.get("compression") == "gzip":
+            self._chunks = _ChunkWriter(self._file, IMU_FIELDS, IMU_CHUNK)
         self._table_step_start = self._table_written
 
     # ---- creation / resume -------------------------------------------------------------------------------
@@ -552,22 +643,16 @@ class Hdf5Recorder:
         return self._written + self._buffered
 
     def add_samples(self, block: ImuBlock) -> None:
-        """Buffer unit samples (hashed now, written at the next checkpoint)."""
+        """Buffer unit samples (hashed and written at the next checkpoint)."""
         if len(block) == 0:
             return
-        for name in IMU_FIELDS:
-            self._hasher.update("imu", name, getattr(block, name))
         self._buf_imu.append(block)
         self._buffered += len(block)
         if self._buffered >= self.checkpoint_samples:
             self.checkpoint(full=False)
 
     def add_table(self, state: TableState) -> None:
-        """Buffer one table reading."""
-        self._hasher.update("table", "time", np.array([state.time]))
-        self._hasher.update("table", "angles", np.asarray(state.angles, dtype=np.float64).reshape(1, 3))
-        self._hasher.update("table", "rates", np.asarray(state.rates, dtype=np.float64).reshape(1, 3))
-        self._hasher.update("table", "status", np.array([int(state.status)], dtype=np.uint16))
+        """Buffer one table reading (hashed and written at the next step-boundary checkpoint)."""
         self._buf_table.append(state)
 
     def event(self, time: float, level: str, message: str) -> None:
@@ -580,6 +665,24 @@ class Hdf5Recorder:
         d[n0:] = data
 
     def checkpoint(self, full: bool = True) -> None:
+        """Write buffered samples, table readings and events, then flush the file (RecordingError if it fails)."""
+        with self._writing():
+            self._checkpoint(full)
+
+    @contextlib.contextmanager
+    def _writing(self) -> Iterator[None]:
+        try:
+            yield
+        except RecordingError:
+            raise
+        except _H5_ERRORS as exc:
+            msg = str(exc).split("\n")[0]
+            raise RecordingError(
+                f"{self.path}: cannot write the recording ({exc.__class__.__name__}: {msg}); is the disk full? "
+                "The completed steps are kept; free space and resume the run"
+            ) from None
+
+    def _checkpoint(self, full: bool = True) -> None:
         """Write buffered samples, table readings and events, then flush the file.
 
         ``full=False`` (the periodic checkpoint inside a long step) writes only whole chunks of samples, so a
@@ -593,12 +696,15 @@ class Hdf5Recorder:
             if k > 0:
                 for name in IMU_FIELDS:
                     data = cols[name][:k]
+                    self._hasher.update("imu", name, data)
                     if name in self._quanta:
                         c, exc = _quantise(data, self._quanta[name], _COUNT_DTYPE[name])
                         if exc.size:
                             exc["row"] += self._written
                             self._append(f["imu/exceptions"][name], exc)
-                        self._append(f["imu"][name], c)
+                        data = c
+                    if self._chunks is not None:
+                        self._chunks.append(name, data)
                     else:
                         self._append(f["imu"][name], data)
                 self._written += k
@@ -606,15 +712,22 @@ class Hdf5Recorder:
                 self._buffered = n - k
                 if k < n:
                     self._buf_imu.append(ImuBlock(**{name: cols[name][k:] for name in IMU_FIELDS}))
+        if self._chunks is not None:
+            self._chunks.drain(wait=full)
         if not full:
             f.flush()
             return
         if self._buf_table:
             b = self._buf_table
-            self._append(f["table/time"], np.array([s.time for s in b], dtype=np.float64))
-            self._append(f["table/angles"], np.array([s.angles for s in b], dtype=np.float64).reshape(-1, 3))
-            self._append(f["table/rates"], np.array([s.rates for s in b], dtype=np.float64).reshape(-1, 3))
-            self._append(f["table/status"], np.array([int(s.status) for s in b], dtype=np.uint16))
+            tcols = {
+                "time": np.array([s.time for s in b], dtype=np.float64),
+                "angles": np.array([s.angles for s in b], dtype=np.float64).reshape(-1, 3),
+                "rates": np.array([s.rates for s in b], dtype=np.float64).reshape(-1, 3),
+                "status": np.array([int(s.status) for s in b], dtype=np.uint16),
+            }
+            for name, data in tcols.items():
+                self._hasher.update("table", name, data)
+                self._append(f["table"][name], data)
             self._table_written += len(b)
             self._buf_table.clear()
         if self._buf_events:
@@ -655,8 +768,9 @@ class Hdf5Recorder:
             ],
             dtype=STEP_DTYPE,
         )
-        self._append(self._file["steps"], row)
-        self._file.flush()
+        with self._writing():
+            self._append(self._file["steps"], row)
+            self._file.flush()
         self._hasher = _StepHasher()
         self._table_step_start = self._table_written
 
@@ -665,9 +779,10 @@ class Hdf5Recorder:
         if status not in STATUS_VALUES:
             raise ValueError(f"status must be one of {STATUS_VALUES}")
         self.checkpoint()
-        _set_attr(self._file, "status", status)
-        _set_attr(self._file, "updated_utc", _utc_now())
-        self._file.flush()
+        with self._writing():
+            _set_attr(self._file, "status", status)
+            _set_attr(self._file, "updated_utc", _utc_now())
+            self._file.flush()
 
     def close(self) -> None:
         """Flush and close; safe to call more than once."""
@@ -676,8 +791,12 @@ class Hdf5Recorder:
         try:
             self.checkpoint()
         finally:
-            self._file.close()
-            self._closed = True
+            try:
+                if self._chunks is not None:
+                    self._chunks.close()
+            finally:
+                self._file.close()
+                self._closed = True
 
 
 _COMPACT = (4096, 4000)  # attributes kept in the (checksummed) object header, never in a fractal heap

@@ -144,11 +144,14 @@ def execute(
     observers: Callable[[ProgressDisplay], Iterable[SampleObserver]] | None = None,
     stream: TextIO | None = None,
     live: bool | None = None,
+    storage: str = "counts+gzip",
 ) -> RunResult:
     """Open the bench, run the procedure into ``folder/recording.h5`` and close everything.
 
     With ``resume``, the recording is continued after its last complete step: a simulated bench replays the
-    completed steps (deterministic, not recorded); a real bench skips them.
+    completed steps (deterministic, not recorded); a real bench skips them. ``storage`` (benchmarks):
+    "counts+gzip" (the default: quantised counts + shuffle + gzip-1), "float+gzip", "counts+lzf", or "plain"
+    (float64, uncompressed: the format-1 storage), all with Fletcher-32 and per-step SHA-256.
     """
     from benches.factory import open_bench
 
@@ -178,7 +181,7 @@ def execute(
             replay = done_idx
         else:
             steps = [s for s in steps if s.index not in set(done_idx)]
-    bench = open_bench(config, seed=seed, transport=transport)
+    bench = open_bench(config, seed=seed, transport=transport, run_folder=folder)
     try:
         world = getattr(bench, "world", None)
         if resume:
@@ -208,6 +211,9 @@ def execute(
             quanta = {"time": 1e-9}  # the unit clock in ns (drivers decode time stamps as ns · 1e-9)
             if scale is not None:
                 quanta.update(accel=scale.accel_lsb, gyro=scale.gyro_lsb)
+            counts, _, comp = storage.partition("+")
+            if counts != "counts":
+                quanta = {}
             recorder = Hdf5Recorder(
                 rec_path,
                 attrs=attrs,
@@ -215,6 +221,7 @@ def execute(
                 procedure_text=compiled.text,
                 truth=truth,
                 quanta=quanta,
+                compression=comp or None,
             )
         try:
             progress = ProgressDisplay(prep.estimated_s, stream=stream, live=live)

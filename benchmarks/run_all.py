@@ -14,12 +14,14 @@ from pathlib import Path
 BENCHMARKS = (
     "bench_simulation",
     "bench_transports",
+    "bench_frames",
     "bench_procedure",
     "bench_identification",
     "bench_calibration",
     "bench_noise",
     "bench_periodic",
     "bench_drift",
+    "bench_recording",
 )
 
 

@@ -416,6 +416,8 @@ def build_certificate(
     if not binfo.limits:
         warnings.append("the bench file gives no pass/fail limits: no conformity statement")
     warnings.extend(event_warnings)
+    if not integrity["verified"]:
+        warnings.insert(0, integrity["note"])
 
     analyses: dict[str, list[dict[str, str]]] = {}
     analysis_plots: list[tuple[str, bytes]] = []

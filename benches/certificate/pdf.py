@@ -297,7 +297,7 @@ def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
             ("Calibration bench", bench_txt),
             ("Site", site_txt or "—"),
             ("Local gravity g", g_txt),
-            ("Procedure", f"{proc.get('name', '')}; SHA-256 of its text: {proc.get('sha256', '')}"),
+            ("Procedure", f"{proc.get('name', '')}; SHA-256 of its text: {proc.get('sha256', '')}" + _overrides(proc)),
             ("Date of calibration", f"{rec.get('created_utc', '')} to {rec.get('updated_utc', '') or '—'} (UTC)"),
             ("Environment", f"Unit temperature {temp_txt}"),
             ("Recording", rec_txt),
@@ -314,6 +314,14 @@ def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
         size=7.8,
     )
     _signature_block(pdf)
+
+
+def _overrides(proc: dict) -> str:
+    """The procedure parameters overridden for this run (``--set``), as shown on the certificate."""
+    ov = proc.get("procedure_overrides") or {}
+    if not ov:
+        return "; parameters as in the procedure file (no overrides)"
+    return "; parameters overridden for this run: " + ", ".join(f"{k} = {v:g}" for k, v in sorted(ov.items()))
 
 
 def _signature_block(pdf: _CertificatePdf) -> None:

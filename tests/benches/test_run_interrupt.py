@@ -187,3 +187,23 @@ def test_resume_of_a_damaged_recording_is_a_clear_error(tmp_path):
     res = subprocess.run(CLI + ["run", "--resume", str(run)], cwd=tmp_path, capture_output=True, text=True)
     assert res.returncode == 2
     assert "recording.h5" in res.stderr and "Traceback" not in res.stderr
+
+
+def test_interruption_after_the_recording_completed_says_what_is_left(setup, monkeypatch, capsys):
+    """Ctrl-C (or SIGTERM/SIGHUP) during identification: the recording is complete; say what was not done."""
+    import benches.identify
+    from benches.cli import main
+
+    tmp, common, _ = setup
+    out = tmp / "late"
+    assert main(["run", *common, "--out", str(out)]) == 0  # recorded only (--no-identify)
+
+    def interrupted(*_a, **_k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(benches.identify, "identify_run", interrupted)
+    capsys.readouterr()
+    assert main(["run", "--resume", str(out), "--plain"]) == 130
+    err = capsys.readouterr().err
+    assert "not done: identification, certificate" in err and f"tablebench run --resume {out}" in err
+    assert not (out / "calibration.json").exists()
