@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.periodic.error import analyse_periodic
+from analysis.periodic.report import analyse_periodic
 from analysis.units import DEG
 from benches.cli import main
 
@@ -81,8 +81,12 @@ def test_recording_input(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     "args, message",
     [
-        (["--calibrate-seconds", "30"], "shorten --calibrate-seconds"),
+        # the analysis names its parameter, the command maps it to the option
+        (["--calibrate-seconds", "30"], "--calibrate-seconds 30.0: the record has 16000 samples"),
+        (["--calibrate-seconds", "30"], "shorten the calibration"),
+        (["--calibrate-seconds", "0.01"], "--calibrate-seconds 0.01: a calibration of 0.01 s"),
         (["--calibrate-seconds", "0.01"], "at least"),
+        (["--false-alarm", "1.5"], "--false-alarm must be a probability"),
         (["--calibrate-seconds", "nan"], "positive"),
         (["--terms", "-1"], "between 0 and 30"),
         (["--channels", "nope"], "unknown channel"),

@@ -13,14 +13,11 @@ import pytest
 from scipy import signal
 from scipy.optimize import least_squares
 
-from analysis.periodic.error import (
-    PeriodicInputError,
-    crb_frequency_sigma,
-    find_peaks_psd,
-    fit_fixed_frequencies,
-    identify_periodic,
-    refine_frequencies,
-)
+from analysis.periodic.detection import find_peaks_psd
+from analysis.periodic.grid import refine_frequencies
+from analysis.periodic.identify import identify_periodic
+from analysis.periodic.linear import fit_fixed_frequencies
+from analysis.periodic.model import PeriodicInputError, crb_frequency_sigma
 from analysis.units import DEG
 
 FS = 1000.0
