@@ -41,6 +41,7 @@ noise level estimated on ν = n − p degrees of freedom: ``(1 + 2γ/ν)^{−ν/
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -63,6 +64,9 @@ __all__ = [
     "spectrum_threshold",
     "post_fit_threshold",
     "redetection_probability",
+    "coarse_threshold",
+    "coarse_redetection_probability",
+    "window_processing_loss",
     "search_band",
     "detect",
     "find_peaks_psd",
@@ -118,8 +122,11 @@ class Peak:
         return 10.0 * math.log10(self.power / self.floor) if self.floor > 0 else math.inf
 
 
+@functools.lru_cache(maxsize=8)
 def _window(n: int) -> NDArray[np.float64]:
-    return signal.windows.blackmanharris(n, sym=False)
+    w = signal.windows.blackmanharris(n, sym=False)
+    w.flags.writeable = False
+    return w
 
 
 def padded_periodogram(
@@ -210,6 +217,7 @@ def spectrum_threshold(false_alarm: float, band_hz: float, density_s: float, flo
     return _solve_threshold(log_pfa, false_alarm)
 
 
+@functools.lru_cache(maxsize=64)
 def post_fit_threshold(false_alarm: float, band_hz: float, n: int, rate_hz: float, dof: int) -> float:
     """Threshold on ``u = (A/σ_A)²/2`` of a least-squares tone for the whole-band ``false_alarm`` (module doc).
 
@@ -242,15 +250,22 @@ def search_band(n: int, rate_hz: float) -> tuple[float, float]:
     return EDGE_PERIODS / duration, rate_hz / 2.0 - EDGE_PERIODS / duration
 
 
+def _floor_layout(n: int, nfft: int, floor_points: int) -> tuple[NDArray[np.int64], int, int]:
+    """Padded-bin indices of the independent floor points, their spacing, and the K used (0: too few)."""
+    spacing = int(math.ceil(INDEPENDENT_BINS * nfft / n))
+    size = nfft // 2 + 1
+    idx = np.arange(spacing, size - spacing, spacing)
+    k = min(floor_points, idx.size - 2 * FLOOR_EXCLUDE - 1)
+    k -= 1 - k % 2  # odd
+    return idx, spacing, (k if k >= 3 else 0)
+
+
 def _floor(psd: NDArray[np.float64], n: int, nfft: int, floor_points: int) -> tuple[NDArray[np.float64], int]:
     """Running-median floor of each row of ``psd`` (module doc) at every padded bin; returns (floor, K used)."""
-    spacing = int(math.ceil(INDEPENDENT_BINS * nfft / n))
+    idx, spacing, k = _floor_layout(n, nfft, floor_points)
     size = psd.shape[-1]
-    idx = np.arange(spacing, size - spacing, spacing)
     nd = idx.size
-    k = min(floor_points, nd - 2 * FLOOR_EXCLUDE - 1)
-    k -= 1 - k % 2  # odd
-    if k < 3:
+    if k == 0:
         return np.full(psd.shape, np.nan), 0
     offsets = np.arange(FLOOR_EXCLUDE + 1, FLOOR_EXCLUDE + k + 1)
     cand = np.column_stack([offsets, -offsets]).ravel()  # nearest first, alternating sides
@@ -264,6 +279,36 @@ def _floor(psd: NDArray[np.float64], n: int, nfft: int, floor_points: int) -> tu
     floor_pts = med / (rates[0] / k)  # divide by c = rates[0]/K
     nearest = np.clip(np.rint((np.arange(size) - idx[0]) / spacing).astype(np.int64), 0, nd - 1)
     return floor_pts[..., nearest], k
+
+
+@functools.lru_cache(maxsize=64)
+def coarse_threshold(n: int, rate_hz: float, false_alarm: float, floor_points: int = FLOOR_POINTS) -> float:
+    """γ of the coarse search for ``n`` samples at ``rate_hz`` (peak / floor threshold; ∞ when the record is too
+    short for a floor of at least 3 independent values)."""
+    nfft = 1 << int(math.ceil(math.log2(PAD * n)))
+    _, _, k = _floor_layout(n, nfft, floor_points)
+    if k == 0:
+        return math.inf
+    lo, hi = search_band(n, rate_hz)
+    return spectrum_threshold(false_alarm, max(hi - lo, 0.0), window_trial_density(_window(n), rate_hz), k)
+
+
+def window_processing_loss(n: int) -> float:
+    """Equivalent noise bandwidth of the window in bins, N Σw²/(Σw)² (≈ 2.0): the ratio of a tone's
+    least-squares statistic ``u`` to its expected windowed peak / floor ratio."""
+    w = _window(n)
+    return float(n * np.sum(w**2) / np.sum(w) ** 2)
+
+
+def coarse_redetection_probability(u: float, gamma: float, enbw: float) -> float:
+    """Probability that the coarse search finds again a tone with least-squares statistic ``u`` (module doc):
+    its peak / floor ratio is ``E`` of a non-central χ²₂/2 with non-centrality ``2 max(u − 1, 0)/enbw``
+    (floor taken as exact, peak at a bin centre)."""
+    if not math.isfinite(u):
+        return 1.0
+    if not math.isfinite(gamma):
+        return 0.0
+    return float(stats.ncx2.sf(2.0 * gamma, 2, 2.0 * max(u - 1.0, 0.0) / enbw))
 
 
 @dataclass(frozen=True)
@@ -285,11 +330,7 @@ def _scan(v: NDArray[np.float64], rate_hz: float, false_alarm: float, floor_poin
     band = (freqs >= lo) & (freqs <= hi)
     lobe = LOBE_BINS * int(math.ceil(nfft / n))
     is_max = (psd >= maximum_filter1d(psd, size=2 * lobe + 1, mode="nearest", axis=-1)) & band & (psd > 0)
-    gamma = (
-        spectrum_threshold(false_alarm, max(hi - lo, 0.0), window_trial_density(_window(n), rate_hz), k)
-        if k
-        else math.inf
-    )
+    gamma = coarse_threshold(n, rate_hz, false_alarm, floor_points)
     return _Scan(freqs, psd, floor, is_max, gamma, nfft, k)
 
 

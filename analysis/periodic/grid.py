@@ -1,4 +1,4 @@
-"""The published grid-refinement frequency search (spec step 3), kept to reproduce the paper (``--method grid``).
+"""The published grid-refinement frequency search (spec step 3), kept to reproduce the paper (``method="grid"``).
 
 One tone at a time, the others fixed, the interval D_i is split into ``M`` parts (6 ≤ M ≤ 30) and the RMS
 residual e_m of a full linear refit is evaluated at the M+1 grid points (all at once, by projection on the

@@ -15,7 +15,8 @@ covariance → post-fit significance test.
    flicker or random-walk drift).
 4. **Post-fit significance**: a tone whose ``u = (A/σ_A)²/2`` is below the whole-band threshold
    (:func:`~analysis.periodic.detection.post_fit_threshold`) is dropped and the rest refitted (unless the
-   number of terms was forced); kept tones get their re-detection probability, and those below 0.95 are
+   number of terms was forced). Each kept tone gets the probability that a repeat record would find it again
+   (the smaller of the coarse search's and the post-fit test's, from its fitted amplitude); below 0.95 it is
    reported as near the detection limit.
 """
 
@@ -28,11 +29,14 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import median_filter
 
 from analysis.periodic.detection import (
+    coarse_redetection_probability,
+    coarse_threshold,
     find_peaks_psd,
     padded_periodogram,
     post_fit_threshold,
     redetection_probability,
     search_band,
+    window_processing_loss,
 )
 from analysis.periodic.grid import refine_frequencies
 from analysis.periodic.linear import fit_fixed_frequencies, tones
@@ -187,6 +191,7 @@ def identify_periodic(
     f0 = [p.frequency_hz for p in peaks]
     half = [p.halfwidth_hz for p in peaks]
     lo, hi = search_band(n, rate_hz)
+    gamma_coarse, enbw = coarse_threshold(n, rate_hz, false_alarm), window_processing_loss(n)
     dropped: list[DroppedTone] = []
     while True:
         freqs, report = _refine(v, rate_hz, f0, half, method, m_parts, sigma_e_rel, crb_fraction)
@@ -220,7 +225,10 @@ def identify_periodic(
             noise_psd_ratio=float(ratios[i]),
             significance=float(u[i]),
             significance_threshold=float(gamma),
-            detection_probability=redetection_probability(float(u[i]), gamma),
+            detection_probability=min(
+                redetection_probability(float(u[i]), gamma),
+                coarse_redetection_probability(float(u[i]), gamma_coarse, enbw),
+            ),
         )
         for i in range(freqs.size)
     ]
