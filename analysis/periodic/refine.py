@@ -27,27 +27,26 @@ __all__ = ["refine_lm"]
 _EPS = np.finfo(np.float64).eps
 
 
-def _model_jacobian(
+def _residual(
     p: NDArray[np.float64], t: NDArray[np.float64], v: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Residual ``v − model(p)`` and Jacobian ∂model/∂p (n × (1 + 3N))."""
-    k = (p.size - 1) // 3
-    a, b, f = p[1::3], p[2::3], p[3::3]
-    th = (2.0 * np.pi * f)[:, None] * t[None, :]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Residual ``v − model(p)`` and the tones' cos / sin rows (N × n), reused by :func:`_normal_equations`."""
+    th = (2.0 * np.pi * p[3::3])[:, None] * t[None, :]
     c, s = np.cos(th), np.sin(th)
+    return v - p[0] - p[1::3] @ c - p[2::3] @ s, c, s
+
+
+def _normal_equations(
+    p: NDArray[np.float64], t: NDArray[np.float64], r: NDArray[np.float64], c: NDArray, s: NDArray
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """JᵀJ and Jᵀr of the Jacobian ∂model/∂p (n × (1 + 3N)) at ``p``."""
+    a, b = p[1::3], p[2::3]
     jac = np.empty((t.size, p.size))
     jac[:, 0] = 1.0
     jac[:, 1::3] = c.T
     jac[:, 2::3] = s.T
     jac[:, 3::3] = ((2.0 * np.pi * t)[None, :] * (b[:, None] * c - a[:, None] * s)).T
-    model = p[0] + (a @ c if k else 0.0) + (b @ s if k else 0.0)
-    return v - model, jac
-
-
-def _residual(p: NDArray[np.float64], t: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
-    a, b, f = p[1::3], p[2::3], p[3::3]
-    th = (2.0 * np.pi * f)[:, None] * t[None, :]
-    return v - p[0] - a @ np.cos(th) - b @ np.sin(th)
+    return jac.T @ jac, jac.T @ r
 
 
 def refine_lm(
@@ -99,7 +98,8 @@ def refine_lm(
     p = np.empty(1 + 3 * k)
     p[0] = coef[0]
     p[1::3], p[2::3], p[3::3] = coef[1::2], coef[2::2], f0
-    r, jac = _model_jacobian(p, t, v)
+    r, c, s = _residual(p, t, v)
+    h, g = _normal_equations(p, t, r, c, s)
     cost = float(r @ r)
     report.evaluations = 1
     lam = 1e-4
@@ -108,8 +108,6 @@ def refine_lm(
     linear[3::3] = False
     for it in range(1, max_iter + 1):
         report.iterations = it
-        h = jac.T @ jac
-        g = jac.T @ r
         d = np.diag(h).copy()
         d[d <= 0] = 1.0
         accepted = False
@@ -120,7 +118,7 @@ def refine_lm(
                 lam *= 10.0
                 continue
             trial = p + step
-            r_try = _residual(trial, t, v)
+            r_try, c_try, s_try = _residual(trial, t, v)
             report.evaluations += 1
             cost_try = float(r_try @ r_try)
             if cost_try <= cost:
@@ -131,7 +129,7 @@ def refine_lm(
             report.converged = True
             report.message = f"numerical optimum after {it} iteration(s) (no step lowers the cost)"
             break
-        p, cost = trial, cost_try
+        p, cost, r, c, s = trial, cost_try, r_try, c_try, s_try
         lam = max(lam / 10.0, 1e-12)
         report.final_step_hz = [float(s) for s in np.abs(step[3::3])]
         if np.any(np.abs(p[3::3] - f0) > 2.0 * half):
@@ -140,10 +138,8 @@ def refine_lm(
                 f"the tone started at {f0[bad]:.6g} Hz left its search interval (now {p[3 + 3 * bad]:.6g} Hz)"
             )
             return f0, report
-        r, jac = _model_jacobian(p, t, v)
-        report.evaluations += 1
+        h, g = _normal_equations(p, t, r, c, s)
         # standard errors from σ̂² (JᵀJ)⁻¹ at the new point (scaled for conditioning)
-        h = jac.T @ jac
         sc = np.sqrt(np.diag(h))
         sc[sc == 0] = 1.0
         try:
