@@ -15,6 +15,7 @@ Run ``python -m benchmarks.bench_periodic`` (``--quick`` for a smaller run).
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import numpy as np
@@ -139,6 +140,7 @@ def main(argv: list[str] | None = None) -> None:
 
     # ---- identification
     ident = {secs: _identification(rng, runs, int(secs * FS)) for secs in (8, 30)}
+    load = os.getloadavg()[0]
 
     # ---- compensation throughput
     comp = PeriodicCompensator(FREQS, AMPS, [0.1, 0.2, 0.3], FS)
@@ -190,6 +192,8 @@ same coarse search followed by scipy's MINPACK Levenberg–Marquardt (finite-dif
 
 Default (LM) / reference time ratio: **{r8:.2f}** (8 s), **{r30:.2f}** (30 s); target ≤ 2. ({runs} runs are too
 few for the δf/√CRB band; the Monte Carlo is the slow test `tests/analysis/periodic/test_periodic_identification.py`.)
+Machine load average (1 min) at the end of the identification runs: {load:.1f} on {os.cpu_count()} cores (shared); the
+ratios compare work measured under the same conditions, interleaved sample by sample.
 
 Compensation of 3 terms, {n_comp:,} samples:
 
