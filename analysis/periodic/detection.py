@@ -8,15 +8,18 @@ noise, for coloured noise) ``P(f)/μ(f)`` is exponential with mean 1 at every fr
 
 Noise floor
 -----------
-μ is estimated by a running *median* of ``FLOOR_POINTS`` = K periodogram values taken ``7`` unpadded bins
-apart — the squared 4-term window has cosines up to order 6, so DFT values 7 or more bins apart are
-uncorrelated, hence independent. For each floor point the K nearest such values are used, excluding the
-``FLOOR_EXCLUDE`` nearest on each side, so the floor of a frequency never contains the value being tested.
-The median of K independent Exp(μ) values is ``μ Σ_{i<m} E_i/(K−i)`` (m = (K+1)/2, E_i independent Exp(1));
-normalised by ``c = Σ_{i<m} 1/(K−i)`` it is unbiased, and the probability that one bin exceeds γ × floor is
-exactly (Laplace transform of the sum)::
+μ is estimated from periodogram values taken ``INDEPENDENT_BINS`` = 5 unpadded bins apart: the squared
+4-term window has cosines up to order 6, so the correlation of two such values is |ρ|² = 1e-5 at 5 bins
+(9e-4 at 4, exactly 0 from 7): they are independent. At each floor point the floor is the *mean of two
+medians*, of the K = ``FLOOR_POINTS_PER_SIDE`` values on the left and the K on the right, skipping the
+``FLOOR_EXCLUDE`` nearest on each side — so the floor of a frequency never contains the value being tested,
+and a PSD that varies linearly across the window (a drift or ARMA slope) is still estimated without bias (a
+convex slope, like 1/f², is overestimated: conservative). Frequencies without a full window on both sides are
+not searched (:func:`search_band`). The median of K independent Exp(μ) values is ``μ Σ_{i<m} E_i/(K−i)``
+(m = (K+1)/2, E_i independent Exp(1)); normalised by ``c = Σ_{i<m} 1/(K−i)`` it is unbiased, and the
+probability that one bin exceeds γ × floor is exactly (Laplace transform of the sum of the two sides)::
 
-    L(γ) = Π_{i<m} (1 + γ / (c (K − i)))⁻¹
+    L(γ) = Π_{i<m} (1 + γ / (2c (K − i)))⁻²
 
 Whole-band false-alarm probability
 ----------------------------------
@@ -28,7 +31,7 @@ rectangular case, where D = T √(π/3)). Over a band of B Hz, with the floor es
 
     Pfa(γ) ≈ L(γ) · (1 + B · D · √(γ F̃))
 
-with ``F̃ = Σ_{i<m} 1/(c(K−i) + γ)`` the floor ratio's mean under the tilt e^{−γF}. The threshold γ solves
+with ``F̃ = 2 Σ_{i<m} 1/(2c(K−i) + γ)`` the floor ratio's mean under the tilt e^{−γF}. The threshold γ solves
 ``Pfa(γ) = false_alarm``; it is verified by simulation (``tests/analysis/periodic/test_periodic_detection.py``).
 
 Post-fit test
@@ -54,7 +57,7 @@ from analysis.periodic.model import PeriodicInputError
 
 __all__ = [
     "PAD",
-    "FLOOR_POINTS",
+    "FLOOR_POINTS_PER_SIDE",
     "FLOOR_EXCLUDE",
     "INDEPENDENT_BINS",
     "Peak",
@@ -74,12 +77,13 @@ __all__ = [
 
 PAD = 4
 """Zero-padding factor of the FFT (at least; the FFT length is the next power of two)."""
-FLOOR_POINTS = 51
-"""K: independent periodogram values in the running-median noise floor (±25 × 7 unpadded bins)."""
-FLOOR_EXCLUDE = 2
-"""Floor points excluded on each side of the tested one (so the tested value is never part of its floor)."""
-INDEPENDENT_BINS = 7
-"""Spacing (unpadded bins) at which 4-term Blackman–Harris periodogram values are uncorrelated."""
+FLOOR_POINTS_PER_SIDE = 15
+"""K: independent periodogram values in each of the two medians of the noise floor (2 … 16 × 5 unpadded bins
+from the tested frequency, i.e. ±10 Hz for an 8 s record)."""
+FLOOR_EXCLUDE = 1
+"""Floor points skipped on each side of the tested one (so the tested value is never part of its floor)."""
+INDEPENDENT_BINS = 5
+"""Spacing (unpadded bins) at which 4-term Blackman–Harris periodogram values are independent (|ρ|² = 1e-5)."""
 LOBE_BINS = 4
 """Half-width of the Blackman–Harris main lobe, unpadded bins: one peak per lobe."""
 EDGE_PERIODS = 6.0
@@ -173,12 +177,13 @@ def _median_constants(k: int) -> tuple[NDArray[np.float64], int]:
     return c * rates, m
 
 
-def median_floor_tail(gamma: float, k: int) -> tuple[float, float]:
-    """``L(γ) = P(E > γ F)`` for E ~ Exp(1) and F the normalised median of ``k`` Exp(1) values, and the tilted
-    mean ``F̃`` of F under the weight e^{−γF} (both exact)."""
+def median_floor_tail(gamma: float, k: int, sides: int = 2) -> tuple[float, float]:
+    """``L(γ) = P(E > γ F)`` for E ~ Exp(1) and F the mean of ``sides`` independent normalised medians of ``k``
+    Exp(1) values each, and the tilted mean ``F̃`` of F under the weight e^{−γF} (both exact)."""
     rates, _ = _median_constants(k)
-    log_l = -float(np.sum(np.log1p(gamma / rates)))
-    return math.exp(log_l), float(np.sum(1.0 / (rates + gamma)))
+    rates = sides * rates
+    log_l = -sides * float(np.sum(np.log1p(gamma / rates)))
+    return math.exp(log_l), sides * float(np.sum(1.0 / (rates + gamma)))
 
 
 def _solve_threshold(log_pfa, false_alarm: float) -> float:  # noqa: ANN001
@@ -193,7 +198,9 @@ def _solve_threshold(log_pfa, false_alarm: float) -> float:  # noqa: ANN001
     return float(optimize.brentq(lambda g: log_pfa(g) - target, lo, hi, xtol=1e-12, rtol=1e-12))
 
 
-def spectrum_threshold(false_alarm: float, band_hz: float, density_s: float, floor_points: int) -> float:
+def spectrum_threshold(
+    false_alarm: float, band_hz: float, density_s: float, floor_points: int, sides: int = 2
+) -> float:
     """γ such that the whole-band false-alarm probability of ``P(f) > γ × floor(f)`` is ``false_alarm``.
 
     Parameters
@@ -205,12 +212,14 @@ def spectrum_threshold(false_alarm: float, band_hz: float, density_s: float, flo
     density_s : float
         :func:`window_trial_density` of the window, s.
     floor_points : int
-        K, the independent values in the running-median floor (``0`` = floor known exactly).
+        K, the independent values in each median of the floor (``0`` = floor known exactly).
+    sides : int
+        Number of independent medians averaged in the floor.
     """
 
     def log_pfa(g: float) -> float:
         if floor_points > 0:
-            tail, ft = median_floor_tail(g, floor_points)
+            tail, ft = median_floor_tail(g, floor_points, sides)
             return math.log(tail) + math.log1p(band_hz * density_s * math.sqrt(g * ft))
         return -g + math.log1p(band_hz * density_s * math.sqrt(g))
 
@@ -244,52 +253,67 @@ def redetection_probability(u: float, threshold: float) -> float:
     return float(stats.ncx2.sf(2.0 * threshold, 2, 2.0 * max(u - 1.0, 0.0)))
 
 
-def search_band(n: int, rate_hz: float) -> tuple[float, float]:
-    """The searched frequency band [6/T, f_s/2 − 6/T], Hz."""
-    duration = n / rate_hz
-    return EDGE_PERIODS / duration, rate_hz / 2.0 - EDGE_PERIODS / duration
+def _nfft(n: int) -> int:
+    return 1 << int(math.ceil(math.log2(PAD * n)))
 
 
-def _floor_layout(n: int, nfft: int, floor_points: int) -> tuple[NDArray[np.int64], int, int]:
-    """Padded-bin indices of the independent floor points, their spacing, and the K used (0: too few)."""
+def _floor_layout(n: int, nfft: int, floor_points: int) -> tuple[NDArray[np.int64], int, int, int, int]:
+    """Padded-bin indices of the independent floor points, their spacing (padded bins), the K used per side
+    (0: record too short) and the first / last floor point with a full window on both sides."""
     spacing = int(math.ceil(INDEPENDENT_BINS * nfft / n))
     size = nfft // 2 + 1
     idx = np.arange(spacing, size - spacing, spacing)
-    k = min(floor_points, idx.size - 2 * FLOOR_EXCLUDE - 1)
+    k = min(floor_points, (idx.size - 2 * FLOOR_EXCLUDE - 1) // 2)
     k -= 1 - k % 2  # odd
-    return idx, spacing, (k if k >= 3 else 0)
+    if k < 3:
+        return idx, spacing, 0, 0, -1
+    reach = FLOOR_EXCLUDE + k
+    return idx, spacing, k, reach, idx.size - 1 - reach
+
+
+@functools.lru_cache(maxsize=64)
+def search_band(n: int, rate_hz: float, floor_points: int = FLOOR_POINTS_PER_SIDE) -> tuple[float, float]:
+    """The searched band, Hz: [6/T, f_s/2 − 6/T] (closer to DC or Nyquist a tone cannot be told from drift or
+    resolved from its alias) where the noise floor has its full window on both sides (empty: lo ≥ hi)."""
+    duration = n / rate_hz
+    nfft = _nfft(n)
+    idx, spacing, k, first, last = _floor_layout(n, nfft, floor_points)
+    if k == 0:
+        return EDGE_PERIODS / duration, EDGE_PERIODS / duration
+    df = rate_hz / nfft
+    lo = max(EDGE_PERIODS / duration, (idx[first] - spacing / 2) * df)
+    hi = min(rate_hz / 2.0 - EDGE_PERIODS / duration, (idx[last] + spacing / 2) * df)
+    return float(lo), float(hi)
 
 
 def _floor(psd: NDArray[np.float64], n: int, nfft: int, floor_points: int) -> tuple[NDArray[np.float64], int]:
-    """Running-median floor of each row of ``psd`` (module doc) at every padded bin; returns (floor, K used)."""
-    idx, spacing, k = _floor_layout(n, nfft, floor_points)
+    """Two-sided median floor of each row of ``psd`` (module doc) at every padded bin (NaN where the window
+    does not fit); returns (floor, K used per side)."""
+    idx, spacing, k, first, last = _floor_layout(n, nfft, floor_points)
     size = psd.shape[-1]
-    nd = idx.size
     if k == 0:
         return np.full(psd.shape, np.nan), 0
-    offsets = np.arange(FLOOR_EXCLUDE + 1, FLOOR_EXCLUDE + k + 1)
-    cand = np.column_stack([offsets, -offsets]).ravel()  # nearest first, alternating sides
-    pos = np.arange(nd)[:, None] + cand[None, :]
-    valid = (pos >= 0) & (pos < nd)
-    take = valid & (np.cumsum(valid, axis=1) <= k)
-    sel = pos[take].reshape(nd, k)
-    vals = psd[..., idx][..., sel]  # (..., nd, k)
+    vals = psd[..., idx]
+    windows = np.lib.stride_tricks.sliding_window_view(vals, k, axis=-1)  # (..., nd − k + 1, k)
     rates, m = _median_constants(k)
-    med = np.partition(vals, m - 1, axis=-1)[..., m - 1]
-    floor_pts = med / (rates[0] / k)  # divide by c = rates[0]/K
-    nearest = np.clip(np.rint((np.arange(size) - idx[0]) / spacing).astype(np.int64), 0, nd - 1)
+    med = np.partition(windows, m - 1, axis=-1)[..., m - 1] / (rates[0] / k)  # normalised by c = rates[0]/K
+    centres = np.arange(first, last + 1)
+    floor_pts = np.full(vals.shape, np.nan)
+    floor_pts[..., first : last + 1] = 0.5 * (
+        med[..., centres - FLOOR_EXCLUDE - k] + med[..., centres + FLOOR_EXCLUDE + 1]
+    )
+    nearest = np.clip(np.rint((np.arange(size) - idx[0]) / spacing).astype(np.int64), 0, idx.size - 1)
     return floor_pts[..., nearest], k
 
 
 @functools.lru_cache(maxsize=64)
-def coarse_threshold(n: int, rate_hz: float, false_alarm: float, floor_points: int = FLOOR_POINTS) -> float:
+def coarse_threshold(n: int, rate_hz: float, false_alarm: float, floor_points: int = FLOOR_POINTS_PER_SIDE) -> float:
     """γ of the coarse search for ``n`` samples at ``rate_hz`` (peak / floor threshold; ∞ when the record is too
-    short for a floor of at least 3 independent values)."""
-    nfft = 1 << int(math.ceil(math.log2(PAD * n)))
-    _, _, k = _floor_layout(n, nfft, floor_points)
+    short for a floor of at least 3 independent values per side)."""
+    _, _, k, _, _ = _floor_layout(n, _nfft(n), floor_points)
     if k == 0:
         return math.inf
-    lo, hi = search_band(n, rate_hz)
+    lo, hi = search_band(n, rate_hz, floor_points)
     return spectrum_threshold(false_alarm, max(hi - lo, 0.0), window_trial_density(_window(n), rate_hz), k)
 
 
@@ -326,7 +350,7 @@ def _scan(v: NDArray[np.float64], rate_hz: float, false_alarm: float, floor_poin
     n = v.shape[-1]
     freqs, psd, nfft = padded_periodogram(v, rate_hz)
     floor, k = _floor(psd, n, nfft, floor_points)
-    lo, hi = search_band(n, rate_hz)
+    lo, hi = search_band(n, rate_hz, floor_points)
     band = (freqs >= lo) & (freqs <= hi)
     lobe = LOBE_BINS * int(math.ceil(nfft / n))
     is_max = (psd >= maximum_filter1d(psd, size=2 * lobe + 1, mode="nearest", axis=-1)) & band & (psd > 0)
@@ -342,7 +366,7 @@ def _check(v: NDArray[np.float64], false_alarm: float) -> None:
 
 
 def detect(
-    records: ArrayLike, rate_hz: float, false_alarm: float = 1e-3, floor_points: int = FLOOR_POINTS
+    records: ArrayLike, rate_hz: float, false_alarm: float = 1e-3, floor_points: int = FLOOR_POINTS_PER_SIDE
 ) -> NDArray[np.bool_]:
     """Whether each record (row) has at least one significant peak: the decision of :func:`find_peaks_psd`,
     vectorised over records (used to verify the false-alarm probability by simulation)."""
@@ -359,7 +383,7 @@ def find_peaks_psd(
     n_terms: int | None = None,
     false_alarm: float = 1e-3,
     max_terms: int = 8,
-    floor_points: int = FLOOR_POINTS,
+    floor_points: int = FLOOR_POINTS_PER_SIDE,
 ) -> list[Peak]:
     """Coarse periodic-term search: significant peaks of a zero-padded Blackman–Harris periodogram.
 
@@ -376,7 +400,7 @@ def find_peaks_psd(
     max_terms : int
         Cap on the number of significant peaks kept when ``n_terms`` is not given (strongest first).
     floor_points : int
-        K of the running-median floor (module doc).
+        K, values per side of the two-median floor (module doc).
 
     Returns
     -------
