@@ -232,4 +232,4 @@ def identify_periodic(
         )
         for i in range(freqs.size)
     ]
-    return PeriodicModel(terms, c0, float(sd[0]), float(rate_hz), n, sigma, cov, report, false_alarm, dropped)
+    return PeriodicModel(terms, c0, float(sd[0]), float(rate_hz), n, sigma, cov, report, false_alarm, dropped, (lo, hi))

@@ -186,6 +186,8 @@ class PeriodicModel:
         Whole-band false-alarm probability used for detection and the post-fit test.
     dropped : list of DroppedTone
         Coarse peaks removed by the post-fit significance test.
+    search_band_hz : tuple of float
+        The band searched for tones, Hz (tones outside it cannot be found).
     """
 
     terms: list[PeriodicTerm]
@@ -198,6 +200,7 @@ class PeriodicModel:
     report: FitReport
     false_alarm: float = 1e-3
     dropped: list[DroppedTone] = field(default_factory=list)
+    search_band_hz: tuple[float, float] = (math.nan, math.nan)
 
     def unsettled(self) -> list[str]:
         """What the identification could not settle, one short phrase each (empty when all is settled)."""

@@ -127,6 +127,7 @@ class ChannelAnalysis:
                 "calibration_samples": self.calibration_samples,
                 "calibration_seconds": self.calibration_samples / rate_hz,
                 "false_alarm": m.false_alarm,
+                "search_band_hz": list(m.search_band_hz),
                 "converged": r.converged,
                 "iterations": r.iterations,
                 "evaluations": r.evaluations,

@@ -160,7 +160,8 @@ def _print_channel(name: str, res, js: dict, unit: str, rate: float) -> None:  #
         f"\n== {name}: {len(m.terms)} periodic term(s) from {res.calibration_samples / rate:g} s "
         f"({'Levenberg–Marquardt' if r.method == 'lm' else 'grid search'}"
         f"{', converged' if r.converged else ', NOT converged'}); compensated {n_rest / rate:g} s "
-        f"(values in {label}, phase at calibration start, ± standard uncertainty u, k = 1)"
+        f"(values in {label}, phase at calibration start, ± standard uncertainty u, k = 1); searched "
+        f"{m.search_band_hz[0]:.3g}–{m.search_band_hz[1]:.4g} Hz"
     )
     if m.terms:
         print(f"  {'frequency (Hz)':>24s} {'amplitude (' + label + ')':>22s} {'phase (rad)':>20s} {'SNR (dB)':>9s}")

@@ -137,6 +137,8 @@ def test_json_has_explicit_units_and_settled_status(
         assert f"comparison[].{key}" in ch["units"]
     assert ch["unsettled"] == [] and doc["unsettled"] == []
     assert ch["identification"]["method"] == "lm" and ch["identification"]["converged"] is True
+    lo, hi = ch["identification"]["search_band_hz"]
+    assert 0 < lo < 80.13 and 127.43 < hi < 500
 
 
 def test_recording_channels_carry_their_si_unit(tmp_path: Path) -> None:
