@@ -82,6 +82,8 @@ FLOOR_POINTS_PER_SIDE = 15
 from the tested frequency, i.e. ±10 Hz for an 8 s record)."""
 FLOOR_EXCLUDE = 1
 """Floor points skipped on each side of the tested one (so the tested value is never part of its floor)."""
+MIN_FLOOR_POINTS = 5
+"""Fewest values per side of the floor near DC and Nyquist (with its own threshold, module doc)."""
 INDEPENDENT_BINS = 5
 """Spacing (unpadded bins) at which 4-term Blackman–Harris periodogram values are independent (|ρ|² = 1e-5)."""
 LOBE_BINS = 4
@@ -186,9 +188,10 @@ def median_floor_tail(gamma: float, k: int, sides: int = 2) -> tuple[float, floa
     return math.exp(log_l), sides * float(np.sum(1.0 / (rates + gamma)))
 
 
-def _solve_threshold(log_pfa, false_alarm: float) -> float:  # noqa: ANN001
+def _solve_threshold(log_pfa, false_alarm: float, lo: float = 1e-9) -> float:  # noqa: ANN001
+    """γ with ``log_pfa(γ) = log(false_alarm)``, ``log_pfa`` decreasing on [lo, ∞)."""
     target = math.log(false_alarm)
-    lo, hi = 1e-9, 1.0
+    hi = max(1.0, 2.0 * lo)
     while log_pfa(hi) > target:
         hi *= 2.0
         if hi > 1e7:
@@ -257,64 +260,94 @@ def _nfft(n: int) -> int:
     return 1 << int(math.ceil(math.log2(PAD * n)))
 
 
-def _floor_layout(n: int, nfft: int, floor_points: int) -> tuple[NDArray[np.int64], int, int, int, int]:
-    """Padded-bin indices of the independent floor points, their spacing (padded bins), the K used per side
-    (0: record too short) and the first / last floor point with a full window on both sides."""
+def _floor_layout(n: int, nfft: int, floor_points: int) -> tuple[NDArray[np.int64], int, NDArray[np.int64]]:
+    """Padded-bin indices of the independent floor points, their spacing (padded bins), and the K used per side
+    at each point: ``floor_points`` in the interior, fewer (odd, ≥ ``MIN_FLOOR_POINTS``) near DC and Nyquist
+    where the window must stay symmetric, 0 where even that does not fit."""
     spacing = int(math.ceil(INDEPENDENT_BINS * nfft / n))
     size = nfft // 2 + 1
     idx = np.arange(spacing, size - spacing, spacing)
-    k = min(floor_points, (idx.size - 2 * FLOOR_EXCLUDE - 1) // 2)
+    c = np.arange(idx.size)
+    k = np.minimum(floor_points, np.minimum(c, idx.size - 1 - c) - FLOOR_EXCLUDE)
     k -= 1 - k % 2  # odd
-    if k < 3:
-        return idx, spacing, 0, 0, -1
-    reach = FLOOR_EXCLUDE + k
-    return idx, spacing, k, reach, idx.size - 1 - reach
+    return idx, spacing, np.where(k >= MIN_FLOOR_POINTS, k, 0)
 
 
 @functools.lru_cache(maxsize=64)
 def search_band(n: int, rate_hz: float, floor_points: int = FLOOR_POINTS_PER_SIDE) -> tuple[float, float]:
     """The searched band, Hz: [6/T, f_s/2 − 6/T] (closer to DC or Nyquist a tone cannot be told from drift or
-    resolved from its alias) where the noise floor has its full window on both sides (empty: lo ≥ hi)."""
+    resolved from its alias) where the noise floor has a symmetric window of at least ``MIN_FLOOR_POINTS``
+    values per side (empty: lo ≥ hi)."""
     duration = n / rate_hz
     nfft = _nfft(n)
-    idx, spacing, k, first, last = _floor_layout(n, nfft, floor_points)
-    if k == 0:
+    idx, spacing, k = _floor_layout(n, nfft, floor_points)
+    ok = np.flatnonzero(k)
+    if ok.size == 0:
         return EDGE_PERIODS / duration, EDGE_PERIODS / duration
     df = rate_hz / nfft
-    lo = max(EDGE_PERIODS / duration, (idx[first] - spacing / 2) * df)
-    hi = min(rate_hz / 2.0 - EDGE_PERIODS / duration, (idx[last] + spacing / 2) * df)
+    lo = max(EDGE_PERIODS / duration, (idx[ok[0]] - spacing / 2) * df)
+    hi = min(rate_hz / 2.0 - EDGE_PERIODS / duration, (idx[ok[-1]] + spacing / 2) * df)
     return float(lo), float(hi)
 
 
+def _nearest_point(size: int, idx: NDArray[np.int64], spacing: int) -> NDArray[np.int64]:
+    return np.clip(np.rint((np.arange(size) - idx[0]) / spacing).astype(np.int64), 0, idx.size - 1)
+
+
 def _floor(psd: NDArray[np.float64], n: int, nfft: int, floor_points: int) -> tuple[NDArray[np.float64], int]:
-    """Two-sided median floor of each row of ``psd`` (module doc) at every padded bin (NaN where the window
-    does not fit); returns (floor, K used per side)."""
-    idx, spacing, k, first, last = _floor_layout(n, nfft, floor_points)
-    size = psd.shape[-1]
-    if k == 0:
-        return np.full(psd.shape, np.nan), 0
+    """Two-sided median floor of each row of ``psd`` (module doc) at every padded bin (NaN where no window
+    fits); returns (floor, interior K per side, 0 when the record is too short)."""
+    idx, spacing, kpts = _floor_layout(n, nfft, floor_points)
     vals = psd[..., idx]
-    windows = np.lib.stride_tricks.sliding_window_view(vals, k, axis=-1)  # (..., nd − k + 1, k)
-    rates, m = _median_constants(k)
-    med = np.partition(windows, m - 1, axis=-1)[..., m - 1] / (rates[0] / k)  # normalised by c = rates[0]/K
-    centres = np.arange(first, last + 1)
     floor_pts = np.full(vals.shape, np.nan)
-    floor_pts[..., first : last + 1] = 0.5 * (
-        med[..., centres - FLOOR_EXCLUDE - k] + med[..., centres + FLOOR_EXCLUDE + 1]
-    )
-    nearest = np.clip(np.rint((np.arange(size) - idx[0]) / spacing).astype(np.int64), 0, idx.size - 1)
-    return floor_pts[..., nearest], k
+    for k in np.unique(kpts[kpts > 0]):
+        windows = np.lib.stride_tricks.sliding_window_view(vals, int(k), axis=-1)  # (..., nd − k + 1, k)
+        rates, m = _median_constants(int(k))
+        med = np.partition(windows, m - 1, axis=-1)[..., m - 1] / (rates[0] / k)  # normalised by c = rates[0]/K
+        centres = np.flatnonzero(kpts == k)
+        floor_pts[..., centres] = 0.5 * (med[..., centres - FLOOR_EXCLUDE - k] + med[..., centres + FLOOR_EXCLUDE + 1])
+    return floor_pts[..., _nearest_point(psd.shape[-1], idx, spacing)], int(kpts.max(initial=0))
 
 
 @functools.lru_cache(maxsize=64)
-def coarse_threshold(n: int, rate_hz: float, false_alarm: float, floor_points: int = FLOOR_POINTS_PER_SIDE) -> float:
-    """γ of the coarse search for ``n`` samples at ``rate_hz`` (peak / floor threshold; ∞ when the record is too
-    short for a floor of at least 3 independent values per side)."""
-    _, _, k, _, _ = _floor_layout(n, _nfft(n), floor_points)
-    if k == 0:
-        return math.inf
+def _thresholds(n: int, rate_hz: float, false_alarm: float, floor_points: int) -> tuple[tuple[int, float], ...]:
+    """(K, γ_K) for every K per side used by the floor of this record length (module doc)."""
+    _, _, kpts = _floor_layout(n, _nfft(n), floor_points)
+    ks = [int(k) for k in np.unique(kpts[kpts > 0])]
+    if not ks:
+        return ()
     lo, hi = search_band(n, rate_hz, floor_points)
-    return spectrum_threshold(false_alarm, max(hi - lo, 0.0), window_trial_density(_window(n), rate_hz), k)
+    density = window_trial_density(_window(n), rate_hz)
+    k_top = ks[-1]
+    g_top = spectrum_threshold(false_alarm, max(hi - lo, 0.0), density, k_top)
+    if not math.isfinite(g_top):
+        return tuple((k, math.inf) for k in ks)
+
+    def log_rate(g: float, k: int) -> float:  # log of the up-crossing density per Hz at threshold g
+        tail, ft = median_floor_tail(g, k)
+        return math.log(tail) + math.log(density * math.sqrt(g * ft))
+
+    target = log_rate(g_top, k_top)
+    return tuple(
+        (k, g_top if k == k_top else _solve_threshold(lambda g, k=k: log_rate(g, k), math.exp(target), lo=1.0))
+        for k in ks
+    )
+
+
+def coarse_threshold(n: int, rate_hz: float, false_alarm: float, floor_points: int = FLOOR_POINTS_PER_SIDE) -> float:
+    """γ of the coarse search in the interior of the band for ``n`` samples at ``rate_hz`` (peak / floor
+    threshold; ∞ when the record is too short for a floor)."""
+    th = _thresholds(n, rate_hz, false_alarm, floor_points)
+    return th[-1][1] if th else math.inf
+
+
+def _bin_thresholds(n: int, nfft: int, rate_hz: float, false_alarm: float, floor_points: int) -> NDArray[np.float64]:
+    """γ at every padded bin (∞ where there is no floor)."""
+    idx, spacing, kpts = _floor_layout(n, nfft, floor_points)
+    gamma_pts = np.full(idx.size, np.inf)
+    for k, g in _thresholds(n, rate_hz, false_alarm, floor_points):
+        gamma_pts[kpts == k] = g
+    return gamma_pts[_nearest_point(nfft // 2 + 1, idx, spacing)]
 
 
 def window_processing_loss(n: int) -> float:
@@ -341,7 +374,7 @@ class _Scan:
     psd: NDArray[np.float64]
     floor: NDArray[np.float64]
     candidates: NDArray[np.bool_]
-    gamma: float
+    gamma: NDArray[np.float64]
     nfft: int
     floor_points: int
 
@@ -354,7 +387,7 @@ def _scan(v: NDArray[np.float64], rate_hz: float, false_alarm: float, floor_poin
     band = (freqs >= lo) & (freqs <= hi)
     lobe = LOBE_BINS * int(math.ceil(nfft / n))
     is_max = (psd >= maximum_filter1d(psd, size=2 * lobe + 1, mode="nearest", axis=-1)) & band & (psd > 0)
-    gamma = coarse_threshold(n, rate_hz, false_alarm, floor_points)
+    gamma = _bin_thresholds(n, nfft, rate_hz, false_alarm, floor_points)
     return _Scan(freqs, psd, floor, is_max, gamma, nfft, k)
 
 
@@ -423,7 +456,7 @@ def find_peaks_psd(
         chosen = list(cand[:n_terms])
     else:
         with np.errstate(invalid="ignore"):
-            chosen = [k for k in cand if floor[k] > 0 and psd[k] > s.gamma * floor[k]][:max_terms]
+            chosen = [k for k in cand if floor[k] > 0 and psd[k] > s.gamma[k] * floor[k]][:max_terms]
     df = s.freqs[1] - s.freqs[0]
     duration = n / rate_hz
     peaks: list[Peak] = []
@@ -434,5 +467,5 @@ def find_peaks_psd(
             den = lm - 2.0 * l0 + lp
             if den < 0:
                 f += 0.5 * (lm - lp) / den * df
-        peaks.append(Peak(float(f), float(psd[k]), float(floor[k]), float(s.gamma * floor[k]), 1.0 / duration))
+        peaks.append(Peak(float(f), float(psd[k]), float(floor[k]), float(s.gamma[k] * floor[k]), 1.0 / duration))
     return peaks

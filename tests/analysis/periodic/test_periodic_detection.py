@@ -77,8 +77,20 @@ def test_thresholds_grow_with_trials_and_floor_uncertainty() -> None:
     assert spectrum_threshold(1e-3, 50, d, 15) < spectrum_threshold(1e-3, 500, d, 15)
     assert post_fit_threshold(1e-2, 500, 8000, FS, 7990) < post_fit_threshold(1e-3, 500, 8000, FS, 7990)
     assert coarse_threshold(100, FS, 1e-3) == math.inf  # too short for a floor: nothing can be significant
-    lo, hi = search_band(8000, FS)  # the floor's window must fit on both sides: ≈ 16 × 5 bins from the edges
-    assert 10.0 < lo < 11.0 and 489.0 < hi < 490.0
+    lo, hi = search_band(8000, FS)  # a symmetric floor window of ≥ 5 values per side: 6 × 5 bins from the edges
+    assert 4.0 < lo < 4.3 and 495.5 < hi < 496.0
+    # near the edges, fewer floor values per side and a threshold of the same up-crossing density
+    th = dict(detection._thresholds(8000, FS, 1e-3, detection.FLOOR_POINTS_PER_SIDE))
+    assert sorted(th) == [5, 7, 9, 11, 13, 15] and th[5] > th[9] > th[15] == coarse_threshold(8000, FS, 1e-3)
+
+
+def test_strong_low_frequency_tone_next_to_the_band_edge_is_found() -> None:
+    """A tone at 5 Hz in an 8 s record (its floor has 5 values per side): found, on white noise."""
+    rng = np.random.default_rng(11)
+    j = np.arange(8000)
+    x = 0.2 * np.cos(2 * np.pi * 5.0 * j / FS + 0.4) + 0.1 * rng.standard_normal(8000)
+    (peak,) = find_peaks_psd(x, FS)
+    assert abs(peak.frequency_hz - 5.0) < 0.05
 
 
 def test_false_alarm_rate_fast_check() -> None:
