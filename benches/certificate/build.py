@@ -195,7 +195,8 @@ def _analysis_rows(kind: str, data: dict[str, Any]) -> list[dict[str, str]]:
                         "channel": ch,
                         "item": f"tone {i + 1}",
                         "value": f"{_fmt(t.get('frequency_hz'))} ± {_fmt(_twice(t.get('frequency_sigma_hz')))} Hz "
-                        f"(U, k = 2), amplitude {_fmt(t.get('amplitude'))} {_si_unit(ch)}, "
+                        f"(U, k = 2), amplitude {_fmt(t.get('amplitude'))} "
+                        f"{t.get('amplitude_unit') or c.get('unit') or _si_unit(ch)}, "
                         f"phase {_fmt(t.get('phase_rad'))} rad",
                     }
                 )
@@ -205,7 +206,7 @@ def _analysis_rows(kind: str, data: dict[str, Any]) -> list[dict[str, str]]:
                         "channel": ch,
                         "item": "residual RMS",
                         "value": f"{_fmt(c.get('residual_rms_before'))} → {_fmt(c.get('residual_rms_after'))} "
-                        f"{_si_unit(ch)}",
+                        f"{c.get('unit') or _si_unit(ch)}",
                     }
                 )
         elif kind == "drift":
