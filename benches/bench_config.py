@@ -8,7 +8,6 @@ wrong and what is allowed. Display units appear only in the YAML, in the key nam
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -169,20 +168,6 @@ class BenchConfig:
 
 
 # ---- small helpers ---------------------------------------------------------------------------------
-
-_FLOAT_RE = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)$")
-
-
-def _coerce_floats(x: Any) -> Any:
-    """YAML 1.1 reads ``1e-4`` (no dot) as text; treat such scalars as numbers."""
-    if isinstance(x, dict):
-        return {k: _coerce_floats(v) for k, v in x.items()}
-    if isinstance(x, list):
-        return [_coerce_floats(v) for v in x]
-    if isinstance(x, str) and _FLOAT_RE.match(x.strip()):
-        return float(x)
-    return x
-
 
 def _section(data: dict[str, Any], smap: SourceMap, path: KeyPath, key: str, required: bool = True) -> dict | None:
     if key not in data or data[key] is None:
@@ -685,7 +670,6 @@ def load_bench(path: str | Path) -> BenchConfig:
 def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
     if data is None:
         raise ConfigError(smap.file, None, "the bench file is empty; see benches/BENCH_FORMAT.md")
-    data = _coerce_floats(data)
     root = get_mapping(data, smap, ())
     check_keys(root, smap, (), ["name", "site", "turntable", "unit", "limits", "simulation"])
     name = get_str(root, smap, (), "name")

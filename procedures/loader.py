@@ -10,6 +10,7 @@ allowed. Attitudes are not resolved here (that needs the bench's mounting and li
 from __future__ import annotations
 
 import hashlib
+import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -35,6 +36,12 @@ TOP_KEYS: tuple[str, ...] = ("name", "description", "version", "defaults", "para
 DEFAULT_KEYS: tuple[str, ...] = ("settle_s", "hold_s", "spin_settle_s")
 MAX_COUNT: int = 10_000
 """Largest ``count`` of a repeat or step_rotate (guards against a typo compiling for ever)."""
+MAX_SECONDS: float = 1e7
+"""Longest duration (warm-up, hold, spin, settling) a step may ask for, s (≈ 116 days): larger is a typo."""
+MAX_REVOLUTIONS: float = 1e5
+"""Most revolutions one spin may count."""
+MAX_RATE_DPS: float = 36_000.0
+"""Largest spin rate a procedure may write, °/s (the bench's own limit is checked by the compiler)."""
 _PARAM_RE = re.compile(r"^\$\{?([A-Za-z_][A-Za-z0-9_]*)\}?$")
 
 
@@ -347,14 +354,24 @@ def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
                 raise ctx.err(bpath + ("at",), label, "at: expected an attitude like {x: East, y: North, z: Up}")
             _keys(ctx, body["at"], bpath + ("at",), label, ("x", "y", "z", "angles_deg"))
             at = _attitude(ctx, body["at"], bpath + ("at",), label)
-        dur = _num(ctx, body, bpath, label, "duration_s", positive=True, what="seconds > 0")
+        dur = _num(ctx, body, bpath, label, "duration_s", positive=True, maximum=MAX_SECONDS, what="seconds > 0")
         return WarmupSpec(kind, line, label, name, duration=dur or 0.0, at=at, settle=_settle(ctx, body, bpath, label))
     if kind == "orient":
         _keys(ctx, body, bpath, label, ("name", "x", "y", "z", "angles_deg"))
         return OrientSpec(kind, line, label, name, attitude=_attitude(ctx, body, bpath, label))
     if kind == "hold":
         _keys(ctx, body, bpath, label, ("name", "duration_s") + sett)
-        dur = _num(ctx, body, bpath, label, "duration_s", required=False, positive=True, what="seconds > 0")
+        dur = _num(
+            ctx,
+            body,
+            bpath,
+            label,
+            "duration_s",
+            required=False,
+            positive=True,
+            maximum=MAX_SECONDS,
+            what="seconds > 0",
+        )
         if dur is None:
             if ctx.defaults.hold is None:
                 raise ctx.err(bpath, label, "duration_s is required (seconds > 0) unless defaults.hold_s is set")
@@ -381,7 +398,9 @@ def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
             maximum=MAX_COUNT,
             what="a whole number >= 1",
         )
-        hold = _num(ctx, body, bpath, label, "hold_s", required=False, minimum=0.0, what="seconds >= 0")
+        hold = _num(
+            ctx, body, bpath, label, "hold_s", required=False, minimum=0.0, maximum=MAX_SECONDS, what="seconds >= 0"
+        )
         if hold is None:
             if ctx.defaults.hold is None:
                 raise ctx.err(bpath, label, "hold_s is required (seconds >= 0) unless defaults.hold_s is set")
@@ -400,7 +419,9 @@ def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
     if kind == "spin":
         _keys(ctx, body, bpath, label, ("name", "axis", "rate_dps", "direction", "revolutions", "duration_s") + sett)
         axis = _body_axis(ctx, body, bpath, label)
-        rate = _num(ctx, body, bpath, label, "rate_dps", what="°/s, non-zero")
+        rate = _num(
+            ctx, body, bpath, label, "rate_dps", minimum=-MAX_RATE_DPS, maximum=MAX_RATE_DPS, what="°/s, non-zero"
+        )
         assert rate is not None
         if rate == 0:
             raise ctx.err(bpath + ("rate_dps",), label, "rate_dps: 0 is not allowed; a spin needs a non-zero rate")
@@ -420,11 +441,33 @@ def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
                 )
         r = from_display("rate", rate)
         rates = {None: (r,), "positive": (r,), "negative": (-r,), "both": (r, -r)}[direction]
-        revs = _num(ctx, body, bpath, label, "revolutions", required=False, positive=True, what="a number > 0")
-        dur = _num(ctx, body, bpath, label, "duration_s", required=False, positive=True, what="seconds > 0")
+        revs = _num(
+            ctx,
+            body,
+            bpath,
+            label,
+            "revolutions",
+            required=False,
+            positive=True,
+            maximum=MAX_REVOLUTIONS,
+            what="a number > 0",
+        )
+        dur = _num(
+            ctx,
+            body,
+            bpath,
+            label,
+            "duration_s",
+            required=False,
+            positive=True,
+            maximum=MAX_SECONDS,
+            what="seconds > 0",
+        )
         if (revs is None) == (dur is None):
             raise ctx.err(bpath, label, "give exactly one of revolutions or duration_s")
-        settle = _num(ctx, body, bpath, label, "settle_s", required=False, minimum=0.0, what="seconds >= 0")
+        settle = _num(
+            ctx, body, bpath, label, "settle_s", required=False, minimum=0.0, maximum=MAX_SECONDS, what="seconds >= 0"
+        )
         return SpinSpec(kind, line, label, name, axis=axis, rates=rates, revolutions=revs, duration=dur, settle=settle)
     if kind == "repeat":
         _keys(ctx, body, bpath, label, ("count", "steps"))
@@ -447,7 +490,9 @@ def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
 
 
 def _settle(ctx: _Ctx, body: Mapping[str, Any], bpath: KeyPath, label: str) -> float | None:
-    return _num(ctx, body, bpath, label, "settle_s", required=False, minimum=0.0, what="seconds >= 0")
+    return _num(
+        ctx, body, bpath, label, "settle_s", required=False, minimum=0.0, maximum=MAX_SECONDS, what="seconds >= 0"
+    )
 
 
 def _parameters(data: Mapping[str, Any], smap: SourceMap, overrides: Mapping[str, float] | None) -> dict[str, float]:
@@ -459,8 +504,8 @@ def _parameters(data: Mapping[str, Any], smap: SourceMap, overrides: Mapping[str
         for k, v in raw.items():
             if not isinstance(k, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", k):
                 raise smap.error(("parameters", str(k)), f"parameter name {k!r} is not allowed; use letters, digits, _")
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or v != v:
-                raise smap.error(("parameters", k), f"expected a number (the default value), got {v!r}")
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise smap.error(("parameters", k), f"expected a finite number (the default value), got {v!r}")
             params[k] = float(v)
     for k, v in (overrides or {}).items():
         if k not in params:
@@ -515,8 +560,8 @@ def parse_procedure(
     for k, v in dd.items():
         if k not in DEFAULT_KEYS:
             raise smap.error(("defaults", str(k)), f"unknown key {k!r}; allowed here: {', '.join(DEFAULT_KEYS)}")
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0 or v == float("inf"):
-            raise smap.error(("defaults", k), f"expected seconds >= 0, got {v!r}")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v <= MAX_SECONDS:
+            raise smap.error(("defaults", k), f"expected seconds in [0, {MAX_SECONDS:g}], got {v!r}")
     defaults = Defaults(
         settle=None if dd.get("settle_s") is None else float(dd["settle_s"]),
         hold=None if dd.get("hold_s") is None else float(dd["hold_s"]),
