@@ -32,6 +32,7 @@ from analysis.identification.plan import IdentificationPlan, PlanStep, plan_iden
 from analysis.units import DISPLAY_UNITS
 from core.errors import UserError
 from drivers.protocols import ImuBlock, TableState
+from procedures.steps import Hold, Spin, Step, Warmup
 
 from .recording import RecordingError, open_recording, read_steps
 from .reference import interpolate_table, reference_at
@@ -40,7 +41,9 @@ MODEL_TEXT = (
     "f_out = f + (S + T) f + b + D (f∘f) + diag(r) c(ω), body frame; c(ω) = [ω_y²+ω_z², ω_z²+ω_x², ω_x²+ω_y²]; "
     "misalignment convention δf_i += τ_ij f_j"
 )
-ACQUISITION_KINDS = ("hold", "spin")
+IDENTIFIED_STEPS: tuple[type[Step], ...] = (Hold, Spin)
+"""Steps whose counted samples the identification fits (a warm-up's only estimate the noise)."""
+_IDENTIFIED_KINDS = frozenset(t.kind for t in IDENTIFIED_STEPS)  # as written in a recording's steps table
 _SI_UNITS = {"bias": "m/s^2", "scale": "1", "misalignment": "rad", "quadratic": "s^2/m", "size_effect": "m"}
 
 
@@ -110,12 +113,12 @@ def _plan_steps_and_windows(
     ends = np.cumsum(compiled.step_times(limits))
     window: dict[str, tuple[float, float]] = {}
     for step, end in zip(compiled.steps, ends, strict=True):
-        if step.kind == "spin" and step.axis is not None:
-            end = end - abs(step.rate) / limits[step.axis].accel_max
+        if isinstance(step, Spin):
+            end = end - step.ramp_time(limits)
         window[step.name] = (float(end - step.duration), float(end))
     out: list[tuple[PlanStep, tuple[float, float]]] = []
     for ns in nominal_samples(compiled, rate, limits=limits):
-        if ns.step.kind not in ACQUISITION_KINDS or not np.all(np.isfinite(ns.angles)):
+        if not isinstance(ns.step, IDENTIFIED_STEPS) or not np.all(np.isfinite(ns.angles)):
             continue
         f_ref, omega = reference_at(ns.angles, ns.rates, config.site.g, config.unit.mounting)
         out.append((PlanStep(ns.step.name, f_ref, omega, ns.weights, ns.angles), window[ns.step.name]))
@@ -178,7 +181,7 @@ class LiveIdentifier:
     def on_block(self, step: Any, block: ImuBlock, table: TableState, counts: bool) -> None:
         """Buffer the block if it is inside a hold/spin acquisition window; fuse when enough is buffered."""
         self._readings.append(table)
-        if not counts or step.kind not in ACQUISITION_KINDS or len(block) == 0:
+        if not counts or not isinstance(step, IDENTIFIED_STEPS) or len(block) == 0:
             if self._n == 0:
                 del self._readings[:-3]
             return
@@ -294,10 +297,10 @@ def load_run(run: str | Path) -> RecordedRun:
                 raise IdentificationError(
                     f"{path}: step {s.name!r} ends at sample {s.acq_end} but the file holds {n}; it is truncated"
                 )
-            if s.kind == "warmup":
+            if s.kind == Warmup.kind:
                 warm = f["imu/accel"][s.acq_start : s.acq_end]
                 continue
-            if s.kind not in ACQUISITION_KINDS:
+            if s.kind not in _IDENTIFIED_KINDS:
                 continue
             t = f["imu/time"][s.acq_start : s.acq_end]
             fo = f["imu/accel"][s.acq_start : s.acq_end]

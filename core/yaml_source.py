@@ -308,3 +308,66 @@ def get_vector(
             raise smap.error(path + (key, i), f"expected a number, got {item!r}")
         out.append(float(item))
     return out
+
+
+def get_section(data: dict[str, Any], smap: SourceMap, path: KeyPath, key: str, required: bool = True) -> dict | None:
+    """The mapping at ``data[key]`` (None if absent and not ``required``)."""
+    if key not in data or data[key] is None:
+        if required:
+            raise smap.error(path + (key,), "is required (a mapping of key: value lines)")
+        return None
+    return get_mapping(data[key], smap, path + (key,))
+
+
+def get_components(
+    data: dict, smap: SourceMap, path: KeyPath, key: str, si: float, default: Any = None, length: int = 3, **bounds: Any
+) -> tuple[float, ...]:
+    """A vector in display units (a list, or one number for all components) → SI tuple."""
+    if key not in data or data[key] is None:
+        if default is None:
+            raise smap.error(path + (key,), f"is required (a list of {length} numbers, or one number for all)")
+        return tuple(default)
+    v = data[key]
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        vals = [get_number(data, smap, path, key, **bounds)] * length
+    else:
+        vals = get_vector(data, smap, path, key, length)
+        lo, hi = bounds.get("minimum"), bounds.get("maximum")
+        for i, x in enumerate(vals):
+            if (lo is not None and x < lo) or (hi is not None and x > hi):
+                raise smap.error(path + (key, i), f"{x:g} is out of range; allowed [{lo}, {hi}]")
+    return tuple(x * si for x in vals)
+
+
+def get_matrix(data: dict, smap: SourceMap, path: KeyPath, key: str, si: float, default: Any) -> tuple:
+    """A 3×3 matrix in display units (three rows) → SI tuple of rows; ``default`` if absent."""
+    if key not in data or data[key] is None:
+        return default
+    v = data[key]
+    where = path + (key,)
+    if not isinstance(v, list) or len(v) != 3:
+        raise smap.error(where, f"expected a 3×3 matrix as three rows [[a, b, c], [d, e, f], [g, h, i]], got {v!r}")
+    rows = []
+    for i, row in enumerate(v):
+        if not isinstance(row, list):
+            raise smap.error(where + (i,), f"expected a row of 3 numbers, got {row!r}")
+        rows.append(tuple(x * si for x in get_vector({"row": row}, smap, where + (i,), "row", 3)))
+    return tuple(rows)
+
+
+def get_int(data: dict, smap: SourceMap, path: KeyPath, key: str, default: int, minimum: int, maximum: int) -> int:
+    """A whole number in [minimum, maximum]."""
+    v = get_number(data, smap, path, key, default, minimum=minimum, maximum=maximum)
+    if v != int(v):
+        raise smap.error(path + (key,), f"expected a whole number, got {data[key]!r}")
+    return int(v)
+
+
+def get_list_of_maps(d: dict, smap: SourceMap, p: KeyPath, key: str) -> list[tuple[KeyPath, dict]]:
+    """The list of mappings at ``d[key]`` with their key paths (empty if absent)."""
+    v = d.get(key)
+    if v is None:
+        return []
+    if not isinstance(v, list):
+        raise smap.error(p + (key,), f"expected a list of mappings (lines starting with '- '), got {v!r}")
+    return [(p + (key, i), get_mapping(item, smap, p + (key, i))) for i, item in enumerate(v)]

@@ -11,7 +11,7 @@ from core.yaml_source import ConfigError
 from procedures.compiler import compile_procedure
 from procedures.loader import load_procedure
 from procedures.paths import default_bench_path, resolve_bench, resolve_procedure, shipped_procedures
-from procedures.steps import ACQUISITION_KINDS, CompiledProcedure
+from procedures.steps import CompiledProcedure
 
 EXAMPLES = """\
 examples:
@@ -71,7 +71,7 @@ def parse_overrides(items: list[str]) -> dict[str, float]:
 def check_against_unit(compiled: CompiledProcedure, sample_rate: float) -> None:
     """Every acquisition step must last at least one sample period of the unit; ConfigError otherwise."""
     for s in compiled.steps:
-        if s.kind in ACQUISITION_KINDS and s.duration * sample_rate < 1.0:
+        if s.acquires and s.duration * sample_rate < 1.0:
             raise ConfigError(
                 compiled.path,
                 s.line,
