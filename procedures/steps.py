@@ -111,7 +111,7 @@ class Move(Step):
     """Move to absolute gimbal ``angles`` (an orientation, or one rotation of a step_rotate about ``axis``)."""
 
     kind: ClassVar[str] = "move"
-    angles: Vec3
+    angles: Vec3 = field()  # required (field(): the inherited None default does not apply)
 
     def describe(self, mounting: np.ndarray | None) -> str:
         what = f"→ {describe_attitude(self.angles, mounting)}"
@@ -132,7 +132,7 @@ class Hold(Step):
 
     kind: ClassVar[str] = "hold"
     acquires: ClassVar[bool] = True
-    angles: Vec3
+    angles: Vec3 = field()  # required (field(): the inherited None default does not apply)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -141,7 +141,7 @@ class Spin(Step):
 
     kind: ClassVar[str] = "spin"
     acquires: ClassVar[bool] = True
-    axis: int
+    axis: int = field()  # required
 
     def commanded_rates(self) -> tuple[tuple[int, float], ...]:
         return ((self.axis, self.rate),)
