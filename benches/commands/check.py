@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 
-from core.errors import UsageError
+from analysis.units import format_hms
+from benches.arguments import parse_overrides
+from benches.bench_config import load_bench
 from core.yaml_source import ConfigError
 from procedures.compiler import compile_procedure
 from procedures.loader import load_procedure
@@ -53,21 +54,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def parse_overrides(items: list[str]) -> dict[str, float]:
-    """``["duration_s=60", ...]`` → ``{"duration_s": 60.0}``; :class:`UsageError` on a malformed item."""
-    out: dict[str, float] = {}
-    for item in items:
-        name, sep, value = item.partition("=")
-        try:
-            v = float(value)
-        except ValueError:
-            v = math.nan
-        if not sep or not name.strip() or not math.isfinite(v):
-            raise UsageError(f"--set {item!r}: expected NAME=NUMBER, e.g. --set duration_s=60")
-        out[name.strip()] = v
-    return out
-
-
 def check_against_unit(compiled: CompiledProcedure, sample_rate: float) -> None:
     """Every acquisition step must last at least one sample period of the unit; ConfigError otherwise."""
     for s in compiled.steps:
@@ -82,8 +68,6 @@ def check_against_unit(compiled: CompiledProcedure, sample_rate: float) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Load, compile and check; print the summary; 0 if valid (errors raise → exit 2)."""
-    from benches.bench_config import load_bench
-
     proc_path = resolve_procedure(args.procedure)
     bench_path = resolve_bench(args.bench) if args.bench else default_bench_path()
     overrides = parse_overrides(args.set)
@@ -97,9 +81,8 @@ def run(args: argparse.Namespace) -> int:
         if compiled.parameters:
             print("parameters: " + ", ".join(f"{k}={v:g}" for k, v in compiled.parameters.items()))
     est = compiled.estimated_duration(limits)
-    s = int(round(est))
     print(
-        f"OK: {Path(proc_path)} is valid on bench {getattr(config, 'name', bench_path)!s} ({bench_path}); "
-        f"estimated duration {s // 3600}:{(s % 3600) // 60:02d}:{s % 60:02d}"
+        f"OK: {Path(proc_path)} is valid on bench {config.name} ({bench_path}); "
+        f"estimated duration {format_hms(est)}"
     )
     return 0

@@ -6,6 +6,21 @@ import argparse
 import sys
 from pathlib import Path
 
+import numpy as np
+
+from benches import arguments
+from benches.calibration_text import format_result
+from benches.session import (
+    SessionError,
+    copy_inputs,
+    execute,
+    new_run_folder,
+    prepare,
+    recorded_overrides,
+    recording_status,
+)
+from core.errors import UsageError
+
 EXAMPLES = """examples:
   tablebench run                                   # ten-step procedure on the simulated bench
   tablebench run --procedure ten-step-fast-spin --seed 7
@@ -32,7 +47,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--bench", default=None, help="bench file (default: the shipped simulated bench benches/sim.yaml)")
     p.add_argument("--procedure", default=None, help="procedure file or shipped name (default: ten-step)")
     p.add_argument("--out", default=None, metavar="DIR", help="run folder (default: runs/<UTC time>-<procedure>)")
-    p.add_argument("--seed", type=int, default=None, help="simulator seed (simulated benches; default from the bench)")
+    p.add_argument(
+        "--seed",
+        type=arguments.seed,
+        default=None,
+        help=f"simulator seed 0 … {arguments.MAX_SEED} (simulated benches; default from the bench)",
+    )
     p.add_argument("--resume", default=None, metavar="RUN", help="continue an interrupted run folder")
     p.add_argument(
         "--transport",
@@ -55,20 +75,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench run``."""
-    from benches.commands.check import parse_overrides
-    from benches.session import (
-        SessionError,
-        copy_inputs,
-        execute,
-        new_run_folder,
-        prepare,
-        recorded_overrides,
-        recording_status,
-    )
-    from core.errors import UsageError
-
-    if args.seed is not None and args.seed < 0:
-        raise UsageError("--seed must be a non-negative integer")
     if args.resume is not None:
         folder = Path(args.resume)
         if folder.is_file():
@@ -83,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"{folder}: the run is already complete; nothing to resume")
         prep = prepare(folder / "bench.yaml", folder / "procedure.yaml", recorded_overrides(folder))
     else:
-        prep = prepare(args.bench, args.procedure, parse_overrides(args.set))
+        prep = prepare(args.bench, args.procedure, arguments.parse_overrides(args.set))
+    # lazy: identification pulls scipy/filterpy; see benches/cli.py (--help time)
     from benches.identify import IdentificationError, LiveIdentifier, identify_run, plan_for, write_calibration
 
     print(f"bench: {prep.config.name} ({prep.bench_path})", file=sys.stderr)
@@ -145,24 +152,17 @@ def run(args: argparse.Namespace) -> int:
             return 0
         if live and live[0].filter.n_samples:
             # the live filter saw the same samples and readings (except replayed ones on resume)
-            import numpy as np
-
             offline = np.array([result["parameters"][n]["value"] for n in result["parameter_names"]])
             diff = np.abs(live[0].filter.estimate - offline) / np.array(
                 [result["parameters"][n]["sigma_white"] for n in result["parameter_names"]]
             )
             result["live_vs_offline_max_sigma"] = float(diff.max())
         path = write_calibration(result, folder / "calibration.json")
-        from benches.commands.identify import format_result
-
         print(format_result(result), file=sys.stderr)
         print(f"calibration: {path}")
         if not args.no_certificate:
-            try:
-                from benches.certificate import issue_certificate
-            except ImportError:
-                print("certificate: not available in this installation", file=sys.stderr)
-            else:
-                pdf, js, verdict = issue_certificate(folder)
-                print(f"certificate: {pdf} ({verdict})")
+            from benches.certificate import issue_certificate  # lazy: fpdf2/matplotlib (--help time)
+
+            pdf, js, verdict = issue_certificate(folder)
+            print(f"certificate: {pdf} ({verdict})")
     return 0
