@@ -70,6 +70,9 @@ PARAM_GROUPS: dict[str, tuple[str, float, tuple[str, ...]]] = {
     "size_effect": ("mm", MM, ACCEL_PARAM_NAMES[15:18]),
 }
 _NAME_UNIT = {name: (suffix, si) for suffix, si, names in PARAM_GROUPS.values() for name in names}
+PARAM_MAX: dict[str, float] = {"ug": 1e6, "ppm": 1e6, "arcsec": 360_000.0, "ug_g2": 1e6, "mm": 10_000.0}
+"""Largest prior / limit a bench file may give, display units by key suffix (1 g, 100 %, 100°, 1 g/g², 10 m):
+beyond that the number is a typo, not a datasheet bound."""
 
 
 
@@ -268,13 +271,13 @@ def _param_map(d: dict | None, smap: SourceMap, p: KeyPath, positive: bool) -> d
     for g, (suffix, si, names) in PARAM_GROUPS.items():
         key = f"{g}_{suffix}"
         if key in d:
-            v = get_number(d, smap, p, key, **lo)
+            v = get_number(d, smap, p, key, maximum=PARAM_MAX[suffix], **lo)
             out.update({n: v * si for n in names})
     for n in ACCEL_PARAM_NAMES:
         suffix, si = _NAME_UNIT[n]
         key = f"{n}_{suffix}"
         if key in d:
-            out[n] = get_number(d, smap, p, key, **lo) * si
+            out[n] = get_number(d, smap, p, key, maximum=PARAM_MAX[suffix], **lo) * si
     return out
 
 
