@@ -14,7 +14,6 @@ Results: ``calibration.json`` (format ``benches/CALIBRATION_FORMAT.md``).
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from dataclasses import dataclass
@@ -31,6 +30,7 @@ from analysis.identification.model import PARAM_KINDS, PARAM_NAMES, predict
 from analysis.identification.plan import IdentificationPlan, PlanStep, plan_identification
 from analysis.units import DISPLAY_UNITS
 from core.errors import UserError
+from core.provenance import file_sha256
 from drivers.protocols import ImuBlock, TableState
 from procedures.steps import Hold, Spin, Step, Warmup
 
@@ -255,14 +255,6 @@ class RecordedRun:
     temperature: NDArray[np.float64]
 
 
-def _sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
-    with path.open("rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 def load_run(run: str | Path) -> RecordedRun:
     """Read a recording's acquisition windows and reference; clear errors for unusable recordings."""
     from benches.bench_config import load_bench_text
@@ -464,7 +456,7 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
         "format": "tablebench-calibration",
         "format_version": 1,
         "recording": rr.path.name,
-        "recording_sha256": _sha256_file(rr.path),
+        "recording_sha256": file_sha256(rr.path),
         "software_version": str(a.get("software_version", "")),
         "method": method,
         "model": MODEL_TEXT,
