@@ -27,7 +27,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from core.yaml_source import ConfigError
-from drivers.protocols import InertialUnit, LinkError, Turntable
+from drivers import connect
+from drivers.protocols import InertialUnit, Turntable
+from drivers.sim.inprocess import SimInertialUnit, SimTurntable
+from drivers.sim.loopback import Loopback
+from drivers.sim.world import SimulatedWorld
+
+from .bench_config import BenchConfig
 
 log = logging.getLogger(__name__)
 
@@ -42,7 +48,7 @@ class Bench:
 
     turntable: Turntable
     unit: InertialUnit
-    world: Any  # drivers.sim.world.SimulatedWorld | None
+    world: SimulatedWorld | None
     transport: str
     description: str
     _closers: list[Any] = field(default_factory=list, repr=False)
@@ -67,11 +73,11 @@ class Bench:
         self.close()
 
 
-def _bad(config: Any, message: str) -> ConfigError:
+def _bad(config: BenchConfig, message: str) -> ConfigError:
     return ConfigError(getattr(config, "path", "<bench>"), None, message)
 
 
-def open_bench(config: Any, *, seed: int | None = None, transport: str | None = None) -> Bench:
+def open_bench(config: BenchConfig, *, seed: int | None = None, transport: str | None = None) -> Bench:
     """Open the bench described by ``config`` (a ``benches.bench_config.BenchConfig``).
 
     Parameters
@@ -105,13 +111,9 @@ def open_bench(config: Any, *, seed: int | None = None, transport: str | None = 
     return _open_hardware(config)
 
 
-def _open_simulated(config: Any, seed: int | None, transport: str) -> Bench:
-    from drivers.sim.world import SimulatedWorld
-
+def _open_simulated(config: BenchConfig, seed: int | None, transport: str) -> Bench:
     world = SimulatedWorld.from_bench(config, seed)
     if transport == "in-process":
-        from drivers.sim.inprocess import SimInertialUnit, SimTurntable
-
         table, unit = SimTurntable(world), SimInertialUnit(world)
         return Bench(
             table,
@@ -121,8 +123,6 @@ def _open_simulated(config: Any, seed: int | None, transport: str) -> Bench:
             f"{config.name}: simulated bench, in-process drivers",
             [table.close, unit.close],
         )
-    from drivers.sim.loopback import Loopback
-
     tt = config.turntable
     dialect = "ascii" if getattr(tt, "driver", "sim") == "ascii-serial" else "modbus"
     wd = getattr(tt, "watchdog", None)
@@ -137,7 +137,7 @@ def _open_simulated(config: Any, seed: int | None, transport: str) -> Bench:
     )
 
 
-def _host_port(config: Any, address: str | None, default_port: int) -> tuple[str, int]:
+def _host_port(config: BenchConfig, address: str | None, default_port: int) -> tuple[str, int]:
     if not address:
         raise _bad(config, "turntable.address is required for a Modbus TCP table (e.g. '192.168.0.10:502')")
     host, _, port = address.rpartition(":") if ":" in address else (address, "", str(default_port))
@@ -150,68 +150,43 @@ def _host_port(config: Any, address: str | None, default_port: int) -> tuple[str
     return host, p
 
 
-def _open_hardware(config: Any) -> Bench:
-    import serial
-
-    closers: list[Any] = []
+def _open_hardware(config: BenchConfig) -> Bench:
+    opened: list[connect.Connection[Any]] = []
     bench_ok = False
     try:
         tt = config.turntable
         limits = tuple(tt.limits) if getattr(tt, "limits", None) else None
         if tt.driver == "modbus-tcp":
-            from pymodbus.client import ModbusTcpClient
-
-            from drivers.modbus_table import ModbusTurntable
-
             host, port = _host_port(config, tt.address, 502)
-            client = ModbusTcpClient(host, port=port, timeout=DEFAULT_TIMEOUT_S, retries=1)
-            closers.append(client.close)
-            if not client.connect():
-                raise LinkError(f"turntable: no Modbus TCP answer at {host}:{port}; check power, cable and address")
-            table: Any = ModbusTurntable(
-                client, word_order=getattr(tt, "float_word_order", "big") or "big", limits=limits
+            word_order = getattr(tt, "float_word_order", "big") or "big"
+            opened.append(
+                connect.modbus_table(host, port, word_order=word_order, limits=limits, timeout=DEFAULT_TIMEOUT_S)
             )
             where = f"Modbus TCP {host}:{port}"
         elif tt.driver == "ascii-serial":
-            from drivers.ascii_table import AsciiTurntable
-
             if not tt.address:
                 raise _bad(config, "turntable.address is required for an ASCII table (e.g. '/dev/ttyS0')")
-            try:
-                tport = serial.serial_for_url(tt.address, timeout=DEFAULT_TIMEOUT_S)
-            except (serial.SerialException, ValueError) as exc:
-                raise LinkError(f"turntable: cannot open {tt.address!r}: {exc}") from exc
-            closers.append(tport.close)
-            table = AsciiTurntable(tport, timeout=DEFAULT_TIMEOUT_S, limits=limits)
+            opened.append(connect.ascii_table(tt.address, limits=limits, timeout=DEFAULT_TIMEOUT_S))
             where = f"ASCII on {tt.address}"
         else:
             raise _bad(
                 config, f"turntable.driver {tt.driver!r} needs a simulation section; real: modbus-tcp, ascii-serial"
             )
-        closers.append(table.close)
         un = config.unit
         if un.driver != "serial":
             raise _bad(config, f"unit.driver {un.driver!r} needs a simulation section; a real unit uses 'serial'")
         if not un.address:
             raise _bad(config, "unit.address is required for a serial unit (e.g. '/dev/ttyUSB0')")
-        from drivers.serial_imu import SerialInertialUnit
-
-        try:
-            uport = serial.serial_for_url(
-                un.address, baudrate=int(getattr(un, "baudrate", 921600) or 921600), timeout=0.02
-            )
-        except (serial.SerialException, ValueError) as exc:
-            raise LinkError(f"unit: cannot open {un.address!r}: {exc}") from exc
-        closers.append(uport.close)
-        unit = SerialInertialUnit(uport, un.scale, un.sample_rate, timeout=DEFAULT_TIMEOUT_S, polled=False)
-        closers.append(unit.close)
+        baud = int(getattr(un, "baudrate", 921600) or 921600)
+        opened.append(
+            connect.serial_unit(un.address, un.scale, un.sample_rate, baudrate=baud, timeout=DEFAULT_TIMEOUT_S)
+        )
+        table, unit = opened[0].driver, opened[1].driver
+        closers = [c.close for c in opened]
         bench = Bench(table, unit, None, "hardware", f"{config.name}: table {where}, unit on {un.address}", closers)
         bench_ok = True
         return bench
     finally:
         if not bench_ok:
-            for fn in reversed(closers):
-                try:
-                    fn()
-                except Exception:
-                    log.debug("close after failed open", exc_info=True)
+            for c in reversed(opened):
+                c.close()
