@@ -1,4 +1,4 @@
-"""Compile a loaded procedure to plain motion/acquisition steps for one table and one unit mounting (pure).
+"""Compile a loaded procedure to typed steps (:mod:`procedures.steps`) for one table and one unit mounting (pure).
 
 Attitudes follow :mod:`analysis.gimbal`: gimbal angles (outer ψ about n-Up, middle θ, inner γ), rad,
 C_t^n = R_z(ψ) R_x(θ) R_y(γ) in ENU, and C_b^n = C_t^n C_b^t with the bench's mounting C_b^t.
