@@ -18,6 +18,11 @@ Transports:
     ``turntable.driver`` "modbus-tcp" (address ``host:port``, default port 502) or "ascii-serial" (a pyserial
     URL or device, e.g. ``/dev/ttyS0`` or ``socket://host:9888``); ``unit.driver`` "serial" (device/URL at
     ``unit.baudrate``, free-running stream). The factory opens the clients; the drivers never do.
+
+The unit's frame format is ``unit.frame`` with ``unit.frame_options`` (:func:`benches.bench_config.unit_frame_format`):
+the serial driver decodes it on hardware and on loopback, where the simulated unit speaks it. With
+``unit.keep_raw`` and a ``run_folder``, every byte read from the unit is kept in ``RUN_FOLDER/unit-raw.bin``
+(appended on resume); the in-process transport has no byte stream, so nothing is kept there.
 """
 
 from __future__ import annotations
@@ -33,7 +38,7 @@ from drivers.sim.inprocess import SimInertialUnit, SimTurntable
 from drivers.sim.loopback import Loopback
 from drivers.sim.world import SimulatedWorld
 
-from .bench_config import BenchConfig
+from .bench_config import BenchConfig, unit_frame_format
 
 log = logging.getLogger(__name__)
 
@@ -77,7 +82,28 @@ def _bad(config: BenchConfig, message: str) -> ConfigError:
     return ConfigError(getattr(config, "path", "<bench>"), None, message)
 
 
-def open_bench(config: BenchConfig, *, seed: int | None = None, transport: str | None = None) -> Bench:
+RAW_FILE = "unit-raw.bin"
+
+
+def _raw_sink(config: BenchConfig, run_folder: Any, closers: list[Any]) -> tuple[Any, str]:
+    """The open raw-stream file when the bench keeps it (``unit.keep_raw``) and a run folder is given."""
+    if run_folder is None or not getattr(config.unit, "keep_raw", False):
+        return None, ""
+    from pathlib import Path
+
+    path = Path(run_folder) / RAW_FILE
+    try:
+        fh = open(path, "ab")  # noqa: SIM115 - closed by the bench
+    except OSError as exc:
+        raise _bad(config, f"unit.keep_raw: cannot write {path} ({exc.strerror})") from None
+    closers.append(fh.close)
+    start = fh.seek(0, 2)  # a resumed run appends: say where this session's bytes begin
+    return fh, RAW_FILE if start == 0 else f"{RAW_FILE} (this session from byte {start})"
+
+
+def open_bench(
+    config: BenchConfig, *, seed: int | None = None, transport: str | None = None, run_folder: Any = None
+) -> Bench:
     """Open the bench described by ``config`` (a ``benches.bench_config.BenchConfig``).
 
     Parameters
@@ -87,6 +113,8 @@ def open_bench(config: BenchConfig, *, seed: int | None = None, transport: str |
         Simulated benches: seed of the world (None: the bench's default seed).
     transport : {"in-process", "loopback", "hardware"} or None
         None: the simulation section's ``transport`` for simulated benches, "hardware" for real ones.
+    run_folder : path or None
+        The run folder, where ``unit-raw.bin`` is kept when the bench says ``unit.keep_raw: true``.
 
     Raises
     ------
@@ -102,16 +130,16 @@ def open_bench(config: BenchConfig, *, seed: int | None = None, transport: str |
         transport = transport or getattr(sim, "transport", "in-process")
         if transport == "hardware":
             raise _bad(config, "this is a simulated bench; transport must be 'in-process' or 'loopback'")
-        return _open_simulated(config, seed, transport)
+        return _open_simulated(config, seed, transport, run_folder)
     transport = transport or "hardware"
     if transport != "hardware":
         raise _bad(
             config, f"bench {config.name!r} is a real bench (no simulation section): transport must be 'hardware'"
         )
-    return _open_hardware(config)
+    return _open_hardware(config, run_folder)
 
 
-def _open_simulated(config: BenchConfig, seed: int | None, transport: str) -> Bench:
+def _open_simulated(config: BenchConfig, seed: int | None, transport: str, run_folder: Any = None) -> Bench:
     world = SimulatedWorld.from_bench(config, seed)
     if transport == "in-process":
         table, unit = SimTurntable(world), SimInertialUnit(world)
@@ -120,20 +148,36 @@ def _open_simulated(config: BenchConfig, seed: int | None, transport: str) -> Be
             unit,
             world,
             "in-process",
-            f"{config.name}: simulated bench, in-process drivers",
+            f"{config.name}: simulated bench, in-process drivers (no byte stream: unit.frame "
+            f"{getattr(config.unit, 'frame', 'tablebench-v1')} and unit.keep_raw apply over loopback)",
             [table.close, unit.close],
         )
     tt = config.turntable
     dialect = "ascii" if getattr(tt, "driver", "sim") == "ascii-serial" else "modbus"
     wd = getattr(tt, "watchdog", None)
-    lb = Loopback(
-        world,
-        dialect=dialect,
-        word_order=getattr(tt, "float_word_order", "big") or "big",
-        watchdog_s=max(float(wd), LOOPBACK_MIN_WATCHDOG_S) if wd else None,
-    )
+    closers: list[Any] = []
+    raw, raw_name = _raw_sink(config, run_folder, closers)
+    try:
+        lb = Loopback(
+            world,
+            dialect=dialect,
+            word_order=getattr(tt, "float_word_order", "big") or "big",
+            watchdog_s=max(float(wd), LOOPBACK_MIN_WATCHDOG_S) if wd else None,
+            unit_frame=unit_frame_format(config.unit),
+            unit_raw=raw,
+            unit_raw_name=raw_name,
+        )
+    except BaseException:
+        for fn in closers:
+            fn()
+        raise
     return Bench(
-        lb.turntable, lb.unit, world, "loopback", f"{config.name}: simulated bench, {lb.describe()}", [lb.close]
+        lb.turntable,
+        lb.unit,
+        world,
+        "loopback",
+        f"{config.name}: simulated bench, {lb.describe()}",
+        [*closers, lb.close],
     )
 
 
@@ -150,8 +194,9 @@ def _host_port(config: BenchConfig, address: str | None, default_port: int) -> t
     return host, p
 
 
-def _open_hardware(config: BenchConfig) -> Bench:
+def _open_hardware(config: BenchConfig, run_folder: Any = None) -> Bench:
     opened: list[connect.Connection[Any]] = []
+    closers: list[Any] = []  # the raw-stream file, closed after the drivers
     bench_ok = False
     try:
         tt = config.turntable
@@ -177,16 +222,35 @@ def _open_hardware(config: BenchConfig) -> Bench:
             raise _bad(config, f"unit.driver {un.driver!r} needs a simulation section; a real unit uses 'serial'")
         if not un.address:
             raise _bad(config, "unit.address is required for a serial unit (e.g. '/dev/ttyUSB0')")
+        fmt = unit_frame_format(un)
+        raw, raw_name = _raw_sink(config, run_folder, closers)
         baud = int(getattr(un, "baudrate", 921600) or 921600)
         opened.append(
-            connect.serial_unit(un.address, un.scale, un.sample_rate, baudrate=baud, timeout=DEFAULT_TIMEOUT_S)
+            connect.serial_unit(
+                un.address,
+                fmt,
+                un.sample_rate,
+                baudrate=baud,
+                timeout=DEFAULT_TIMEOUT_S,
+                raw_sink=raw,
+                raw_name=raw_name,
+            )
         )
         table, unit = opened[0].driver, opened[1].driver
-        closers = [c.close for c in opened]
-        bench = Bench(table, unit, None, "hardware", f"{config.name}: table {where}, unit on {un.address}", closers)
+        where_unit = f"unit ({fmt.name}) on {un.address}"
+        bench = Bench(
+            table,
+            unit,
+            None,
+            "hardware",
+            f"{config.name}: table {where}, {where_unit}",
+            [*closers, *(c.close for c in opened)],
+        )
         bench_ok = True
         return bench
     finally:
         if not bench_ok:
             for c in reversed(opened):
                 c.close()
+            for fn in reversed(closers):
+                fn()

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Generic, TypeVar
+from typing import Any, BinaryIO, Generic, TypeVar
 
 import serial
 from pymodbus.client import ModbusTcpClient
@@ -19,6 +19,7 @@ from pymodbus.client import ModbusTcpClient
 from drivers import modbus_registers as reg
 from drivers.ascii_table import AsciiTurntable
 from drivers.imu_counts import CountScale
+from drivers.imu_frame_desc import FrameFormat
 from drivers.modbus_table import ModbusTurntable
 from drivers.protocols import AxisLimits, LinkError
 from drivers.serial_imu import SerialInertialUnit
@@ -97,23 +98,36 @@ def ascii_table(
 
 def serial_unit(
     url: str,
-    scale: CountScale,
+    frame: FrameFormat | CountScale,
     sample_rate: float,
     *,
     baudrate: int | None = None,
     polled: bool = False,
     timeout: float = 2.0,
     name: str = "inertial unit",
+    raw_sink: BinaryIO | None = None,
+    raw_name: str = "",
     wrap: Wrap = _same,
 ) -> Connection[SerialInertialUnit]:
-    """A serial inertial unit on a device or URL: free-running stream, or polled bursts (``polled``)."""
+    """A serial inertial unit on a device or URL: free-running stream, or polled bursts (``polled``); ``frame``
+    is its frame format (a bare count scale means the project's own ``tablebench-v1`` frame); ``raw_sink``
+    keeps the raw byte stream (see :class:`~drivers.serial_imu.SerialInertialUnit`)."""
     kw: dict[str, Any] = {"timeout": 0.02}
     if baudrate is not None:
         kw["baudrate"] = int(baudrate)
     port = _serial_port("unit", url, **kw)
     transport = wrap(port)
     try:
-        unit = SerialInertialUnit(transport, scale, sample_rate, timeout=timeout, polled=polled, name=name)
+        unit = SerialInertialUnit(
+            transport,
+            frame,
+            sample_rate,
+            timeout=timeout,
+            polled=polled,
+            name=name,
+            raw_sink=raw_sink,
+            raw_name=raw_name,
+        )
     except BaseException:
         port.close()
         raise

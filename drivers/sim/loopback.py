@@ -46,6 +46,10 @@ class Loopback:
         Driver timeouts, s.
     unit_id : int
         Modbus unit id used by the driver.
+    unit_frame : drivers.imu_frame_desc.FrameFormat or None
+        The frame format the simulated unit speaks and the driver decodes (None: ``tablebench-v1``).
+    unit_raw : binary file or None
+        Where the unit driver keeps the raw byte stream; ``unit_raw_name`` names it in events.
     """
 
     def __init__(
@@ -58,6 +62,9 @@ class Loopback:
         corruption: Any = None,
         timeout: float = 2.0,
         unit_id: int = 1,
+        unit_frame: Any = None,
+        unit_raw: Any = None,
+        unit_raw_name: str = "",
     ) -> None:
         if dialect not in ("modbus", "ascii"):
             raise ValueError(f"loopback dialect must be 'modbus' or 'ascii', got {dialect!r}")
@@ -84,15 +91,17 @@ class Loopback:
             self._closers.insert(0, table.close)
             self.client: Any = table.transport
             self.turntable: Any = table.driver
-            self.unit_server = SerialUnitServer(world, corruption=corruption)
+            self.unit_server = SerialUnitServer(world, corruption=corruption, frame=unit_frame)
             self._closers.append(self.unit_server.close)
             unit = connect.serial_unit(
                 self.unit_server.url,
-                world.scale,
+                self.unit_server.frame,
                 world.sample_rate,
                 polled=True,
                 timeout=timeout,
                 name="simulated unit",
+                raw_sink=unit_raw,
+                raw_name=unit_raw_name,
             )
             self._closers.insert(0, unit.close)
             self.unit_port = unit.transport
@@ -106,7 +115,7 @@ class Loopback:
         table = "Modbus TCP" if self.dialect == "modbus" else "ASCII"
         return (
             f"loopback: {table} controller on 127.0.0.1:{self.table_server.port}, "
-            f"serial unit (polled) on 127.0.0.1:{self.unit_server.port}"
+            f"serial unit (polled, {self.unit_server.frame.name}) on 127.0.0.1:{self.unit_server.port}"
         )
 
     def close(self) -> None:
