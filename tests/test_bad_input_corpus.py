@@ -28,7 +28,10 @@ import h5py
 import numpy as np
 import pytest
 
+from analysis.units import G0
 from benches.cli import build_parser, main
+from drivers.imu_frame_desc import compile_format, load_frame
+from drivers.imu_frame_samples import encode_samples
 from tests import REPO_ROOT
 from tests.certificate_fixtures import make_run_folder
 
@@ -64,6 +67,7 @@ class Corpus:
     run: Path  # a good (small, fake) run folder: recording.h5 + calibration.json
     npy: Path  # a good 2-column .npy record (use with --rate 100)
     tiny: Path  # a tiny valid procedure (a run that wrongly accepts a bad input stays short)
+    capture: Path  # a good raw byte capture of a KVH 1750 (format A) unit
     files: dict[str, Path]  # bad files by kind
 
     def bad(self, kind: str) -> Path:
@@ -81,6 +85,13 @@ def corpus(tmp_path_factory: pytest.TempPathFactory) -> Corpus:
     rng = np.random.default_rng(0)
     npy = root / "good.npy"
     np.save(npy, rng.standard_normal((1500, 1)) * 1e-3)  # 15 s at --rate 100: enough for every analysis, quick
+    fmt = compile_format(load_frame("kvh-1750-a"), None, 1000.0)
+    idx = np.arange(400)
+    rows = encode_samples(
+        fmt, idx, idx / 1000.0, np.tile([0.0, 0.0, G0], (400, 1)), np.zeros((400, 3)), np.full(400, 300.0)
+    )
+    capture = root / "capture.bin"
+    capture.write_bytes(rows.tobytes())
     tiny = root / "tiny.yaml"
     tiny.write_text("name: tiny\nsteps:\n  - warmup: {duration_s: 1}\n", encoding="utf-8")
     f: dict[str, Path] = {"missing": root / "no-such-file.yaml", "directory": root / "a-folder"}
@@ -119,7 +130,7 @@ def corpus(tmp_path_factory: pytest.TempPathFactory) -> Corpus:
     f["prior-1e300"].write_text(sim.replace("    bias_ug: 300.0\n", "    bias_ug: 1e300\n", 1), encoding="utf-8")
     f["a-file"] = root / "a-file.txt"
     f["a-file"].write_text("not a folder\n", encoding="utf-8")
-    return Corpus(root, run, npy, tiny, f)
+    return Corpus(root, run, npy, tiny, capture, f)
 
 
 # ---- cases ---------------------------------------------------------------------------------------------------
@@ -139,6 +150,7 @@ GOOD_POSITIONAL = {
     ("check", "procedure"): "{tiny}",
     ("correct", "calibration"): "{run}/calibration.json",
     ("correct", "input"): "{run}",
+    ("decode", "capture"): "{capture}",
     ("drift", "input"): "{npy}",
     ("identify", "run"): "{run}",
     ("noise", "input"): "{npy}",
@@ -149,6 +161,7 @@ GOOD_POSITIONAL = {
 listed gets the bad file in every positional)."""
 CONTEXT = {
     "correct": ("--out", "{root}/out-{id}.npy"),
+    "decode": ("--frame", "kvh-1750-a", "--out", "{root}/out-{id}.npy"),
     "drift": ("--rate", "100", "--out", "{root}/out-{id}"),
     "noise": ("--rate", "100", "--out", "{root}/out-{id}"),
     "periodic": ("--rate", "100", "--out", "{root}/out-{id}"),
@@ -160,7 +173,7 @@ CONTEXT = {
 """Options added to every case of a command unless the case sets them: outputs go to the corpus folder,
 a run that wrongly accepts a bad input runs only the tiny procedure."""
 BAD_NUMBERS = {"text": "abc", "nan": "nan", "inf": "inf", "huge": "1e300", "minus-huge": "-1e300", "2**64": str(2**64)}
-FILE_OPTIONS = ("--bench", "--procedure", "--resume", "--calibration")
+FILE_OPTIONS = ("--bench", "--procedure", "--resume", "--calibration", "--frame", "--unit-config")
 """Options that name an input file (outputs: ``--out``, ``--json``)."""
 OUTPUT_OPTIONS = ("--out", "--json")
 ACCEPTABLE = {("runs", "folder"): {"directory"}}
@@ -263,6 +276,9 @@ KNOWN: dict[str, str] = {
     "correct/--out=uncreatable": "h12b: commands/correct.py np.save lets OSError through (traceback)",
     "correct/calibration=directory": "h12b: commands/correct.py reads a folder as calibration (traceback)",
     "correct/input=empty": "h12b: commands/correct.py np.load of an empty file raises EOFError (traceback)",
+    # decode (h15)
+    "decode/--rate=huge": "h15: commands/decode.py --rate has no upper bound (1e300 Hz accepted)",
+    "decode/--rate=2**64": "h15: commands/decode.py --rate has no upper bound (1.8e19 Hz accepted)",
     # drift (h17a) and periodic (h17b)
     "drift/values-1e296": "h17a: drift on values ~1e296 overflows to inf inside the analysis (traceback)",
     "drift/--detrend=2**64": "h17a: refused (exit 2) but the message does not name --detrend",
@@ -311,6 +327,7 @@ def _time_limit(seconds: int) -> Iterator[None]:
 def _fill(text: str, corpus: Corpus, case_id: str) -> str:
     values = {k: str(v) for k, v in corpus.files.items()}
     values |= {"run": str(corpus.run), "npy": str(corpus.npy), "tiny": str(corpus.tiny), "root": str(corpus.root)}
+    values["capture"] = str(corpus.capture)
     values["id"] = case_id.replace("/", "_").replace("*", "x")
     for k, v in values.items():
         text = text.replace("{" + k + "}", v)
