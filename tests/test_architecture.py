@@ -73,10 +73,6 @@ def test_the_graph_is_not_empty() -> None:
     assert "procedures.steps" in graph["benches.runner"]
 
 
-KNOWN_CYCLES = [["analysis.periodic.compensator", "analysis.periodic.error"]]
-"""Cycles owned by another change in flight (h17b restructures analysis/periodic); tested separately below."""
-
-
 def _cycles() -> list[list[str]]:
     graph = _project_graph()
     # Tarjan's strongly connected components
@@ -118,13 +114,8 @@ def _cycles() -> list[list[str]]:
 
 def test_no_import_cycles() -> None:
     """Type-checking-only imports count too: a loop of concerns is a loop even when Python can load it."""
-    cycles = [c for c in _cycles() if c not in KNOWN_CYCLES]
+    cycles = _cycles()
     assert cycles == [], f"import cycles: {cycles}"
-
-
-@pytest.mark.xfail(strict=False, reason="h17b: analysis.periodic.error and .compensator import each other")
-def test_no_known_cycles_left() -> None:
-    assert [c for c in _cycles() if c in KNOWN_CYCLES] == []
 
 
 def test_imports_go_down_the_layers_only() -> None:
