@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from core.yaml_source import ConfigError
@@ -89,8 +90,6 @@ def _raw_sink(config: BenchConfig, run_folder: Any, closers: list[Any]) -> tuple
     """The open raw-stream file when the bench keeps it (``unit.keep_raw``) and a run folder is given."""
     if run_folder is None or not getattr(config.unit, "keep_raw", False):
         return None, ""
-    from pathlib import Path
-
     path = Path(run_folder) / RAW_FILE
     try:
         fh = open(path, "ab")  # noqa: SIM115 - closed by the bench

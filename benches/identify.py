@@ -33,7 +33,9 @@ from core.errors import UserError
 from core.provenance import file_sha256
 from drivers.protocols import ImuBlock, TableState
 from procedures.steps import Hold, Spin, Step, Warmup
+from procedures.trajectory import nominal_samples
 
+from .bench_config import load_bench_text
 from .recording import RecordingError, open_recording, read_steps
 from .reference import interpolate_table, reference_at
 
@@ -105,8 +107,6 @@ def offset_covariance(windows: list[tuple[float, float]], b: NDArray[np.float64]
 def _plan_steps_and_windows(
     compiled: Any, config: Any, sample_rate: float | None = None
 ) -> list[tuple[PlanStep, tuple[float, float]]]:
-    from procedures.trajectory import nominal_samples
-
     rate = float(sample_rate or config.unit.sample_rate)
     limits = config.turntable.limits
     # nominal acquisition window of every step in bench time (step end minus the spin's ramp down)
@@ -262,8 +262,6 @@ flagged samples are left out of the identification, never silently used."""
 
 def load_run(run: str | Path) -> RecordedRun:
     """Read a recording's acquisition windows and reference; clear errors for unusable recordings."""
-    from benches.bench_config import load_bench_text
-
     try:
         f = open_recording(run)
     except RecordingError as exc:

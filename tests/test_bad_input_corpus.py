@@ -260,6 +260,8 @@ KNOWN: dict[str, str] = {
     # recording reader and analysis input (h12a)
     **{f"{c}/{k}": _H12A_READER for c in ("identify", "correct", "periodic") for k in DAMAGED if k != "no-steps"},
     "periodic/no-steps": _H12A_READER,
+    "drift/other-version": _H12A_READER,
+    "drift/no-steps": _H12A_READER,
     **{f"{c}/bad-rate-attr": f"{_H12A_INPUT} reads sample_rate_hz unchecked (traceback)" for c in ("noise", "drift")},
     **{
         f"{c}/--channels=empty": f"{_H12A_INPUT}: --channels '' silently means all"
