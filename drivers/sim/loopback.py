@@ -21,7 +21,8 @@ from typing import Any, Literal
 from drivers import connect
 from drivers.sim.ascii_controller import AsciiTableServer
 from drivers.sim.modbus_controller import ModbusTableServer
-from drivers.sim.serial_unit import SerialUnitServer
+from drivers.sim.serial_unit import Corruption, SerialUnitServer
+from drivers.sim.world import SimulatedWorld
 
 log = logging.getLogger(__name__)
 
@@ -54,12 +55,12 @@ class Loopback:
 
     def __init__(
         self,
-        world: Any,
+        world: SimulatedWorld,
         *,
         dialect: Dialect = "modbus",
         word_order: Literal["big", "little"] = "big",
         watchdog_s: float | None = None,
-        corruption: Any = None,
+        corruption: Corruption | None = None,
         timeout: float = 2.0,
         unit_id: int = 1,
         unit_frame: Any = None,
