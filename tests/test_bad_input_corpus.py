@@ -273,11 +273,6 @@ KNOWN: dict[str, str] = {
     "drift/--rate=huge": f"{_H12A_INPUT}: --rate has no upper bound (1e300 Hz accepted)",
     "drift/--rate=2**64": f"{_H12A_INPUT}: --rate has no upper bound (1.8e19 Hz accepted)",
     "run/--out=uncreatable": "h12a: benches/session.py new_run_folder lets NotADirectoryError through (traceback)",
-    # identification / calibration / correct (h12b)
-    "identify/--out=uncreatable": "h12b: benches/identify.py write_calibration lets OSError through (traceback)",
-    "correct/--out=uncreatable": "h12b: commands/correct.py np.save lets OSError through (traceback)",
-    "correct/calibration=directory": "h12b: commands/correct.py reads a folder as calibration (traceback)",
-    "correct/input=empty": "h12b: commands/correct.py np.load of an empty file raises EOFError (traceback)",
     # decode (h15)
     "decode/--rate=huge": "h15: commands/decode.py --rate has no upper bound (1e300 Hz accepted)",
     "decode/--rate=2**64": "h15: commands/decode.py --rate has no upper bound (1.8e19 Hz accepted)",
