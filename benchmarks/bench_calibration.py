@@ -46,8 +46,9 @@ about one independent sample per run; with 120 runs a correct budget lands S in 
 probability (32 runs: ≈ 83 %; see :func:`benchmarks.coverage.expected_spread`)."""
 
 
-def coverage_section(n_runs: int, rate: float = 100.0, res: CoverageResult | None = None) -> str:
-    """Run the coverage Monte Carlo (or score ``res``) and write its RESULTS.md section; returns the Markdown."""
+def coverage_section(n_runs: int, rate: float = 100.0, res: CoverageResult | None = None, note: str = "") -> str:
+    """Run the coverage Monte Carlo (or score ``res``, runs made elsewhere as ``note`` says) and write its
+    RESULTS.md section; returns the Markdown body."""
     if res is None:
         res = run_coverage(n_runs, rate=rate, log=print)
     n_runs = len(res.seeds)
@@ -56,7 +57,7 @@ def coverage_section(n_runs: int, rate: float = 100.0, res: CoverageResult | Non
         "`benchmarks.coverage.coverage_bench`: a truth different from benches/sim.yaml (other bias, scale, "
         "misalignment, quadratic and lever arms; site at 37.2° / 1450 m with u(g) = 2 mGal; table ±2″ attitude, "
         "±500 ppm rate) with `realise_uncertainty_inputs: true`. Each run identified and certified as the CLI "
-        "does; u = the certificate's combined standard uncertainty, U = 2u.",
+        "does; u = the certificate's combined standard uncertainty, U = 2u." + (f" {note}" if note else ""),
         "",
         r"| class | runs × params | fraction \|error\| > U | RMS(error/u) | in band (2–9 %, 0.8–1.25) | "
         "1σ sampling spread of fraction / RMS for a correct budget | P(both in band) if correct | "
@@ -90,7 +91,8 @@ def coverage_section(n_runs: int, rate: float = 100.0, res: CoverageResult | Non
         f"the rest scores {100 * split.fraction_outside:.1f} % outside 2·u_rest and RMS "
         f"{split.rms_normalised:.2f} against u_rest = √(u² − u_local_g²) ({3 * n_runs} nearly independent "
         f"samples). Given these draws the S class's expected fraction outside U is "
-        f"{100 * split.expected_fraction_given_draws:.1f} % (4.6 % over all draws).",
+        f"{100 * split.expected_fraction_given_draws:.1f} % and its expected RMS(error/u) "
+        f"{split.expected_rms_given_draws:.2f} (4.6 % and 1.00 over all draws).",
     ]
     lines += ["", "How the simulated bench exercises each budget component:", ""]
     for key, how in REALISED.items():

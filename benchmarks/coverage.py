@@ -179,6 +179,8 @@ class GravitySplit:
     """RMS of (Ŝ − S − δg/g) / u_rest."""
     expected_fraction_given_draws: float
     """The S class's expected fraction outside U given these δg draws (normal rest with u_rest)."""
+    expected_rms_given_draws: float
+    """The S class's expected RMS(error/u) given these δg draws: √mean(((δg/g)² + u_rest²) / u²)."""
 
 
 def gravity_split(res: CoverageResult, rate: float = 100.0) -> GravitySplit:
@@ -193,8 +195,9 @@ def gravity_split(res: CoverageResult, rate: float = 100.0) -> GravitySplit:
     slope = (x @ e) / (x @ x)
     z = (e - x[:, None]) / u_rest
     p = norm.sf((2 * u - x[:, None]) / u_rest) + norm.cdf((-2 * u - x[:, None]) / u_rest)
+    rms_given = float(np.sqrt(np.mean((x[:, None] ** 2 + u_rest**2) / u**2)))
     return GravitySplit(
-        slope, float(np.mean(np.abs(z) > 2)), float(np.sqrt(np.mean(z**2))), float(np.mean(p))
+        slope, float(np.mean(np.abs(z) > 2)), float(np.sqrt(np.mean(z**2))), float(np.mean(p)), rms_given
     )
 
 
