@@ -48,7 +48,8 @@ def stream(name: str, seconds: float, seed: int = 0) -> tuple[object, bytes, int
     garbage = rng.random(n) < 0.01
     parts = []
     start = 0
-    allowed = np.array([b for b in range(256) if b not in (fmt.desc.sync[0], 0x0D)], np.uint8)
+    forbidden = {fmt.desc.sync[0], 0x0D} | {d.sync[0] for _r, d in fmt.desc.alternates}
+    allowed = np.array([b for b in range(256) if b not in forbidden], np.uint8)
     for i in np.flatnonzero(garbage).tolist():
         parts.append(rows[start:i].tobytes())
         parts.append(rng.choice(allowed, int(rng.integers(1, 40))).tobytes())

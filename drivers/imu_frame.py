@@ -44,11 +44,13 @@ class DecodeStats:
     frames: int = 0
     rejected: int = 0
     garbage_bytes: int = 0
+    bit_frames: int = 0  # built-in-test frames (a ``role: bit`` layout): recognised, neither data nor garbage
 
     def add(self, other: DecodeStats) -> None:
         self.frames += other.frames
         self.rejected += other.rejected
         self.garbage_bytes += other.garbage_bytes
+        self.bit_frames += other.bit_frames
 
 
 @dataclass
@@ -60,14 +62,24 @@ class FrameBatch:
     values : dict[str, ndarray]
         Field name → (n,) values as on the wire (no scaling).
     rows : ndarray (n, length) uint8
-        The frames' bytes.
+        The frames' bytes (single-layout descriptions; empty for a multi-layout one).
+    layout : ndarray (n,) int or None
+        Multi-layout descriptions: the layout index of each data frame in stream order (0 = the primary
+        layout, k = ``desc.alternates[k - 1]``); None for a single-layout description.
+    groups : dict[int, FrameBatch]
+        Multi-layout descriptions: layout index → that layout's frames (stream order), with their values.
+    bit : dict[str, FrameBatch]
+        Built-in-test frames (``role: bit`` layouts) by layout name, with their values and bytes.
     """
 
     values: dict[str, NDArray] = field(default_factory=dict)
     rows: NDArray[np.uint8] = field(default_factory=lambda: np.zeros((0, 0), np.uint8))
+    layout: NDArray[np.intp] | None = None
+    groups: dict[int, FrameBatch] = field(default_factory=dict)
+    bit: dict[str, FrameBatch] = field(default_factory=dict)
 
     def __len__(self) -> int:
-        return int(self.rows.shape[0])
+        return int(self.rows.shape[0]) if self.layout is None else int(self.layout.shape[0])
 
 
 class FrameCodec:
@@ -176,6 +188,16 @@ class FrameDecoder:
         self._pos = 0  # stream offset of the carry-over's first byte
         self._reject_end = 0  # stream offset where the span of the last counted reject ends
         self.total = DecodeStats()
+        # multi-layout descriptions ("length by identifier"): every layout's sync, length, codec and role
+        self.layouts: list[tuple[str, FrameDescription]] = [("data", desc), *desc.alternates]
+        self._multi = len(self.layouts) > 1
+        if self._multi:
+            self._codecs = [self.codec] + [FrameCodec(d) for _r, d in desc.alternates]
+            self._syncs = [np.frombuffer(d.sync, np.uint8) for _r, d in self.layouts]
+            self._lens = np.array([d.length for _r, d in self.layouts], dtype=np.int64)
+            self._roles = [r for r, _d in self.layouts]
+            self._first = np.zeros(256, dtype=bool)
+            self._first[[int(sy[0]) for sy in self._syncs]] = True
 
     @property
     def pending_bytes(self) -> int:
@@ -199,6 +221,8 @@ class FrameDecoder:
         """Decode as many complete frames as ``data`` (plus the carry-over) holds; see the module docstring."""
         new = np.frombuffer(data, dtype=np.uint8) if not isinstance(data, np.ndarray) else data.astype(np.uint8)
         buf = np.concatenate([self._carry, new]) if self._carry.size else new
+        if self._multi:
+            return self._feed_multi(buf)
         n = buf.size
         L = self.codec.length
         stats = DecodeStats()
@@ -260,6 +284,119 @@ class FrameDecoder:
         )
         self.total.add(stats)
         return batch, stats
+
+
+    def _feed_multi(self, buf: NDArray[np.uint8]) -> tuple[FrameBatch, DecodeStats]:
+        """:meth:`feed` for a multi-layout description: the layout is chosen by the sync/identifier bytes.
+
+        Candidates of every layout are found in one pass (a 256-entry table of the layouts' first sync bytes,
+        then each layout's remaining sync bytes), each layout's candidates are checked with its own checksum
+        in bulk, and accepted frames of all layouts are merged in stream order (earliest first where
+        candidates overlap). Positions below ``n − longest + 1`` are decided; a shorter frame already
+        complete beyond that is decided too, so a stream's last short frame is never held back.
+        """
+        n = buf.size
+        stats = DecodeStats()
+        lmax = int(self._lens.max())
+        m = max(n - lmax + 1, 0)
+        starts = np.flatnonzero(self._first[buf])
+        pos_l, lay_l, ok_l, rows_l = [], [], [], []
+        for k, sync in enumerate(self._syncs):
+            L = int(self._lens[k])
+            c = starts[buf[starts] == sync[0]]
+            c = c[c + L <= n]
+            for j in range(1, sync.size):
+                if not c.size:
+                    break
+                c = c[buf[c + j] == sync[j]]
+            rows = buf[c[:, None] + np.arange(L)] if c.size else np.zeros((0, L), np.uint8)
+            ok = self._codecs[k].checksums_ok(rows) if c.size else np.zeros(0, bool)
+            pos_l.append(c)
+            lay_l.append(np.full(c.size, k, np.intp))
+            ok_l.append(ok)
+            rows_l.append(rows)
+        pos = np.concatenate(pos_l)
+        lay = np.concatenate(lay_l)
+        ok = np.concatenate(ok_l)
+        # index of each candidate inside its layout's row block
+        within = np.concatenate([np.arange(p.size) for p in pos_l])
+        order = np.argsort(pos, kind="stable")
+        pos, lay, ok, within = pos[order], lay[order], ok[order], within[order]
+        lens = self._lens[lay]
+        g = np.flatnonzero(ok)
+        if g.size > 1 and (pos[g[1:]] < pos[g[:-1]] + lens[g[:-1]]).any():
+            g = g[_non_overlapping_var(pos[g], lens[g])]
+        good, glen = pos[g], lens[g]
+        gend = good + glen
+        decided_end = max(int(gend[-1]), m) if good.size else m
+        b = np.flatnonzero(~ok)
+        bad, blen = pos[b], lens[b]
+        keepb = bad < decided_end  # a failed candidate beyond the decided region is judged again next feed
+        if good.size and bad.size:
+            inside = np.searchsorted(good, bad, side="right") - 1
+            keepb &= ~((inside >= 0) & (bad < gend[np.maximum(inside, 0)]))  # payload of an accepted frame
+        keepb &= bad + self._pos >= self._reject_end
+        bad, blen = bad[keepb], blen[keepb]
+        if bad.size > 1 and (bad[1:] < bad[:-1] + blen[:-1]).any():
+            kb = _non_overlapping_var(bad, blen)
+            bad, blen = bad[kb], blen[kb]
+        if bad.size:
+            self._reject_end = max(self._reject_end, int((bad + blen).max()) + self._pos)
+        stats.rejected = int(bad.size)
+        trailer_bytes = 0
+        if self._trailer.size and good.size:
+            t = self._trailer.size
+            fits = gend + t <= n
+            e = gend[fits]
+            tr = buf[e] == self._trailer[0]
+            for j in range(1, t if tr.any() else 0):
+                tr &= buf[e + j] == self._trailer[j]
+            nxt = np.append(good[1:], np.iinfo(np.int64).max)[fits]
+            tr &= e + t <= nxt
+            trailer_bytes = int(tr.sum()) * t
+            if tr.size and tr[-1] and int(e[-1]) + t > decided_end:
+                decided_end = int(e[-1]) + t
+        stats.garbage_bytes = int(decided_end - int(glen.sum()) - trailer_bytes)
+        glay, gwithin = lay[g], within[g]
+        is_bit = np.array([r == "bit" for r in self._roles])[glay] if good.size else np.zeros(0, bool)
+        data = ~is_bit
+        batch = FrameBatch(layout=glay[data])
+        for k in np.unique(glay).tolist():
+            sel = glay == k
+            rows = rows_l[k][gwithin[sel]]
+            fb = FrameBatch(self._codecs[k].values(rows), rows)
+            if self._roles[k] == "bit":
+                batch.bit[self.layouts[k][1].name] = fb
+            else:
+                batch.groups[k] = fb
+        if len(batch.groups) == 1:  # the usual case: every data frame in one layout (its values as they are)
+            only = next(iter(batch.groups.values()))
+            batch.values, batch.rows = only.values, only.rows
+        elif batch.groups:  # fields every data layout has (counter, gyros…), merged in stream order
+            common = set.intersection(*(set(gb.values) for gb in batch.groups.values()))
+            lay_d = batch.layout
+            for name in sorted(common):
+                out = np.zeros(lay_d.size, dtype=np.result_type(*(gb.values[name] for gb in batch.groups.values())))
+                for k, gb in batch.groups.items():
+                    out[lay_d == k] = gb.values[name]
+                batch.values[name] = out
+        stats.frames = int(data.sum())
+        stats.bit_frames = int(is_bit.sum())
+        self._carry = buf[decided_end:].copy()
+        self._pos += decided_end
+        self.total.add(stats)
+        return batch, stats
+
+
+def _non_overlapping_var(pos: NDArray[np.intp], lengths: NDArray[np.int64]) -> NDArray[np.intp]:
+    """:func:`_non_overlapping` for frames of different lengths (loops only when some overlap: rare)."""
+    keep: list[int] = []
+    end = -1
+    for i, (p, L) in enumerate(zip(pos.tolist(), lengths.tolist(), strict=True)):
+        if p >= end:
+            keep.append(i)
+            end = p + L
+    return np.asarray(keep, dtype=np.intp)
 
 
 def _non_overlapping(pos: NDArray[np.intp], length: int) -> NDArray[np.intp]:
