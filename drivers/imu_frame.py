@@ -187,6 +187,7 @@ class FrameDecoder:
         self._carry = np.zeros(0, dtype=np.uint8)
         self._pos = 0  # stream offset of the carry-over's first byte
         self._reject_end = 0  # stream offset where the span of the last counted reject ends
+        self._after_frame = False  # the carry-over starts right after an accepted frame (a trailer may follow)
         self.total = DecodeStats()
         # multi-layout descriptions ("length by identifier"): every layout's sync, length, codec and role
         self.layouts: list[tuple[str, FrameDescription]] = [("data", desc), *desc.alternates]
@@ -210,7 +211,10 @@ class FrameDecoder:
         self._carry = np.zeros(0, dtype=np.uint8)
 
     def flush(self) -> DecodeStats:
-        """End of stream: the carried bytes can never complete a frame; count them as garbage."""
+        """End of stream: the carried bytes can never complete a frame; count them as garbage (a multi-layout
+        description first judges the failed candidates held back, so a damaged last frame counts as a reject)."""
+        if self._multi and self._carry.size:
+            return self._feed_multi(self._carry, final=True)[1]
         st = DecodeStats(garbage_bytes=int(self._carry.size))
         self._pos += self._carry.size
         self._carry = np.zeros(0, dtype=np.uint8)
@@ -259,20 +263,7 @@ class FrameDecoder:
                 self._reject_end = max(self._reject_end, int(bad[-1]) + L + self._pos)
         stats.rejected = int(bad.size)
         stats.frames = int(good.size)
-        trailer_bytes = 0
-        if self._trailer.size and good.size:
-            t = self._trailer.size
-            ends = good + L
-            fits = ends + t <= n
-            e = ends[fits]
-            tr = buf[e] == self._trailer[0]
-            for j in range(1, t if tr.any() else 0):
-                tr &= buf[e + j] == self._trailer[j]
-            nxt = np.append(good[1:], np.iinfo(np.int64).max)[fits]
-            tr &= e + t <= nxt  # the trailer must not overlap the next frame
-            trailer_bytes = int(tr.sum()) * t
-            if tr.size and tr[-1] and int(e[-1]) + t > decided_end:
-                decided_end = int(e[-1]) + t
+        trailer_bytes, decided_end = self._trailers(buf, good, good + L, decided_end)
         garbage = decided_end - good.size * L - trailer_bytes
         stats.garbage_bytes = int(garbage)
         self._carry = buf[decided_end:].copy()
@@ -286,19 +277,46 @@ class FrameDecoder:
         return batch, stats
 
 
-    def _feed_multi(self, buf: NDArray[np.uint8]) -> tuple[FrameBatch, DecodeStats]:
+    def _trailers(
+        self, buf: NDArray[np.uint8], good: NDArray[np.intp], ends: NDArray[np.intp], decided_end: int
+    ) -> tuple[int, int]:
+        """(trailer bytes after accepted frames, decided end): an optional trailer (STIM300 CR LF) right after a
+        frame is not garbage, also when the frame ended the previous feed (the carry then starts after it)."""
+        t = self._trailer.size
+        if not t:
+            return 0, decided_end
+        big = np.iinfo(np.int64).max
+        nxt = np.append(good[1:], big) if good.size else good  # the start of the frame after each accepted one
+        if self._after_frame:  # a frame ended where the carry-over starts: a virtual end at 0
+            ends = np.concatenate([[0], ends])
+            nxt = np.concatenate([[good[0] if good.size else big], nxt])
+        self._after_frame = bool(ends.size) and int(ends[-1]) == decided_end
+        fits = ends + t <= buf.size
+        e = ends[fits]
+        tr = buf[e] == self._trailer[0]
+        for j in range(1, t if tr.any() else 0):
+            tr &= buf[e + j] == self._trailer[j]
+        tr &= e + t <= nxt[fits]  # the trailer must not overlap the next frame
+        if tr.size and tr[-1] and int(e[-1]) + t > decided_end:
+            decided_end = int(e[-1]) + t
+            self._after_frame = False
+        return int(tr.sum()) * t, decided_end
+
+    def _feed_multi(self, buf: NDArray[np.uint8], final: bool = False) -> tuple[FrameBatch, DecodeStats]:
         """:meth:`feed` for a multi-layout description: the layout is chosen by the sync/identifier bytes.
 
         Candidates of every layout are found in one pass (a 256-entry table of the layouts' first sync bytes,
         then each layout's remaining sync bytes), each layout's candidates are checked with its own checksum
         in bulk, and accepted frames of all layouts are merged in stream order (earliest first where
         candidates overlap). Positions below ``n − longest + 1`` are decided; a shorter frame already
-        complete beyond that is decided too, so a stream's last short frame is never held back.
+        complete beyond that is decided too, so a stream's last short frame is never held back. A failed
+        candidate beyond the decided region waits (it may be payload of a longer frame not yet complete);
+        ``final`` (end of stream) decides everything.
         """
         n = buf.size
         stats = DecodeStats()
         lmax = int(self._lens.max())
-        m = max(n - lmax + 1, 0)
+        m = n if final else max(n - lmax + 1, 0)
         starts = np.flatnonzero(self._first[buf])
         pos_l, lay_l, ok_l, rows_l = [], [], [], []
         for k, sync in enumerate(self._syncs):
@@ -343,19 +361,7 @@ class FrameDecoder:
         if bad.size:
             self._reject_end = max(self._reject_end, int((bad + blen).max()) + self._pos)
         stats.rejected = int(bad.size)
-        trailer_bytes = 0
-        if self._trailer.size and good.size:
-            t = self._trailer.size
-            fits = gend + t <= n
-            e = gend[fits]
-            tr = buf[e] == self._trailer[0]
-            for j in range(1, t if tr.any() else 0):
-                tr &= buf[e + j] == self._trailer[j]
-            nxt = np.append(good[1:], np.iinfo(np.int64).max)[fits]
-            tr &= e + t <= nxt
-            trailer_bytes = int(tr.sum()) * t
-            if tr.size and tr[-1] and int(e[-1]) + t > decided_end:
-                decided_end = int(e[-1]) + t
+        trailer_bytes, decided_end = self._trailers(buf, good, gend, decided_end)
         stats.garbage_bytes = int(decided_end - int(glen.sum()) - trailer_bytes)
         glay, gwithin = lay[g], within[g]
         is_bit = np.array([r == "bit" for r in self._roles])[glay] if good.size else np.zeros(0, bool)

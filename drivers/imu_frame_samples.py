@@ -124,7 +124,9 @@ class SampleConverter:
         # multi-layout description: one converter per data layout (index as in FrameBatch.layout)
         self._subs: dict[int, SampleConverter] = {}
         if fmt.alternates:
-            base = FrameFormat(replace(d, alternates=()), fmt.options, fmt.sample_rate, fmt.conversions, fmt.counter_step)
+            base = FrameFormat(
+                replace(d, alternates=()), fmt.options, fmt.sample_rate, fmt.conversions, fmt.counter_step
+            )
             self._subs[0] = SampleConverter(base)
             for k, (role, alt) in enumerate(fmt.alternates, 1):
                 if role == "data":
