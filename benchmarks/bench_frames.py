@@ -117,6 +117,10 @@ def main(argv: list[str] | None = None) -> None:
         f"Slowest format, wall clock: {worst['block']:,.0f}× with 0.2 s feeds (the runner's block; fixed per-call "
         f"costs dominate), {worst['second']:,.0f}× with 1 s feeds; CPU time: {worst['block_cpu']:,.0f}× and "
         f"{worst['second_cpu']:,.0f}×. Load average {load0:.1f} → {load1:.1f} on 2 cores during this run.",
+        "",
+        "Multi-layout descriptions (layouts by identifier) decode with every layout's candidates checked: "
+        "`stim300` (all 24 STIM300 datagrams; the stream is its primary 0x93) against `stim300-0x93` alone, and "
+        "`kvh-1750-a/b/c` (each with the two built-in-test layouts) show that cost.",
     ]
     write_section("frames", "Frame decoding (every shipped format, 1 kHz)", "\n".join(body))
 

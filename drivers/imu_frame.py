@@ -197,8 +197,11 @@ class FrameDecoder:
             self._syncs = [np.frombuffer(d.sync, np.uint8) for _r, d in self.layouts]
             self._lens = np.array([d.length for _r, d in self.layouts], dtype=np.int64)
             self._roles = [r for r, _d in self.layouts]
+            self._is_bit = np.array([r == "bit" for r in self._roles])
+            self._has_bit = bool(self._is_bit.any())
             self._first = np.zeros(256, dtype=bool)
             self._first[[int(sy[0]) for sy in self._syncs]] = True
+            self._recent: list[int] = [0]  # layouts with frames in the latest feed (checked first)
 
     @property
     def pending_bytes(self) -> int:
@@ -317,59 +320,119 @@ class FrameDecoder:
         stats = DecodeStats()
         lmax = int(self._lens.max())
         m = n if final else max(n - lmax + 1, 0)
-        starts = np.flatnonzero(self._first[buf])
-        pos_l, lay_l, ok_l, rows_l = [], [], [], []
-        for k, sync in enumerate(self._syncs):
-            L = int(self._lens[k])
-            c = starts[buf[starts] == sync[0]]
-            c = c[c + L <= n]
+        nl = len(self._syncs)
+        starts = np.zeros(0, np.intp)
+        pos_l: list[NDArray[np.intp]] = [starts[:0]] * nl
+        ok_l: list[NDArray[np.bool_]] = [np.zeros(0, bool)] * nl
+        rows_l: dict[int, NDArray[np.uint8]] = {}
+
+        checked: list[int] = []
+
+        def check(k: int, pool: NDArray[np.intp] | None) -> None:
+            checked.append(k)
+            sync, L = self._syncs[k], int(self._lens[k])
+            if pool is None:  # the whole buffer
+                c = np.flatnonzero(buf[: max(n - L + 1, 0)] == sync[0])
+            else:
+                c = pool[buf[pool] == sync[0]]
+                c = c[c + L <= n]
             for j in range(1, sync.size):
                 if not c.size:
                     break
                 c = c[buf[c + j] == sync[j]]
-            rows = buf[c[:, None] + np.arange(L)] if c.size else np.zeros((0, L), np.uint8)
-            ok = self._codecs[k].checksums_ok(rows) if c.size else np.zeros(0, bool)
-            pos_l.append(c)
-            lay_l.append(np.full(c.size, k, np.intp))
-            ok_l.append(ok)
-            rows_l.append(rows)
-        pos = np.concatenate(pos_l)
-        lay = np.concatenate(lay_l)
-        ok = np.concatenate(ok_l)
-        # index of each candidate inside its layout's row block
-        within = np.concatenate([np.arange(p.size) for p in pos_l])
-        order = np.argsort(pos, kind="stable")
-        pos, lay, ok, within = pos[order], lay[order], ok[order], within[order]
+            if c.size:
+                rows_l[k] = buf[c[:, None] + np.arange(L)]
+                ok_l[k] = self._codecs[k].checksums_ok(rows_l[k])
+                pos_l[k] = c
+
+        # 1. the layouts the stream used lately (usually one): all their candidates, as a single layout would
+        for k in self._recent:
+            check(k, None)
+        # 2. the other layouts, only where no frame was accepted in 1 (identifier bytes inside accepted frames
+        #    are payload: not checked), and only the layouts whose first sync byte occurs there (garbage)
+        if len(self._recent) == 1:
+            k0 = self._recent[0]
+            acc = pos_l[k0] if ok_l[k0].all() else pos_l[k0][ok_l[k0]]
+            acc_end = acc + self._lens[k0]
+        else:
+            acc = np.concatenate([pos_l[k][ok_l[k]] for k in self._recent])
+            acc_end = np.concatenate([pos_l[k][ok_l[k]] + self._lens[k] for k in self._recent])
+            o = np.argsort(acc, kind="stable")
+            acc, acc_end = acc[o], np.maximum.accumulate(acc_end[o])
+        # the bytes outside accepted frames (gaps: garbage, trailers, a damaged frame, the tail), gathered at once
+        seg_start = np.concatenate([[0], acc_end])
+        seg_len = np.maximum(np.concatenate([acc, [n]]) - seg_start, 0)
+        total = int(seg_len.sum())
+        if total == n:
+            rest = np.flatnonzero(self._first[buf])
+        elif total:
+            offs = np.cumsum(seg_len) - seg_len
+            idx = np.repeat(seg_start - offs, seg_len) + np.arange(total)
+            rest = idx[self._first[buf[idx]]]
+        else:
+            rest = starts
+        if rest.size:
+            present = np.zeros(256, bool)
+            present[buf[rest]] = True
+            for k in range(nl):
+                if k not in self._recent and present[self._syncs[k][0]]:
+                    check(k, rest)
+        ks = [k for k in checked if pos_l[k].size]
+        seen = [k for k in ks if ok_l[k].any()]
+        if seen:
+            self._recent = seen
+        if len(ks) == 1:  # one layout had candidates: already in stream order
+            k = ks[0]
+            pos, ok = pos_l[k], ok_l[k]
+            lay = np.full(pos.size, k, np.intp)
+            within = np.arange(pos.size)
+        else:
+            pos = np.concatenate([pos_l[k] for k in ks]) if ks else starts[:0]
+            lay = np.concatenate([np.full(pos_l[k].size, k, np.intp) for k in ks]) if ks else starts[:0]
+            ok = np.concatenate([ok_l[k] for k in ks]) if ks else np.zeros(0, bool)
+            within = np.concatenate([np.arange(pos_l[k].size) for k in ks]) if ks else starts[:0]
+            order = np.argsort(pos, kind="stable")
+            pos, lay, ok, within = pos[order], lay[order], ok[order], within[order]
         lens = self._lens[lay]
-        g = np.flatnonzero(ok)
+        g = np.flatnonzero(ok) if not ok.all() else np.arange(ok.size)
         if g.size > 1 and (pos[g[1:]] < pos[g[:-1]] + lens[g[:-1]]).any():
             g = g[_non_overlapping_var(pos[g], lens[g])]
         good, glen = pos[g], lens[g]
         gend = good + glen
         decided_end = max(int(gend[-1]), m) if good.size else m
-        b = np.flatnonzero(~ok)
-        bad, blen = pos[b], lens[b]
-        keepb = bad < decided_end  # a failed candidate beyond the decided region is judged again next feed
-        if good.size and bad.size:
-            inside = np.searchsorted(good, bad, side="right") - 1
-            keepb &= ~((inside >= 0) & (bad < gend[np.maximum(inside, 0)]))  # payload of an accepted frame
-        keepb &= bad + self._pos >= self._reject_end
-        bad, blen = bad[keepb], blen[keepb]
-        if bad.size > 1 and (bad[1:] < bad[:-1] + blen[:-1]).any():
-            kb = _non_overlapping_var(bad, blen)
-            bad, blen = bad[kb], blen[kb]
-        if bad.size:
-            self._reject_end = max(self._reject_end, int((bad + blen).max()) + self._pos)
-        stats.rejected = int(bad.size)
+        if g.size < ok.size:  # failed candidates
+            b = np.flatnonzero(~ok)
+            bad, blen = pos[b], lens[b]
+            keepb = bad < decided_end  # a failed candidate beyond the decided region is judged again next feed
+            if good.size and bad.size:
+                inside = np.searchsorted(good, bad, side="right") - 1
+                keepb &= ~((inside >= 0) & (bad < gend[np.maximum(inside, 0)]))  # payload of an accepted frame
+            keepb &= bad + self._pos >= self._reject_end
+            bad, blen = bad[keepb], blen[keepb]
+            if bad.size > 1 and (bad[1:] < bad[:-1] + blen[:-1]).any():
+                kb = _non_overlapping_var(bad, blen)
+                bad, blen = bad[kb], blen[kb]
+            if bad.size:
+                self._reject_end = max(self._reject_end, int((bad + blen).max()) + self._pos)
+            stats.rejected = int(bad.size)
         trailer_bytes, decided_end = self._trailers(buf, good, gend, decided_end)
         stats.garbage_bytes = int(decided_end - int(glen.sum()) - trailer_bytes)
         glay, gwithin = lay[g], within[g]
-        is_bit = np.array([r == "bit" for r in self._roles])[glay] if good.size else np.zeros(0, bool)
-        data = ~is_bit
-        batch = FrameBatch(layout=glay[data])
-        for k in np.unique(glay).tolist():
-            sel = glay == k
-            rows = rows_l[k][gwithin[sel]]
+        if self._has_bit:
+            is_bit = self._is_bit[glay]
+            data = ~is_bit
+            batch = FrameBatch(layout=glay[data])
+            stats.frames, stats.bit_frames = int(data.sum()), int(is_bit.sum())
+        else:
+            batch = FrameBatch(layout=glay)
+            stats.frames = int(glay.size)
+        for k in seen if len(seen) > 1 else seen[:1] if good.size else []:
+            if len(seen) == 1 and good.size == pos_l[k].size:  # every candidate accepted: rows as gathered
+                rows = rows_l[k]
+            else:
+                rows = rows_l[k][gwithin[glay == k]]
+                if not rows.shape[0]:
+                    continue
             fb = FrameBatch(self._codecs[k].values(rows), rows)
             if self._roles[k] == "bit":
                 batch.bit[self.layouts[k][1].name] = fb
@@ -386,8 +449,6 @@ class FrameDecoder:
                 for k, gb in batch.groups.items():
                     out[lay_d == k] = gb.values[name]
                 batch.values[name] = out
-        stats.frames = int(data.sum())
-        stats.bit_frames = int(is_bit.sum())
         self._carry = buf[decided_end:].copy()
         self._pos += decided_end
         self.total.add(stats)

@@ -167,6 +167,14 @@ class SampleConverter:
         raw_counter = np.zeros(n, np.int64)
         time_si: NDArray[np.float64] | None = None
         extras: dict[str, NDArray] = {}
+        if len(batch.groups) == 1:  # the usual case: one layout, no scattering
+            k, group = next(iter(batch.groups.items()))
+            sub = self._subs[k]
+            a, g, t, st, ex, tm = sub._fields(group.values, len(group))
+            c = sub.fmt.desc.counter
+            rc = group.values[c.field].astype(np.int64) if c is not None else np.zeros(n, np.int64)
+            chk = self.tracker.update(rc) if c is not None and n else self.tracker.update_uncounted(n)
+            return self._finish(chk, rc, a, g, t, st, ex, tm)
         for k, group in batch.groups.items():
             sub = self._subs[k]
             sel = lay == k
