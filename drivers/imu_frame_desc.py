@@ -746,16 +746,15 @@ class FrameFormat:
         opts = ", ".join(f"{k}={v}" for k, v in self.options.items())
         inc = self.increments()
         text = f"frame {self.desc.name} ({self.desc.length} B)" + (f", {opts}" if opts else "")
-        if self.alternates:
-            data = [f.desc.name for r, f in self.alternates if r == "data"]
-            bit = [f.desc.name for r, f in self.alternates if r == "bit"]
-            text += f"; layout by identifier: primary {self.desc.sync.hex(' ')} ({self.desc.length} B)"
-            text += (f", also {', '.join(data)}" if data else "") + (f", built-in-test {', '.join(bit)}" if bit else "")
         if inc:
             text += (
                 f"; {'/'.join(inc)} are increments per sample, converted to rate/specific force by dividing by "
                 f"the sample interval 1/{self.sample_rate:g} s"
             )
+        if self.alternates:
+            nd = sum(r == "data" for r, _f in self.alternates)
+            nb = len(self.alternates) - nd
+            text += f"; also {nd} other data layout(s) and {nb} built-in-test layout(s), chosen by identifier"
         return text
 
 
