@@ -1,26 +1,28 @@
-"""ARMA(p, q) modelling of a drift residual: moment estimates, least-squares refinement, order selection.
+"""ARMA(p, q) modelling of a drift residual: moment estimates, exact maximum likelihood, order selection.
 
 Specification: ``shared/spec/drift-timeseries.md`` ("ARMA modelling").
 
 Sign convention (Box–Jenkins, as the spec's moment equations and the simulated unit ``drivers.sim``):
 
-    x_t − φ_1 x_{t−1} − … − φ_p x_{t−p} = e_t − θ_1 e_{t−1} − … − θ_q e_{t−q},   e_t ~ N(0, σ²) white,
+    (x_t − μ) − φ_1 (x_{t−1} − μ) − … − φ_p (x_{t−p} − μ) = e_t − θ_1 e_{t−1} − … − θ_q e_{t−q},   e_t ~ N(0, σ²),
 
 so γ_Y(k) = σ²(−θ_k + Σ_{j=1}^{q−k} θ_j θ_{j+k}). statsmodels (and most software) write "+ θ_j e_{t−j}": its
-MA coefficients are the negatives of these. x is a zero-mean scalar series (the input's mean is removed) in
-any unit; σ² is in that unit squared.
+MA coefficients are the negatives of these. x is a scalar series in any unit; μ (its mean) is estimated jointly
+(default) or fixed at zero; σ² is in the unit squared.
 
 - :func:`moment_estimates`: modified Yule–Walker (ρ_k = Σ φ_j ρ_{k−j}, k = q+1..q+p) for the AR part, then the
   MA part and σ² by the classical fixed-point iteration on the autocovariances of Y_t = x_t − Σ φ_j x_{t−j}
   (spectral factorisation when the iteration does not converge).
-- :func:`fit_arma`: exact Gaussian maximum likelihood (default; :mod:`analysis.drift.arma_likelihood`) or
-  conditional least squares (CSS), by Levenberg–Marquardt kept in the stationary/invertible region, started
-  from the moment estimates (CSS) and the CSS solution (ML); standard errors σ² (JᵀJ)⁻¹ of the residual
-  Jacobian.
-- :func:`select_order`: all p, q ≤ 3 with p ≥ q by AIC = n ln σ̂² + 2(p+q+1) or BIC = n ln σ̂² + (p+q+1) ln n.
-  The spec does not say how σ̂² is estimated; by default it is the exact-ML prediction-error variance, for which
-  n ln σ̂² = −2 ln L − n(1 + ln 2π), i.e. the standard AIC/BIC (Akaike 1974; Box, Jenkins, Reinsel & Ljung
-  §6.2.1).
+- :func:`fit_arma`: exact Gaussian maximum likelihood (default; :mod:`analysis.drift.arma_likelihood`, the mean
+  profiled out by generalised least squares) or conditional least squares (CSS), by Levenberg–Marquardt kept in
+  the stationary/invertible region from several starts (CSS solution, Hannan–Rissanen, nested model), with a
+  BFGS fallback when it stalls (:mod:`analysis.drift.arma_optimiser`); convergence is decided by gradient and
+  step criteria and reported; standard errors σ² (JᵀJ)⁻¹ of the residual Jacobian in (φ, θ, μ).
+- :func:`select_order`: all p, q ≤ 3 (p ≥ q only as an option) by BIC = n ln σ̂² + k ln n (the spec's choice)
+  with AIC = n ln σ̂² + 2k reported beside it, k = p + q + 1 (+ 1 for an estimated mean). The spec does not say
+  how σ̂² is estimated; it is the exact-ML prediction-error variance, for which n ln σ̂² = −2 ln L − n(1 + ln 2π),
+  i.e. the standard AIC/BIC up to a constant (Akaike 1974; Box, Jenkins, Reinsel & Ljung §6.2.1).
+- :func:`redundant_root_pairs`: near-cancelling AR/MA root pairs (the spec's parameter-redundancy flag).
 """
 
 from __future__ import annotations

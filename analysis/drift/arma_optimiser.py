@@ -150,13 +150,15 @@ def levenberg_marquardt(
     """Minimise ‖r(params)‖² over params = (φ, θ) by Levenberg–Marquardt, staying stationary/invertible.
 
     Stops when the gradient and step criteria (:func:`convergence`) hold at the current point
-    (``stopped_by_criteria`` True), or when no step decreases the cost, or after ``max_iter`` iterations
-    (False: a stall, which the caller must resolve or report).
+    (``stopped_by_criteria`` True), or when no step decreases the cost, or when five accepted steps in a row
+    gained less than 1e-14 of the cost, or after ``max_iter`` iterations (False: a stall, which the caller must
+    resolve or report).
     """
     e = residuals(params)
     cost = dot(e, e)
     m = e.size
     mu = 1e-3
+    flat = 0
     for it in range(1, max_iter + 1):
         A, g = normal_equations(jacobian(params, e), e)
         if convergence(A, g, cost, m).converged:
@@ -180,8 +182,11 @@ def levenberg_marquardt(
             mu *= 10.0
         if not accepted:
             return Optimum(params, cost, it, False)
+        flat = flat + 1 if cost - cost_new <= 1e-14 * cost else 0
         params, e, cost = new, e_new, cost_new
         mu = max(mu / 10.0, 1e-12)
+        if flat >= 5:
+            return Optimum(params, cost, it, False)
     return Optimum(params, cost, max_iter, False)
 
 
@@ -215,14 +220,21 @@ def quasi_newton(residuals: Residuals, params: NDArray[np.float64], p: int, max_
         if not np.all(np.isfinite(u)):
             return math.inf
         par = _from_unconstrained(u, p)
-        if not admissible(par[:p], par[p:], 0.0):
+        if not admissible(par[:p], par[p:], 1e-12):
             return math.inf
-        e = residuals(par)
+        try:
+            e = residuals(par)
+        except np.linalg.LinAlgError:  # a root numerically on the unit circle
+            return math.inf
         c = dot(e, e)
         return m * math.log(c) if c > 0 and math.isfinite(c) else math.inf
 
     with np.errstate(invalid="ignore", over="ignore"):  # inf outside the region: the line search backs off
         res = optimize.minimize(f, u0, method="BFGS", options={"maxiter": max_iter, "gtol": 1e-7})
     par = _from_unconstrained(res.x, p)
-    e = residuals(par)
-    return Optimum(par, dot(e, e), int(res.nit), bool(res.success))
+    cost = math.exp(res.fun / m) if math.isfinite(res.fun) else math.inf
+    if not math.isfinite(cost):
+        par = params
+        e = residuals(par)
+        cost = dot(e, e)
+    return Optimum(par, cost, int(res.nit), bool(res.success))
