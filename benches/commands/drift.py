@@ -153,7 +153,8 @@ def unsettled_line(items: list[dict]) -> str:
             parts.append(f"{it['item']} has a near-cancelling AR/MA root pair (parameter redundancy)")
         else:
             chosen = " (the chosen model)" if it.get("chosen") else ""
-            parts.append(f"{it['item']}{chosen} {it['issue']}, gradient norm {it['gradient_norm']:.3g}")
+            why = " toward a unit root" if it["issue"] == "boundary" else ""
+            parts.append(f"{it['item']}{chosen} not converged{why}, gradient norm {it['gradient_norm']:.3g}")
     return "NOT settled: " + "; ".join(parts) + " (details in drift.json 'unsettled')"
 
 
