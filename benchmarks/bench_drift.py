@@ -16,6 +16,7 @@ Run: ``python -m benchmarks.bench_drift`` (``--quick`` for smaller sizes).
 from __future__ import annotations
 
 import argparse
+import os
 import time
 import warnings
 
@@ -53,6 +54,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="smaller sizes (CI smoke run)")
     args = ap.parse_args()
+    load_start = os.getloadavg()[0]
     rate = 100.0
     minutes = 5 if args.quick else 30
     n = int(minutes * 60 * rate)
@@ -168,8 +170,14 @@ def main() -> None:
         f"{n / rate / t_all:.0f}× faster than real time"
     )
 
+    load_line = (
+        f"machine load (1-min load average, {os.cpu_count()} CPUs) {load_start:.1f} at start, {os.getloadavg()[0]:.1f} "
+        "at end: absolute times scale with it; the ratios compare runs made minutes apart within it"
+    )
     body = "\n".join(
         [
+            load_line,
+            "",
             "Online recursive (extended) least squares, fed sample by sample (generated plain-float kernel):",
             "",
             online,
