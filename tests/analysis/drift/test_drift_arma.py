@@ -110,8 +110,15 @@ def test_arma11_acceptance_monte_carlo(theta: float) -> None:
 
 
 AIC_RATES_MEASURED = {
-    "note": "fill from the slow Monte Carlo run (see report)",
+    # 2026-11-24, 150 runs per θ (seeds 62 / 63, the slow test's), exact ML, mean estimated, full p, q ≤ 3 grid:
+    # share of runs whose AIC / BIC choice is the true ARMA(1,1); AIC over-fits carrying the redundancy flag;
+    # candidate fits (of 16 × 150) ending unconverged ("boundary": toward a unit root).
+    -0.4: {"aic": 28 / 150, "bic": 149 / 150, "aic_overfits_flagged": 101 / 122, "unconverged": "5 (3 boundary)"},
+    0.4: {"aic": 29 / 150, "bic": 148 / 150, "aic_overfits_flagged": 106 / 121, "unconverged": "6 (6 boundary)"},
 }
+"""Measured, not asserted: AIC picks the true model in ~19 % of runs on the full 16-model grid (the spec's 35–55 %
+was measured on the 10-model p ≥ q grid without a mean); its over-fits are mostly ARMA(3,3) and (2,2) with a
+near-cancelling pole–zero pair (flagged in 83 % / 88 % of them)."""
 
 
 @pytest.mark.slow
