@@ -6,7 +6,8 @@ position, settling, at rate, at rest) is counted in samples. Each step's samples
 the table is read once per acquisition block.
 
 Safety: every command of the procedure is checked against the turntable's limits before anything moves;
-the controller gets a heartbeat every block; on Ctrl-C (SIGINT/SIGTERM), a controller fault, or a lost link
+the controller gets a heartbeat every block; on Ctrl-C (SIGINT), SIGTERM, SIGHUP (the terminal or SSH connection
+closed), a controller fault, or a lost link
 the runner stops the table under control, waits for rest (bounded), records the interrupted step, marks the
 recording, and says how to resume. On a simulated bench ``resume`` replays the completed steps without
 recording them (the simulator is deterministic), so the resumed recording equals an uninterrupted one.
@@ -25,7 +26,6 @@ from typing import Any, Protocol
 import numpy as np
 
 from drivers.protocols import (
-    AxisLimits,
     ImuBlock,
     InertialUnit,
     LinkError,
@@ -34,7 +34,7 @@ from drivers.protocols import (
     TableStatus,
     Turntable,
 )
-from procedures.steps import Step
+from procedures.steps import Hold, Move, Note, Spin, Step, Warmup, limit_problems, move_time
 
 from .progress import NullProgress, ProgressDisplay
 from .recording import Recorder, StepRecord
@@ -74,40 +74,13 @@ class RunResult:
     reason: str = ""
 
 
-def check_commands(steps: Sequence[Step], limits: Sequence[AxisLimits]) -> list[str]:
-    """Every position/rate the steps command, checked against the table's limits; returns problems (empty: ok)."""
-    problems: list[str] = []
-    for s in steps:
-        if s.angles is not None:
-            for i, (a, lim) in enumerate(zip(s.angles, limits, strict=True)):
-                if lim.position_min is not None and a < lim.position_min - 1e-12:
-                    problems.append(f"step {s.name!r}: axis {i} angle {math.degrees(a):.3f}° below the table's limit")
-                if lim.position_max is not None and a > lim.position_max + 1e-12:
-                    problems.append(f"step {s.name!r}: axis {i} angle {math.degrees(a):.3f}° above the table's limit")
-        if s.kind == "spin":
-            if s.axis is None or not 0 <= s.axis <= 2:
-                problems.append(f"step {s.name!r}: spin without a valid gimbal axis")
-            elif abs(s.rate) > limits[s.axis].rate_max * (1 + 1e-12):
-                problems.append(
-                    f"step {s.name!r}: rate {math.degrees(s.rate):.3f} °/s exceeds the table's "
-                    f"{math.degrees(limits[s.axis].rate_max):.3f} °/s on axis {s.axis}"
-                )
-    return problems
-
-
-def move_time(start: np.ndarray, target: np.ndarray, limits: Sequence[AxisLimits]) -> float:
-    """Trapezoidal-profile time for the slowest axis to go from ``start`` to ``target`` (rad), s."""
-    worst = 0.0
-    for a0, a1, lim in zip(start, target, limits, strict=True):
-        d = abs(float(a1) - float(a0))
-        v, acc = lim.rate_max, lim.accel_max
-        t = 2 * math.sqrt(d / acc) if d < v * v / acc else d / v + v / acc
-        worst = max(worst, t)
-    return worst
+STOP_SIGNALS: tuple[signal.Signals, ...] = tuple(
+    getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n)
+)
 
 
 class _InterruptFlag:
-    """Turns SIGINT/SIGTERM into a flag checked between blocks (installed only in the main thread)."""
+    """Turns SIGINT/SIGTERM/SIGHUP into a flag checked between blocks (installed only in the main thread)."""
 
     def __init__(self) -> None:
         self.signal_name: str | None = None
@@ -115,7 +88,7 @@ class _InterruptFlag:
 
     def __enter__(self) -> _InterruptFlag:
         if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
+            for sig in STOP_SIGNALS:
                 self._old[sig] = signal.signal(sig, self._handler)
         return self
 
@@ -206,7 +179,7 @@ class Runner:
                 obs.on_block(step, block, state, counts)
         self._sample += len(block)
         self._progress_base += len(block) / self.rate
-        self.progress.update(self._progress_base)
+        self._show(self.progress.update, self._progress_base)
         if self._interrupt is not None and self._interrupt.signal_name is not None:
             raise RunAborted("interrupted", f"{self._interrupt.signal_name} received")
         if state.status & TableStatus.FAULT:
@@ -253,16 +226,12 @@ class Runner:
         self._wait_until(step, self._in_position(target), 3 * t + 30.0, "reach position")
 
     def _execute(self, step: Step) -> None:
-        kind = step.kind
-        if kind == "note":
+        if isinstance(step, Note):
             if self._recording:
                 self.rec.event(self._time(), "info", f"note: {step.text}")
-            return
-        if kind == "move":
-            assert step.angles is not None
+        elif isinstance(step, Move):
             self._move(step, step.angles)
-            return
-        if kind in ("hold", "warmup"):
+        elif isinstance(step, (Hold, Warmup)):
             if step.angles is not None:
                 self._move(step, step.angles)  # a hold always verifies its attitude
             self._acquire(step, int(round(step.settle * self.rate)), False)
@@ -270,12 +239,9 @@ class Runner:
             self._acq = (a0, a0)
             self._acquire(step, int(round(step.duration * self.rate)), True)
             self._acq = (a0, self._sample)
-            return
-        if kind == "spin":
-            assert step.axis is not None
-            self.table.spin(int(step.axis), float(step.rate))
-            lim = self.limits[int(step.axis)]
-            ramp = abs(step.rate) / lim.accel_max
+        elif isinstance(step, Spin):
+            self.table.spin(step.axis, float(step.rate))
+            ramp = step.ramp_time(self.limits)
             self._wait_until(step, lambda s: bool(s.status & TableStatus.AT_RATE), 3 * ramp + 30.0, "reach rate")
             self._acquire(step, int(round(step.settle * self.rate)), False)
             a0 = self._sample
@@ -284,8 +250,8 @@ class Runner:
             self._acq = (a0, self._sample)
             self.table.stop()
             self._wait_until(step, self._at_rest, 3 * ramp + 30.0, "come to rest")
-            return
-        raise RunAborted("failed", f"step {step.name!r}: unknown step kind {kind!r}")
+        else:
+            raise RunAborted("failed", f"step {step.name!r}: no runner for a {type(step).__name__} step")
 
     def _time(self) -> float:
         return self._state.time if self._state is not None else 0.0
@@ -352,7 +318,7 @@ class Runner:
             status "complete", or "interrupted" / "failed" with the reason (the recording is closed
             cleanly in every case; the table is left at rest).
         """
-        problems = check_commands(self.steps, self.limits)
+        problems = limit_problems(self.steps, self.limits)
         if problems:
             raise TableError("refusing to start, nothing moved: " + "; ".join(problems))
         replay_set = set(replay)
@@ -361,6 +327,7 @@ class Runner:
         status, reason = "complete", ""
         self._sample = 0
         current: Step | None = None
+        unexpected: Exception | None = None
         with _InterruptFlag() as flag:
             self._interrupt = flag
             try:
@@ -370,7 +337,7 @@ class Runner:
                     self._recording = step.index not in replay_set
                     self._step_start = self._sample
                     self._acq = None
-                    self.progress.step(step.name + (" (replay)" if not self._recording else ""), step.text)
+                    self._show(self.progress.step, step.name + (" (replay)" if not self._recording else ""), step.text)
                     self._execute(step)
                     if self._recording:
                         self._record_step(step, "complete")
@@ -390,6 +357,9 @@ class Runner:
                 status, reason = "failed", f"link lost: {exc}"
             except TableError as exc:
                 status, reason = "failed", f"turntable refused a command: {exc}"
+            except Exception as exc:  # noqa: BLE001 - never leave the table moving or the recording "complete"
+                status, reason = "failed", f"unexpected error: {exc.__class__.__name__}: {exc}"
+                unexpected = exc
             finally:
                 self._recording = True
                 if status != "complete":
@@ -404,5 +374,14 @@ class Runner:
                     self._safe_stop()
                 self.rec.set_status(status)
                 self._interrupt = None
-                self.progress.update(self._progress_base, force=True)
+                self._show(self.progress.update, self._progress_base, force=True)
+        if unexpected is not None:
+            raise unexpected
         return RunResult(status, completed, self._sample, self._sample / self.rate, reason)
+
+    def _show(self, fn: Callable[..., None], *args: Any, **kw: Any) -> None:
+        """Progress output; a closed terminal (SIGHUP, EIO/EPIPE) silences it instead of stopping the run."""
+        try:
+            fn(*args, **kw)
+        except OSError:
+            self.progress = NullProgress()
