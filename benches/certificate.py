@@ -348,7 +348,8 @@ def _analysis_rows(kind: str, data: dict[str, Any]) -> list[dict[str, str]]:
                         "channel": ch,
                         "item": f"tone {i + 1}",
                         "value": f"{_fmt(t.get('frequency_hz'))} ± {_fmt(t.get('frequency_sigma_hz'))} Hz, "
-                        f"amplitude {_fmt(t.get('amplitude'))}, phase {_fmt(t.get('phase_rad'))} rad",
+                        f"amplitude {_fmt(t.get('amplitude'))} {t.get('amplitude_unit', c.get('unit', ''))}".rstrip()
+                        + f", phase {_fmt(t.get('phase_rad'))} rad",
                     }
                 )
             if "residual_rms_before" in c:
@@ -356,7 +357,8 @@ def _analysis_rows(kind: str, data: dict[str, Any]) -> list[dict[str, str]]:
                     {
                         "channel": ch,
                         "item": "residual RMS",
-                        "value": f"{_fmt(c.get('residual_rms_before'))} → {_fmt(c.get('residual_rms_after'))}",
+                        "value": f"{_fmt(c.get('residual_rms_before'))} → {_fmt(c.get('residual_rms_after'))} "
+                        f"{c.get('unit', '')}".rstrip(),
                     }
                 )
         elif kind == "drift":

@@ -244,7 +244,16 @@ def add_analyses(run: Path) -> None:
     periodic = {
         "channels": {
             "gyro_z": {
-                "terms": [{"frequency_hz": 12.5, "frequency_sigma_hz": 1e-4, "amplitude": 2e-5, "phase_rad": 0.3}],
+                "unit": "rad/s",
+                "terms": [
+                    {
+                        "frequency_hz": 12.5,
+                        "frequency_sigma_hz": 1e-4,
+                        "amplitude": 2e-5,
+                        "amplitude_unit": "rad/s",
+                        "phase_rad": 0.3,
+                    }
+                ],
                 "offset": 0.0,
                 "residual_rms_before": 3e-5,
                 "residual_rms_after": 1e-5,

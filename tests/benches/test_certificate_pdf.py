@@ -187,6 +187,7 @@ def test_noise_periodic_and_drift_analyses_are_included_when_present(tmp_path):
     assert set(cert["analyses"]) == {"noise", "periodic", "drift"}
     assert {"channel": "accel_x", "item": "N", "value": "14.99 ± 0.015 µg/√Hz"} in cert["analyses"]["noise"]
     assert any("12.5" in r["value"] for r in cert["analyses"]["periodic"])
+    assert all("rad/s" in r["value"] for r in cert["analyses"]["periodic"])  # units from periodic.json
     assert any(r["item"] == "ARMA(1,1)" for r in cert["analyses"]["drift"])
     assert list(cert["analysis_plots"]) == ["noise/noise.png"]
     text = "\n".join(_text(pdf))
