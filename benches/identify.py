@@ -6,16 +6,15 @@ bench file (or R from the warm-up record), the reference specific force and body
 readings (:mod:`benches.reference`), and the samples from the acquisition windows of complete hold and spin
 steps (moves and settling excluded; the warm-up is used only to estimate R when asked).
 
-Uncertainty reported (``sigma``): the filter's covariance (white noise) plus the systematic term of the
-unit's bias instability (an unmodelled DC offset per step of σ = the bench's ``bias_instability``),
-propagated through the estimator exactly as the plan does. ``sigma_white`` is the filter's own 1σ.
-Results: ``calibration.json`` (format ``benches/CALIBRATION_FORMAT.md``).
+Uncertainty reported (``u``): the identification's combined standard uncertainty — the filter's covariance
+(white noise, ``u_white``) plus the unit's bias instability as correlated flicker between the steps'
+acquisition windows (:mod:`analysis.identification.bias_drift`), propagated through the estimator exactly as
+the plan does. The live display shows the filter's white-noise 1σ. Results: :class:`CalibrationResult`
+(``calibration.json``, ``benches/CALIBRATION_FORMAT.md``).
 """
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,16 +30,23 @@ from analysis.identification.model import PARAM_KINDS, PARAM_NAMES, predict
 from analysis.identification.plan import IdentificationPlan, PlanStep, plan_identification
 from analysis.units import DISPLAY_UNITS
 from core.errors import UserError
+from core.provenance import file_sha256
 from drivers.protocols import ImuBlock, TableState
+from procedures.steps import Hold, Spin, Step, Warmup
+from procedures.trajectory import nominal_samples
 
+from .bench_config import load_bench_text
+from .calibration_result import CalibrationResult
 from .recording import RecordingError, open_recording
-from .reference import interpolate_table, reference_at
+from .reference import reference_at, reference_for_samples
 
 MODEL_TEXT = (
     "f_out = f + (S + T) f + b + D (f∘f) + diag(r) c(ω), body frame; c(ω) = [ω_y²+ω_z², ω_z²+ω_x², ω_x²+ω_y²]; "
     "misalignment convention δf_i += τ_ij f_j"
 )
-ACQUISITION_KINDS = ("hold", "spin")
+IDENTIFIED_STEPS: tuple[type[Step], ...] = (Hold, Spin)
+"""Steps whose counted samples the identification fits (a warm-up's only estimate the noise)."""
+_IDENTIFIED_KINDS = frozenset(t.kind for t in IDENTIFIED_STEPS)  # as written in a recording's steps table
 _SI_UNITS = {"bias": "m/s^2", "scale": "1", "misalignment": "rad", "quadratic": "s^2/m", "size_effect": "m"}
 
 
@@ -102,20 +108,18 @@ def offset_covariance(windows: list[tuple[float, float]], b: NDArray[np.float64]
 def _plan_steps_and_windows(
     compiled: Any, config: Any, sample_rate: float | None = None
 ) -> list[tuple[PlanStep, tuple[float, float]]]:
-    from procedures.trajectory import nominal_samples
-
     rate = float(sample_rate or config.unit.sample_rate)
     limits = config.turntable.limits
     # nominal acquisition window of every step in bench time (step end minus the spin's ramp down)
     ends = np.cumsum(compiled.step_times(limits))
     window: dict[str, tuple[float, float]] = {}
     for step, end in zip(compiled.steps, ends, strict=True):
-        if step.kind == "spin" and step.axis is not None:
-            end = end - abs(step.rate) / limits[step.axis].accel_max
+        if isinstance(step, Spin):
+            end = end - step.ramp_time(limits)
         window[step.name] = (float(end - step.duration), float(end))
     out: list[tuple[PlanStep, tuple[float, float]]] = []
     for ns in nominal_samples(compiled, rate, limits=limits):
-        if ns.step.kind not in ACQUISITION_KINDS or not np.all(np.isfinite(ns.angles)):
+        if not isinstance(ns.step, IDENTIFIED_STEPS) or not np.all(np.isfinite(ns.angles)):
             continue
         f_ref, omega = reference_at(ns.angles, ns.rates, config.site.g, config.unit.mounting)
         out.append((PlanStep(ns.step.name, f_ref, omega, ns.weights, ns.angles), window[ns.step.name]))
@@ -139,6 +143,19 @@ def plan_for(compiled: Any, config: Any) -> IdentificationPlan:
         b,
         offset_covariance=offset_covariance([w for _, w in pairs], b),
     )
+
+
+def acquisition_span(t_first: float, t_last: float, latency: float, sample_rate: float) -> tuple[float, float]:
+    """Bench-time span (s) of the table readings that belong to an acquisition window's own motion state.
+
+    From 1.5 sample periods before the first sample's reference time (t_first − latency) to 1.5 sample
+    periods after the last sample: the reading the runner takes with each block is stamped at the next
+    sample, so it closes the window (the half period covers the unit's time-stamp jitter); a reading later
+    than that may already belong to the next motion and is never used
+    (:func:`benches.reference.interpolate_table` extrapolates with the reported rate instead).
+    """
+    dt = 1.5 / sample_rate
+    return (t_first - latency - dt, t_last + dt)
 
 
 # ---- live identification during the run ---------------------------------------------------------------------------
@@ -174,16 +191,19 @@ class LiveIdentifier:
         self._accel: list[NDArray[np.float64]] = []
         self._n = 0
         self._step: str | None = None
+        self._acq_t0 = 0.0
 
     def on_block(self, step: Any, block: ImuBlock, table: TableState, counts: bool) -> None:
         """Buffer the block if it is inside a hold/spin acquisition window; fuse when enough is buffered."""
         self._readings.append(table)
-        if not counts or step.kind not in ACQUISITION_KINDS or len(block) == 0:
+        if not counts or not isinstance(step, IDENTIFIED_STEPS) or len(block) == 0:
             if self._n == 0:
                 del self._readings[:-3]
             return
         if self._step is not None and self._step != step.name:
             self.flush()
+        if self._step != step.name:
+            self._acq_t0 = float(block.time[0])
         self._step = step.name
         self._times.append(block.time)
         self._accel.append(block.accel)
@@ -201,13 +221,16 @@ class LiveIdentifier:
             return
         t = np.concatenate(self._times)
         rd = self._readings
-        angles, rates = interpolate_table(
-            t - self.latency,
+        f_ref, omega, _ang = reference_for_samples(
+            t,
             np.array([r.time for r in rd]),
             np.stack([r.angles for r in rd]),
             np.stack([r.rates for r in rd]),
+            g=self.config.site.g,
+            mounting=self.config.unit.mounting,
+            latency=self.latency,
+            span=acquisition_span(self._acq_t0, float(t[-1]), self.latency, float(self.config.unit.sample_rate)),
         )
-        f_ref, omega = reference_at(angles, rates, self.config.site.g, self.config.unit.mounting)
         self.filter.update(np.concatenate(self._accel), f_ref, omega, self._step, t=t)
         self._times.clear()
         self._accel.clear()
@@ -220,7 +243,7 @@ class LiveIdentifier:
                 k = PARAM_NAMES.index(name)
                 unit, one = DISPLAY_UNITS[PARAM_KINDS[k]]
                 parts.append(f"{name} {x[k] / one:.4g}±{s[k] / one:.2g} {unit}")
-            self.progress.extra(", ".join(parts))
+            self.progress.extra(", ".join(parts) + " (± = filter white-noise 1σ, k = 1)")
 
 
 # ---- offline: recording → arrays -------------------------------------------------------------------------------------
@@ -236,6 +259,7 @@ class StepWindow:
     f_out: NDArray[np.float64]
     f_ref: NDArray[np.float64]
     omega: NDArray[np.float64]
+    angles: NDArray[np.float64] | None = None
 
 
 @dataclass
@@ -252,14 +276,6 @@ class RecordedRun:
     temperature: NDArray[np.float64]
 
 
-def _sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
-    with path.open("rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 ACCEL_INVALID = 0b111
 """``/imu/status`` bits of the accelerometer channels (bit set = sample invalid, drivers.imu_frame_desc.FLAG_BITS):
 flagged samples are left out of the identification, never silently used."""
@@ -270,8 +286,6 @@ def load_run(run: str | Path) -> RecordedRun:
 
     The recording is verified first (every checksum): identification never runs on damaged data.
     """
-    from benches.bench_config import load_bench_text
-
     try:
         rec = open_recording(run)
     except RecordingError as exc:
@@ -298,10 +312,10 @@ def load_run(run: str | Path) -> RecordedRun:
         for s in steps:
             if s.status != "complete" or s.acq_end <= s.acq_start:
                 continue
-            if s.kind == "warmup":
+            if s.kind == Warmup.kind:
                 warm = rec.samples(s.acq_start, s.acq_end, ("accel",)).accel
                 continue
-            if s.kind not in ACQUISITION_KINDS:
+            if s.kind not in _IDENTIFIED_KINDS:
                 continue
             smp = rec.samples(s.acq_start, s.acq_end, ("time", "accel", "status"))
             t, fo, st = smp.time, smp.accel, smp.status
@@ -311,9 +325,12 @@ def load_run(run: str | Path) -> RecordedRun:
                 t, fo = t[valid], fo[valid]
                 if t.size == 0:
                     continue
-            ang, rat = interpolate_table(t - latency, table.time, table.angles, table.rates)
-            fr, om = reference_at(ang, rat, config.site.g, config.unit.mounting)
-            windows.append(StepWindow(s.name, s.kind, t, fo, fr, om))
+            span = acquisition_span(float(t[0]), float(t[-1]), latency, float(config.unit.sample_rate))
+            fr, om, ang = reference_for_samples(
+                t, table.time, table.angles, table.rates, g=config.site.g, mounting=config.unit.mounting,
+                latency=latency, span=span,
+            )  # fmt: skip
+            windows.append(StepWindow(s.name, s.kind, t, fo, fr, om, ang))
         tr = rec.truth()
         truth = None
         if tr is not None and all(n_ in tr.parameters for n_ in PARAM_NAMES):
@@ -347,8 +364,8 @@ def _display(k: int, value: float) -> float:
     return value / DISPLAY_UNITS[PARAM_KINDS[k]][1]
 
 
-def identify_run(run: str | Path, method: str = "kalman", noise: str = "configured") -> dict[str, Any]:
-    """Identify the 18 parameters from a recording; returns the ``calibration.json`` content.
+def identify_run(run: str | Path, method: str = "kalman", noise: str = "configured") -> CalibrationResult:
+    """Identify the 18 parameters from a recording; returns the typed calibration result.
 
     Parameters
     ----------
@@ -434,14 +451,14 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
         unit, _one = DISPLAY_UNITS[kind]
         params[name] = {
             "value": float(x[k]),
-            "sigma": float(sigma[k]),
-            "sigma_white": float(sigma_white[k]),
+            "u": float(sigma[k]),
+            "u_white": float(sigma_white[k]),
             "unit": _SI_UNITS[kind],
             "kind": kind,
             "display_unit": unit,
             "display_value": _display(k, x[k]),
-            "display_sigma": _display(k, sigma[k]),
-            "identifiable": name not in unobs,
+            "display_u": _display(k, sigma[k]),
+            "identified": name not in unobs,
             "prior_sigma": float(math.sqrt(p0[k, k])),
         }
     n_s = np.array([st["samples"] for st in per_step], dtype=float)
@@ -451,13 +468,13 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
     if rr.truth is not None:
         xt = np.array([rr.truth[n_] for n_ in PARAM_NAMES])
         err = x - xt
-        ident = np.array([params[n_]["identifiable"] for n_ in PARAM_NAMES])
+        ident = np.array([params[n_]["identified"] for n_ in PARAM_NAMES])
         idx = np.flatnonzero(ident)
         sub = p_total[np.ix_(idx, idx)]
         nees = float(err[idx] @ np.linalg.solve(sub, err[idx]))
         truth_block = {
             "values": rr.truth,
-            "error_sigma": {n_: float(err[k] / sigma[k]) for k, n_ in enumerate(PARAM_NAMES)},
+            "error_over_u": {n_: float(err[k] / sigma[k]) for k, n_ in enumerate(PARAM_NAMES)},
             "nees": nees,
             "dof": int(idx.size),
             "nees_states": [PARAM_NAMES[i] for i in idx],
@@ -471,15 +488,16 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
     temp = rr.temperature
     result = {
         "format": "tablebench-calibration",
-        "format_version": 1,
+        "format_version": 2,
         "recording": rr.path.name,
-        "recording_sha256": _sha256_file(rr.path),
+        "recording_sha256": file_sha256(rr.path),
         "software_version": str(a.get("software_version", "")),
         "method": method,
         "model": MODEL_TEXT,
         "parameter_names": list(PARAM_NAMES),
         "parameters": params,
         "covariance": [list(map(float, row)) for row in p_total],
+        "covariance_white": [list(map(float, row)) for row in p_white],
         "information": {
             "rank": int(rank),
             "condition": float(cond),
@@ -528,24 +546,14 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
         },
         "warnings": warnings,
     }
-    return result
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(p_total)) and np.all(np.isfinite(p_white))):
+        raise IdentificationError(
+            f"{rr.path}: the identification produced non-finite estimates or covariance (damaged data?); "
+            "nothing was written"
+        )
+    return CalibrationResult.from_dict(result, str(rr.path))
 
 
-def _json_safe(obj: Any) -> Any:
-    """Non-finite numbers (an unobservable parameter's predicted σ is ∞) become null in JSON."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_json_safe(v) for v in obj]
-    return obj
-
-
-def write_calibration(result: dict[str, Any], out: str | Path) -> Path:
-    """Write ``calibration.json`` (sorted keys, stable float formatting)."""
-    p = Path(out)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    text = json.dumps(_json_safe(result), indent=1, ensure_ascii=False, allow_nan=False)
-    p.write_text(text + "\n", encoding="utf-8")
-    return p
+def write_calibration(result: CalibrationResult, out: str | Path) -> Path:
+    """Write ``calibration.json`` (strict: a non-finite number raises; :meth:`CalibrationResult.save`)."""
+    return result.save(out)

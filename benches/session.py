@@ -15,11 +15,17 @@ import sys
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
 from core.errors import UserError
 from core.provenance import software_version
+from core.yaml_source import ConfigError
+from procedures.compiler import compile_procedure
+from procedures.loader import load_procedure
+from procedures.paths import default_bench_path, resolve_bench, resolve_procedure
+from procedures.steps import CompiledProcedure
 
+from .bench_config import load_bench
 from .progress import ProgressDisplay
 from .recording import Hdf5Recorder, RecordingError, open_recording
 from .runner import Runner, RunResult, SampleObserver
@@ -46,17 +52,16 @@ class Prepared:
 def prepare(
     bench: str | Path | None, procedure: str | Path | None, overrides: dict[str, float] | None = None
 ) -> Prepared:
-    """Load the bench and the procedure (with parameter overrides), compile and check; ConfigError if wrong."""
-    from benches.bench_config import load_bench
-    from procedures.compiler import compile_procedure
-    from procedures.loader import load_procedure
-    from procedures.paths import default_bench_path, resolve_bench, resolve_procedure
-
+    """THE preparation step of ``check``, ``plan`` and ``run``: load the bench and the procedure (with parameter
+    overrides), compile it for the bench's table and mounting, and check it against the unit (every acquisition
+    lasts at least one sample). All three commands accept and reject exactly the same inputs; ConfigError if
+    wrong."""
     bench_path = resolve_bench(bench) if bench else default_bench_path()
     procedure_path = resolve_procedure(procedure or DEFAULT_PROCEDURE)
     config = load_bench(bench_path)
     proc = load_procedure(procedure_path, overrides or None)
     compiled = compile_procedure(proc, limits=config.turntable.limits, mounting=config.unit.mounting)
+    check_against_unit(compiled, float(config.unit.sample_rate))
     return Prepared(
         bench_path,
         procedure_path,
@@ -65,6 +70,18 @@ def prepare(
         compiled.estimated_duration(config.turntable.limits),
         dict(overrides or {}),
     )
+
+
+def check_against_unit(compiled: CompiledProcedure, sample_rate: float) -> None:
+    """Every acquisition step must last at least one sample period of the unit; ConfigError otherwise."""
+    for s in compiled.steps:
+        if s.acquires and s.duration * sample_rate < 1.0:
+            raise ConfigError(
+                compiled.path,
+                s.line,
+                f"step {s.name!r}: {s.duration:g} s is shorter than one sample at the unit's {sample_rate:g} Hz; "
+                f"allowed: at least {1.0 / sample_rate:g} s",
+            )
 
 
 def recorded_overrides(folder: Path) -> dict[str, float]:
@@ -267,3 +284,94 @@ __all__ = [
     "prepare",
     "recording_status",
 ]
+
+
+def identify_and_certify(
+    folder: Path,
+    todo: list[str],
+    *,
+    live: Any | None = None,
+    say: Callable[..., None] = print,
+    done: list[str] | None = None,
+) -> list[str]:
+    """The end of the session: identify the complete recording (calibration.json) and issue its certificate.
+
+    Parameters
+    ----------
+    folder : Path
+        The run folder.
+    todo : list of str
+        "identification" and/or "certificate".
+    live : benches.identify.LiveIdentifier, optional
+        The live filter of the run, compared with the offline result.
+    say : callable
+        ``say(text, err=True)`` for the closing lines (``err=False``: a result path for stdout).
+    done : list, optional
+        Appended with each finished item as it finishes (so an interruption can say what is left).
+    """
+    import numpy as np
+
+    from benches.identify import IdentificationError, identify_run
+
+    done = [] if done is None else done
+    if "identification" in todo:
+        try:
+            result = identify_run(folder, method="kalman")
+        except IdentificationError as exc:
+            say(f"identification not possible: {exc}")
+            return done
+        if live is not None and live.filter.n_samples:
+            # the live filter saw the same samples and readings (except replayed ones on resume)
+            u_white = np.array([p.u_white for p in result.parameters.values()])
+            result.extra["live_vs_offline_max_u"] = float(np.max(np.abs(live.filter.estimate - result.x) / u_white))
+        path = result.save(folder / "calibration.json")
+        done.append("identification")
+        say(result.summary())
+        say(f"calibration: {path}", err=False)
+    if "certificate" in todo:
+        from benches.certificate import issue_certificate
+
+        pdf, js, verdict = issue_certificate(folder)
+        done.append("certificate")
+        say(f"certificate: {pdf} ({verdict})", err=False)
+        for line in verdict_explanation(js, verdict):
+            say(line)
+    return done
+
+
+def verdict_explanation(certificate_json: Path, verdict: str) -> list[str]:
+    """Plain words for the run's closing lines: why the certificate says what it says, and what to do."""
+    import json
+
+    if verdict != "INCONCLUSIVE":
+        return []
+    try:
+        cert = json.loads(Path(certificate_json).read_text(encoding="utf-8"))
+        params = cert.get("parameters") or {}
+    except (OSError, ValueError):
+        return [f"the certificate is INCONCLUSIVE: conformity not shown for every parameter ({certificate_json})"]
+    not_eval = [n for n, p in params.items() if p.get("verdict") == "NOT EVALUATED" and p.get("limit") is not None]
+    undecided = [n for n, p in params.items() if p.get("verdict") == "UNDECIDED"]
+    out = ["the certificate is INCONCLUSIVE — this is not a failure: no parameter failed its limit, but "
+           "conformity could not be shown for all of them."]  # fmt: skip
+    if not_eval:
+        sizes = [n for n in not_eval if n.startswith("r_")]
+        if sizes:
+            out.append(
+                f"  {', '.join(sizes)}: the size effect (the accelerometers' offsets from the rotation centre) "
+                "cannot be identified by this procedure: its spins are too slow (at the published 1.6 °/s the "
+                "effect is a few µg, below the unit's bias stability)."
+            )
+            out.append(
+                "  To calibrate it as well, run the procedure with fast spins: "
+                "tablebench run --procedure ten-step-fast-spin"
+            )
+        others = [n for n in not_eval if not n.startswith("r_")]
+        if others:
+            out.append(f"  {', '.join(others)}: not identified by this procedure (see the plan's warnings).")
+    if undecided:
+        out.append(
+            f"  {', '.join(undecided)}: the expanded uncertainty U straddles the limit (undecided); a longer or "
+            "better-conditioned procedure reduces U."
+        )
+    return out

@@ -17,11 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
+from analysis.identification.budget import data_information
 from analysis.units import ARCSEC, MM, PPM, UG, UG_PER_G2, display_unit, to_display
 from benches.bench_config import load_bench
+from benches.certificate.budget import PARAM_KINDS, PARAM_NAMES, step_geometry
 from benches.recording import Hdf5Recorder, open_recording
 from benches.runner import Runner
-from benches.uncertainty_budget import PARAM_KINDS, PARAM_NAMES, data_information, step_geometry
 from tests import REPO_ROOT
 from tests.fakes import FakeClock, FakeStep, FakeTable, FakeUnit
 

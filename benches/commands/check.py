@@ -3,15 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 
-from core.errors import UsageError
-from core.yaml_source import ConfigError
-from procedures.compiler import compile_procedure
-from procedures.loader import load_procedure
-from procedures.paths import default_bench_path, resolve_bench, resolve_procedure, shipped_procedures
-from procedures.steps import ACQUISITION_KINDS, CompiledProcedure
+from analysis.units import format_hms
+from benches.arguments import parse_overrides
+from benches.session import prepare
+from procedures.paths import shipped_procedures
 
 EXAMPLES = """\
 examples:
@@ -53,53 +50,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def parse_overrides(items: list[str]) -> dict[str, float]:
-    """``["duration_s=60", ...]`` → ``{"duration_s": 60.0}``; :class:`UsageError` on a malformed item."""
-    out: dict[str, float] = {}
-    for item in items:
-        name, sep, value = item.partition("=")
-        try:
-            v = float(value)
-        except ValueError:
-            v = math.nan
-        if not sep or not name.strip() or not math.isfinite(v):
-            raise UsageError(f"--set {item!r}: expected NAME=NUMBER, e.g. --set duration_s=60")
-        out[name.strip()] = v
-    return out
-
-
-def check_against_unit(compiled: CompiledProcedure, sample_rate: float) -> None:
-    """Every acquisition step must last at least one sample period of the unit; ConfigError otherwise."""
-    for s in compiled.steps:
-        if s.kind in ACQUISITION_KINDS and s.duration * sample_rate < 1.0:
-            raise ConfigError(
-                compiled.path,
-                s.line,
-                f"step {s.name!r}: {s.duration:g} s is shorter than one sample at the unit's {sample_rate:g} Hz; "
-                f"allowed: at least {1.0 / sample_rate:g} s",
-            )
-
-
 def run(args: argparse.Namespace) -> int:
     """Load, compile and check; print the summary; 0 if valid (errors raise → exit 2)."""
-    from benches.bench_config import load_bench
-
-    proc_path = resolve_procedure(args.procedure)
-    bench_path = resolve_bench(args.bench) if args.bench else default_bench_path()
-    overrides = parse_overrides(args.set)
-    proc = load_procedure(proc_path, overrides)
-    config = load_bench(bench_path)
+    prep = prepare(args.bench, args.procedure, parse_overrides(args.set))  # the same step as plan and run
+    proc_path, bench_path, config, compiled = prep.procedure_path, prep.bench_path, prep.config, prep.compiled
     limits = config.turntable.limits
-    compiled = compile_procedure(proc, limits=limits, mounting=config.unit.mounting)
-    check_against_unit(compiled, float(config.unit.sample_rate))
     if not args.quiet:
         print(compiled.summary(limits))
         if compiled.parameters:
             print("parameters: " + ", ".join(f"{k}={v:g}" for k, v in compiled.parameters.items()))
     est = compiled.estimated_duration(limits)
-    s = int(round(est))
     print(
-        f"OK: {Path(proc_path)} is valid on bench {getattr(config, 'name', bench_path)!s} ({bench_path}); "
-        f"estimated duration {s // 3600}:{(s % 3600) // 60:02d}:{s % 60:02d}"
+        f"OK: {Path(proc_path)} is valid on bench {config.name} ({bench_path}); "
+        f"estimated duration {format_hms(est)}"
     )
     return 0

@@ -89,7 +89,7 @@ class _StopSignalsRaise:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench run``."""
-    from benches.commands.check import parse_overrides
+    from benches.arguments import parse_overrides
     from benches.session import (
         SessionError,
         check_seed,
@@ -192,41 +192,18 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _finish(args: argparse.Namespace, folder: Path, prep, live: list, todo: list[str]) -> int:
-    """Identify and certify a run whose recording is complete; an interruption says what is left to do."""
-    from benches.identify import IdentificationError, identify_run, write_calibration
+    """Identify and certify a run whose recording is complete (:func:`benches.session.identify_and_certify`);
+    an interruption says what is left to do."""
+    from benches.session import identify_and_certify
 
+    if args.no_certificate:
+        todo = [t for t in todo if t != "certificate"]
     done: list[str] = []
     try:
         with _StopSignalsRaise():
-            if "identification" in todo:
-                try:
-                    result = identify_run(folder, method="kalman")
-                except IdentificationError as exc:
-                    _say(f"identification not possible: {exc}")
-                    return 0
-                if live and live[0].filter.n_samples:
-                    # the live filter saw the same samples and readings (except replayed ones on resume)
-                    import numpy as np
-
-                    offline = np.array([result["parameters"][n]["value"] for n in result["parameter_names"]])
-                    diff = np.abs(live[0].filter.estimate - offline) / np.array(
-                        [result["parameters"][n]["sigma_white"] for n in result["parameter_names"]]
-                    )
-                    result["live_vs_offline_max_sigma"] = float(diff.max())
-                path = write_calibration(result, folder / "calibration.json")
-                done.append("identification")
-                from benches.commands.identify import format_result
-
-                _say(format_result(result))
-                _say(f"calibration: {path}", err=False)
-            if "certificate" in todo and not args.no_certificate:
-                from benches.certificate import issue_certificate
-
-                pdf, js, verdict = issue_certificate(folder)
-                done.append("certificate")
-                _say(f"certificate: {pdf} ({verdict})", err=False)
+            identify_and_certify(folder, todo, live=live[0] if live else None, say=_say, done=done)
     except KeyboardInterrupt:
-        left = [t for t in todo if t not in done and not (t == "certificate" and args.no_certificate)]
+        left = [t for t in todo if t not in done]
         _say(
             f"interrupted after the recording completed ({folder}/recording.h5 is complete and intact); "
             f"not done: {', '.join(left)}"

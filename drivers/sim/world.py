@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -46,8 +46,13 @@ from drivers.sim.config import ACCEL_PARAM_NAMES, SimConfig
 from drivers.sim.imu_model import InertialModel, misalignment_matrix
 from drivers.sim.motion import AxisPlan, plan_hold, plan_position, plan_rate, plan_stop
 
-if TYPE_CHECKING:  # pragma: no cover
-    from benches.bench_config import BenchConfig
+
+class SimulatedBench(Protocol):
+    """A loaded bench file as the world needs it (``benches.bench_config.BenchConfig`` is one)."""
+
+    name: str
+    path: object
+    simulation: SimConfig | None
 
 CHUNK = 32768
 """Samples evaluated per vectorised pass (bounds memory for long produce() calls)."""
@@ -81,7 +86,6 @@ class SimulatedWorld:
             raise ValueError(f"sample_rate must be > 0 Hz, got {config.sample_rate}")
         self._seed = int(seed)
         self._k = 0
-        self._g = config.local_g
         self._earth_n = earth_rate_enu(config.latitude)
         self._mount = np.asarray(config.mounting, dtype=float)
         tb = config.table
@@ -99,7 +103,16 @@ class SimulatedWorld:
             (max(0, math.ceil(f.time * self._fs - 1e-9)), i, f.fault) for i, f in enumerate(config.faults)
         )
         root = np.random.SeedSequence(self._seed)
-        unit_ss, table_ss, reading_ss = root.spawn(3)
+        # a 4th child leaves the first three streams unchanged (spawn keys are indices)
+        unit_ss, table_ss, reading_ss, budget_ss = root.spawn(4)
+        bi = config.budget_inputs
+        self._rng_budget = np.random.default_rng(budget_ss)
+        self._att_bound = float(bi.attitude_error_bound) if bi is not None else 0.0
+        self._dphi = np.zeros(3)
+        self._g_anomaly = float(self._rng_budget.normal(0.0, bi.gravity_anomaly_std)) if bi is not None else 0.0
+        self._g = config.local_g + self._g_anomaly
+        rb = float(bi.rate_error_bound) if bi is not None else 0.0
+        self._rate_error = self._rng_budget.uniform(-rb, rb, 3) if rb > 0 else np.zeros(3)
         self._model = InertialModel(config, unit_ss)
         self._rng_jitter = np.random.default_rng(table_ss)
         self._reading_entropy = int(reading_ss.generate_state(1)[0])
@@ -113,7 +126,7 @@ class SimulatedWorld:
         self._e2 = _rot_small(2, e2)
 
     @classmethod
-    def from_bench(cls, config: BenchConfig, seed: int | None = None) -> SimulatedWorld:
+    def from_bench(cls, config: SimulatedBench, seed: int | None = None) -> SimulatedWorld:
         """The world of a simulated bench file (``seed`` None: the bench's default seed)."""
         if config.simulation is None:
             raise ValueError(f"bench {config.name!r} ({config.path}) has no simulation section; it is a real bench")
@@ -147,6 +160,11 @@ class SimulatedWorld:
         """Per-axis limits (outer, middle, inner), SI."""
         return self._limits  # type: ignore[return-value]
 
+    def _new_attitude_error(self) -> None:
+        """A motion command re-positions the table: a new attitude error δφ (navigation frame), if realised."""
+        if self._att_bound > 0:
+            self._dphi = self._rng_budget.uniform(-self._att_bound, self._att_bound, 3)
+
     def _check_ready(self) -> None:
         if self._fault != FaultCode.NONE:
             raise TableError(f"table fault {self._fault.name} is latched; clear_fault() before commanding motion")
@@ -166,12 +184,9 @@ class SimulatedWorld:
             if a.shape != (3,) or not np.all(np.isfinite(a)):
                 raise TableError(f"position command needs 3 finite angles (rad), got {angles!r}")
             for i, (x, lim) in enumerate(zip(a, self._limits, strict=True)):
-                lo, hi = lim.position_min, lim.position_max
-                if (lo is not None and x < lo) or (hi is not None and x > hi):
+                if not lim.allows_position(x):
                     raise TableError(
-                        f"axis {i} angle {math.degrees(x):.4f}° is outside its limits "
-                        f"[{math.degrees(lo) if lo is not None else -math.inf:.4f}°, "
-                        f"{math.degrees(hi) if hi is not None else math.inf:.4f}°]"
+                        f"axis {i} angle {math.degrees(x):.4f}° is outside its limits {lim.position_range_text()}"
                     )
             t = self._k / self._fs
             tb = self.cfg.table
@@ -190,6 +205,7 @@ class SimulatedWorld:
                     tolerance=tb.position_tolerance,
                     in_position_time=tb.in_position_time,
                 )
+            self._new_attitude_error()
             self._feed()
 
     def command_rate(self, axis: int, rate: float) -> None:
@@ -207,7 +223,7 @@ class SimulatedWorld:
                 raise TableError(f"axis must be 0 (outer), 1 (middle) or 2 (inner), got {axis!r}")
             rate = float(rate)
             lim = self._limits[axis]
-            if not math.isfinite(rate) or abs(rate) > lim.rate_max * (1 + 1e-12):
+            if not lim.allows_rate(rate):
                 raise TableError(
                     f"rate {math.degrees(rate):.4f} °/s on axis {axis} exceeds its limit "
                     f"{math.degrees(lim.rate_max):.4f} °/s"
@@ -215,6 +231,7 @@ class SimulatedWorld:
             t = self._k / self._fs
             p0, v0 = self._plans[axis].state(t)
             self._plans[axis] = plan_rate(t, p0, v0, rate, lim)
+            self._new_attitude_error()
             self._feed()
 
     def command_stop(self) -> None:
@@ -254,7 +271,7 @@ class SimulatedWorld:
             for i, plan in enumerate(self._plans):
                 pi, vi, _ = plan.evaluate(tt)
                 p[i], v[i] = pi[0], vi[0]
-            v = v + self._jit_state * self._spin_mask()
+            v = (v + self._jit_state * self._spin_mask()) * (1.0 + self._rate_error)
             tb = self.cfg.table
             if tb.position_jitter > 0:
                 rng = np.random.default_rng([self._reading_entropy, self._k])
@@ -402,6 +419,11 @@ class SimulatedWorld:
             )
             # ω̇ from perfect-gimbal kinematics (the arcsec-level tilt/wobble effect on ω̇ is neglected)
         c_bn = c_tn @ self._mount
+        if np.any(self._dphi):
+            # realised table attitude error: C_b^n,true = R(δφ) C_b^n,reported (navigation-frame rotation)
+            from scipy.spatial.transform import Rotation
+
+            c_bn = Rotation.from_rotvec(self._dphi).as_matrix() @ c_bn
         omega_b = omega_t @ self._mount
         alpha_b = alpha_t @ self._mount
         return c_bn, omega_b, alpha_b
@@ -471,12 +493,11 @@ class SimulatedWorld:
     def _limit_hit(self, ang: NDArray[np.float64]) -> tuple[int, int] | None:
         first: tuple[int, int] | None = None
         for i, lim in enumerate(self._limits):
-            if lim.position_min is None and lim.position_max is None:
+            if lim.continuous:
                 continue
             if self._plans[i].mode == AxisMode.POSITION:
                 continue  # commanded targets are inside the limits; a settling overshoot is not a limit hit
-            lo = -math.inf if lim.position_min is None else lim.position_min
-            hi = math.inf if lim.position_max is None else lim.position_max
+            lo, hi = lim.position_bounds()
             bad = np.flatnonzero((ang[:, i] < lo) | (ang[:, i] > hi))
             if bad.size and (first is None or bad[0] < first[0]):
                 first = (int(bad[0]), i)
@@ -498,10 +519,24 @@ class SimulatedWorld:
 
     # ---- truth ---------------------------------------------------------------------------------------
     def truth(self) -> dict[str, float]:
-        """The 18 accelerometer-model parameters by name, SI (r_i = −ρ_{i,i})."""
+        """The 18 accelerometer-model parameters by name, SI, as the model can identify them.
+
+        The size effect is the lever-arm term as the accelerometer senses it: accelerometer i (sensing row
+        m_i = e_i + S_i e_i + τ_ij e_j + τ_ik e_k of I+S+T) at ρ_i, during a spin at ω about body axis j ≠ i,
+        reads m_i·(ω×(ω×ρ_i)) = −ω² [(1+S_i) ρ_ii + τ_ik ρ_ik] (k the third axis), while the model writes
+        r_i c_i = r_i ω². The τ term depends on which axis spins; the ten-step sequences spin equally about
+        the two axes that excite r_i, so the identifiable truth is
+
+            r_i = −(1+S_i) ρ_ii − ½ Σ_{k≠i} τ_ik ρ_ik.
+        """
         a = self.cfg.accel
         rho = np.asarray(a.lever_arms, dtype=float)
-        vals = [*a.bias, *a.scale, *a.misalignment, *a.quadratic, *(-np.diag(rho))]
+        m = np.eye(3) + np.diag(a.scale) + misalignment_matrix(a.misalignment)
+        r = np.empty(3)
+        for i in range(3):
+            others = [k for k in range(3) if k != i]
+            r[i] = -m[i, i] * rho[i, i] - 0.5 * sum(m[i, k] * rho[i, k] for k in others)
+        vals = [*a.bias, *a.scale, *a.misalignment, *a.quadratic, *r]
         return {name: float(v) for name, v in zip(ACCEL_PARAM_NAMES, vals, strict=True)}
 
     def truth_arrays(self) -> dict[str, NDArray[np.float64]]:
@@ -525,6 +560,8 @@ class SimulatedWorld:
             "gyro_random_walk": np.asarray(c.gyro_noise.random_walk, float),
             "mounting": np.asarray(c.mounting, float),
             "g": np.array(self._g),
+            "gravity_anomaly": np.array(self._g_anomaly),
+            "table_rate_error": self._rate_error.copy(),
             "latitude": np.array(c.latitude),
             "earth_rate_enu": self._earth_n.copy(),
             "non_orthogonality": np.asarray(c.table.non_orthogonality, float),

@@ -56,7 +56,7 @@ def test_ten_step_over_loopback_in_a_real_format_equals_in_process(tmp_path, ben
     bench = _bench(tmp_path, bench_name)
     wire = run_procedure(tmp_path, bench, str(proc), seed=5, out="loopback", transport="loopback")
     local = run_procedure(tmp_path, bench, str(proc), seed=5, out="in-process", transport="in-process")
-    with open_recording(wire) as rec:
+    with open_recording(wire) as rec:  # the one reader (accel may be stored as counts)
         events = [e.message for e in rec.events()]
         n = rec.n_samples
         smp = rec.samples(fields=("counter", "accel", "status"))
@@ -77,11 +77,11 @@ def test_ten_step_over_loopback_in_a_real_format_equals_in_process(tmp_path, ben
     assert stats.frames == n and stats.rejected == 0 and np.array_equal(samples.accel, accel)
     # identification equal within the formats' quantisation (float32 in g; 2^-19 g and 2^-14 °/s LSBs):
     # the quantisation noise is < 1e-3 of the white noise per sample, so estimates move by ≪ their σ
-    a = identify_run(wire)
-    b = identify_run(local)
+    a = identify_run(wire).to_dict()
+    b = identify_run(local).to_dict()
     xa = np.array([a["parameters"][p]["value"] for p in PARAM_NAMES])
     xb = np.array([b["parameters"][p]["value"] for p in PARAM_NAMES])
-    sb = np.array([b["parameters"][p]["sigma_white"] for p in PARAM_NAMES])
+    sb = np.array([b["parameters"][p]["u_white"] for p in PARAM_NAMES])
     assert np.max(np.abs(xa - xb) / sb) < 0.05
     assert a["information"]["rank"] == b["information"]["rank"] == 18
 
@@ -96,7 +96,7 @@ def test_samples_flagged_invalid_are_never_used(tmp_path):
     proc = _short_ten_step(tmp_path)
     bench = _bench(tmp_path, "sim-kvh.yaml")
     run = run_procedure(tmp_path, bench, str(proc), seed=5, out="clean", transport="in-process")
-    base = identify_run(run)
+    base = identify_run(run).to_dict()
     flagged, unflagged = tmp_path / "flagged", tmp_path / "unflagged"
     for folder, flag in ((flagged, True), (unflagged, False)):
         shutil.copytree(run, folder)
@@ -112,9 +112,9 @@ def test_samples_flagged_invalid_are_never_used(tmp_path):
                 f["imu/status"][a:b] = 1  # accel_x invalid
     xs = {}
     for key, folder in (("base", None), ("flagged", flagged), ("unflagged", unflagged)):
-        r = base if folder is None else identify_run(folder)
+        r = base if folder is None else identify_run(folder).to_dict()
         xs[key] = np.array([r["parameters"][p]["value"] for p in PARAM_NAMES])
-    sigma = np.array([base["parameters"][p]["sigma_white"] for p in PARAM_NAMES])
+    sigma = np.array([base["parameters"][p]["u_white"] for p in PARAM_NAMES])
     assert np.max(np.abs(xs["flagged"] - xs["base"]) / sigma) < 0.5
     assert np.max(np.abs(xs["unflagged"] - xs["base"]) / sigma) > 5.0
     with pytest.raises(InputError, match=r"100 sample\(s\) of accel_x flagged invalid"):
