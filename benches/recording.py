@@ -547,24 +547,27 @@ class Hdf5Recorder:
         if self._filters.get("compression") == "gzip":
             self._chunks = _ChunkWriter(self._file, IMU_FIELDS, IMU_CHUNK)
 
+    def _counts_dataset(self, imu: h5py.Group, name: str, lsb: float) -> None:
+        self._dataset(imu, name, _COUNT_DTYPE[name], _WIDTH.get(name), IMU_CHUNK)
+        imu[name].attrs["lsb"] = lsb
+        exg = imu["exceptions"] if "exceptions" in imu else _group(imu, "exceptions")
+        exg.create_dataset(name, shape=(0,), maxshape=(None,), dtype=EXC_DTYPE, chunks=(1024,), **self._filters)
+        self._quanta[name] = lsb
+
     def _materialise(self, cols: dict[str, NDArray[Any]] | None) -> None:
-        """Create the sample datasets whose storage waited for data: counts if the first samples sit on the
-        unit's count grid (fewer than 0.1 % exceptions), float64 otherwise (e.g. a unit sending floats)."""
+        """Decide the storage of the quantisable sample datasets on the first samples (before any row is
+        written): counts if they sit on the unit's count grid (≤ 0.1 % exceptions), else float64 (a unit
+        sending floats). The (empty) counts datasets exist from the start, so an early kill leaves a readable
+        file."""
         imu = self._file["imu"]
         for name, lsb in self._deferred.items():
-            counts = True
-            if cols is not None and len(cols[name]):
-                _c, exc = _quantise(cols[name], lsb, _COUNT_DTYPE[name])
-                counts = exc.size <= 1e-3 * cols[name].size
-            if counts:
-                self._dataset(imu, name, _COUNT_DTYPE[name], _WIDTH.get(name), IMU_CHUNK)
-                imu[name].attrs["lsb"] = lsb
-                exg = imu["exceptions"] if "exceptions" in imu else _group(imu, "exceptions")
-                exg.create_dataset(
-                    name, shape=(0,), maxshape=(None,), dtype=EXC_DTYPE, chunks=(1024,), **self._filters
-                )
-                self._quanta[name] = lsb
-            else:
+            if cols is None or not len(cols[name]):
+                continue
+            _c, exc = _quantise(cols[name], lsb, _COUNT_DTYPE[name])
+            if exc.size > 1e-3 * cols[name].size:
+                del imu[name]
+                del imu["exceptions"][name]
+                self._quanta.pop(name, None)
                 self._dataset(imu, name, _IMU_DTYPES[name], _WIDTH.get(name), IMU_CHUNK)
         self._deferred = {}
         self._start_chunk_writer()
@@ -602,7 +605,8 @@ class Hdf5Recorder:
         for name in IMU_FIELDS:
             lsb = quanta.get(name) if name in QUANTISED_FIELDS else None
             if lsb is not None and math.isfinite(lsb) and lsb > 0:
-                self._deferred[name] = float(lsb)  # counts or float64: decided on the first samples
+                self._counts_dataset(imu, name, float(lsb))
+                self._deferred[name] = float(lsb)  # kept as counts, or float64: decided on the first samples
             else:
                 self._dataset(imu, name, _IMU_DTYPES[name], _WIDTH.get(name), IMU_CHUNK)
         tab = _group(f, "table")
@@ -813,9 +817,6 @@ class Hdf5Recorder:
             return
         try:
             self.checkpoint()
-            if self._deferred:
-                with self._writing():
-                    self._materialise(None)
         finally:
             try:
                 if self._chunks is not None:
@@ -1044,6 +1045,12 @@ class Recording:
         else:
             self.n_table = 0
         if self.header.format_version >= 2:
+            missing = [n for n in ("bench_yaml", "procedure_yaml", "steps", "events", "table") if n not in f]
+            missing += [f"imu/{n}" for n in IMU_FIELDS if n not in f["imu"]]
+            if missing:
+                raise RecordingDamaged(
+                    f"{self.path}: dataset(s) /{', /'.join(missing)} missing from a format-2 recording; {self._fix()}"
+                )
             for name, obj in _walk(f):
                 if not obj.fletcher32:
                     raise RecordingDamaged(
