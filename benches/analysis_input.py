@@ -85,7 +85,7 @@ def _check_rate(rate: float | None, source: str) -> float:
     if rate is None:
         raise InputError(f"{source}: --rate HZ is required for .npy and .csv input (e.g. --rate 1000)")
     if not math.isfinite(rate) or rate <= 0 or rate > MAX_RATE_HZ:
-        raise InputError(f"{source}: --rate must be a number of Hz in (0, {MAX_RATE_HZ:g}], got {rate:g}")
+        raise InputError(f"{source}: --rate must be a positive number of Hz, at most {MAX_RATE_HZ:g}; got {rate:g}")
     return float(rate)
 
 
