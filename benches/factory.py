@@ -7,17 +7,21 @@ and ``.describe()``.
 Transports:
 
 ``"in-process"`` (simulated bench)
-    :class:`drivers.sim.inprocess.SimTurntable` / ``SimInertialUnit`` directly on the world (fastest).
+    No bytes, no threads. ``simulation.controller: acutrol`` (default): the real ACL driver
+    (:class:`drivers.acutrol.AclTurntable`) talking to the simulated ACUTROL
+    (:class:`drivers.sim.acl_controller.AclController`) through an in-memory transport; ``modbus``:
+    :class:`drivers.sim.inprocess.SimTurntable` on the world. The unit: ``SimInertialUnit``.
 ``"loopback"`` (simulated bench)
-    The wire-level simulators on 127.0.0.1 (Modbus TCP, or ASCII when ``turntable.driver`` is
-    ``"ascii-serial"``; serial unit in polled mode) with the real drivers (:mod:`drivers.sim.loopback`). Same
-    seed and commands → bit-identical samples to in-process. The controller's wall-clock watchdog is set to
-    ``max(turntable.watchdog, LOOPBACK_MIN_WATCHDOG_S)`` so a stalled CI machine cannot trip it; the world's
-    bench-time watchdog still applies at the configured value.
+    The wire-level simulators on 127.0.0.1 (ACL on a TCP socket reached through pyvisa-py's
+    ``TCPIP0::127.0.0.1::PORT::SOCKET``, or Modbus TCP; serial unit in polled mode) with the real drivers
+    (:mod:`drivers.sim.loopback`). Same seed and commands → the same recording as in-process. The Modbus
+    controller's wall-clock watchdog is set to ``max(turntable.watchdog, LOOPBACK_MIN_WATCHDOG_S)`` so a
+    stalled CI machine cannot trip it; the world's bench-time watchdog still applies at the configured value.
 ``"hardware"`` (real bench)
-    ``turntable.driver`` "modbus-tcp" (address ``host:port``, default port 502) or "ascii-serial" (a pyserial
-    URL or device, e.g. ``/dev/ttyS0`` or ``socket://host:9888``); ``unit.driver`` "serial" (device/URL at
-    ``unit.baudrate``, free-running stream). The factory opens the clients; the drivers never do.
+    ``turntable.driver`` "acutrol" (a VISA resource string, opened with pyvisa + pyvisa-py: TCPIP SOCKET,
+    GPIB — needs linux-gpib or gpib-ctypes — or ASRL) or "modbus-tcp" (address ``host:port``, default port
+    502); ``unit.driver`` "serial" (device/URL at ``unit.baudrate``, free-running stream). The factory opens
+    the links; the drivers never do. :func:`open_table` opens the table alone (``tablebench table``).
 """
 
 from __future__ import annotations
@@ -109,32 +113,83 @@ def _open_simulated(config: Any, seed: int | None, transport: str) -> Bench:
     from drivers.sim.world import SimulatedWorld
 
     world = SimulatedWorld.from_bench(config, seed)
+    tt = config.turntable
+    acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
     if transport == "in-process":
         from drivers.sim.inprocess import SimInertialUnit, SimTurntable
 
-        table, unit = SimTurntable(world), SimInertialUnit(world)
+        unit = SimInertialUnit(world)
+        if acl:
+            from drivers.sim.acl_controller import AclController
+
+            table: Any = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
+            what = "simulated ACUTROL (ACL, in-memory)"
+        else:
+            table, what = SimTurntable(world), "in-process drivers"
         return Bench(
             table,
             unit,
             world,
             "in-process",
-            f"{config.name}: simulated bench, in-process drivers",
+            f"{config.name}: simulated bench, {what}",
             [table.close, unit.close],
         )
     from drivers.sim.loopback import Loopback
 
-    tt = config.turntable
-    dialect = "ascii" if getattr(tt, "driver", "sim") == "ascii-serial" else "modbus"
     wd = getattr(tt, "watchdog", None)
     lb = Loopback(
         world,
-        dialect=dialect,
+        dialect="acutrol" if acl else "modbus",
+        make_acl_table=(lambda transport: acl_turntable(transport, tt)) if acl else None,
+        acl=tt.acl,
         word_order=getattr(tt, "float_word_order", "big") or "big",
         watchdog_s=max(float(wd), LOOPBACK_MIN_WATCHDOG_S) if wd else None,
     )
     return Bench(
         lb.turntable, lb.unit, world, "loopback", f"{config.name}: simulated bench, {lb.describe()}", [lb.close]
     )
+
+
+def acl_turntable(transport: Any, tt: Any) -> Any:
+    """The ACL driver for a bench's turntable section on an open transport (settings and tolerances from the bench)."""
+    from drivers.acutrol import AclTurntable
+
+    return AclTurntable(
+        transport,
+        tuple(tt.limits),  # type: ignore[arg-type]
+        settings=tt.acl,
+        position_tolerance=tt.position_tolerance,
+        settle_time=tt.in_position_time,
+        rate_tolerance=tt.rate_tolerance,
+    )
+
+
+def open_table(config: Any, *, seed: int | None = None, transport: str | None = None) -> Bench:
+    """Open only the turntable of a bench (``tablebench table``); ``Bench.unit`` is None.
+
+    Simulated benches: as :func:`open_bench` (the simulated unit comes along; it moves nothing and the caller
+    advances bench time with ``world.produce``). Real benches: the turntable link only, nothing else is opened.
+    """
+    if transport is not None and transport not in TRANSPORTS:
+        raise _bad(config, f"transport {transport!r} is not one of {', '.join(TRANSPORTS)}")
+    if getattr(config, "simulation", None) is not None:
+        bench = open_bench(config, seed=seed, transport=transport)
+        return bench
+    if transport not in (None, "hardware"):
+        raise _bad(config, f"bench {config.name!r} is a real bench (no simulation section): transport must be 'hardware'")
+    closers: list[Any] = []
+    ok = False
+    try:
+        table, where = _open_hardware_table(config, closers)
+        ok = True
+        return Bench(table, None, None, "hardware", f"{config.name}: table {where}", closers)  # type: ignore[arg-type]
+    finally:
+        if not ok:
+            for fn in reversed(closers):
+                try:
+                    fn()
+                except Exception:
+                    log.debug("close after failed open", exc_info=True)
 
 
 def _host_port(config: Any, address: str | None, default_port: int) -> tuple[str, int]:
@@ -150,45 +205,44 @@ def _host_port(config: Any, address: str | None, default_port: int) -> tuple[str
     return host, p
 
 
+def _open_hardware_table(config: Any, closers: list[Any]) -> tuple[Any, str]:
+    """Open the real turntable's link and driver (closers appended in opening order); (driver, description)."""
+    tt = config.turntable
+    limits = tuple(tt.limits) if getattr(tt, "limits", None) else None
+    if tt.driver == "modbus-tcp":
+        from pymodbus.client import ModbusTcpClient
+
+        from drivers.modbus_table import ModbusTurntable
+
+        host, port = _host_port(config, tt.address, 502)
+        client = ModbusTcpClient(host, port=port, timeout=DEFAULT_TIMEOUT_S, retries=1)
+        closers.append(client.close)
+        if not client.connect():
+            raise LinkError(f"turntable: no Modbus TCP answer at {host}:{port}; check power, cable and address")
+        table: Any = ModbusTurntable(client, word_order=getattr(tt, "float_word_order", "big") or "big", limits=limits)
+        where = f"Modbus TCP {host}:{port}"
+    elif tt.driver == "acutrol":
+        from drivers.sim.loopback import open_visa
+        from drivers.transport import VisaTransport
+
+        res = open_visa(tt.resource, DEFAULT_TIMEOUT_S)
+        closers.append(res.close)
+        table = acl_turntable(VisaTransport(res, tt.resource), tt)
+        table.idn()  # the link answers (LinkError otherwise) before anything else is sent
+        where = f"ACUTROL (ACL) at {tt.resource}"
+    else:
+        raise _bad(config, f"turntable.driver {tt.driver!r} needs a simulation section; real: acutrol, modbus-tcp")
+    closers.append(table.close)
+    return table, where
+
+
 def _open_hardware(config: Any) -> Bench:
     import serial
 
     closers: list[Any] = []
     bench_ok = False
     try:
-        tt = config.turntable
-        limits = tuple(tt.limits) if getattr(tt, "limits", None) else None
-        if tt.driver == "modbus-tcp":
-            from pymodbus.client import ModbusTcpClient
-
-            from drivers.modbus_table import ModbusTurntable
-
-            host, port = _host_port(config, tt.address, 502)
-            client = ModbusTcpClient(host, port=port, timeout=DEFAULT_TIMEOUT_S, retries=1)
-            closers.append(client.close)
-            if not client.connect():
-                raise LinkError(f"turntable: no Modbus TCP answer at {host}:{port}; check power, cable and address")
-            table: Any = ModbusTurntable(
-                client, word_order=getattr(tt, "float_word_order", "big") or "big", limits=limits
-            )
-            where = f"Modbus TCP {host}:{port}"
-        elif tt.driver == "ascii-serial":
-            from drivers.ascii_table import AsciiTurntable
-
-            if not tt.address:
-                raise _bad(config, "turntable.address is required for an ASCII table (e.g. '/dev/ttyS0')")
-            try:
-                tport = serial.serial_for_url(tt.address, timeout=DEFAULT_TIMEOUT_S)
-            except (serial.SerialException, ValueError) as exc:
-                raise LinkError(f"turntable: cannot open {tt.address!r}: {exc}") from exc
-            closers.append(tport.close)
-            table = AsciiTurntable(tport, timeout=DEFAULT_TIMEOUT_S, limits=limits)
-            where = f"ASCII on {tt.address}"
-        else:
-            raise _bad(
-                config, f"turntable.driver {tt.driver!r} needs a simulation section; real: modbus-tcp, ascii-serial"
-            )
-        closers.append(table.close)
+        table, where = _open_hardware_table(config, closers)
         un = config.unit
         if un.driver != "serial":
             raise _bad(config, f"unit.driver {un.driver!r} needs a simulation section; a real unit uses 'serial'")

@@ -2,15 +2,18 @@
 
 :class:`Loopback` starts, for ONE :class:`~drivers.sim.world.SimulatedWorld`,
 
-* a turntable controller server — Modbus TCP (:class:`~drivers.sim.modbus_controller.ModbusTableServer`)
-  or the ASCII dialect (:class:`~drivers.sim.ascii_controller.AsciiTableServer`),
+* a turntable controller server — the ACUTROL command language
+  (:class:`~drivers.sim.acl_server.AclTableServer`) or Modbus TCP
+  (:class:`~drivers.sim.modbus_controller.ModbusTableServer`),
 * the serial unit server (:class:`~drivers.sim.serial_unit.SerialUnitServer`),
 
-then connects the real drivers to them exactly as on hardware: :class:`~drivers.modbus_table.ModbusTurntable`
-through a pymodbus ``ModbusTcpClient`` (or :class:`~drivers.ascii_table.AsciiTurntable` through
-``serial.serial_for_url("socket://…")``), and :class:`~drivers.serial_imu.SerialInertialUnit` in polled
-(burst) mode through ``serial.serial_for_url``, so the simulated clock advances exactly with the samples the
-host reads: a loopback run is bit-identical to the in-process run with the same seed and commands.
+then connects the real drivers to them exactly as on hardware: :class:`~drivers.acutrol.AclTurntable`
+through pyvisa with the pyvisa-py backend (VISA resource ``TCPIP0::127.0.0.1::PORT::SOCKET``) or
+:class:`~drivers.modbus_table.ModbusTurntable` through a pymodbus ``ModbusTcpClient``, and
+:class:`~drivers.serial_imu.SerialInertialUnit` in polled (burst) mode through ``serial.serial_for_url``, so
+the simulated clock advances exactly with the samples the host reads: a loopback run equals the in-process
+run with the same seed and commands (Modbus: bit for bit; ACL: the in-process bench runs the same driver
+against the same controller without the wire, so the two are identical too).
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from drivers.protocols import LinkError
 
 log = logging.getLogger(__name__)
 
-Dialect = Literal["modbus", "ascii"]
+Dialect = Literal["acutrol", "modbus"]
 
 
 class Loopback:
@@ -31,8 +34,12 @@ class Loopback:
     Parameters
     ----------
     world : SimulatedWorld
-    dialect : {"modbus", "ascii"}
+    dialect : {"acutrol", "modbus"}
         Turntable controller protocol.
+    make_acl_table : callable or None
+        ``dialect="acutrol"``: builds the ACL driver from an open MessageTransport (the factory's settings).
+    acl : AclSettings or None
+        ``dialect="acutrol"``: how the simulated controller answers.
     word_order : {"big", "little"}
         Modbus float word order (both ends use it).
     watchdog_s : float or None
@@ -50,6 +57,8 @@ class Loopback:
         world: Any,
         *,
         dialect: Dialect = "modbus",
+        make_acl_table: Any = None,
+        acl: Any = None,
         word_order: Literal["big", "little"] = "big",
         watchdog_s: float | None = None,
         corruption: Any = None,
@@ -61,8 +70,8 @@ class Loopback:
         from drivers.serial_imu import SerialInertialUnit
         from drivers.sim.serial_unit import SerialUnitServer
 
-        if dialect not in ("modbus", "ascii"):
-            raise ValueError(f"loopback dialect must be 'modbus' or 'ascii', got {dialect!r}")
+        if dialect not in ("acutrol", "modbus"):
+            raise ValueError(f"loopback dialect must be 'acutrol' or 'modbus', got {dialect!r}")
         self.world = world
         self.dialect = dialect
         self._closers: list[Any] = []
@@ -85,14 +94,20 @@ class Loopback:
                     )
                 self.turntable: Any = ModbusTurntable(self.client, unit_id=unit_id, word_order=word_order)
             else:
-                from drivers.ascii_table import AsciiTurntable
-                from drivers.sim.ascii_controller import AsciiTableServer
+                from drivers.acutrol import AclTurntable
+                from drivers.sim.acl_server import AclTableServer
+                from drivers.transport import VisaTransport
 
-                self.table_server = AsciiTableServer(world, watchdog_s=watchdog_s)
+                self.table_server = AclTableServer(world, acl)
                 self._closers.append(self.table_server.close)
-                self.client = serial.serial_for_url(self.table_server.url, timeout=timeout)
+                self.client = open_visa(self.table_server.resource, timeout)
                 self._closers.insert(0, self.client.close)
-                self.turntable = AsciiTurntable(self.client, timeout=timeout)
+                transport = VisaTransport(self.client, self.table_server.resource)
+                self.turntable = (
+                    make_acl_table(transport)
+                    if make_acl_table is not None
+                    else AclTurntable(transport, world.table_limits(), settings=self.table_server.settings)
+                )
             self.unit_server = SerialUnitServer(world, corruption=corruption)
             self._closers.append(self.unit_server.close)
             self.unit_port = serial.serial_for_url(self.unit_server.url, timeout=0.02)
@@ -106,7 +121,7 @@ class Loopback:
 
     def describe(self) -> str:
         """One line: which protocols on which ports."""
-        table = "Modbus TCP" if self.dialect == "modbus" else "ASCII"
+        table = "Modbus TCP" if self.dialect == "modbus" else f"ACUTROL (ACL via pyvisa-py {self.table_server.resource})"
         return (
             f"loopback: {table} controller on 127.0.0.1:{self.table_server.port}, "
             f"serial unit (polled) on 127.0.0.1:{self.unit_server.port}"
@@ -129,3 +144,28 @@ class Loopback:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def open_visa(resource: str, timeout: float) -> Any:
+    """Open a VISA resource with the pure-Python pyvisa-py backend (``ResourceManager("@py")``).
+
+    LF is the read and write terminator (a CR before the LF is stripped by the transport). GPIB resources need
+    linux-gpib or gpib-ctypes (and a GPIB board); their absence is reported as a LinkError saying so.
+    """
+    import pyvisa
+
+    try:
+        rm = pyvisa.ResourceManager("@py")
+    except Exception as exc:  # pragma: no cover - pyvisa-py missing
+        raise LinkError(f"cannot start pyvisa with the pyvisa-py backend ({exc}); install pyvisa-py") from exc
+    try:
+        res = rm.open_resource(resource, read_termination="\n", write_termination="\n", timeout=int(timeout * 1000))
+    except Exception as exc:
+        hint = ""
+        if resource.strip().upper().startswith("GPIB"):
+            hint = (
+                "; GPIB with pyvisa-py needs linux-gpib (its Python bindings) or gpib-ctypes and a GPIB board "
+                "(or NI-VISA with pyvisa's default backend)"
+            )
+        raise LinkError(f"cannot open VISA resource {resource!r}: {exc.__class__.__name__}: {exc}{hint}") from exc
+    return res
