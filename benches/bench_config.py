@@ -328,7 +328,9 @@ def _acl(d: dict | None, smap: SourceMap, p: KeyPath, resource: str | None, simu
         mode_reply=get_str(d, smap, p, "mode_reply", "letter", choices=["letter", "word"]),  # type: ignore[arg-type]
         decimals=_int(d, smap, p, "decimals", 4, 0, 12),
         axes=axes,  # type: ignore[arg-type]
-        full_scale_deg=get_number(d, smap, p, "full_scale_deg", 360.0, minimum=0, exclusive_minimum=True, maximum=36000),
+        full_scale_deg=get_number(
+            d, smap, p, "full_scale_deg", 360.0, minimum=0, exclusive_minimum=True, maximum=36000
+        ),
         time_variable=time_variable,
         time_scale_s=get_number(d, smap, p, "time_scale_s", 0.001, minimum=0, exclusive_minimum=True),
         error_queue=get_str(d, smap, p, "error_queue", "QERROR"),

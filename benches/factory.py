@@ -176,7 +176,9 @@ def open_table(config: Any, *, seed: int | None = None, transport: str | None = 
         bench = open_bench(config, seed=seed, transport=transport)
         return bench
     if transport not in (None, "hardware"):
-        raise _bad(config, f"bench {config.name!r} is a real bench (no simulation section): transport must be 'hardware'")
+        raise _bad(
+            config, f"bench {config.name!r} is a real bench (no simulation section): transport must be 'hardware'"
+        )
     closers: list[Any] = []
     ok = False
     try:
@@ -228,7 +230,13 @@ def _open_hardware_table(config: Any, closers: list[Any]) -> tuple[Any, str]:
         res = open_visa(tt.resource, DEFAULT_TIMEOUT_S)
         closers.append(res.close)
         table = acl_turntable(VisaTransport(res, tt.resource), tt)
-        table.idn()  # the link answers (LinkError otherwise) before anything else is sent
+        try:
+            table.idn()  # the link answers before anything else is sent
+        except LinkError as exc:
+            raise LinkError(
+                f"turntable: no answer from the ACUTROL at {tt.resource} ({exc}); check power, cable, the resource "
+                "string and that the controller is in remote mode"
+            ) from exc
         where = f"ACUTROL (ACL) at {tt.resource}"
     else:
         raise _bad(config, f"turntable.driver {tt.driver!r} needs a simulation section; real: acutrol, modbus-tcp")

@@ -121,7 +121,9 @@ class Loopback:
 
     def describe(self) -> str:
         """One line: which protocols on which ports."""
-        table = "Modbus TCP" if self.dialect == "modbus" else f"ACUTROL (ACL via pyvisa-py {self.table_server.resource})"
+        table = (
+            "Modbus TCP" if self.dialect == "modbus" else f"ACUTROL (ACL via pyvisa-py {self.table_server.resource})"
+        )
         return (
             f"loopback: {table} controller on 127.0.0.1:{self.table_server.port}, "
             f"serial unit (polled) on 127.0.0.1:{self.unit_server.port}"
@@ -161,11 +163,11 @@ def open_visa(resource: str, timeout: float) -> Any:
     try:
         res = rm.open_resource(resource, read_termination="\n", write_termination="\n", timeout=int(timeout * 1000))
     except Exception as exc:
-        hint = ""
+        detail = " ".join(str(exc).split())
         if resource.strip().upper().startswith("GPIB"):
-            hint = (
-                "; GPIB with pyvisa-py needs linux-gpib (its Python bindings) or gpib-ctypes and a GPIB board "
-                "(or NI-VISA with pyvisa's default backend)"
-            )
-        raise LinkError(f"cannot open VISA resource {resource!r}: {exc.__class__.__name__}: {exc}{hint}") from exc
+            raise LinkError(
+                f"cannot open VISA resource {resource!r}: GPIB with pyvisa-py needs linux-gpib or gpib-ctypes "
+                f"installed and a GPIB board (or NI-VISA with pyvisa's default backend); pyvisa-py says: {detail}"
+            ) from exc
+        raise LinkError(f"cannot open VISA resource {resource!r}: {exc.__class__.__name__}: {detail}") from exc
     return res
