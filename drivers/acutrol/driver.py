@@ -453,7 +453,7 @@ class AclTurntable:
                     self.fault_report = f"interlock fault latched (status byte {stb}; {self._interlock_text()})"
                 except (LinkError, TableError) as exc:
                     self.fault_report = f"interlock fault latched (status byte {stb}); details unreadable: {exc}"
-                log.error("ACUTROL: %s", self.fault_report)
+                log.info("ACUTROL: %s", self.fault_report)
         else:
             self.fault_report = ""
             if not self._enabled:
