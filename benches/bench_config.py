@@ -364,7 +364,7 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
     driver = get_str(d, smap, p, "driver", choices=TURNTABLE_DRIVERS)
     address = _opt_str(d, smap, p, "address")
     resource = _opt_str(d, smap, p, "resource")
-    acl_speaker = driver == "acutrol" or (driver == "sim" and sim_controller == "acutrol")
+    acl_speaker = driver == "acutrol" or (driver == "sim" and (sim_controller or "acutrol") == "acutrol")
     if driver == "modbus-tcp" and not address:
         raise smap.error(p + ("address",), "is required for driver 'modbus-tcp' (e.g. '192.168.0.10:502')")
     if driver == "acutrol" and not resource:
