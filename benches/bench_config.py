@@ -121,7 +121,8 @@ class TurntableSpec:
     watchdog: float | None
     model: str = ""
     serial_number: str = ""
-    float_word_order: str = "big"
+    float_word_order: str | None = None  # Modbus: overrides the map's word order when given
+    modbus_map: Any = None  # drivers.modbus_map.ModbusMap (Modbus tables; None: the shipped map)
     resource: str | None = None  # VISA resource string (driver acutrol)
     acl: AclSettings | None = None  # ACL open points (driver acutrol, or a simulated ACUTROL)
     rate_tolerance: float = 0.01 * DEG  # rad/s: at-rate / at-rest window of host-decided settling
@@ -359,6 +360,7 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
             "heartbeat_period_s",
             "watchdog_s",
             "float_word_order",
+            "modbus_map",
         ],
     )
     driver = get_str(d, smap, p, "driver", choices=TURNTABLE_DRIVERS)
@@ -377,6 +379,20 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
         raise smap.error(p + ("resource",), f"is only for driver 'acutrol' (this table is {driver!r})")
     if driver == "acutrol" and address:
         raise smap.error(p + ("address",), "is not used by driver 'acutrol'; name the controller with resource:")
+    modbus_map = None
+    if d.get("modbus_map") is not None:
+        if acl_speaker:
+            raise smap.error(p + ("modbus_map",), "is only for a Modbus table (driver 'modbus-tcp' or a simulated one)")
+        from drivers.modbus_map import load_modbus_map
+
+        map_path = Path(get_str(d, smap, p, "modbus_map"))
+        if not map_path.is_absolute():
+            map_path = Path(smap.file).parent / map_path
+        if not map_path.is_file():
+            raise smap.error(
+                p + ("modbus_map",), f"register map file {map_path} not found (a path relative to the bench file)"
+            )
+        modbus_map = load_modbus_map(map_path)
     if d.get("acl") is not None and not acl_speaker:
         raise smap.error(p + ("acl",), "is only for an ACUTROL table (driver 'acutrol' or a simulated ACUTROL)")
     if acl_speaker:
@@ -425,7 +441,8 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
         watchdog=None if acl_speaker else (wd or None),
         model=str(d.get("model") or ""),
         serial_number=str(d.get("serial_number") or ""),
-        float_word_order=get_str(d, smap, p, "float_word_order", "big", choices=["big", "little"]),
+        float_word_order=get_str(d, smap, p, "float_word_order", None, choices=["big", "little"]),
+        modbus_map=modbus_map,
         resource=resource,
         acl=acl,
         rate_tolerance=get_number(d, smap, p, "rate_tolerance_dps", 0.01, minimum=0, exclusive_minimum=True) * DEG,

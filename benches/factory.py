@@ -142,7 +142,8 @@ def _open_simulated(config: Any, seed: int | None, transport: str) -> Bench:
         dialect="acutrol" if acl else "modbus",
         make_acl_table=(lambda transport: acl_turntable(transport, tt)) if acl else None,
         acl=tt.acl,
-        word_order=getattr(tt, "float_word_order", "big") or "big",
+        word_order=getattr(tt, "float_word_order", None),
+        register_map=getattr(tt, "modbus_map", None),
         watchdog_s=max(float(wd), LOOPBACK_MIN_WATCHDOG_S) if wd else None,
     )
     return Bench(
@@ -221,7 +222,9 @@ def _open_hardware_table(config: Any, closers: list[Any]) -> tuple[Any, str]:
         closers.append(client.close)
         if not client.connect():
             raise LinkError(f"turntable: no Modbus TCP answer at {host}:{port}; check power, cable and address")
-        table: Any = ModbusTurntable(client, word_order=getattr(tt, "float_word_order", "big") or "big", limits=limits)
+        table: Any = ModbusTurntable(
+            client, word_order=tt.float_word_order, limits=limits, register_map=getattr(tt, "modbus_map", None)
+        )
         where = f"Modbus TCP {host}:{port}"
     elif tt.driver == "acutrol":
         from drivers.sim.loopback import open_visa

@@ -40,8 +40,10 @@ class Loopback:
         ``dialect="acutrol"``: builds the ACL driver from an open MessageTransport (the factory's settings).
     acl : AclSettings or None
         ``dialect="acutrol"``: how the simulated controller answers.
-    word_order : {"big", "little"}
-        Modbus float word order (both ends use it).
+    word_order : {"big", "little"} or None
+        Modbus float word order (both ends use it; None: the map's).
+    register_map : ModbusMap or None
+        Modbus register map served and used (None: the shipped tablebench map).
     watchdog_s : float or None
         Wall-clock watchdog of the controller, s.
     corruption : drivers.sim.serial_unit.Corruption or None
@@ -59,7 +61,8 @@ class Loopback:
         dialect: Dialect = "modbus",
         make_acl_table: Any = None,
         acl: Any = None,
-        word_order: Literal["big", "little"] = "big",
+        word_order: Literal["big", "little"] | None = None,
+        register_map: Any = None,
         watchdog_s: float | None = None,
         corruption: Any = None,
         timeout: float = 2.0,
@@ -84,7 +87,9 @@ class Loopback:
                 from drivers.modbus_table import ModbusTurntable
                 from drivers.sim.modbus_controller import ModbusTableServer
 
-                self.table_server = ModbusTableServer(world, word_order=word_order, watchdog_s=watchdog_s)
+                self.table_server = ModbusTableServer(
+                    world, word_order=word_order, watchdog_s=watchdog_s, register_map=register_map
+                )
                 self._closers.append(self.table_server.close)
                 self.client = ModbusTcpClient("127.0.0.1", port=self.table_server.port, timeout=timeout, retries=0)
                 self._closers.insert(0, self.client.close)
@@ -92,7 +97,9 @@ class Loopback:
                     raise LinkError(
                         f"loopback: cannot connect to the Modbus simulator on port {self.table_server.port}"
                     )
-                self.turntable: Any = ModbusTurntable(self.client, unit_id=unit_id, word_order=word_order)
+                self.turntable: Any = ModbusTurntable(
+                    self.client, unit_id=unit_id, word_order=word_order, register_map=register_map
+                )
             else:
                 from drivers.acutrol import AclTurntable
                 from drivers.sim.acl_server import AclTableServer

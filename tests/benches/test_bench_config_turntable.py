@@ -67,3 +67,39 @@ def test_modbus_watchdog_rule_and_simulated_controller_choice():
     modbus_sim = SIM.replace("  controller: acutrol", "  controller: modbus").replace(acl_part, "  watchdog_s: 2.0\n")
     b = load_bench_text(modbus_sim, "s.yaml")
     assert b.turntable.acl is None and b.simulation.table.watchdog == 2.0  # type: ignore[union-attr]
+
+
+def test_modbus_map_named_by_the_bench(tmp_path):
+    plc = REPO_ROOT / "tests" / "data" / "plc_table_map.yaml"
+    text = MODBUS.replace("  float_word_order: big\n", f"  modbus_map: {plc}\n")
+    b = load_bench_text(text, tmp_path / "m.yaml")
+    assert b.turntable.modbus_map.name == "test PLC table" and b.turntable.float_word_order is None
+    (tmp_path / "maps").mkdir()
+    (tmp_path / "maps" / "plc.yaml").write_text(plc.read_text(encoding="utf-8"), encoding="utf-8")
+    rel = load_bench_text(
+        MODBUS.replace("  float_word_order: big\n", "  modbus_map: maps/plc.yaml\n"), tmp_path / "m.yaml"
+    )
+    assert rel.turntable.modbus_map.state["status"] == 100  # relative to the bench file
+    with pytest.raises(ConfigError, match="modbus_map: register map file .* not found"):
+        load_bench_text(MODBUS.replace("  float_word_order: big\n", "  modbus_map: nope.yaml\n"), tmp_path / "m.yaml")
+    with pytest.raises(ConfigError, match="modbus_map: is only for a Modbus table"):
+        load_bench_text(REAL.replace("  rate_tolerance_dps: 0.01", f"  modbus_map: {plc}"), tmp_path / "r.yaml")
+
+
+def test_simulated_plc_table_over_loopback(tmp_path):
+    from benches.factory import open_bench
+
+    plc = REPO_ROOT / "tests" / "data" / "plc_table_map.yaml"
+    acl_part = SIM[SIM.index("  acl:") : SIM.index("  axes:")]
+    text = SIM.replace("  controller: acutrol", "  controller: modbus").replace(
+        acl_part, f"  watchdog_s: 2.0\n  modbus_map: {plc}\n"
+    )
+    cfg = load_bench_text(text, tmp_path / "s.yaml")
+    with open_bench(cfg, seed=1, transport="loopback") as bench:
+        assert bench.turntable.map.name == "test PLC table"
+        bench.turntable.move_to([0.3, -0.2, 0.1])
+        for _ in range(20):
+            bench.unit.read(200)
+            bench.turntable.heartbeat()
+        s = bench.turntable.read_state()
+        assert s.status & 1 and abs(s.angles[0] - 0.3) < 1e-4

@@ -1,5 +1,5 @@
-"""Exact register traffic of the Modbus table driver, written from the register map's documentation
-(drivers/modbus_registers.py docstring), not from the simulator: every write and read is scripted with the
+"""Exact register traffic of the Modbus table driver, written from the shipped register map
+(drivers/modbus_maps/tablebench.yaml), not from the simulator: every write and read is scripted with the
 registers the map prescribes, floats packed here with struct (IEEE-754 float64, 16-bit words big-endian,
 word order big or little)."""
 
