@@ -168,14 +168,18 @@ def acl_turntable(transport: Any, tt: Any) -> Any:
 def open_table(config: Any, *, seed: int | None = None, transport: str | None = None) -> Bench:
     """Open only the turntable of a bench (``tablebench table``); ``Bench.unit`` is None.
 
-    Simulated benches: as :func:`open_bench` (the simulated unit comes along; it moves nothing and the caller
-    advances bench time with ``world.produce``). Real benches: the turntable link only, nothing else is opened.
+    Simulated benches: the world and its table controller only (in memory, or its server on 127.0.0.1 reached
+    over the real wire); the caller advances bench time with ``world.produce``. Real benches: the turntable
+    link only. Nothing of the unit is opened.
     """
     if transport is not None and transport not in TRANSPORTS:
         raise _bad(config, f"transport {transport!r} is not one of {', '.join(TRANSPORTS)}")
-    if getattr(config, "simulation", None) is not None:
-        bench = open_bench(config, seed=seed, transport=transport)
-        return bench
+    sim = getattr(config, "simulation", None)
+    if sim is not None:
+        transport = transport or getattr(sim, "transport", "in-process")
+        if transport == "hardware":
+            raise _bad(config, "this is a simulated bench; transport must be 'in-process' or 'loopback'")
+        return _open_simulated_table(config, seed, transport)
     if transport not in (None, "hardware"):
         raise _bad(
             config, f"bench {config.name!r} is a real bench (no simulation section): transport must be 'hardware'"
@@ -186,6 +190,69 @@ def open_table(config: Any, *, seed: int | None = None, transport: str | None = 
         table, where = _open_hardware_table(config, closers)
         ok = True
         return Bench(table, None, None, "hardware", f"{config.name}: table {where}", closers)  # type: ignore[arg-type]
+    finally:
+        if not ok:
+            for fn in reversed(closers):
+                try:
+                    fn()
+                except Exception:
+                    log.debug("close after failed open", exc_info=True)
+
+
+def _open_simulated_table(config: Any, seed: int | None, transport: str) -> Bench:
+    from drivers.sim.world import SimulatedWorld
+
+    world = SimulatedWorld.from_bench(config, seed)
+    tt = config.turntable
+    acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
+    closers: list[Any] = []
+    ok = False
+    try:
+        if transport == "in-process":
+            if acl:
+                from drivers.sim.acl_controller import AclController
+
+                table: Any = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
+                what = "simulated ACUTROL (ACL, in-memory)"
+            else:
+                from drivers.sim.inprocess import SimTurntable
+
+                table, what = SimTurntable(world), "simulated table, in-process driver"
+        elif acl:
+            from drivers.sim.acl_server import AclTableServer
+            from drivers.transport import VisaTransport, open_visa
+
+            srv = AclTableServer(world, tt.acl)
+            closers.append(srv.close)
+            res = open_visa(srv.resource, DEFAULT_TIMEOUT_S)
+            closers.append(res.close)
+            table = acl_turntable(VisaTransport(res, srv.resource), tt)
+            what = f"simulated ACUTROL over pyvisa-py {srv.resource}"
+        else:
+            from pymodbus.client import ModbusTcpClient
+
+            from drivers.modbus_table import ModbusTurntable
+            from drivers.sim.modbus_controller import ModbusTableServer
+
+            wd = getattr(tt, "watchdog", None)
+            msrv = ModbusTableServer(
+                world,
+                word_order=tt.float_word_order,
+                register_map=getattr(tt, "modbus_map", None),
+                watchdog_s=max(float(wd), LOOPBACK_MIN_WATCHDOG_S) if wd else None,
+            )
+            closers.append(msrv.close)
+            client = ModbusTcpClient("127.0.0.1", port=msrv.port, timeout=DEFAULT_TIMEOUT_S, retries=0)
+            closers.append(client.close)
+            if not client.connect():
+                raise LinkError(f"loopback: cannot connect to the Modbus simulator on port {msrv.port}")
+            table = ModbusTurntable(
+                client, word_order=tt.float_word_order, register_map=getattr(tt, "modbus_map", None)
+            )
+            what = f"simulated Modbus table on 127.0.0.1:{msrv.port}"
+        closers.append(table.close)
+        ok = True
+        return Bench(table, None, world, transport, f"{config.name}: {what}", closers)  # type: ignore[arg-type]
     finally:
         if not ok:
             for fn in reversed(closers):
@@ -227,8 +294,7 @@ def _open_hardware_table(config: Any, closers: list[Any]) -> tuple[Any, str]:
         )
         where = f"Modbus TCP {host}:{port}"
     elif tt.driver == "acutrol":
-        from drivers.sim.loopback import open_visa
-        from drivers.transport import VisaTransport
+        from drivers.transport import VisaTransport, open_visa
 
         res = open_visa(tt.resource, DEFAULT_TIMEOUT_S)
         closers.append(res.close)

@@ -3,6 +3,7 @@
 A driver of a message-based instrument (the ACUTROL3000 command language, :mod:`drivers.acutrol`) receives an
 **open** :class:`MessageTransport` and never opens links itself; only ``benches/factory.py`` opens them.
 
+* :func:`open_visa` opens a resource string with pyvisa's pure-Python backend (for the factory).
 * :class:`VisaTransport` adapts an open pyvisa resource (``TCPIP0::host::9878::SOCKET``, ``GPIB0::1::INSTR``,
   ``ASRL/dev/ttyS0::INSTR`` — opened by the factory with the pure-Python pyvisa-py backend) and turns pyvisa's
   errors into :class:`~drivers.protocols.LinkError`.
@@ -97,4 +98,31 @@ class VisaTransport:
         return self.read()
 
 
-__all__ = ["MessageTransport", "VisaTransport"]
+def open_visa(resource: str, timeout: float) -> Any:
+    """Open a VISA resource with the pure-Python pyvisa-py backend (``ResourceManager("@py")``).
+
+    Called by ``benches/factory.py`` and the loopback harness, never by a driver.
+
+    LF is the read and write terminator (a CR before the LF is stripped by the transport). GPIB resources need
+    linux-gpib or gpib-ctypes (and a GPIB board); their absence is reported as a LinkError saying so.
+    """
+    import pyvisa
+
+    try:
+        rm = pyvisa.ResourceManager("@py")
+    except Exception as exc:  # pragma: no cover - pyvisa-py missing
+        raise LinkError(f"cannot start pyvisa with the pyvisa-py backend ({exc}); install pyvisa-py") from exc
+    try:
+        res = rm.open_resource(resource, read_termination="\n", write_termination="\n", timeout=int(timeout * 1000))
+    except Exception as exc:
+        detail = " ".join(str(exc).split())
+        if resource.strip().upper().startswith("GPIB"):
+            raise LinkError(
+                f"cannot open VISA resource {resource!r}: GPIB with pyvisa-py needs linux-gpib or gpib-ctypes "
+                f"installed and a GPIB board (or NI-VISA with pyvisa's default backend); pyvisa-py says: {detail}"
+            ) from exc
+        raise LinkError(f"cannot open VISA resource {resource!r}: {exc.__class__.__name__}: {detail}") from exc
+    return res
+
+
+__all__ = ["MessageTransport", "VisaTransport", "open_visa"]

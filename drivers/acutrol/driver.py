@@ -483,7 +483,7 @@ class AclTurntable:
                     a1, a2, a3 = self._ax
                     self.command(f":Interlock:Open {a1};Open {a2};Open {a3}")
         except (LinkError, TableError) as exc:
-            log.warning("ACUTROL: while closing: %s", exc)
+            log.info("ACUTROL: while closing: %s", exc)
         finally:
             self._closed = True
 

@@ -103,7 +103,7 @@ class Loopback:
             else:
                 from drivers.acutrol import AclTurntable
                 from drivers.sim.acl_server import AclTableServer
-                from drivers.transport import VisaTransport
+                from drivers.transport import VisaTransport, open_visa
 
                 self.table_server = AclTableServer(world, acl)
                 self._closers.append(self.table_server.close)
@@ -153,28 +153,3 @@ class Loopback:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def open_visa(resource: str, timeout: float) -> Any:
-    """Open a VISA resource with the pure-Python pyvisa-py backend (``ResourceManager("@py")``).
-
-    LF is the read and write terminator (a CR before the LF is stripped by the transport). GPIB resources need
-    linux-gpib or gpib-ctypes (and a GPIB board); their absence is reported as a LinkError saying so.
-    """
-    import pyvisa
-
-    try:
-        rm = pyvisa.ResourceManager("@py")
-    except Exception as exc:  # pragma: no cover - pyvisa-py missing
-        raise LinkError(f"cannot start pyvisa with the pyvisa-py backend ({exc}); install pyvisa-py") from exc
-    try:
-        res = rm.open_resource(resource, read_termination="\n", write_termination="\n", timeout=int(timeout * 1000))
-    except Exception as exc:
-        detail = " ".join(str(exc).split())
-        if resource.strip().upper().startswith("GPIB"):
-            raise LinkError(
-                f"cannot open VISA resource {resource!r}: GPIB with pyvisa-py needs linux-gpib or gpib-ctypes "
-                f"installed and a GPIB board (or NI-VISA with pyvisa's default backend); pyvisa-py says: {detail}"
-            ) from exc
-        raise LinkError(f"cannot open VISA resource {resource!r}: {exc.__class__.__name__}: {detail}") from exc
-    return res

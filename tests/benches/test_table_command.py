@@ -98,7 +98,7 @@ def test_dropped_link_gives_one_line_and_exit_1(monkeypatch, capsys):
         def produce_then_drop(n):
             calls["n"] += 1
             if calls["n"] == 5:
-                bench._closers[0].__self__.table_server.disconnect()  # pulled cable, mid-move
+                bench._closers[0].__self__.disconnect()  # the simulated controller drops the link mid-move
             return produce(n)
 
         monkeypatch.setattr(world, "produce", produce_then_drop)
