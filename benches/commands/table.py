@@ -172,6 +172,22 @@ def execute(
         print(f"t = {s.time:.3f} s: {_describe_state(s)}", file=out)
         if s.status & TableStatus.FAULT:
             print(f"fault: {getattr(table, 'fault_report', '') or s.fault_code.name}", file=out)
+        if hasattr(table, "controller_limits"):
+            for name, lim, bench_lim in zip(AXES, table.controller_limits(), table.limits(), strict=True):
+                line = (
+                    f"controller limits, {name}: rate {lim['rate_position']:g} (position mode) / "
+                    f"{lim['rate_rate']:g} (rate mode) °/s, acceleration {lim['accel_position']:g} / "
+                    f"{lim['accel_rate']:g} °/s², position [{lim['low']:g}, {lim['high']:g}]°"
+                )
+                if (
+                    bench_lim.rate_max / DEG > lim["rate_rate"] + 1e-9
+                    or bench_lim.accel_max / DEG > lim["accel_rate"] + 1e-9
+                ):
+                    line += (
+                        f" — the bench allows more (rate {bench_lim.rate_max / DEG:g} °/s, acceleration "
+                        f"{bench_lim.accel_max / DEG:g} °/s²): the controller will limit; check the bench file"
+                    )
+                print(line, file=out)
         return 0
     if action == "move":
         (target,) = demand

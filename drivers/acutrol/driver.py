@@ -244,6 +244,20 @@ class AclTurntable:
         """``*IDN?`` → maker,model,serial,software level."""
         return ";".join(self.query("*IDN?"))
 
+    def controller_limits(self) -> list[dict[str, float]]:
+        """The controller's working limits per gimbal (outer, middle, inner), read with ``:Limit:…?`` [§4.6]:
+        ``rate_position``, ``rate_rate`` (°/s), ``accel_position``, ``accel_rate`` (°/s²), ``high``, ``low`` (°)."""
+        out = []
+        for a in self._ax:
+            q = (
+                f":Limit:Rate? P,{a};Rate? R,{a};Acceleration? P,{a};Acceleration? R,{a};"
+                f"HighPosition? P,{a};LowPosition? P,{a}"
+            )
+            f = [self._number(x, "limit") for x in self.query(q, 6)]
+            keys = ("rate_position", "rate_rate", "accel_position", "accel_rate", "high", "low")
+            out.append(dict(zip(keys, f, strict=True)))
+        return out
+
     def enable(self) -> None:
         """Reset latched interlocks, set Off mode and close the interlocks of the three axes (servo on)."""
         a1, a2, a3 = self._ax

@@ -36,7 +36,7 @@ def test_jog_commands_on_the_simulated_bench(transport):
     assert r.returncode == 0 and "turning at -12.5 °/s" in r.stdout and "table --bench" in r.stdout
     assert r.stdout.rstrip().endswith("stop")
     r = cli("--transport", transport, "status")
-    assert r.returncode == 0 and "modes stop/stop/stop" in r.stdout
+    assert r.returncode == 0 and "modes stop/stop/stop" in r.stdout and "controller limits, inner: rate 360" in r.stdout
     r = cli("--transport", transport, "stop")
     assert r.returncode == 0 and "at rest" in r.stdout
 

@@ -288,3 +288,18 @@ def test_leave_running_sends_nothing_on_close():
     drv.leave_running()
     drv.close()
     t.done()
+
+
+def test_controller_working_limits_per_mode():
+    q = ":Limit:Rate? P,{a};Rate? R,{a};Acceleration? P,{a};Acceleration? R,{a};HighPosition? P,{a};LowPosition? P,{a}"
+    drv, t = table([(q.format(a=a), f"{100 * a}.0;{110 * a}.0;50.0;60.0;170.0;-170.0") for a in (1, 2, 3)], "gpib")
+    lim = drv.controller_limits()
+    assert lim[2] == {
+        "rate_position": 300.0,
+        "rate_rate": 330.0,
+        "accel_position": 50.0,
+        "accel_rate": 60.0,
+        "high": 170.0,
+        "low": -170.0,
+    }
+    t.done()
