@@ -375,7 +375,12 @@ class AclTurntable:
     def read_state(self) -> TableState:
         """Positions, rates, modes and status byte of one controller frame (one message); settled decided here."""
         n = 10 + (self.settings.time_variable is not None)
-        f = self.query(self._read_msg, n)
+        f = self.query(self._read_msg)
+        if len(f) != n:
+            raise LinkError(
+                f"ACUTROL: the reading should have {n} fields separated by ';', got {';'.join(f)[:120]!r}; check "
+                "turntable.acl (axes, time_variable) against the controller"
+            )
         raw = [self._number(x, "position") for x in f[0:3]]
         vel = [self._number(x, "rate") for x in f[3:6]]
         modes = tuple(self._mode(m, a) for m, a in zip(f[6:9], self._ax, strict=True))

@@ -249,7 +249,7 @@ def test_query_without_answer_is_a_link_error():
     with pytest.raises(LinkError, match="no reply"):
         drv.read_state()
     drv, t = table([(READ, "1.0;2.0")], "gpib")
-    with pytest.raises(LinkError, match="10 field"):
+    with pytest.raises(LinkError, match="10 fields.*turntable.acl"):
         drv.read_state()
 
 
