@@ -50,11 +50,14 @@ def _cat(blocks, name):
 def _variant(cfg, controller):
     if controller == "acutrol":
         return cfg
+    if controller == "acutrol-gpib":  # GPIB reply profile (commands unanswered) over the socket, word mode replies
+        acl = dataclasses.replace(cfg.turntable.acl, reply_profile="gpib", mode_reply="word", axes=(3, 1, 2))
+        return dataclasses.replace(cfg, turntable=dataclasses.replace(cfg.turntable, acl=acl))
     tt = dataclasses.replace(cfg.turntable, sim_controller="modbus", acl=None, watchdog=2.0)
     return dataclasses.replace(cfg, turntable=tt)
 
 
-@pytest.mark.parametrize("controller", ["acutrol", "modbus"])
+@pytest.mark.parametrize("controller", ["acutrol", "acutrol-gpib", "modbus"])
 def test_loopback_is_bit_identical_to_in_process(sim_config, controller):
     cfg = _variant(sim_config, controller)
     with open_bench(cfg, seed=42, transport="in-process") as a:
@@ -62,7 +65,7 @@ def test_loopback_is_bit_identical_to_in_process(sim_config, controller):
         ba, sa = _script(a)
     with open_bench(cfg, seed=42, transport="loopback") as b:
         assert b.transport == "loopback" and b.world is not None
-        assert ("ACUTROL (ACL via pyvisa-py TCPIP0::127.0.0.1::" if controller == "acutrol" else "Modbus TCP") in (
+        assert ("ACUTROL (ACL via pyvisa-py TCPIP0::127.0.0.1::" if controller != "modbus" else "Modbus TCP") in (
             b.describe()
         )
         bb, sb = _script(b)
