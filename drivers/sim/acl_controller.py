@@ -28,7 +28,6 @@ interlock and sets ``*STB?`` bit 0 (SI) until ``:Interlock:Reset``, which clears
 stay unservoed until closed again. Working limits per mode: position mode cruises at ``slew_fraction ·
 rate_max``, rate mode at ``rate_max``. There is no watchdog (ACL has none) and a client disconnect stops
 nothing (the behaviour of the real controller is undocumented; the host must stop the axes itself).
-``:Read:Acceleration?`` answers 0 (the world does not expose the commanded acceleration).
 """
 
 from __future__ import annotations
@@ -429,7 +428,7 @@ class AclController:
                 return d(self._wrap(float(state.angles[i]) / DEG))
             if p[1] == "RATE":
                 return d(float(state.rates[i]) / DEG)
-            return d(0.0)
+            return d(float(self.world.table_acceleration()[i]) / DEG)
         if p == ("MODE",):
             self._nargs(c, 1)
             (i,) = self._axes(a[0], False)

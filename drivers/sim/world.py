@@ -307,6 +307,14 @@ class SimulatedWorld:
                 modes=tuple(pl.mode for pl in self._plans),  # type: ignore[arg-type]
             )
 
+    def table_acceleration(self) -> NDArray[np.float64]:
+        """Gimbal angular accelerations (outer, middle, inner) at the current bench time, rad/s² (commanded
+        profile, no jitter): what a controller's acceleration feedback reads."""
+        with self._lock:
+            self._apply_due_events(self._k)
+            _, _, acc = self._evaluate(np.array([self._k / self._fs]))
+            return acc[0].copy()
+
     def _status(self, t: float) -> TableStatus:
         st = TableStatus.REMOTE | self._latched
         if any(t < pl.t_still for pl in self._plans):

@@ -122,6 +122,16 @@ def test_fixed_point_and_wrapped_positions_while_spinning():
     assert all(-180 <= x < 180 for x in seen) and min(seen) < -90 and max(seen) > 90  # it went round
 
 
+def test_read_acceleration_follows_the_profile():
+    w, c = make()
+    c.handle(":int:close ALL;:dem:rate 2,50;:mode:rate 2")
+    w.produce(100)  # ramping at the 100 °/s² limit
+    pos, rate, acc = map(float, c.handle(":read:pos? 2;rate? 2;acc? 2")[0].split(";"))
+    assert acc == pytest.approx(100.0) and rate == pytest.approx(10.0, abs=0.01)
+    w.produce(2000)
+    assert float(c.handle(":R:A? 2")[0]) == 0.0
+
+
 def test_position_mode_takes_the_shortest_path_on_a_continuous_axis():
     w, c = make()
     c.handle(":int:close ALL;:dem:pos 3,170;:mode:pos 3")
