@@ -111,11 +111,10 @@ class ReplayWorld:
         self._k = 0
 
     def produce(self, n: int):
-        from drivers.imu_frame import slice_frames
-
         k = self._k
         self._k = min(k + n, len(self._frames))
-        return slice_frames(self._frames, k, self._k)
+        f = self._frames
+        return type(f)(**{fl.name: getattr(f, fl.name)[k : self._k] for fl in dataclasses.fields(f)})
 
     def table_state(self):
         return self._state

@@ -33,6 +33,7 @@ nothing (the behaviour of the real controller is undocumented; the host must sto
 from __future__ import annotations
 
 import collections
+import functools
 import logging
 import math
 import re
@@ -114,6 +115,16 @@ def _resolve(node: dict, mnemonic: str) -> str | None:
 
 def parse_message(message: str) -> list[Command]:
     """Parse one program message into commands (AclError on the first error)."""
+    return list(_parse_cached(message))
+
+
+@functools.lru_cache(maxsize=256)
+def _parse_cached(message: str) -> tuple[Command, ...]:
+    """The parse of a message (a host repeats the same reading message every block: parsed once)."""
+    return tuple(_parse(message))
+
+
+def _parse(message: str) -> list[Command]:
     text = message.strip()
     if not text:
         raise AclError("empty message")
@@ -163,9 +174,12 @@ def parse_message(message: str) -> list[Command]:
     return out
 
 
+_ROOT = {k: (v[0], v[1]) for k, v in TREE.items()}
+
+
 def _children(path: tuple[str, ...]) -> dict | None:
     if not path:
-        return {k: (v[0], v[1]) for k, v in TREE.items()}
+        return _ROOT
     if len(path) == 1:
         return TREE[path[0]][2]
     return None
