@@ -147,9 +147,8 @@ def ten_step_loopback() -> tuple[float, float, float, str]:
     import io
     import tempfile
 
-    import h5py
-
     from benches import session
+    from benches.recording import open_recording
 
     walls, data = {}, {}
     with tempfile.TemporaryDirectory() as tmp:
@@ -161,9 +160,10 @@ def ten_step_loopback() -> tuple[float, float, float, str]:
             result = session.execute(prep, folder, seed=11, transport=transport, stream=io.StringIO(), live=False)
             walls[transport] = time.perf_counter() - t0
             assert result.status == "complete", result.reason
-            with h5py.File(folder / "recording.h5", "r") as f:
-                data[transport] = {k: f[k][()] for k in ("imu/accel", "imu/gyro", "table/time", "table/angles")}
-                bench_s = f["imu/counter"].shape[0] / cfg_rate(prep)
+            with open_recording(folder) as rec:
+                smp, table = rec.samples(), rec.table()
+                data[transport] = {"accel": smp.accel, "gyro": smp.gyro, "time": table.time, "angles": table.angles}
+                bench_s = smp.counter.shape[0] / cfg_rate(prep)
     same = all(np.array_equal(data["in-process"][k], data["loopback"][k]) for k in data["loopback"])
     return bench_s, walls["loopback"], walls["in-process"], "bit for bit" if same else "NOT identical"
 
