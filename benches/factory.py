@@ -21,7 +21,7 @@ Transports:
     ``turntable.driver`` "acutrol" (a VISA resource string, opened with pyvisa + pyvisa-py: TCPIP SOCKET,
     GPIB — needs linux-gpib or gpib-ctypes — or ASRL) or "modbus-tcp" (address ``host:port``, default port
     502); ``unit.driver`` "serial" (device/URL at ``unit.baudrate``, free-running stream). The factory opens
-    the links; the drivers never do. :func:`open_table` opens the table alone (``tablebench table``).
+    the links (:mod:`drivers.connect`); the drivers never do. :func:`open_table` opens the table alone.
 
 The unit's frame format is ``unit.frame`` with ``unit.frame_options`` (:func:`benches.bench_config.unit_frame_format`):
 the serial driver decodes it on hardware and on loopback, where the simulated unit speaks it. With
@@ -33,10 +33,17 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from core.yaml_source import ConfigError
-from drivers.protocols import InertialUnit, LinkError, Turntable
+from drivers import connect
+from drivers.protocols import InertialUnit, Turntable
+from drivers.sim.inprocess import SimInertialUnit, SimTurntable
+from drivers.sim.loopback import Loopback
+from drivers.sim.world import SimulatedWorld
+
+from .bench_config import BenchConfig, unit_frame_format
 
 log = logging.getLogger(__name__)
 
@@ -51,7 +58,7 @@ class Bench:
 
     turntable: Turntable
     unit: InertialUnit
-    world: Any  # drivers.sim.world.SimulatedWorld | None
+    world: SimulatedWorld | None
     transport: str
     description: str
     _closers: list[Any] = field(default_factory=list, repr=False)
@@ -76,19 +83,17 @@ class Bench:
         self.close()
 
 
-def _bad(config: Any, message: str) -> ConfigError:
+def _bad(config: BenchConfig, message: str) -> ConfigError:
     return ConfigError(getattr(config, "path", "<bench>"), None, message)
 
 
 RAW_FILE = "unit-raw.bin"
 
 
-def _raw_sink(config: Any, run_folder: Any, closers: list[Any]) -> tuple[Any, str]:
+def _raw_sink(config: BenchConfig, run_folder: Any, closers: list[Any]) -> tuple[Any, str]:
     """The open raw-stream file when the bench keeps it (``unit.keep_raw``) and a run folder is given."""
     if run_folder is None or not getattr(config.unit, "keep_raw", False):
         return None, ""
-    from pathlib import Path
-
     path = Path(run_folder) / RAW_FILE
     try:
         fh = open(path, "ab")  # noqa: SIM115 - closed by the bench
@@ -99,7 +104,9 @@ def _raw_sink(config: Any, run_folder: Any, closers: list[Any]) -> tuple[Any, st
     return fh, RAW_FILE if start == 0 else f"{RAW_FILE} (this session from byte {start})"
 
 
-def open_bench(config: Any, *, seed: int | None = None, transport: str | None = None, run_folder: Any = None) -> Bench:
+def open_bench(
+    config: BenchConfig, *, seed: int | None = None, transport: str | None = None, run_folder: Any = None
+) -> Bench:
     """Open the bench described by ``config`` (a ``benches.bench_config.BenchConfig``).
 
     Parameters
@@ -135,15 +142,11 @@ def open_bench(config: Any, *, seed: int | None = None, transport: str | None = 
     return _open_hardware(config, run_folder)
 
 
-def _open_simulated(config: Any, seed: int | None, transport: str, run_folder: Any = None) -> Bench:
-    from drivers.sim.world import SimulatedWorld
-
+def _open_simulated(config: BenchConfig, seed: int | None, transport: str, run_folder: Any = None) -> Bench:
     world = SimulatedWorld.from_bench(config, seed)
     tt = config.turntable
     acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
     if transport == "in-process":
-        from drivers.sim.inprocess import SimInertialUnit, SimTurntable
-
         unit = SimInertialUnit(world)
         if acl:
             from drivers.sim.acl_controller import AclController
@@ -161,11 +164,7 @@ def _open_simulated(config: Any, seed: int | None, transport: str, run_folder: A
             f"{getattr(config.unit, 'frame', 'tablebench-v1')} and unit.keep_raw apply over loopback)",
             [table.close, unit.close],
         )
-    from drivers.sim.loopback import Loopback
-
     wd = getattr(tt, "watchdog", None)
-    from benches.bench_config import unit_frame_format
-
     closers: list[Any] = []
     raw, raw_name = _raw_sink(config, run_folder, closers)
     try:
@@ -209,7 +208,38 @@ def acl_turntable(transport: Any, tt: Any) -> Any:
     )
 
 
-def open_table(config: Any, *, seed: int | None = None, transport: str | None = None) -> Bench:
+def _hardware_table(config: BenchConfig) -> connect.Connection[Any]:
+    """Open the real turntable (its Connection, with ``.where`` describing it)."""
+    tt = config.turntable
+    limits = tuple(tt.limits) if getattr(tt, "limits", None) else None
+    if tt.driver == "modbus-tcp":
+        host, port = _host_port(config, tt.address, 502)
+        conn: Any = connect.modbus_table(
+            host,
+            port,
+            word_order=tt.float_word_order,
+            register_map=getattr(tt, "modbus_map", None),
+            limits=limits,  # type: ignore[arg-type]
+            timeout=DEFAULT_TIMEOUT_S,
+        )
+        conn.where = f"Modbus TCP {host}:{port}"
+    elif tt.driver == "acutrol":
+        conn = connect.acutrol_table(
+            tt.resource,
+            tuple(tt.limits),  # type: ignore[arg-type]
+            settings=tt.acl,
+            position_tolerance=tt.position_tolerance,
+            settle_time=tt.in_position_time,
+            rate_tolerance=tt.rate_tolerance,
+            timeout=DEFAULT_TIMEOUT_S,
+        )
+        conn.where = f"ACUTROL (ACL) at {tt.resource}"
+    else:
+        raise _bad(config, f"turntable.driver {tt.driver!r} needs a simulation section; real: acutrol, modbus-tcp")
+    return conn
+
+
+def open_table(config: BenchConfig, *, seed: int | None = None, transport: str | None = None) -> Bench:
     """Open only the turntable of a bench (``tablebench table``); ``Bench.unit`` is None.
 
     Simulated benches: the world and its table controller only (in memory, or its server on 127.0.0.1 reached
@@ -228,24 +258,11 @@ def open_table(config: Any, *, seed: int | None = None, transport: str | None = 
         raise _bad(
             config, f"bench {config.name!r} is a real bench (no simulation section): transport must be 'hardware'"
         )
-    closers: list[Any] = []
-    ok = False
-    try:
-        table, where = _open_hardware_table(config, closers)
-        ok = True
-        return Bench(table, None, None, "hardware", f"{config.name}: table {where}", closers)  # type: ignore[arg-type]
-    finally:
-        if not ok:
-            for fn in reversed(closers):
-                try:
-                    fn()
-                except Exception:
-                    log.debug("close after failed open", exc_info=True)
+    conn = _hardware_table(config)
+    return Bench(conn.driver, None, None, "hardware", f"{config.name}: table {conn.where}", [conn.close])  # type: ignore[arg-type,attr-defined]
 
 
-def _open_simulated_table(config: Any, seed: int | None, transport: str) -> Bench:
-    from drivers.sim.world import SimulatedWorld
-
+def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str) -> Bench:
     world = SimulatedWorld.from_bench(config, seed)
     tt = config.turntable
     acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
@@ -259,23 +276,25 @@ def _open_simulated_table(config: Any, seed: int | None, transport: str) -> Benc
                 table: Any = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
                 what = "simulated ACUTROL (ACL, in-memory)"
             else:
-                from drivers.sim.inprocess import SimTurntable
-
                 table, what = SimTurntable(world), "simulated table, in-process driver"
+            closers.append(table.close)
         elif acl:
             from drivers.sim.acl_server import AclTableServer
-            from drivers.transport import VisaTransport, open_visa
 
             srv = AclTableServer(world, tt.acl)
             closers.append(srv.close)
-            res = open_visa(srv.resource, DEFAULT_TIMEOUT_S)
-            closers.append(res.close)
-            table = acl_turntable(VisaTransport(res, srv.resource), tt)
-            what = f"simulated ACUTROL over pyvisa-py {srv.resource}"
+            conn = connect.acutrol_table(
+                srv.resource,
+                tuple(tt.limits),  # type: ignore[arg-type]
+                settings=tt.acl,
+                position_tolerance=tt.position_tolerance,
+                settle_time=tt.in_position_time,
+                rate_tolerance=tt.rate_tolerance,
+                timeout=DEFAULT_TIMEOUT_S,
+            )
+            closers.insert(0, conn.close)
+            table, what = conn.driver, f"simulated ACUTROL over pyvisa-py {srv.resource}"
         else:
-            from pymodbus.client import ModbusTcpClient
-
-            from drivers.modbus_table import ModbusTurntable
             from drivers.sim.modbus_controller import ModbusTableServer
 
             wd = getattr(tt, "watchdog", None)
@@ -286,27 +305,28 @@ def _open_simulated_table(config: Any, seed: int | None, transport: str) -> Benc
                 watchdog_s=max(float(wd), LOOPBACK_MIN_WATCHDOG_S) if wd else None,
             )
             closers.append(msrv.close)
-            client = ModbusTcpClient("127.0.0.1", port=msrv.port, timeout=DEFAULT_TIMEOUT_S, retries=0)
-            closers.append(client.close)
-            if not client.connect():
-                raise LinkError(f"loopback: cannot connect to the Modbus simulator on port {msrv.port}")
-            table = ModbusTurntable(
-                client, word_order=tt.float_word_order, register_map=getattr(tt, "modbus_map", None)
+            mconn = connect.modbus_table(
+                "127.0.0.1",
+                msrv.port,
+                word_order=tt.float_word_order,
+                register_map=getattr(tt, "modbus_map", None),
+                timeout=DEFAULT_TIMEOUT_S,
+                retries=0,
             )
-            what = f"simulated Modbus table on 127.0.0.1:{msrv.port}"
-        closers.append(table.close)
+            closers.insert(0, mconn.close)
+            table, what = mconn.driver, f"simulated Modbus table on 127.0.0.1:{msrv.port}"
         ok = True
-        return Bench(table, None, world, transport, f"{config.name}: {what}", closers)  # type: ignore[arg-type]
+        return Bench(table, None, world, transport, f"{config.name}: {what}", list(reversed(closers)))  # type: ignore[arg-type]
     finally:
         if not ok:
-            for fn in reversed(closers):
+            for fn in closers:
                 try:
                     fn()
                 except Exception:
                     log.debug("close after failed open", exc_info=True)
 
 
-def _host_port(config: Any, address: str | None, default_port: int) -> tuple[str, int]:
+def _host_port(config: BenchConfig, address: str | None, default_port: int) -> tuple[str, int]:
     if not address:
         raise _bad(config, "turntable.address is required for a Modbus TCP table (e.g. '192.168.0.10:502')")
     host, _, port = address.rpartition(":") if ":" in address else (address, "", str(default_port))
@@ -319,81 +339,47 @@ def _host_port(config: Any, address: str | None, default_port: int) -> tuple[str
     return host, p
 
 
-def _open_hardware_table(config: Any, closers: list[Any]) -> tuple[Any, str]:
-    """Open the real turntable's link and driver (closers appended in opening order); (driver, description)."""
-    tt = config.turntable
-    limits = tuple(tt.limits) if getattr(tt, "limits", None) else None
-    if tt.driver == "modbus-tcp":
-        from pymodbus.client import ModbusTcpClient
-
-        from drivers.modbus_table import ModbusTurntable
-
-        host, port = _host_port(config, tt.address, 502)
-        client = ModbusTcpClient(host, port=port, timeout=DEFAULT_TIMEOUT_S, retries=1)
-        closers.append(client.close)
-        if not client.connect():
-            raise LinkError(f"turntable: no Modbus TCP answer at {host}:{port}; check power, cable and address")
-        table: Any = ModbusTurntable(
-            client, word_order=tt.float_word_order, limits=limits, register_map=getattr(tt, "modbus_map", None)
-        )
-        where = f"Modbus TCP {host}:{port}"
-    elif tt.driver == "acutrol":
-        from drivers.transport import VisaTransport, open_visa
-
-        res = open_visa(tt.resource, DEFAULT_TIMEOUT_S)
-        closers.append(res.close)
-        table = acl_turntable(VisaTransport(res, tt.resource), tt)
-        try:
-            table.idn()  # the link answers before anything else is sent
-        except LinkError as exc:
-            raise LinkError(
-                f"turntable: no answer from the ACUTROL at {tt.resource} ({exc}); check power, cable, the resource "
-                "string and that the controller is in remote mode"
-            ) from exc
-        where = f"ACUTROL (ACL) at {tt.resource}"
-    else:
-        raise _bad(config, f"turntable.driver {tt.driver!r} needs a simulation section; real: acutrol, modbus-tcp")
-    closers.append(table.close)
-    return table, where
-
-
-def _open_hardware(config: Any, run_folder: Any = None) -> Bench:
-    import serial
-
-    closers: list[Any] = []
+def _open_hardware(config: BenchConfig, run_folder: Any = None) -> Bench:
+    opened: list[connect.Connection[Any]] = []
+    closers: list[Any] = []  # the raw-stream file, closed after the drivers
     bench_ok = False
     try:
-        table, where = _open_hardware_table(config, closers)
+        opened.append(_hardware_table(config))
+        where = opened[0].where  # type: ignore[attr-defined]
         un = config.unit
         if un.driver != "serial":
             raise _bad(config, f"unit.driver {un.driver!r} needs a simulation section; a real unit uses 'serial'")
         if not un.address:
             raise _bad(config, "unit.address is required for a serial unit (e.g. '/dev/ttyUSB0')")
-        from benches.bench_config import unit_frame_format
-        from drivers.serial_imu import SerialInertialUnit
-
         fmt = unit_frame_format(un)
         raw, raw_name = _raw_sink(config, run_folder, closers)
-        try:
-            uport = serial.serial_for_url(
-                un.address, baudrate=int(getattr(un, "baudrate", 921600) or 921600), timeout=0.02
+        baud = int(getattr(un, "baudrate", 921600) or 921600)
+        opened.append(
+            connect.serial_unit(
+                un.address,
+                fmt,
+                un.sample_rate,
+                baudrate=baud,
+                timeout=DEFAULT_TIMEOUT_S,
+                raw_sink=raw,
+                raw_name=raw_name,
             )
-        except (serial.SerialException, ValueError) as exc:
-            raise LinkError(f"unit: cannot open {un.address!r}: {exc}") from exc
-        closers.append(uport.close)
-        unit = SerialInertialUnit(
-            uport, fmt, un.sample_rate, timeout=DEFAULT_TIMEOUT_S, polled=False, raw_sink=raw, raw_name=raw_name
         )
-        closers.append(unit.close)
+        table, unit = opened[0].driver, opened[1].driver
+        where_unit = f"unit ({fmt.name}) on {un.address}"
         bench = Bench(
-            table, unit, None, "hardware", f"{config.name}: table {where}, unit ({fmt.name}) on {un.address}", closers
+            table,
+            unit,
+            None,
+            "hardware",
+            f"{config.name}: table {where}, {where_unit}",
+            [*closers, *(c.close for c in opened)],
         )
         bench_ok = True
         return bench
     finally:
         if not bench_ok:
+            for c in reversed(opened):
+                c.close()
             for fn in reversed(closers):
-                try:
-                    fn()
-                except Exception:
-                    log.debug("close after failed open", exc_info=True)
+                fn()

@@ -7,13 +7,13 @@
   (:class:`~drivers.sim.modbus_controller.ModbusTableServer`),
 * the serial unit server (:class:`~drivers.sim.serial_unit.SerialUnitServer`),
 
-then connects the real drivers to them exactly as on hardware: :class:`~drivers.acutrol.AclTurntable`
-through pyvisa with the pyvisa-py backend (VISA resource ``TCPIP0::127.0.0.1::PORT::SOCKET``) or
-:class:`~drivers.modbus_table.ModbusTurntable` through a pymodbus ``ModbusTcpClient``, and
-:class:`~drivers.serial_imu.SerialInertialUnit` in polled (burst) mode through ``serial.serial_for_url``, so
-the simulated clock advances exactly with the samples the host reads: a loopback run equals the in-process
-run with the same seed and commands (Modbus: bit for bit; ACL: the in-process bench runs the same driver
-against the same controller without the wire, so the two are identical too).
+then connects the real drivers to them exactly as on hardware (:mod:`drivers.connect`):
+:class:`~drivers.acutrol.AclTurntable` through pyvisa with the pyvisa-py backend (VISA resource
+``TCPIP0::127.0.0.1::PORT::SOCKET``) or :class:`~drivers.modbus_table.ModbusTurntable` through a pymodbus
+``ModbusTcpClient``, and :class:`~drivers.serial_imu.SerialInertialUnit` in polled (burst) mode through
+``serial.serial_for_url``, so the simulated clock advances exactly with the samples the host reads: a loopback
+run equals the in-process run with the same seed and commands (Modbus: bit for bit; ACL: the in-process bench
+runs the same driver against the same controller without the wire, so the two are identical too).
 """
 
 from __future__ import annotations
@@ -21,7 +21,11 @@ from __future__ import annotations
 import logging
 from typing import Any, Literal
 
-from drivers.protocols import LinkError
+from drivers import connect
+from drivers.sim.acl_server import AclTableServer
+from drivers.sim.modbus_controller import ModbusTableServer
+from drivers.sim.serial_unit import Corruption, SerialUnitServer
+from drivers.sim.world import SimulatedWorld
 
 log = logging.getLogger(__name__)
 
@@ -60,7 +64,7 @@ class Loopback:
 
     def __init__(
         self,
-        world: Any,
+        world: SimulatedWorld,
         *,
         dialect: Dialect = "modbus",
         make_acl_table: Any = None,
@@ -68,74 +72,69 @@ class Loopback:
         word_order: Literal["big", "little"] | None = None,
         register_map: Any = None,
         watchdog_s: float | None = None,
-        corruption: Any = None,
+        corruption: Corruption | None = None,
         timeout: float = 2.0,
         unit_id: int = 1,
         unit_frame: Any = None,
         unit_raw: Any = None,
         unit_raw_name: str = "",
     ) -> None:
-        import serial
-
-        from drivers.serial_imu import SerialInertialUnit
-        from drivers.sim.serial_unit import SerialUnitServer
-
         if dialect not in ("acutrol", "modbus"):
             raise ValueError(f"loopback dialect must be 'acutrol' or 'modbus', got {dialect!r}")
         self.world = world
         self.dialect = dialect
         self._closers: list[Any] = []
         self.table_server: Any = None
-        self.client: Any = None
         try:
             if dialect == "modbus":
-                from pymodbus.client import ModbusTcpClient
-
-                from drivers.modbus_table import ModbusTurntable
-                from drivers.sim.modbus_controller import ModbusTableServer
-
                 self.table_server = ModbusTableServer(
                     world, word_order=word_order, watchdog_s=watchdog_s, register_map=register_map
                 )
                 self._closers.append(self.table_server.close)
-                self.client = ModbusTcpClient("127.0.0.1", port=self.table_server.port, timeout=timeout, retries=0)
-                self._closers.insert(0, self.client.close)
-                if not self.client.connect():
-                    raise LinkError(
-                        f"loopback: cannot connect to the Modbus simulator on port {self.table_server.port}"
-                    )
-                self.turntable: Any = ModbusTurntable(
-                    self.client, unit_id=unit_id, word_order=word_order, register_map=register_map
+                table: Any = connect.modbus_table(
+                    "127.0.0.1",
+                    self.table_server.port,
+                    word_order=word_order,
+                    register_map=register_map,
+                    unit_id=unit_id,
+                    timeout=timeout,
+                    retries=0,
                 )
             else:
-                from drivers.acutrol import AclTurntable
-                from drivers.sim.acl_server import AclTableServer
                 from drivers.transport import VisaTransport, open_visa
 
                 self.table_server = AclTableServer(world, acl)
                 self._closers.append(self.table_server.close)
-                self.client = open_visa(self.table_server.resource, timeout)
-                self._closers.insert(0, self.client.close)
-                transport = VisaTransport(self.client, self.table_server.resource)
-                self.turntable = (
-                    make_acl_table(transport)
-                    if make_acl_table is not None
-                    else AclTurntable(transport, world.table_limits(), settings=self.table_server.settings)
-                )
+                res = open_visa(self.table_server.resource, timeout)
+                transport = VisaTransport(res, self.table_server.resource)
+                try:
+                    driver = (
+                        make_acl_table(transport)
+                        if make_acl_table is not None
+                        else connect.AclTurntable(transport, world.table_limits(), settings=self.table_server.settings)
+                    )
+                except BaseException:
+                    res.close()
+                    raise
+                table = connect.Connection(driver, transport, [driver.close, res.close])
+            self._closers.insert(0, table.close)
+            self.client: Any = table.transport
+            self.turntable: Any = table.driver
             self.unit_server = SerialUnitServer(world, corruption=corruption, frame=unit_frame)
             self._closers.append(self.unit_server.close)
-            self.unit_port = serial.serial_for_url(self.unit_server.url, timeout=0.02)
-            self._closers.insert(0, self.unit_port.close)
-            self.unit: Any = SerialInertialUnit(
-                self.unit_port,
+            unit = connect.serial_unit(
+                self.unit_server.url,
                 self.unit_server.frame,
                 world.sample_rate,
-                timeout=timeout,
                 polled=True,
+                timeout=timeout,
                 name="simulated unit",
                 raw_sink=unit_raw,
                 raw_name=unit_raw_name,
             )
+            self._closers.insert(0, unit.close)
+            self.unit_port = unit.transport
+            self.unit: Any = unit.driver
         except BaseException:
             self.close()
             raise
@@ -152,9 +151,6 @@ class Loopback:
 
     def close(self) -> None:
         """Close drivers, clients/ports, then servers (idempotent; never raises)."""
-        for drv in (getattr(self, "turntable", None), getattr(self, "unit", None)):
-            if drv is not None:
-                drv.close()
         closers, self._closers = self._closers, []
         for fn in closers:
             try:
