@@ -271,6 +271,12 @@ def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
     from procedures.paths import default_bench_path, resolve_bench
 
     out = out or sys.stdout
+    if args.timeout is not None and not (math.isfinite(args.timeout) and 0 < args.timeout <= 86400):
+        raise UsageError(f"--timeout {args.timeout!r}: give seconds in (0, 86400]")
+    if args.seed is not None:
+        from benches.session import check_seed
+
+        check_seed(args.seed)
     bench_path = resolve_bench(args.bench) if args.bench else default_bench_path()
     config = load_bench(bench_path)
     demand = parse_demand(args.action, list(args.values), config.turntable.limits)
