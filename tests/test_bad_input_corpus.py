@@ -156,6 +156,7 @@ GOOD_POSITIONAL = {
     ("noise", "input"): "{npy}",
     ("periodic", "input"): "{npy}",
     ("runs", "folder"): "{root}",
+    ("table", "action"): "status",
 }
 """A valid value for each positional, so the other arguments can be tested one at a time (a command not
 listed gets the bad file in every positional)."""
