@@ -36,6 +36,10 @@ CHANNEL_UNITS: dict[str, str] = {
 }
 
 
+MAX_RATE_HZ = 1e6
+"""Highest sample rate accepted for .npy/.csv input (inertial units sample at ≤ tens of kHz)."""
+
+
 class InputError(UserError, ValueError):
     """An analysis input cannot be used; the message names the file and the fix."""
 
@@ -80,8 +84,8 @@ def add_input_arguments(parser: argparse.ArgumentParser, default_channels: str |
 def _check_rate(rate: float | None, source: str) -> float:
     if rate is None:
         raise InputError(f"{source}: --rate HZ is required for .npy and .csv input (e.g. --rate 1000)")
-    if not math.isfinite(rate) or rate <= 0:
-        raise InputError(f"{source}: --rate must be a positive number of Hz, got {rate}")
+    if not math.isfinite(rate) or rate <= 0 or rate > MAX_RATE_HZ:
+        raise InputError(f"{source}: --rate must be a positive number of Hz, at most {MAX_RATE_HZ:g}; got {rate:g}")
     return float(rate)
 
 
@@ -96,9 +100,11 @@ def _finite_columns(data: NDArray[np.float64], names: list[str], source: str) ->
 
 
 def _select(channels: dict[str, NDArray[np.float64]], wanted: str | None, source: str) -> list[str]:
-    if not wanted:
+    if wanted is None:
         return list(channels)
     names = [c.strip() for c in wanted.split(",") if c.strip()]
+    if not names:
+        raise InputError(f"--channels {wanted!r}: names no channel; available: {', '.join(channels)} (omit for all)")
     unknown = [n for n in names if n not in channels]
     if unknown:
         raise InputError(f"{source}: unknown channel(s) {', '.join(unknown)}; available: {', '.join(channels)}")

@@ -43,6 +43,7 @@ from core.yaml_source import get_int as _int
 from core.yaml_source import get_list_of_maps as _list_of_maps
 from core.yaml_source import get_matrix as _matrix
 from core.yaml_source import get_section as _section
+from drivers.acutrol.settings import AclSettings, default_profile
 from drivers.imu_counts import CountScale
 from drivers.imu_frame_desc import (
     DEFAULT_FRAME,
@@ -85,7 +86,6 @@ _NAME_UNIT = {name: (suffix, si) for suffix, si, names in PARAM_GROUPS.values() 
 PARAM_MAX: dict[str, float] = {"ug": 1e6, "ppm": 1e6, "arcsec": 360_000.0, "ug_g2": 1e6, "mm": 10_000.0}
 """Largest prior / limit a bench file may give, display units by key suffix (1 g, 100 %, 100°, 1 g/g², 10 m):
 beyond that the number is a typo, not a datasheet bound."""
-
 
 
 @dataclass(frozen=True)
@@ -135,9 +135,14 @@ class TurntableSpec:
     watchdog: float | None
     model: str = ""
     serial_number: str = ""
-    float_word_order: str = "big"
+    float_word_order: str | None = None  # Modbus: overrides the map's word order when given
     rate_accuracy: float = 0.0
     """Rate accuracy bound of the table (relative, ±; bench key ``rate_accuracy_ppm``); 0: not stated."""
+    modbus_map: Any = None  # drivers.modbus_map.ModbusMap (Modbus tables; None: the shipped map)
+    resource: str | None = None  # VISA resource string (driver acutrol)
+    acl: AclSettings | None = None  # ACL open points (driver acutrol, or a simulated ACUTROL)
+    rate_tolerance: float = 0.01 * DEG  # rad/s: at-rate / at-rest window of host-decided settling
+    sim_controller: str = "acutrol"  # simulated benches: which controller the simulator speaks
 
 
 @dataclass(frozen=True)
@@ -215,6 +220,7 @@ class ReferenceStandard:
 
 # ---- small helpers ---------------------------------------------------------------------------------
 
+
 def _opt_str(data: dict, smap: SourceMap, path: KeyPath, key: str) -> str | None:
     v = data.get(key)
     if v is None:
@@ -260,7 +266,63 @@ def _axis(d: dict, smap: SourceMap, p: KeyPath) -> AxisLimits:
     )
 
 
-def _turntable(d: dict, smap: SourceMap) -> TurntableSpec:
+TURNTABLE_DRIVERS = ["sim", "acutrol", "modbus-tcp"]
+SIM_CONTROLLERS = ["acutrol", "modbus"]
+
+
+def _acl(d: dict | None, smap: SourceMap, p: KeyPath, resource: str | None, simulated: bool) -> AclSettings:
+    """The ``turntable.acl`` section: the open points of the ACUTROL command language (spec defaults)."""
+    from drivers.sim.acl_controller import SIM_TIME_VARIABLE
+
+    d = d or {}
+    check_keys(
+        d,
+        smap,
+        p,
+        [
+            "reply_profile",
+            "mode_reply",
+            "decimals",
+            "axes",
+            "full_scale_deg",
+            "time_variable",
+            "time_scale_s",
+            "error_queue",
+            "open_interlocks_at_end",
+        ],
+    )
+    profile = get_str(d, smap, p, "reply_profile", default_profile(resource or ""), choices=["gpib", "tcp"])
+    axes = (1, 2, 3)
+    if d.get("axes") is not None:
+        ad = get_mapping(d["axes"], smap, p + ("axes",))
+        check_keys(ad, smap, p + ("axes",), list(AXIS_NAMES))
+        axes = tuple(_int(ad, smap, p + ("axes",), n, i + 1, 1, 99) for i, n in enumerate(AXIS_NAMES))  # type: ignore[assignment]
+        if len(set(axes)) != 3:
+            raise smap.error(p + ("axes",), f"outer, middle and inner need three different axis numbers, got {axes}")
+    tv = d.get("time_variable")
+    if tv is None:
+        time_variable = SIM_TIME_VARIABLE if simulated else None
+    else:
+        time_variable = _int(d, smap, p, "time_variable", 0, 0, 99999)
+    oi = d.get("open_interlocks_at_end", False)
+    if not isinstance(oi, bool):
+        raise smap.error(p + ("open_interlocks_at_end",), f"expected true or false, got {oi!r}")
+    return AclSettings(
+        reply_profile=profile,  # type: ignore[arg-type]
+        mode_reply=get_str(d, smap, p, "mode_reply", "letter", choices=["letter", "word"]),  # type: ignore[arg-type]
+        decimals=_int(d, smap, p, "decimals", 4, 0, 12),
+        axes=axes,  # type: ignore[arg-type]
+        full_scale_deg=get_number(
+            d, smap, p, "full_scale_deg", 360.0, minimum=0, exclusive_minimum=True, maximum=36000
+        ),
+        time_variable=time_variable,
+        time_scale_s=get_number(d, smap, p, "time_scale_s", 0.001, minimum=0, exclusive_minimum=True),
+        error_queue=get_str(d, smap, p, "error_queue", "QERROR"),
+        open_interlocks_at_end=oi,
+    )
+
+
+def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> TurntableSpec:
     p: KeyPath = ("turntable",)
     check_keys(
         d,
@@ -269,24 +331,62 @@ def _turntable(d: dict, smap: SourceMap) -> TurntableSpec:
         [
             "driver",
             "address",
+            "resource",
+            "acl",
             "model",
             "serial_number",
             "axes",
             "position_tolerance_arcsec",
+            "rate_tolerance_dps",
             "in_position_time_s",
             "attitude_accuracy_arcsec",
             "rate_accuracy_ppm",
             "heartbeat_period_s",
             "watchdog_s",
             "float_word_order",
+            "modbus_map",
         ],
     )
-    driver = get_str(d, smap, p, "driver", choices=["sim", "modbus-tcp", "ascii-serial"])
+    driver = get_str(d, smap, p, "driver", choices=TURNTABLE_DRIVERS)
     address = _opt_str(d, smap, p, "address")
-    if driver != "sim" and not address:
+    resource = _opt_str(d, smap, p, "resource")
+    acl_speaker = driver == "acutrol" or (driver == "sim" and (sim_controller or "acutrol") == "acutrol")
+    if driver == "modbus-tcp" and not address:
+        raise smap.error(p + ("address",), "is required for driver 'modbus-tcp' (e.g. '192.168.0.10:502')")
+    if driver == "acutrol" and not resource:
         raise smap.error(
-            p + ("address",), f"is required for driver {driver!r} (e.g. '192.168.0.10:502' or '/dev/ttyS0')"
+            p + ("resource",),
+            "is required for driver 'acutrol': a VISA resource string, e.g. 'TCPIP0::192.168.53.1::9878::SOCKET', "
+            "'GPIB0::1::INSTR' or 'ASRL/dev/ttyS0::INSTR'",
         )
+    if driver != "acutrol" and resource:
+        raise smap.error(p + ("resource",), f"is only for driver 'acutrol' (this table is {driver!r})")
+    if driver == "acutrol" and address:
+        raise smap.error(p + ("address",), "is not used by driver 'acutrol'; name the controller with resource:")
+    modbus_map = None
+    if d.get("modbus_map") is not None:
+        if acl_speaker:
+            raise smap.error(p + ("modbus_map",), "is only for a Modbus table (driver 'modbus-tcp' or a simulated one)")
+        from drivers.modbus_map import load_modbus_map
+
+        map_path = Path(get_str(d, smap, p, "modbus_map"))
+        if not map_path.is_absolute():
+            map_path = Path(smap.file).parent / map_path
+        if not map_path.is_file():
+            raise smap.error(
+                p + ("modbus_map",), f"register map file {map_path} not found (a path relative to the bench file)"
+            )
+        modbus_map = load_modbus_map(map_path)
+    if d.get("acl") is not None and not acl_speaker:
+        raise smap.error(p + ("acl",), "is only for an ACUTROL table (driver 'acutrol' or a simulated ACUTROL)")
+    if acl_speaker:
+        for key in ("heartbeat_period_s", "watchdog_s"):
+            if d.get(key) is not None:
+                raise smap.error(
+                    p + (key,),
+                    "the ACUTROL command language has no host heartbeat or watchdog; remove this key "
+                    "(the host stops the axes itself on every exit path)",
+                )
     axes = _section(d, smap, p, "axes")
     assert axes is not None
     check_keys(axes, smap, p + ("axes",), list(AXIS_NAMES))
@@ -295,6 +395,20 @@ def _turntable(d: dict, smap: SourceMap) -> TurntableSpec:
         ad = _section(axes, smap, p + ("axes",), name)
         assert ad is not None
         limits.append(_axis(ad, smap, p + ("axes", name)))
+    acl = None
+    if acl_speaker:
+        ap = p + ("acl",)
+        acl_d = get_mapping(d["acl"], smap, ap) if d.get("acl") is not None else None
+        acl = _acl(acl_d, smap, ap, resource, simulated=driver == "sim")
+        half = acl.full_scale_deg / 2.0
+        for name, lim in zip(AXIS_NAMES, limits, strict=True):
+            for key, v in (("position_min_deg", lim.position_min), ("position_max_deg", lim.position_max)):
+                if v is not None and abs(v / DEG) > half + 1e-9:
+                    raise smap.error(
+                        p + ("axes", name, key),
+                        f"{v / DEG:g}° is outside the controller's full-scale range ±{half:g}° (turntable.acl."
+                        "full_scale_deg)",
+                    )
     wd = get_number(d, smap, p, "watchdog_s", 2.0, minimum=0)
     hb = get_number(d, smap, p, "heartbeat_period_s", 0.5, minimum=0, exclusive_minimum=True)
     if wd and hb >= wd:
@@ -308,11 +422,16 @@ def _turntable(d: dict, smap: SourceMap) -> TurntableSpec:
         in_position_time=get_number(d, smap, p, "in_position_time_s", 0.2, minimum=0),
         attitude_accuracy=get_number(d, smap, p, "attitude_accuracy_arcsec", 1.0, minimum=0) * ARCSEC,
         heartbeat_period=hb,
-        watchdog=wd or None,
+        watchdog=None if acl_speaker else (wd or None),
         model=str(d.get("model") or ""),
         serial_number=str(d.get("serial_number") or ""),
-        float_word_order=get_str(d, smap, p, "float_word_order", "big", choices=["big", "little"]),
+        float_word_order=get_str(d, smap, p, "float_word_order", None, choices=["big", "little"]),
         rate_accuracy=get_number(d, smap, p, "rate_accuracy_ppm", 0.0, minimum=0, maximum=1e5) * 1e-6,
+        modbus_map=modbus_map,
+        resource=resource,
+        acl=acl,
+        rate_tolerance=get_number(d, smap, p, "rate_tolerance_dps", 0.01, minimum=0, exclusive_minimum=True) * DEG,
+        sim_controller=sim_controller or "acutrol",
     )
 
 
@@ -491,7 +610,11 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
     check_keys(root, smap, (), ["name", "site", "turntable", "unit", "limits", "simulation", "reference_standards"])
     name = get_str(root, smap, (), "name")
     site = _site(_section(root, smap, (), "site"), smap)  # type: ignore[arg-type]
-    table = _turntable(_section(root, smap, (), "turntable"), smap)  # type: ignore[arg-type]
+    sim_raw = root.get("simulation")
+    sim_controller = None
+    if isinstance(sim_raw, dict):
+        sim_controller = get_str(sim_raw, smap, ("simulation",), "controller", "acutrol", choices=SIM_CONTROLLERS)
+    table = _turntable(_section(root, smap, (), "turntable"), smap, sim_controller)  # type: ignore[arg-type]
     unit = _unit(_section(root, smap, (), "unit"), smap)  # type: ignore[arg-type]
     limits = _param_map(_section(root, smap, (), "limits", required=False), smap, ("limits",), positive=True)
     sim_d = _section(root, smap, (), "simulation", required=False)

@@ -7,17 +7,21 @@ and ``.describe()``.
 Transports:
 
 ``"in-process"`` (simulated bench)
-    :class:`drivers.sim.inprocess.SimTurntable` / ``SimInertialUnit`` directly on the world (fastest).
+    No bytes, no threads. ``simulation.controller: acutrol`` (default): the real ACL driver
+    (:class:`drivers.acutrol.AclTurntable`) talking to the simulated ACUTROL
+    (:class:`drivers.sim.acl_controller.AclController`) through an in-memory transport; ``modbus``:
+    :class:`drivers.sim.inprocess.SimTurntable` on the world. The unit: ``SimInertialUnit``.
 ``"loopback"`` (simulated bench)
-    The wire-level simulators on 127.0.0.1 (Modbus TCP, or ASCII when ``turntable.driver`` is
-    ``"ascii-serial"``; serial unit in polled mode) with the real drivers (:mod:`drivers.sim.loopback`). Same
-    seed and commands → bit-identical samples to in-process. The controller's wall-clock watchdog is set to
-    ``max(turntable.watchdog, LOOPBACK_MIN_WATCHDOG_S)`` so a stalled CI machine cannot trip it; the world's
-    bench-time watchdog still applies at the configured value.
+    The wire-level simulators on 127.0.0.1 (ACL on a TCP socket reached through pyvisa-py's
+    ``TCPIP0::127.0.0.1::PORT::SOCKET``, or Modbus TCP; serial unit in polled mode) with the real drivers
+    (:mod:`drivers.sim.loopback`). Same seed and commands → the same recording as in-process. The Modbus
+    controller's wall-clock watchdog is set to ``max(turntable.watchdog, LOOPBACK_MIN_WATCHDOG_S)`` so a
+    stalled CI machine cannot trip it; the world's bench-time watchdog still applies at the configured value.
 ``"hardware"`` (real bench)
-    ``turntable.driver`` "modbus-tcp" (address ``host:port``, default port 502) or "ascii-serial" (a pyserial
-    URL or device, e.g. ``/dev/ttyS0`` or ``socket://host:9888``); ``unit.driver`` "serial" (device/URL at
-    ``unit.baudrate``, free-running stream). The factory opens the clients; the drivers never do.
+    ``turntable.driver`` "acutrol" (a VISA resource string, opened with pyvisa + pyvisa-py: TCPIP SOCKET,
+    GPIB — needs linux-gpib or gpib-ctypes — or ASRL) or "modbus-tcp" (address ``host:port``, default port
+    502); ``unit.driver`` "serial" (device/URL at ``unit.baudrate``, free-running stream). The factory opens
+    the links (:mod:`drivers.connect`); the drivers never do. :func:`open_table` opens the table alone.
 
 The unit's frame format is ``unit.frame`` with ``unit.frame_options`` (:func:`benches.bench_config.unit_frame_format`):
 the serial driver decodes it on hardware and on loopback, where the simulated unit speaks it. With
@@ -140,27 +144,37 @@ def open_bench(
 
 def _open_simulated(config: BenchConfig, seed: int | None, transport: str, run_folder: Any = None) -> Bench:
     world = SimulatedWorld.from_bench(config, seed)
+    tt = config.turntable
+    acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
     if transport == "in-process":
-        table, unit = SimTurntable(world), SimInertialUnit(world)
+        unit = SimInertialUnit(world)
+        if acl:
+            from drivers.sim.acl_controller import AclController
+
+            table: Any = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
+            what = "simulated ACUTROL (ACL, in-memory)"
+        else:
+            table, what = SimTurntable(world), "in-process drivers"
         return Bench(
             table,
             unit,
             world,
             "in-process",
-            f"{config.name}: simulated bench, in-process drivers (no byte stream: unit.frame "
+            f"{config.name}: simulated bench, {what} (no byte stream: unit.frame "
             f"{getattr(config.unit, 'frame', 'tablebench-v1')} and unit.keep_raw apply over loopback)",
             [table.close, unit.close],
         )
-    tt = config.turntable
-    dialect = "ascii" if getattr(tt, "driver", "sim") == "ascii-serial" else "modbus"
     wd = getattr(tt, "watchdog", None)
     closers: list[Any] = []
     raw, raw_name = _raw_sink(config, run_folder, closers)
     try:
         lb = Loopback(
             world,
-            dialect=dialect,
-            word_order=getattr(tt, "float_word_order", "big") or "big",
+            dialect="acutrol" if acl else "modbus",
+            make_acl_table=(lambda transport: acl_turntable(transport, tt)) if acl else None,
+            acl=tt.acl,
+            word_order=getattr(tt, "float_word_order", None),
+            register_map=getattr(tt, "modbus_map", None),
             watchdog_s=max(float(wd), LOOPBACK_MIN_WATCHDOG_S) if wd else None,
             unit_frame=unit_frame_format(config.unit),
             unit_raw=raw,
@@ -178,6 +192,138 @@ def _open_simulated(config: BenchConfig, seed: int | None, transport: str, run_f
         f"{config.name}: simulated bench, {lb.describe()}",
         [*closers, lb.close],
     )
+
+
+def acl_turntable(transport: Any, tt: Any) -> Any:
+    """The ACL driver for a bench's turntable section on an open transport (settings and tolerances from the bench)."""
+    from drivers.acutrol import AclTurntable
+
+    return AclTurntable(
+        transport,
+        tuple(tt.limits),  # type: ignore[arg-type]
+        settings=tt.acl,
+        position_tolerance=tt.position_tolerance,
+        settle_time=tt.in_position_time,
+        rate_tolerance=tt.rate_tolerance,
+    )
+
+
+def _hardware_table(config: BenchConfig) -> connect.Connection[Any]:
+    """Open the real turntable (its Connection, with ``.where`` describing it)."""
+    tt = config.turntable
+    limits = tuple(tt.limits) if getattr(tt, "limits", None) else None
+    if tt.driver == "modbus-tcp":
+        host, port = _host_port(config, tt.address, 502)
+        conn: Any = connect.modbus_table(
+            host,
+            port,
+            word_order=tt.float_word_order,
+            register_map=getattr(tt, "modbus_map", None),
+            limits=limits,  # type: ignore[arg-type]
+            timeout=DEFAULT_TIMEOUT_S,
+        )
+        conn.where = f"Modbus TCP {host}:{port}"
+    elif tt.driver == "acutrol":
+        conn = connect.acutrol_table(
+            tt.resource,
+            tuple(tt.limits),  # type: ignore[arg-type]
+            settings=tt.acl,
+            position_tolerance=tt.position_tolerance,
+            settle_time=tt.in_position_time,
+            rate_tolerance=tt.rate_tolerance,
+            timeout=DEFAULT_TIMEOUT_S,
+        )
+        conn.where = f"ACUTROL (ACL) at {tt.resource}"
+    else:
+        raise _bad(config, f"turntable.driver {tt.driver!r} needs a simulation section; real: acutrol, modbus-tcp")
+    return conn
+
+
+def open_table(config: BenchConfig, *, seed: int | None = None, transport: str | None = None) -> Bench:
+    """Open only the turntable of a bench (``tablebench table``); ``Bench.unit`` is None.
+
+    Simulated benches: the world and its table controller only (in memory, or its server on 127.0.0.1 reached
+    over the real wire); the caller advances bench time with ``world.produce``. Real benches: the turntable
+    link only. Nothing of the unit is opened.
+    """
+    if transport is not None and transport not in TRANSPORTS:
+        raise _bad(config, f"transport {transport!r} is not one of {', '.join(TRANSPORTS)}")
+    sim = getattr(config, "simulation", None)
+    if sim is not None:
+        transport = transport or getattr(sim, "transport", "in-process")
+        if transport == "hardware":
+            raise _bad(config, "this is a simulated bench; transport must be 'in-process' or 'loopback'")
+        return _open_simulated_table(config, seed, transport)
+    if transport not in (None, "hardware"):
+        raise _bad(
+            config, f"bench {config.name!r} is a real bench (no simulation section): transport must be 'hardware'"
+        )
+    conn = _hardware_table(config)
+    return Bench(conn.driver, None, None, "hardware", f"{config.name}: table {conn.where}", [conn.close])  # type: ignore[arg-type,attr-defined]
+
+
+def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str) -> Bench:
+    world = SimulatedWorld.from_bench(config, seed)
+    tt = config.turntable
+    acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
+    closers: list[Any] = []
+    ok = False
+    try:
+        if transport == "in-process":
+            if acl:
+                from drivers.sim.acl_controller import AclController
+
+                table: Any = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
+                what = "simulated ACUTROL (ACL, in-memory)"
+            else:
+                table, what = SimTurntable(world), "simulated table, in-process driver"
+            closers.append(table.close)
+        elif acl:
+            from drivers.sim.acl_server import AclTableServer
+
+            srv = AclTableServer(world, tt.acl)
+            closers.append(srv.close)
+            conn = connect.acutrol_table(
+                srv.resource,
+                tuple(tt.limits),  # type: ignore[arg-type]
+                settings=tt.acl,
+                position_tolerance=tt.position_tolerance,
+                settle_time=tt.in_position_time,
+                rate_tolerance=tt.rate_tolerance,
+                timeout=DEFAULT_TIMEOUT_S,
+            )
+            closers.insert(0, conn.close)
+            table, what = conn.driver, f"simulated ACUTROL over pyvisa-py {srv.resource}"
+        else:
+            from drivers.sim.modbus_controller import ModbusTableServer
+
+            wd = getattr(tt, "watchdog", None)
+            msrv = ModbusTableServer(
+                world,
+                word_order=tt.float_word_order,
+                register_map=getattr(tt, "modbus_map", None),
+                watchdog_s=max(float(wd), LOOPBACK_MIN_WATCHDOG_S) if wd else None,
+            )
+            closers.append(msrv.close)
+            mconn = connect.modbus_table(
+                "127.0.0.1",
+                msrv.port,
+                word_order=tt.float_word_order,
+                register_map=getattr(tt, "modbus_map", None),
+                timeout=DEFAULT_TIMEOUT_S,
+                retries=0,
+            )
+            closers.insert(0, mconn.close)
+            table, what = mconn.driver, f"simulated Modbus table on 127.0.0.1:{msrv.port}"
+        ok = True
+        return Bench(table, None, world, transport, f"{config.name}: {what}", list(reversed(closers)))  # type: ignore[arg-type]
+    finally:
+        if not ok:
+            for fn in closers:
+                try:
+                    fn()
+                except Exception:
+                    log.debug("close after failed open", exc_info=True)
 
 
 def _host_port(config: BenchConfig, address: str | None, default_port: int) -> tuple[str, int]:
@@ -198,24 +344,8 @@ def _open_hardware(config: BenchConfig, run_folder: Any = None) -> Bench:
     closers: list[Any] = []  # the raw-stream file, closed after the drivers
     bench_ok = False
     try:
-        tt = config.turntable
-        limits = tuple(tt.limits) if getattr(tt, "limits", None) else None
-        if tt.driver == "modbus-tcp":
-            host, port = _host_port(config, tt.address, 502)
-            word_order = getattr(tt, "float_word_order", "big") or "big"
-            opened.append(
-                connect.modbus_table(host, port, word_order=word_order, limits=limits, timeout=DEFAULT_TIMEOUT_S)
-            )
-            where = f"Modbus TCP {host}:{port}"
-        elif tt.driver == "ascii-serial":
-            if not tt.address:
-                raise _bad(config, "turntable.address is required for an ASCII table (e.g. '/dev/ttyS0')")
-            opened.append(connect.ascii_table(tt.address, limits=limits, timeout=DEFAULT_TIMEOUT_S))
-            where = f"ASCII on {tt.address}"
-        else:
-            raise _bad(
-                config, f"turntable.driver {tt.driver!r} needs a simulation section; real: modbus-tcp, ascii-serial"
-            )
+        opened.append(_hardware_table(config))
+        where = opened[0].where  # type: ignore[attr-defined]
         un = config.unit
         if un.driver != "serial":
             raise _bad(config, f"unit.driver {un.driver!r} needs a simulation section; a real unit uses 'serial'")

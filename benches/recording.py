@@ -520,6 +520,7 @@ class Hdf5Recorder:
         self._filters = storage_filters(compression)
         self._hasher = _StepHasher()
         self._quanta: dict[str, float] = {}
+        self._deferred: dict[str, float] = {}
         try:
             if resume:
                 self._file = self._open_resume()
@@ -535,12 +536,41 @@ class Hdf5Recorder:
             if isinstance(exc, RecordingError):
                 raise
             raise RecordingError(f"{self.path}: cannot write the recording ({exc})") from None
-        self._written = int(self._file["imu/time"].shape[0])
+        self._written = int(self._file["imu/counter"].shape[0])
         self._table_written = int(self._file["table/time"].shape[0])
+        self._table_step_start = self._table_written
         self._chunks: _ChunkWriter | None = None
+        if not self._deferred:
+            self._start_chunk_writer()
+
+    def _start_chunk_writer(self) -> None:
         if self._filters.get("compression") == "gzip":
             self._chunks = _ChunkWriter(self._file, IMU_FIELDS, IMU_CHUNK)
-        self._table_step_start = self._table_written
+
+    def _counts_dataset(self, imu: h5py.Group, name: str, lsb: float) -> None:
+        self._dataset(imu, name, _COUNT_DTYPE[name], _WIDTH.get(name), IMU_CHUNK)
+        imu[name].attrs["lsb"] = lsb
+        exg = imu["exceptions"] if "exceptions" in imu else _group(imu, "exceptions")
+        exg.create_dataset(name, shape=(0,), maxshape=(None,), dtype=EXC_DTYPE, chunks=(1024,), **self._filters)
+        self._quanta[name] = lsb
+
+    def _materialise(self, cols: dict[str, NDArray[Any]] | None) -> None:
+        """Decide the storage of the quantisable sample datasets on the first samples (before any row is
+        written): counts if they sit on the unit's count grid (≤ 0.1 % exceptions), else float64 (a unit
+        sending floats). The (empty) counts datasets exist from the start, so an early kill leaves a readable
+        file."""
+        imu = self._file["imu"]
+        for name, lsb in self._deferred.items():
+            if cols is None or not len(cols[name]):
+                continue
+            _c, exc = _quantise(cols[name], lsb, _COUNT_DTYPE[name])
+            if exc.size > 1e-3 * cols[name].size:
+                del imu[name]
+                del imu["exceptions"][name]
+                self._quanta.pop(name, None)
+                self._dataset(imu, name, _IMU_DTYPES[name], _WIDTH.get(name), IMU_CHUNK)
+        self._deferred = {}
+        self._start_chunk_writer()
 
     # ---- creation / resume -------------------------------------------------------------------------------
     def _dataset(self, g: h5py.Group, name: str, dtype: Any, width: int | None, chunk: int) -> None:
@@ -575,13 +605,8 @@ class Hdf5Recorder:
         for name in IMU_FIELDS:
             lsb = quanta.get(name) if name in QUANTISED_FIELDS else None
             if lsb is not None and math.isfinite(lsb) and lsb > 0:
-                self._dataset(imu, name, _COUNT_DTYPE[name], _WIDTH.get(name), IMU_CHUNK)
-                imu[name].attrs["lsb"] = float(lsb)
-                exg = imu["exceptions"] if "exceptions" in imu else _group(imu, "exceptions")
-                exg.create_dataset(
-                    name, shape=(0,), maxshape=(None,), dtype=EXC_DTYPE, chunks=(1024,), **self._filters
-                )
-                self._quanta[name] = float(lsb)
+                self._counts_dataset(imu, name, float(lsb))
+                self._deferred[name] = float(lsb)  # kept as counts, or float64: decided on the first samples
             else:
                 self._dataset(imu, name, _IMU_DTYPES[name], _WIDTH.get(name), IMU_CHUNK)
         tab = _group(f, "table")
@@ -693,6 +718,8 @@ class Hdf5Recorder:
             n = sum(len(b) for b in self._buf_imu)
             cols = {name: np.concatenate([getattr(b, name) for b in self._buf_imu]) for name in IMU_FIELDS}
             k = n if full else ((self._written + n) // IMU_CHUNK) * IMU_CHUNK - self._written
+            if self._deferred:
+                self._materialise(cols)
             if k > 0:
                 for name in IMU_FIELDS:
                     data = cols[name][:k]
@@ -1018,6 +1045,12 @@ class Recording:
         else:
             self.n_table = 0
         if self.header.format_version >= 2:
+            missing = [n for n in ("bench_yaml", "procedure_yaml", "steps", "events", "table") if n not in f]
+            missing += [f"imu/{n}" for n in IMU_FIELDS if n not in f["imu"]]
+            if missing:
+                raise RecordingDamaged(
+                    f"{self.path}: dataset(s) /{', /'.join(missing)} missing from a format-2 recording; {self._fix()}"
+                )
             for name, obj in _walk(f):
                 if not obj.fletcher32:
                     raise RecordingDamaged(

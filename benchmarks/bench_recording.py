@@ -79,6 +79,7 @@ def main(argv: list[str] | None = None) -> int:
         "(× real time) | wall speed vs today | bench s per CPU s | CPU speed vs today | verified read, s |",
         "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
+    ratios: dict[tuple[str, str], tuple[float, float, float]] = {}
     for procedure, overrides in cases:
         best: dict[str, list[float]] = {}
         for _ in range(args.repeat):
@@ -96,6 +97,10 @@ def main(argv: list[str] | None = None) -> int:
                       f"read {read:.2f} s", flush=True)  # fmt: skip
         ref_speed, ref_cpu, _, ref_size, _ = best["plain"]
         for storage in STORAGES:
+            ratios[(procedure, storage)] = (
+                best[storage][3] / ref_size, best[storage][0] / ref_speed, best[storage][1] / ref_cpu
+            )
+        for storage in STORAGES:
             speed, cpu_speed, read, size, n = best[storage]
             mb_h = size / 1e6 / (n / 1000.0 / 3600.0)
             lines.append(
@@ -103,6 +108,15 @@ def main(argv: list[str] | None = None) -> int:
                 f"{size / ref_size:.3f} | {speed:.0f} | {speed / ref_speed:.2f} | {cpu_speed:.0f} | "
                 f"{cpu_speed / ref_cpu:.2f} | {read:.2f} |"
             )
+    d = [ratios[k] for k in ratios if k[1] == "counts+gzip"]
+    size_r = max(x[0] for x in d)
+    size_ok = "met" if size_r <= 1 / 3 else "NOT met"
+    lines.append("")
+    lines.append(
+        f"Default storage against today's: size ≤ {size_r:.3f} (target ≤ 1/3: {size_ok}); "
+        f"wall speed ≥ {min(x[1] for x in d):.2f}, CPU speed ≥ {min(x[2] for x in d):.2f} (target ≥ 1: "
+        f"{'met' if min(min(x[1], x[2]) for x in d) >= 1 else 'NOT met on this machine'})."
+    )
     body = "\n".join(lines) + (
         "\n\nEvery storage carries Fletcher-32 on every chunk and a SHA-256 per step; 'size vs today' and "
         "'speed vs today' are ratios to the format-1 storage measured in the same run (target: size ≤ 1/3, "

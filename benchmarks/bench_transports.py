@@ -4,16 +4,21 @@ For the shipped simulated bench (``benches/sim.yaml``, 1 kHz unit) the same acqu
 runner's loop: read a 0.2 s block from the unit, read the table state, send a heartbeat; a move, holds and
 a spin — runs on:
 
-* ``in-process``: SimTurntable / SimInertialUnit directly on the world (reference);
-* ``loopback`` Modbus TCP: pymodbus server + ModbusTurntable, serial unit server + SerialInertialUnit
-  (polled bursts, frames encoded, sent over TCP, decoded with CRC checks);
-* ``loopback`` ASCII: the SCPI-style controller + AsciiTurntable, same serial unit.
+* ``in-process`` device level: SimTurntable / SimInertialUnit directly on the world (reference; the
+  bench's ``simulation.controller: modbus``);
+* ``in-process`` ACL: the ACL driver against the simulated ACUTROL through an in-memory transport (the
+  shipped bench's default);
+* ``loopback`` ACL: the simulated ACUTROL on a TCP socket, reached with pyvisa + pyvisa-py
+  (``TCPIP0::127.0.0.1::PORT::SOCKET``), serial unit server + SerialInertialUnit (polled bursts, frames
+  encoded, sent over TCP, decoded with CRC checks);
+* ``loopback`` Modbus TCP: pymodbus server + ModbusTurntable, same serial unit.
 
 Speeds are bench seconds per wall second (× real time) measured in this run; the loopback samples are
-checked bit-identical to the in-process ones (Modbus). Also measured: the frame codec alone (encode and
-decode of pre-generated frames, × real time at 1 kHz) and table status polls per second on each transport.
+checked bit-identical to the in-process ones of the same controller. Also measured: the whole ten-step
+procedure (``tablebench run --transport loopback``: runner, recording, ACL over pyvisa-py) against its
+bench duration, the frame codec alone and table status polls per second on each transport.
 
-Full size: 600 s of bench time per transport; ``--quick``: 60 s.
+Full size: 600 s of bench time per transport; ``--quick``: 60 s (the ten-step always runs in full).
 """
 
 from __future__ import annotations
@@ -106,11 +111,10 @@ class ReplayWorld:
         self._k = 0
 
     def produce(self, n: int):
-        from drivers.imu_frame import slice_frames
-
         k = self._k
         self._k = min(k + n, len(self._frames))
-        return slice_frames(self._frames, k, self._k)
+        f = self._frames
+        return type(f)(**{fl.name: getattr(f, fl.name)[k : self._k] for fl in dataclasses.fields(f)})
 
     def table_state(self):
         return self._state
@@ -119,6 +123,7 @@ class ReplayWorld:
         return self._limits
 
     def command_position(self, angles) -> None: ...
+    def command_axis_position(self, axis: int, angle: float) -> None: ...
     def command_rate(self, axis: int, rate: float) -> None: ...
     def command_stop(self) -> None: ...
     def clear_fault(self) -> None: ...
@@ -126,15 +131,45 @@ class ReplayWorld:
     def inject_fault(self, fault) -> None: ...
 
 
-def transport_only(world, seconds: float, dialect: str) -> float:
+def transport_only(world, seconds: float, dialect: str, acl=None) -> float:
     """× real time of the loopback transports + decoding alone (physics pre-computed)."""
     from drivers.sim.loopback import Loopback
 
     replay = ReplayWorld(world, seconds)
-    with Loopback(replay, dialect=dialect) as lb:  # type: ignore[arg-type]
+    with Loopback(replay, dialect=dialect, acl=acl) as lb:  # type: ignore[arg-type]
         wall, accel = acquisition(lb, seconds)
     assert accel.shape[0] == int(seconds * world.sample_rate)  # every sample crossed the wire
     return seconds / wall
+
+
+def ten_step_loopback() -> tuple[float, float, float, str]:
+    """The ten-step run in-process and over loopback ACL: (bench s, loopback wall s, in-process wall s, same?)."""
+    import io
+    import tempfile
+
+    from benches import session
+    from benches.recording import open_recording
+
+    walls, data = {}, {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for transport in ("in-process", "loopback"):
+            prep = session.prepare(BENCH, "ten-step", None)
+            folder = Path(tmp) / transport
+            folder.mkdir()
+            t0 = time.perf_counter()
+            result = session.execute(prep, folder, seed=11, transport=transport, stream=io.StringIO(), live=False)
+            walls[transport] = time.perf_counter() - t0
+            assert result.status == "complete", result.reason
+            with open_recording(folder) as rec:
+                smp, table = rec.samples(), rec.table()
+                data[transport] = {"accel": smp.accel, "gyro": smp.gyro, "time": table.time, "angles": table.angles}
+                bench_s = smp.counter.shape[0] / cfg_rate(prep)
+    same = all(np.array_equal(data["in-process"][k], data["loopback"][k]) for k in data["loopback"])
+    return bench_s, walls["loopback"], walls["in-process"], "bit for bit" if same else "NOT identical"
+
+
+def cfg_rate(prep) -> float:
+    return float(prep.config.unit.sample_rate)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -144,37 +179,45 @@ def main(argv: list[str] | None = None) -> None:
     seconds = 60.0 if args.quick else 600.0
     load0 = os.getloadavg()[0]
     cfg = load_bench(BENCH)
-    ascii_cfg = dataclasses.replace(cfg, turntable=dataclasses.replace(cfg.turntable, driver="ascii-serial"))
+    mb_tt = dataclasses.replace(cfg.turntable, sim_controller="modbus", acl=None, watchdog=2.0)
+    mb_cfg = dataclasses.replace(cfg, turntable=mb_tt)
     runs = [
-        ("in-process", cfg, "in-process"),
-        ("loopback Modbus TCP", cfg, "loopback"),
-        ("loopback ASCII", ascii_cfg, "loopback"),
+        ("in-process device level", mb_cfg, "in-process", None),
+        ("in-process ACL (in memory)", cfg, "in-process", None),
+        ("loopback ACL (pyvisa-py)", cfg, "loopback", "in-process ACL (in memory)"),
+        ("loopback Modbus TCP", mb_cfg, "loopback", "in-process device level"),
     ]
     rows = []
-    ref_accel = None
+    accels: dict[str, np.ndarray] = {}
     ref_wall = None
-    for label, c, transport in runs:
+    for label, c, transport, same_as in runs:
         with open_bench(c, seed=7, transport=transport) as bench:
             wall, accel = acquisition(bench, seconds)
             assert accel.shape[0] == int(seconds * cfg.unit.sample_rate)
             polls = polls_per_second(bench)
-        if ref_accel is None:
-            ref_accel, ref_wall = accel, wall
-            same = "reference"
-        elif np.array_equal(accel, ref_accel):
-            same = "bit-identical"
+        accels[label] = accel
+        if ref_wall is None:
+            ref_wall, same = wall, "reference"
+        elif same_as is None:
+            same = "(own controller)"
+        elif np.array_equal(accel, accels[same_as]):
+            same = f"bit-identical to {same_as}"
         else:
-            d = np.max(np.abs(accel - ref_accel)) / cfg.unit.scale.accel_lsb
-            same = f"max diff {d:.0f} count(s)"
+            d = np.max(np.abs(accel - accels[same_as])) / cfg.unit.scale.accel_lsb
+            same = f"max diff {d:.0f} count(s) vs {same_as}"
         rows.append((label, seconds / wall, wall / ref_wall, polls, same))
-        print(f"{label:22s} {seconds / wall:8.1f}× real time  polls {polls:8.0f}/s  {same}")
+        print(f"{label:28s} {seconds / wall:8.1f}× real time  polls {polls:8.0f}/s  {same}")
+    ten = ten_step_loopback()
+    print(
+        f"ten-step over loopback ACL: {ten[0]:.0f} s of bench time in {ten[1]:.1f} s → {ten[0] / ten[1]:.0f}× real time"
+    )
     with open_bench(cfg, seed=7, transport="in-process") as bench:
         enc, dec, mbs = codec_speed(bench.world, seconds)
     print(f"codec: encode {enc:.0f}× real time, decode {dec:.0f}× real time ({mbs:.1f} MB/s)")
     only = {}
-    for dialect in ("modbus", "ascii"):
+    for dialect in ("acutrol", "modbus"):
         with open_bench(cfg, seed=7, transport="in-process") as bench:
-            only[dialect] = transport_only(bench.world, seconds, dialect)
+            only[dialect] = transport_only(bench.world, seconds, dialect, cfg.turntable.acl)
         print(f"transport only ({dialect}): {only[dialect]:.0f}× real time")
     body = [
         f"Bench `benches/sim.yaml` (1 kHz unit), {seconds:.0f} s of bench time per transport, blocks of {BLOCK} "
@@ -190,16 +233,24 @@ def main(argv: list[str] | None = None) -> None:
         f"Frame codec alone (46-byte frames, CRC-16 checked, 64 KiB feeds): encode {enc:.0f}× real time, "
         f"decode {dec:.0f}× real time ({mbs:.1f} MB/s; a 921600-baud line carries 0.09 MB/s).",
         "",
-        f"Transports and decoding alone (physics pre-computed, same loop): Modbus TCP + serial "
-        f"{only['modbus']:.0f}× real time, ASCII + serial {only['ascii']:.0f}× real time.",
+        f"The whole ten-step procedure (`tablebench run --transport loopback --no-identify`: runner, HDF5 "
+        f"recording, ACL over pyvisa-py TCPIP SOCKET, serial unit): {ten[0]:.0f} s of bench time in {ten[1]:.1f} s "
+        f"wall = **{ten[0] / ten[1]:.0f}× real time** (target ≥ 50×); its in-process run: {ten[2]:.1f} s "
+        f"({ten[0] / ten[2]:.0f}×); the two recordings are identical ({ten[3]}).",
+        "",
+        f"Transports and decoding alone (physics pre-computed, same loop): ACL (pyvisa-py) + serial "
+        f"{only['acutrol']:.0f}× real time, Modbus TCP + serial {only['modbus']:.0f}× real time.",
         "",
         f"Machine load average (1 min) {load0:.1f} at start, {os.getloadavg()[0]:.1f} at end (2 cores shared with "
         "other jobs: the figures are lower bounds and vary between runs).",
         "",
         "Targets: ≥ 200× real time in process, ≥ 50× over the transports. The in-process figure is bounded by "
-        "the world's physics generation; the loopback overhead is the three round trips per block.",
+        "the world's physics generation; the loopback overhead is the round trips per block (ACL: one read "
+        "message answered by one line; unit: one burst).",
     ]
-    write_section("transports", "Transports (Modbus TCP, ASCII, serial frames on loopback)", "\n".join(body))
+    write_section(
+        "transports", "Transports (ACL over pyvisa-py, Modbus TCP, serial frames on loopback)", "\n".join(body)
+    )
 
 
 if __name__ == "__main__":

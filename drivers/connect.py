@@ -16,13 +16,14 @@ from typing import Any, BinaryIO, Generic, TypeVar
 import serial
 from pymodbus.client import ModbusTcpClient
 
-from drivers import modbus_registers as reg
-from drivers.ascii_table import AsciiTurntable
+from drivers.acutrol import AclSettings, AclTurntable
 from drivers.imu_counts import CountScale
 from drivers.imu_frame_desc import FrameFormat
+from drivers.modbus_map import ModbusMap
 from drivers.modbus_table import ModbusTurntable
 from drivers.protocols import AxisLimits, LinkError
 from drivers.serial_imu import SerialInertialUnit
+from drivers.transport import VisaTransport, open_visa
 
 D = TypeVar("D")
 Limits = tuple[AxisLimits, AxisLimits, AxisLimits]
@@ -54,21 +55,24 @@ def modbus_table(
     host: str,
     port: int,
     *,
-    word_order: reg.WordOrder = "big",
+    word_order: str | None = None,
+    register_map: ModbusMap | None = None,
     limits: Limits | None = None,
     unit_id: int = 1,
     timeout: float = 2.0,
     retries: int = 1,
     wrap: Wrap = _same,
 ) -> Connection[ModbusTurntable]:
-    """A Modbus TCP turntable controller at ``host:port`` (see :mod:`drivers.modbus_registers`)."""
+    """A Modbus TCP turntable controller at ``host:port`` with its register map (:mod:`drivers.modbus_map`)."""
     client = ModbusTcpClient(host, port=port, timeout=timeout, retries=retries)
     if not client.connect():
         client.close()
         raise LinkError(f"turntable: no Modbus TCP answer at {host}:{port}; check power, cable and address")
     transport = wrap(client)
     try:
-        table = ModbusTurntable(transport, unit_id=unit_id, word_order=word_order, limits=limits)
+        table = ModbusTurntable(
+            transport, unit_id=unit_id, word_order=word_order, limits=limits, register_map=register_map
+        )
     except BaseException:
         client.close()
         raise
@@ -82,18 +86,43 @@ def _serial_port(what: str, url: str, **kw: Any) -> Any:
         raise LinkError(f"{what}: cannot open {url!r}: {exc}") from exc
 
 
-def ascii_table(
-    url: str, *, limits: Limits | None = None, timeout: float = 2.0, wrap: Wrap = _same
-) -> Connection[AsciiTurntable]:
-    """An ASCII-dialect turntable controller on a serial device or URL (``/dev/ttyS0``, ``socket://h:p``)."""
-    port = _serial_port("turntable", url, timeout=timeout)
-    transport = wrap(port)
+def acutrol_table(
+    resource: str,
+    limits: Limits,
+    *,
+    settings: AclSettings | None = None,
+    position_tolerance: float,
+    settle_time: float,
+    rate_tolerance: float,
+    timeout: float = 2.0,
+    wrap: Wrap = _same,
+    check: bool = True,
+) -> Connection[AclTurntable]:
+    """An ACUTROL3000 (ACL) at a VISA resource string, opened with pyvisa-py (``TCPIP0::…::9878::SOCKET``,
+    ``GPIB0::1::INSTR``, ``ASRL/dev/ttyS0::INSTR``); ``check`` asks ``*IDN?`` before anything else is sent."""
+    res = open_visa(resource, timeout)
+    transport = wrap(VisaTransport(res, resource))
     try:
-        table = AsciiTurntable(transport, timeout=timeout, limits=limits)
+        table = AclTurntable(
+            transport,
+            limits,
+            settings=settings,
+            position_tolerance=position_tolerance,
+            settle_time=settle_time,
+            rate_tolerance=rate_tolerance,
+        )
+        if check:
+            try:
+                table.idn()
+            except LinkError as exc:
+                raise LinkError(
+                    f"turntable: no answer from the ACUTROL at {resource} ({exc}); check power, cable, the resource "
+                    "string and that the controller is in remote mode"
+                ) from exc
     except BaseException:
-        port.close()
+        res.close()
         raise
-    return Connection(table, transport, [table.close, port.close])
+    return Connection(table, transport, [table.close, res.close])
 
 
 def serial_unit(

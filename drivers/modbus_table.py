@@ -1,4 +1,5 @@
-"""Turntable driver for the tablebench Modbus TCP controller (register map: :mod:`drivers.modbus_registers`).
+"""Turntable driver for Modbus TCP tables whose register map is data (:mod:`drivers.modbus_map`; the default
+is the tablebench controller's map, ``drivers/modbus_maps/tablebench.yaml``).
 
 :class:`ModbusTurntable` implements :class:`drivers.protocols.Turntable` with an already-connected pymodbus
 3.x **synchronous** client (``pymodbus.client.ModbusTcpClient``); the driver never opens or closes it.
@@ -11,6 +12,7 @@ Frames and units: gimbal angles (outer ψ, middle θ, inner γ), rad, rates rad/
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from typing import Any
@@ -18,16 +20,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers import modbus_registers as reg
+from drivers.modbus_map import ModbusMap, load_modbus_map
 from drivers.protocols import (
     AXIS_NAMES,
     AxisLimits,
-    AxisMode,
-    FaultCode,
     LinkError,
     TableError,
     TableState,
-    TableStatus,
 )
 
 log = logging.getLogger(__name__)
@@ -68,7 +67,7 @@ def check_rate(axis: int, rate: float, limits: tuple[AxisLimits, AxisLimits, Axi
 
 
 class ModbusTurntable:
-    """Three-axis table on the tablebench Modbus TCP register map.
+    """Three-axis table on a Modbus TCP register map.
 
     Parameters
     ----------
@@ -76,23 +75,31 @@ class ModbusTurntable:
         Connected synchronous client (the caller owns it; set its ``timeout``/``retries`` short).
     unit_id : int
         Modbus device (unit) id.
-    word_order : {"big", "little"}
-        Float word order of the controller (see :mod:`drivers.modbus_registers`).
+    word_order : {"big", "little"} or None
+        Overrides the map's float word order (None: the map's).
     limits : tuple of 3 AxisLimits or None
         Table limits used for checks before sending; None reads them from the controller.
+    register_map : ModbusMap or None
+        The controller's register map (None: the shipped tablebench map).
     """
 
     def __init__(
         self,
         client: Any,
         unit_id: int = 1,
-        word_order: reg.WordOrder = "big",
+        word_order: str | None = None,
         limits: tuple[AxisLimits, AxisLimits, AxisLimits] | None = None,
+        register_map: ModbusMap | None = None,
     ) -> None:
-        reg._check_order(word_order)
+        m = register_map or load_modbus_map()
+        if word_order is not None:
+            if word_order not in ("big", "little"):
+                raise ValueError(f"float word order must be 'big' or 'little', got {word_order!r}")
+            m = dataclasses.replace(m, word_order=word_order)
+        self.map = m
         self.client = client
         self.unit_id = int(unit_id)
-        self.word_order: reg.WordOrder = word_order
+        self.word_order = m.word_order
         self._hb = 0
         self._closed = False
         self._limits = tuple(limits) if limits is not None else self._read_limits()
@@ -121,17 +128,28 @@ class ModbusTurntable:
                 )
             raise LinkError(
                 f"Modbus turntable: {what} answered with exception {code} "
-                f"({_EXCEPTION_NAMES.get(code, 'unknown')}); check unit_id={self.unit_id} and the register map"
+                f"({_EXCEPTION_NAMES.get(code, 'unknown')}); check unit_id={self.unit_id} and the register map "
+                f"({self.map.source})"
             )
         return rr
 
+    def _read_fn(self) -> Any:
+        return (
+            self.client.read_input_registers
+            if self.map.state_registers == "input"
+            else self.client.read_holding_registers
+        )
+
     def _reject_reason(self) -> str:
+        st = self.map.state
+        lo = min(st["status"], st["fault_code"], st["last_reject"])
+        hi = max(st["status"], st["fault_code"], st["last_reject"]) + 1
         try:
-            rr = self.client.read_input_registers(reg.IR_STATUS, count=6, device_id=self.unit_id)
+            rr = self._read_fn()(lo, count=hi - lo, device_id=self.unit_id)
             if rr is None or rr.isError():
                 return "unknown"
-            fault = FaultCode(rr.registers[reg.IR_FAULT_CODE - reg.IR_STATUS])
-            last = FaultCode(rr.registers[reg.IR_LAST_REJECT - reg.IR_STATUS])
+            fault = self.map.fault_from(rr.registers[st["fault_code"] - lo])
+            last = self.map.fault_from(rr.registers[st["last_reject"] - lo])
             return f"{last.name}" + (f" (latched fault {fault.name}; clear_fault() first)" if fault else "")
         except Exception:  # the reason is best effort; the refusal itself is already known
             return "unknown"
@@ -139,26 +157,27 @@ class ModbusTurntable:
     def _write(self, what: str, address: int, values: list[int]) -> None:
         self._call(what, self.client.write_registers, address, values)
 
-    def _read_input(self, what: str, address: int, count: int) -> list[int]:
-        rr = self._call(what, self.client.read_input_registers, address, count=count)
+    def _read_state_regs(self, what: str, address: int, count: int) -> list[int]:
+        rr = self._call(what, self._read_fn(), address, count=count)
         regs = list(rr.registers)
         if len(regs) != count:
             raise LinkError(f"Modbus turntable: {what}: expected {count} registers, got {len(regs)}")
         return regs
 
     def _read_limits(self) -> tuple[AxisLimits, AxisLimits, AxisLimits]:
-        vals = reg.unpack_float64(
-            self._read_input("limits readback", reg.IR_LIMITS, reg.IR_LIMITS_COUNT), self.word_order
-        )
+        m = self.map
+        raw = m.unpack(self._read_state_regs("limits readback", m.state["limits"], m.size("limits")))
         out = []
         for i in range(3):
-            rmax, amax, pmin, pmax = vals[4 * i : 4 * i + 4]
+            rmax, amax, pmin, pmax = raw[4 * i : 4 * i + 4]
+            rmax, amax = rmax * m.rate_scale, amax * m.rate_scale
+            pmin, pmax = pmin * m.angle_scale, pmax * m.angle_scale
             plausible = 0 < rmax < 1e3 and 0 < amax < 1e4 and all(math.isnan(p) or abs(p) < 1e3 for p in (pmin, pmax))
             if not plausible:
                 raise LinkError(
                     f"Modbus turntable: implausible limits read back for the {AXIS_NAMES[i]} axis "
                     f"(rate_max={rmax:.6g}, accel_max={amax:.6g}); check float_word_order "
-                    f"(now {self.word_order!r}) and the unit id"
+                    f"(now {self.word_order!r}), the unit id and the register map ({m.source})"
                 )
             out.append(
                 AxisLimits(
@@ -178,34 +197,48 @@ class ModbusTurntable:
     def move_to(self, angles: NDArray[np.float64] | list[float]) -> None:
         """Command absolute gimbal angles (outer, middle, inner), rad; returns at once."""
         a = check_position(angles, self._limits)  # type: ignore[arg-type]
-        self._write("move_to (set-points)", reg.HR_POSITION_SETPOINT, reg.pack_float64(a.tolist(), self.word_order))
-        self._write("move_to", reg.HR_COMMAND, [int(reg.Command.MOVE)])
+        m = self.map
+        self._write("move_to (set-points)", m.holding["position_setpoint"], m.pack([x / m.angle_scale for x in a]))
+        self._write("move_to", m.holding["command"], [m.commands["move"]])
 
     def spin(self, axis: int, rate: float) -> None:
         """Command a constant rate (rad/s, signed) on gimbal ``axis`` (0 outer, 1 middle, 2 inner)."""
         ax, r = check_rate(axis, rate, self._limits)  # type: ignore[arg-type]
-        addr = reg.HR_RATE_SETPOINT + reg.F64_REGS * ax
-        self._write("spin (set-point)", addr, reg.pack_float64(r, self.word_order))
-        self._write("spin", reg.HR_COMMAND_AXIS, [ax, int(reg.Command.SPIN)])
+        m = self.map
+        self._write("spin (set-point)", m.holding["rate_setpoint"] + m.value_regs * ax, m.pack(r / m.rate_scale))
+        if m.holding["command"] == m.holding["command_axis"] + 1:
+            self._write("spin", m.holding["command_axis"], [ax, m.commands["spin"]])
+        else:
+            self._write("spin (axis)", m.holding["command_axis"], [ax])
+            self._write("spin", m.holding["command"], [m.commands["spin"]])
 
     def stop(self) -> None:
         """Bring every axis to rest under control."""
-        self._write("stop", reg.HR_COMMAND, [int(reg.Command.STOP)])
+        self._write("stop", self.map.holding["command"], [self.map.commands["stop"]])
 
     def read_state(self) -> TableState:
         """Read time, angles, rates, status, fault code and modes in one request."""
-        r = self._read_input("read_state", 0, reg.IR_STATE_COUNT)
-        f = reg.unpack_float64(r[: reg.IR_STATUS], self.word_order)
+        m = self.map
+        lo, n = m.state_span()
+        r = self._read_state_regs("read_state", lo, n)
+
+        def field(name: str) -> list[int]:
+            a = m.state[name] - lo
+            return r[a : a + m.size(name)]
+
         try:
-            modes = tuple(AxisMode(m) for m in r[reg.IR_MODE : reg.IR_MODE + 3])
-            fault = FaultCode(r[reg.IR_FAULT_CODE])
+            t = m.unpack(field("time"))[0] * m.time_scale
+            ang = np.array(m.unpack(field("angles"))) * m.angle_scale
+            rat = np.array(m.unpack(field("rates"))) * m.rate_scale
+            modes = tuple(m.mode_from(v) for v in field("mode"))
+            fault = m.fault_from(field("fault_code")[0])
         except ValueError as exc:
-            raise LinkError(f"Modbus turntable: read_state: invalid mode/fault value ({exc})") from exc
+            raise LinkError(f"Modbus turntable: read_state: invalid value ({exc}); check the register map") from exc
         return TableState(
-            time=f[0],
-            angles=np.array(f[1:4]),
-            rates=np.array(f[4:7]),
-            status=TableStatus(r[reg.IR_STATUS]),
+            time=t,
+            angles=ang,
+            rates=rat,
+            status=m.status_from(field("status")[0]),
             fault_code=fault,
             modes=modes,  # type: ignore[arg-type]
         )
@@ -213,11 +246,11 @@ class ModbusTurntable:
     def heartbeat(self) -> None:
         """Feed the controller's watchdog (writes an incrementing counter)."""
         self._hb = (self._hb + 1) & 0xFFFF
-        self._write("heartbeat", reg.HR_HEARTBEAT, [self._hb])
+        self._write("heartbeat", self.map.holding["heartbeat"], [self._hb])
 
     def clear_fault(self) -> None:
         """Reset a latched fault (the table stays at rest)."""
-        self._write("clear_fault", reg.HR_FAULT_RESET, [1])
+        self._write("clear_fault", self.map.holding["fault_reset"], [1])
 
     def close(self) -> None:
         """Release the driver (the client is the caller's to close)."""

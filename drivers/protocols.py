@@ -5,8 +5,9 @@ C_t^n = R_z(ψ) R_x(θ) R_y(γ) (ENU navigation frame n, inner-gimbal frame t). 
 the unit's body frame b, SI (m/s², rad/s, K). Times are bench time in seconds: the unit's sample clock
 for the unit, the controller's clock for the table; on a simulated bench both are the one simulated clock.
 
-Drivers receive an already-open transport (a pymodbus client, a pyserial ``Serial``-like object, or an
-in-process simulator handle) in their constructor; they never open ports themselves.
+Drivers receive an already-open transport (a :class:`drivers.transport.MessageTransport` such as a pyvisa
+resource, a pymodbus client, a pyserial ``Serial``-like object, or an in-process simulator handle) in their
+constructor; they never open ports themselves.
 """
 
 from __future__ import annotations
@@ -177,7 +178,7 @@ class Turntable(Protocol):
         ...
 
     def heartbeat(self) -> None:
-        """Tell the controller's watchdog the client is alive."""
+        """Tell the controller's watchdog the client is alive (sends nothing where there is none, e.g. ACL)."""
         ...
 
     def clear_fault(self) -> None:

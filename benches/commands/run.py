@@ -9,7 +9,7 @@ from pathlib import Path
 EXAMPLES = """examples:
   tablebench run                                   # ten-step procedure on the simulated bench
   tablebench run --procedure ten-step-fast-spin --seed 7
-  tablebench run --transport loopback              # same, over real Modbus TCP + serial bytes on loopback
+  tablebench run --transport loopback              # same, over real ACL (pyvisa-py) + serial bytes on loopback
   tablebench run --bench benches/lab1.yaml --procedure procedures/twenty-four-position.yaml
   tablebench run --resume runs/20261121-101500-ten-step    # continue an interrupted run
 
@@ -38,7 +38,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--transport",
         choices=("in-process", "loopback"),
         default=None,
-        help="simulated benches: in-process device simulators, or real pymodbus/pyserial bytes on loopback",
+        help="simulated benches: in-process (no bytes), or the real drivers over real wires on loopback",
     )
     p.add_argument(
         "--set",

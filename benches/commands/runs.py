@@ -70,6 +70,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.salvage is not None:
         return _salvage(args)
+    if args.out is not None:
+        raise UsageError(f"--out {args.out}: applies only with --salvage RUN")
     root = Path(args.folder)
     if not root.is_dir():
         raise UsageError(f"{root}: no such folder (runs are created by 'tablebench run')")

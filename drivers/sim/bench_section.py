@@ -120,6 +120,7 @@ def parse_simulation(d: dict, smap: SourceMap, site: Site, table: Table, unit: U
         [
             "seed",
             "transport",
+            "controller",
             "accelerometer",
             "gyro",
             "accel_noise",

@@ -2,15 +2,18 @@
 
 :class:`Loopback` starts, for ONE :class:`~drivers.sim.world.SimulatedWorld`,
 
-* a turntable controller server — Modbus TCP (:class:`~drivers.sim.modbus_controller.ModbusTableServer`)
-  or the ASCII dialect (:class:`~drivers.sim.ascii_controller.AsciiTableServer`),
+* a turntable controller server — the ACUTROL command language
+  (:class:`~drivers.sim.acl_server.AclTableServer`) or Modbus TCP
+  (:class:`~drivers.sim.modbus_controller.ModbusTableServer`),
 * the serial unit server (:class:`~drivers.sim.serial_unit.SerialUnitServer`),
 
-then connects the real drivers to them exactly as on hardware: :class:`~drivers.modbus_table.ModbusTurntable`
-through a pymodbus ``ModbusTcpClient`` (or :class:`~drivers.ascii_table.AsciiTurntable` through
-``serial.serial_for_url("socket://…")``), and :class:`~drivers.serial_imu.SerialInertialUnit` in polled
-(burst) mode through ``serial.serial_for_url``, so the simulated clock advances exactly with the samples the
-host reads: a loopback run is bit-identical to the in-process run with the same seed and commands.
+then connects the real drivers to them exactly as on hardware (:mod:`drivers.connect`):
+:class:`~drivers.acutrol.AclTurntable` through pyvisa with the pyvisa-py backend (VISA resource
+``TCPIP0::127.0.0.1::PORT::SOCKET``) or :class:`~drivers.modbus_table.ModbusTurntable` through a pymodbus
+``ModbusTcpClient``, and :class:`~drivers.serial_imu.SerialInertialUnit` in polled (burst) mode through
+``serial.serial_for_url``, so the simulated clock advances exactly with the samples the host reads: a loopback
+run equals the in-process run with the same seed and commands (Modbus: bit for bit; ACL: the in-process bench
+runs the same driver against the same controller without the wire, so the two are identical too).
 """
 
 from __future__ import annotations
@@ -19,14 +22,14 @@ import logging
 from typing import Any, Literal
 
 from drivers import connect
-from drivers.sim.ascii_controller import AsciiTableServer
+from drivers.sim.acl_server import AclTableServer
 from drivers.sim.modbus_controller import ModbusTableServer
 from drivers.sim.serial_unit import Corruption, SerialUnitServer
 from drivers.sim.world import SimulatedWorld
 
 log = logging.getLogger(__name__)
 
-Dialect = Literal["modbus", "ascii"]
+Dialect = Literal["acutrol", "modbus"]
 
 
 class Loopback:
@@ -35,10 +38,16 @@ class Loopback:
     Parameters
     ----------
     world : SimulatedWorld
-    dialect : {"modbus", "ascii"}
+    dialect : {"acutrol", "modbus"}
         Turntable controller protocol.
-    word_order : {"big", "little"}
-        Modbus float word order (both ends use it).
+    make_acl_table : callable or None
+        ``dialect="acutrol"``: builds the ACL driver from an open MessageTransport (the factory's settings).
+    acl : AclSettings or None
+        ``dialect="acutrol"``: how the simulated controller answers.
+    word_order : {"big", "little"} or None
+        Modbus float word order (both ends use it; None: the map's).
+    register_map : ModbusMap or None
+        Modbus register map served and used (None: the shipped tablebench map).
     watchdog_s : float or None
         Wall-clock watchdog of the controller, s.
     corruption : drivers.sim.serial_unit.Corruption or None
@@ -58,7 +67,10 @@ class Loopback:
         world: SimulatedWorld,
         *,
         dialect: Dialect = "modbus",
-        word_order: Literal["big", "little"] = "big",
+        make_acl_table: Any = None,
+        acl: Any = None,
+        word_order: Literal["big", "little"] | None = None,
+        register_map: Any = None,
         watchdog_s: float | None = None,
         corruption: Corruption | None = None,
         timeout: float = 2.0,
@@ -67,28 +79,44 @@ class Loopback:
         unit_raw: Any = None,
         unit_raw_name: str = "",
     ) -> None:
-        if dialect not in ("modbus", "ascii"):
-            raise ValueError(f"loopback dialect must be 'modbus' or 'ascii', got {dialect!r}")
+        if dialect not in ("acutrol", "modbus"):
+            raise ValueError(f"loopback dialect must be 'acutrol' or 'modbus', got {dialect!r}")
         self.world = world
         self.dialect = dialect
         self._closers: list[Any] = []
         self.table_server: Any = None
         try:
             if dialect == "modbus":
-                self.table_server = ModbusTableServer(world, word_order=word_order, watchdog_s=watchdog_s)
+                self.table_server = ModbusTableServer(
+                    world, word_order=word_order, watchdog_s=watchdog_s, register_map=register_map
+                )
                 self._closers.append(self.table_server.close)
-                table = connect.modbus_table(
+                table: Any = connect.modbus_table(
                     "127.0.0.1",
                     self.table_server.port,
                     word_order=word_order,
+                    register_map=register_map,
                     unit_id=unit_id,
                     timeout=timeout,
                     retries=0,
                 )
             else:
-                self.table_server = AsciiTableServer(world, watchdog_s=watchdog_s)
+                from drivers.transport import VisaTransport, open_visa
+
+                self.table_server = AclTableServer(world, acl)
                 self._closers.append(self.table_server.close)
-                table = connect.ascii_table(self.table_server.url, timeout=timeout)
+                res = open_visa(self.table_server.resource, timeout)
+                transport = VisaTransport(res, self.table_server.resource)
+                try:
+                    driver = (
+                        make_acl_table(transport)
+                        if make_acl_table is not None
+                        else connect.AclTurntable(transport, world.table_limits(), settings=self.table_server.settings)
+                    )
+                except BaseException:
+                    res.close()
+                    raise
+                table = connect.Connection(driver, transport, [driver.close, res.close])
             self._closers.insert(0, table.close)
             self.client: Any = table.transport
             self.turntable: Any = table.driver
@@ -113,7 +141,9 @@ class Loopback:
 
     def describe(self) -> str:
         """One line: which protocols on which ports."""
-        table = "Modbus TCP" if self.dialect == "modbus" else "ASCII"
+        table = (
+            "Modbus TCP" if self.dialect == "modbus" else f"ACUTROL (ACL via pyvisa-py {self.table_server.resource})"
+        )
         return (
             f"loopback: {table} controller on 127.0.0.1:{self.table_server.port}, "
             f"serial unit (polled, {self.unit_server.frame.name}) on 127.0.0.1:{self.unit_server.port}"

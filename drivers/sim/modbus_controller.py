@@ -1,8 +1,9 @@
-"""A simulated turntable controller serving the Modbus TCP register map on 127.0.0.1, backed by the world.
+"""A simulated turntable controller serving a Modbus TCP register map on 127.0.0.1, backed by the world.
 
 :class:`ModbusTableServer` runs a real pymodbus 3.16 asyncio ``ModbusTcpServer`` in a background thread
 with its own event loop. The datastore is a ``pymodbus.simulator.SimDevice`` with separate holding and input
-register blocks laid out as in :mod:`drivers.modbus_registers`, and an ``action`` hook that
+register blocks laid out as a register-map file says (:mod:`drivers.modbus_map`; default: the shipped
+tablebench map), and an ``action`` hook that
 
 * refreshes the state input registers from ``world.table_state()`` when they are read,
 * executes COMMAND writes (MOVE → ``world.command_position``, SPIN → ``world.command_rate``, STOP →
@@ -32,9 +33,9 @@ import threading
 import time
 from typing import Any
 
-from drivers import modbus_registers as reg
+from drivers.modbus_map import ModbusMap, load_modbus_map
 from drivers.modbus_table import check_position, check_rate
-from drivers.protocols import FaultCode, TableError, TableStatus
+from drivers.protocols import AxisMode, FaultCode, TableError, TableStatus
 
 log = logging.getLogger(__name__)
 
@@ -48,11 +49,13 @@ class ModbusTableServer:
         Thread-safe world (shared with the serial unit server).
     port : int
         TCP port; 0 picks an ephemeral port (read :attr:`port`).
-    word_order : {"big", "little"}
-        Float word order of this controller.
+    word_order : {"big", "little"} or None
+        Float word order of this controller (None: the map's).
     watchdog_s : float or None
         Wall-clock heartbeat timeout, s (None or 0 disables).
     host : str
+    register_map : ModbusMap or None
+        The layout served (None: the shipped tablebench map).
     """
 
     def __init__(
@@ -60,13 +63,21 @@ class ModbusTableServer:
         world: Any,
         port: int = 0,
         *,
-        word_order: reg.WordOrder = "big",
+        word_order: str | None = None,
         watchdog_s: float | None = None,
         host: str = "127.0.0.1",
+        register_map: ModbusMap | None = None,
     ) -> None:
-        reg._check_order(word_order)
+        import dataclasses
+
+        m = register_map or load_modbus_map()
+        if word_order is not None:
+            if word_order not in ("big", "little"):
+                raise ValueError(f"float word order must be 'big' or 'little', got {word_order!r}")
+            m = dataclasses.replace(m, word_order=word_order)
+        self.map = m
         self.world = world
-        self.word_order: reg.WordOrder = word_order
+        self.word_order = m.word_order
         self.watchdog_s = float(watchdog_s) if watchdog_s else None
         self.host = host
         self._limits = tuple(world.table_limits())
@@ -91,39 +102,63 @@ class ModbusTableServer:
         log.info("simulated Modbus controller on %s:%d", host, self.port)
 
     # ---- datastore ---------------------------------------------------------------------------------------------
+    def _sizes(self) -> tuple[int, int]:
+        m = self.map
+        hr = max(a + m.size(n) for n, a in m.holding.items())
+        st = max(a + m.size(n) for n, a in m.state.items())
+        return (max(hr, st), 1) if m.state_registers == "holding" else (hr, st)
+
     def _device(self) -> Any:
         from pymodbus.simulator import DataType, SimData, SimDevice
 
+        m = self.map
         limits = []
         for lim in self._limits:
             limits += [
-                lim.rate_max,
-                lim.accel_max,
-                math.nan if lim.position_min is None else lim.position_min,
-                math.nan if lim.position_max is None else lim.position_max,
+                lim.rate_max / m.rate_scale,
+                lim.accel_max / m.rate_scale,
+                math.nan if lim.position_min is None else lim.position_min / m.angle_scale,
+                math.nan if lim.position_max is None else lim.position_max / m.angle_scale,
             ]
-        ir = [0] * reg.IR_COUNT
-        ir[reg.IR_LIMITS : reg.IR_LIMITS + reg.IR_LIMITS_COUNT] = reg.pack_float64(limits, self.word_order)
+        n_hr, n_ir = self._sizes()
+        hr, ir = [0] * n_hr, [0] * n_ir
+        state = hr if m.state_registers == "holding" else ir
+        a = m.state["limits"]
+        state[a : a + m.size("limits")] = m.pack(limits)
         return SimDevice(
             id=0,
             simdata=(
                 [SimData(0, count=16, values=False, datatype=DataType.BITS)],
                 [SimData(0, count=16, values=False, datatype=DataType.BITS)],
-                [SimData(0, values=[0] * reg.HR_COUNT, datatype=DataType.REGISTERS)],
+                [SimData(0, values=hr, datatype=DataType.REGISTERS)],
                 [SimData(0, values=ir, datatype=DataType.REGISTERS)],
             ),
             action=self._action,
         )
 
-    def _state_registers(self) -> list[int]:
+    def _state_registers(self) -> dict[int, int]:
+        """Address → register value of every state field but the limits, from the world's reading."""
+        m = self.map
         s = self.world.table_state()
-        status = int(s.status)
-        fault = int(s.fault_code)
+        status = s.status
+        fault = FaultCode(s.fault_code)
         if self._watchdog_latched:
-            status |= int(TableStatus.WATCHDOG | TableStatus.FAULT)
-            fault = fault or int(FaultCode.COMMUNICATION_LOST)
-        out = reg.pack_float64([s.time, *map(float, s.angles), *map(float, s.rates)], self.word_order)
-        out += [status & 0xFFFF, fault, *(int(m) for m in s.modes), int(self._last_reject), self._hb_echo]
+            status |= TableStatus.WATCHDOG | TableStatus.FAULT
+            fault = fault or FaultCode.COMMUNICATION_LOST
+        fields = {
+            "time": m.pack(s.time / m.time_scale),
+            "angles": m.pack([float(x) / m.angle_scale for x in s.angles]),
+            "rates": m.pack([float(x) / m.rate_scale for x in s.rates]),
+            "status": [m.status_to(status) & 0xFFFF],
+            "fault_code": [m.fault_to(fault)],
+            "mode": [m.modes[AxisMode(md).name] for md in s.modes],
+            "last_reject": [m.fault_to(self._last_reject)],
+            "heartbeat_echo": [self._hb_echo],
+        }
+        out: dict[int, int] = {}
+        for name, regs in fields.items():
+            for i, v in enumerate(regs):
+                out[m.state[name] + i] = int(v)
         return out
 
     async def _action(
@@ -138,24 +173,28 @@ class ModbusTableServer:
         from pymodbus.constants import ExcCodes
 
         try:
-            if function_code == 4:
-                if address < reg.IR_STATE_COUNT:
-                    regs = self._state_registers()
-                    registers[0 : reg.IR_STATE_COUNT] = regs
+            m = self.map
+            state_fc = 4 if m.state_registers == "input" else 3
+            lo, n = m.state_span()
+            if function_code == state_fc and address < lo + n and address + count > lo:
+                for a, v in self._state_registers().items():
+                    if start_address <= a < start_address + len(registers):
+                        registers[a - start_address] = v
                 return None
             if function_code in (6, 16) and set_values:
                 image = list(registers)
                 off = address - start_address
                 image[off : off + count] = [int(v) for v in set_values]
                 touched = range(address, address + count)
-                if reg.HR_HEARTBEAT in touched:
+                h = m.holding
+                if h["heartbeat"] in touched:
                     self._last_hb = time.monotonic()
-                    self._hb_echo = image[reg.HR_HEARTBEAT] & 0xFFFF
+                    self._hb_echo = image[h["heartbeat"] - start_address] & 0xFFFF
                     self.world.heartbeat()
-                if reg.HR_FAULT_RESET in touched and image[reg.HR_FAULT_RESET] == 1:
+                if h["fault_reset"] in touched and image[h["fault_reset"] - start_address] == 1:
                     self._clear_fault()
-                if reg.HR_COMMAND in touched:
-                    return self._execute(image)
+                if h["command"] in touched:
+                    return self._execute(image, start_address)
             return None
         except TableError as exc:
             log.info("simulated Modbus controller refused a command: %s", exc)
@@ -182,39 +221,44 @@ class ModbusTableServer:
         self._watchdog_latched = False
         self._last_reject = FaultCode.NONE
 
-    def _execute(self, image: list[int]) -> Any:
+    def _execute(self, image: list[int], base: int = 0) -> Any:
         from pymodbus.constants import ExcCodes
 
-        try:
-            cmd = reg.Command(image[reg.HR_COMMAND])
-        except ValueError:
+        m = self.map
+
+        def regs(name: str, k: int = 0, n: int | None = None) -> list[int]:
+            a = m.holding[name] - base + k
+            return image[a : a + (n if n is not None else m.size(name))]
+
+        commands = {v: k for k, v in m.commands.items()}
+        cmd = commands.get(regs("command")[0])
+        if regs("command")[0] == 0:
+            return None
+        if cmd is None:
             self._last_reject = FaultCode.BAD_COMMAND
             return ExcCodes.ILLEGAL_VALUE
-        if cmd == reg.Command.STOP:
+        if cmd == "stop":
             self.world.command_stop()
             self._motion_commanded = False
             return None
-        if cmd == reg.Command.CLEAR_FAULT:
+        if cmd == "clear_fault":
             self._clear_fault()
-            return None
-        if cmd == reg.Command.NONE:
             return None
         if self._watchdog_latched:
             self._last_reject = FaultCode.COMMUNICATION_LOST
             return ExcCodes.DEVICE_FAILURE
-        if cmd == reg.Command.MOVE:
+        if cmd == "move":
             self._last_reject = FaultCode.POSITION_LIMIT
-            sp = image[reg.HR_POSITION_SETPOINT : reg.HR_POSITION_SETPOINT + 12]
-            angles = check_position(reg.unpack_float64(sp, self.word_order), self._limits)  # type: ignore[arg-type]
+            sp = [x * m.angle_scale for x in m.unpack(regs("position_setpoint"))]
+            angles = check_position(sp, self._limits)  # type: ignore[arg-type]
             self.world.command_position(angles)
-        else:  # SPIN
+        else:  # spin
             self._last_reject = FaultCode.RATE_LIMIT
-            axis = image[reg.HR_COMMAND_AXIS]
+            axis = regs("command_axis")[0]
             if axis > 2:
                 self._last_reject = FaultCode.BAD_COMMAND
                 return ExcCodes.ILLEGAL_VALUE
-            a = reg.HR_RATE_SETPOINT + reg.F64_REGS * axis
-            rate = reg.unpack_float64(image[a : a + reg.F64_REGS], self.word_order)[0]
+            rate = m.unpack(regs("rate_setpoint", m.value_regs * axis, m.value_regs))[0] * m.rate_scale
             ax, r = check_rate(axis, rate, self._limits)  # type: ignore[arg-type]
             self.world.command_rate(ax, r)
         self._last_reject = FaultCode.NONE

@@ -208,6 +208,43 @@ class SimulatedWorld:
             self._new_attitude_error()
             self._feed()
 
+    def command_axis_position(self, axis: int, angle: float) -> None:
+        """Move one gimbal ``axis`` (0 outer, 1 middle, 2 inner) to the absolute angle ``angle`` (rad); the other
+        axes keep their motion (a controller frame that demands one axis, e.g. an ACL way-point).
+
+        Raises
+        ------
+        TableError
+            If a fault is latched, the axis is not 0–2, or the angle is outside its position limits.
+        """
+        with self._lock:
+            self._apply_due_events(self._k)
+            self._check_ready()
+            if axis not in (0, 1, 2):
+                raise TableError(f"axis must be 0 (outer), 1 (middle) or 2 (inner), got {axis!r}")
+            x = float(angle)
+            lim = self._limits[axis]
+            lo, hi = lim.position_min, lim.position_max
+            if not math.isfinite(x) or (lo is not None and x < lo) or (hi is not None and x > hi):
+                raise TableError(f"axis {axis} angle {math.degrees(x):.4f}° is outside its limits")
+            t = self._k / self._fs
+            tb = self.cfg.table
+            p0, v0 = self._plans[axis].state(t)
+            self._plans[axis] = plan_position(
+                t,
+                p0,
+                v0,
+                x,
+                lim,
+                slew_fraction=tb.slew_fraction,
+                overshoot=tb.overshoot,
+                settle_frequency_hz=tb.settle_frequency_hz,
+                settle_time_constant=tb.settle_time_constant,
+                tolerance=tb.position_tolerance,
+                in_position_time=tb.in_position_time,
+            )
+            self._feed()
+
     def command_rate(self, axis: int, rate: float) -> None:
         """Spin gimbal ``axis`` (0 outer, 1 middle, 2 inner) at ``rate`` rad/s (signed); others unchanged.
 
@@ -286,6 +323,14 @@ class SimulatedWorld:
                 fault_code=self._fault,
                 modes=tuple(pl.mode for pl in self._plans),  # type: ignore[arg-type]
             )
+
+    def table_acceleration(self) -> NDArray[np.float64]:
+        """Gimbal angular accelerations (outer, middle, inner) at the current bench time, rad/s² (commanded
+        profile, no jitter): what a controller's acceleration feedback reads."""
+        with self._lock:
+            self._apply_due_events(self._k)
+            _, _, acc = self._evaluate(np.array([self._k / self._fs]))
+            return acc[0].copy()
 
     def _status(self, t: float) -> TableStatus:
         st = TableStatus.REMOTE | self._latched

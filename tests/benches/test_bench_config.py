@@ -55,7 +55,7 @@ def test_sim_bench_values_in_si() -> None:
 def test_real_bench_measured_g_and_addresses() -> None:
     b = load_bench(BENCHES / "example-real.yaml")
     assert b.site.g == 9.81274 and b.site.g_source == "measured"
-    assert b.turntable.driver == "modbus-tcp" and b.turntable.address == "192.168.10.20:502"
+    assert b.turntable.driver == "acutrol" and b.turntable.resource == "TCPIP0::192.168.53.1::9878::SOCKET"
     assert b.unit.driver == "serial" and b.unit.address == "/dev/ttyUSB0"
     assert b.turntable.limits[2].position_max == pytest.approx(170 * DEG)
 
@@ -82,7 +82,7 @@ def _line_of(text: str, needle: str) -> int:
     [
         ("latitude_deg: 48.15", "latitude_deg: north", "latitude_deg", ["site.latitude_deg", "expected a number"]),
         ("latitude_deg: 48.15", "latitude_deg: 98.15", "latitude_deg", ["out of range", "[-90, 90]"]),
-        ("  heartbeat_period_s: 0.5", "  heartbeat_period_s: 0.5\n  colour: red", "colour", ["unknown key", "allowed"]),
+        ("  attitude_accuracy_arcsec: 1.0", "  attitude_accuracy_arcsec: 1.0\n  colour: red", "colour", ["unknown"]),
         ("sample_rate_hz: 1000.0", "sample_rate_hz: [1000]", "sample_rate_hz", ["unit.sample_rate_hz"]),
         ("    bias_ug: [100.0, -80.0, 120.0]", "    bias_ug: [100.0, -80.0]", "bias_ug: [100.0, -80.0]", ["list of 3"]),
         ("  transport: in-process", "  transport: carrier-pigeon", "transport", ["in-process, loopback"]),
@@ -93,7 +93,7 @@ def _line_of(text: str, needle: str) -> int:
             ["turntable.axes.inner.rate_max_dps"],
         ),
         ("  driver: sim\n  model: SIM-3AX", "  driver: modbus\n  model: SIM-3AX", "driver: modbus", ["modbus-tcp"]),
-        ("  watchdog_s: 2.0", "  watchdog_s: 0.3", "heartbeat_period_s", ["shorter than watchdog_s"]),
+        ("  rate_tolerance_dps: 0.01", "  rate_tolerance_dps: 0.01\n  watchdog_s: 2", "watchdog_s", ["no host"]),
         (
             "  seed: 20261122",
             "  seed: 20261122\n  arma:\n    - {channel: gyro_x, phi: [1.2], sigma_dph: 1}",

@@ -7,12 +7,13 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-import h5py
+import h5py  # only to craft a damaged copy as another tool would
 import numpy as np
 import pytest
 
 from analysis.identification.model import PARAM_NAMES
 from benches.identify import identify_run
+from benches.recording import open_recording
 from tests import REPO_ROOT
 from tests.simbench import run_procedure
 
@@ -55,8 +56,6 @@ def test_ten_step_over_loopback_in_a_real_format_equals_in_process(tmp_path, ben
     bench = _bench(tmp_path, bench_name)
     wire = run_procedure(tmp_path, bench, str(proc), seed=5, out="loopback", transport="loopback")
     local = run_procedure(tmp_path, bench, str(proc), seed=5, out="in-process", transport="in-process")
-    from benches.recording import open_recording
-
     with open_recording(wire) as rec:  # the one reader (accel may be stored as counts)
         events = [e.message for e in rec.events()]
         n = rec.n_samples
@@ -101,12 +100,14 @@ def test_samples_flagged_invalid_are_never_used(tmp_path):
     flagged, unflagged = tmp_path / "flagged", tmp_path / "unflagged"
     for folder, flag in ((flagged, True), (unflagged, False)):
         shutil.copytree(run, folder)
-        with h5py.File(folder / "recording.h5", "r+") as f:
-            steps = f["steps"][()]
-            row = steps[[s.decode() if isinstance(s, bytes) else s for s in steps["name"]].index("A/hold-1")]
-            a, b = int(row["acq_start"]), int(row["acq_start"]) + 100
-            acc = f["imu/accel"]  # stored as int32 counts of attrs["lsb"] when the samples are quantised
-            acc[a:b, 0] += round(1.0 / acc.attrs["lsb"]) if "lsb" in acc.attrs else 1.0  # 0.1 g of rubbish on x
+        with open_recording(folder) as rec:
+            a = rec.step("A/hold-1").acq_start
+            b = a + 100
+        with h5py.File(folder / "recording.h5", "r+") as f:  # crafted as another tool would: no checksums
+            f.attrs["format_version"] = 1  # edited data no longer match the step SHA-256 of a format-2 file
+            d = f["imu/accel"]
+            lsb = d.attrs.get("lsb")
+            d[a:b, 0] += 1.0 if lsb is None else int(round(1.0 / lsb))  # 0.1 g of rubbish on x
             if flag:
                 f["imu/status"][a:b] = 1  # accel_x invalid
     xs = {}

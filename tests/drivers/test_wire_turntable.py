@@ -1,5 +1,5 @@
-"""Turntable behaviour over the wire: Modbus TCP (both word orders) and the ASCII dialect, each against its
-simulated controller on loopback, compared with the in-process driver on an identically seeded world."""
+"""Turntable behaviour over Modbus TCP (both word orders) against the simulated controller on loopback,
+compared with the in-process driver on an identically seeded world (ACL: tests/drivers/test_wire_acutrol.py)."""
 
 from __future__ import annotations
 
@@ -14,12 +14,11 @@ from drivers import connect
 from drivers import modbus_registers as reg
 from drivers.modbus_table import ModbusTurntable
 from drivers.protocols import AxisLimits, AxisMode, FaultCode, LinkError, TableError, TableStatus, Turntable
-from drivers.sim.ascii_controller import AsciiTableServer
 from drivers.sim.inprocess import SimTurntable
 from drivers.sim.modbus_controller import ModbusTableServer
 from tests.drivers.wire_support import LIMITS, make_world
 
-DIALECTS = ["modbus-big", "modbus-little", "ascii"]
+DIALECTS = ["modbus-big", "modbus-little"]
 
 
 class Counting:
@@ -55,23 +54,18 @@ def wire():
 
     def make(dialect, seed=1, watchdog_s=None, limits=None):
         world = make_world(seed)
-        if dialect.startswith("modbus"):
-            order = dialect.split("-")[1]
-            srv = ModbusTableServer(world, word_order=order, watchdog_s=watchdog_s)
-            opened.append(srv.close)
-            conn = connect.modbus_table(
-                "127.0.0.1",
-                srv.port,
-                word_order=order,
-                limits=limits,
-                timeout=0.5,
-                retries=0,
-                wrap=lambda client: Counting(client, {"write_registers", "write_register"}),
-            )
-        else:
-            srv = AsciiTableServer(world, watchdog_s=watchdog_s)
-            opened.append(srv.close)
-            conn = connect.ascii_table(srv.url, limits=limits, timeout=0.5, wrap=lambda port: Counting(port, {"write"}))
+        order = dialect.split("-")[1]
+        srv = ModbusTableServer(world, word_order=order, watchdog_s=watchdog_s)
+        opened.append(srv.close)
+        conn = connect.modbus_table(
+            "127.0.0.1",
+            srv.port,
+            word_order=order,
+            limits=limits,
+            timeout=0.5,
+            retries=0,
+            wrap=lambda client: Counting(client, {"write_registers", "write_register"}),
+        )
         opened.append(conn.close)
         return world, srv, conn.driver, conn.transport
 
@@ -88,8 +82,7 @@ def _advance(world, table, n: int) -> None:
 
 
 def _close(dialect: str) -> dict:
-    # ASCII carries degrees in decimal text: the round trip is exact to ~1 ulp, not bit for bit.
-    return {"rtol": 0, "atol": 0} if dialect.startswith("modbus") else {"rtol": 1e-14, "atol": 1e-15}
+    return {"rtol": 0, "atol": 0}  # Modbus float64: bit for bit
 
 
 @pytest.mark.parametrize("order", ["big", "little"])
@@ -235,10 +228,7 @@ def test_heartbeats_keep_the_watchdog_quiet(wire, dialect):
 def test_dropped_connection_is_a_link_error_and_stops_the_table(wire, dialect):
     world, srv, table, _proxy = wire(dialect)
     table.spin(1, 0.3)
-    if dialect.startswith("modbus"):
-        srv.drop_clients()
-    else:
-        srv.disconnect()
+    srv.drop_clients()
     t0 = time.monotonic()
     with pytest.raises(LinkError):
         table.read_state()
@@ -247,24 +237,6 @@ def test_dropped_connection_is_a_link_error_and_stops_the_table(wire, dialect):
     while world.table_state().modes[1] != AxisMode.STOP and time.monotonic() < deadline:
         time.sleep(0.02)
     assert world.table_state().modes[1] == AxisMode.STOP  # the controller stopped the table on disconnect
-
-
-def test_ascii_dialect_details(wire):
-    world, srv, table, _proxy = wire("ascii")
-    assert srv.execute_line(":dem:pos 1,10").startswith("ERR 7")  # not in position mode
-    assert srv.execute_line(":bogus").startswith("ERR 7")
-    assert srv.execute_line(":limit:abs? 4").startswith("ERR 7")
-    assert srv.execute_line(":mode:rate 2;:dem:rate 2,1e9").startswith("ERR 3")
-    assert table.query(":fault?") == "0,NONE"
-    assert int(table.query("*stb?")) == int(world.table_state().status)
-    table.move_to([0.2, -0.1, 0.3])
-    _advance(world, table, 3000)
-    s = table.read_state()
-    assert table.position(2) == pytest.approx(s.angles[2], abs=1e-15)
-    assert table.rate(2) == pytest.approx(s.rates[2], abs=1e-15)
-    assert table.status_byte() == s.status
-    with pytest.raises(TableError, match="ERR|not in"):
-        table.query(":dem:rate 1,5")
 
 
 def test_word_order_mismatch_is_reported_clearly():

@@ -1,0 +1,305 @@
+"""Exact messages of the ACL driver, written from the spec (/work/shared/spec/acutrol-acl.md), not from the
+simulator: each test scripts (message the driver must send → reply the controller gives), in the style of
+PyMeasure's protocol tests. Replies follow the spec: GPIB answers only queries; TCP answers a plain command
+with an empty line; errors show in the status byte and the error queue, never as text."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from drivers.acutrol import AclSettings, AclTurntable
+from drivers.protocols import AxisLimits, AxisMode, FaultCode, LinkError, TableError, TableStatus
+
+R = math.radians
+LIMITS = (
+    AxisLimits(rate_max=R(300), accel_max=R(100)),
+    AxisLimits(rate_max=R(200), accel_max=R(100), position_min=R(-170), position_max=R(170)),
+    AxisLimits(rate_max=R(400), accel_max=R(100)),
+)
+ENABLE = "*CLS;:Interlock:Reset;:Mode:Off 1;Off 2;Off 3;:Interlock:Close 1;Close 2;Close 3"
+READ = ":Read:Position? 1;Position? 2;Position? 3;Rate? 1;Rate? 2;Rate? 3;:Mode? 1;:Mode? 2;:Mode? 3;:Status:STB?"
+STB = ":Status:STB?"
+NO_REPLY = None
+
+
+class Scripted:
+    """A MessageTransport that checks every message against a script and answers with the scripted reply."""
+
+    def __init__(self, script: list[tuple[str, str | None]]) -> None:
+        self.script = list(script)
+        self.timeout = 1.0
+        self._pending: list[str] = []
+        self.sent: list[str] = []
+
+    def write(self, message: str) -> None:
+        assert self.script, f"unexpected message {message!r}"
+        expected, reply = self.script.pop(0)
+        assert message == expected, f"sent {message!r}, the spec says {expected!r}"
+        self.sent.append(message)
+        if reply is not None:
+            self._pending.append(reply)
+
+    def read(self) -> str:
+        if not self._pending:
+            raise LinkError("scripted controller: no reply within 1 s")
+        return self._pending.pop(0)
+
+    def query(self, message: str) -> str:
+        self.write(message)
+        return self.read()
+
+    def done(self) -> None:
+        assert not self.script, f"messages never sent: {self.script}"
+
+
+def ack(profile: str) -> str | None:
+    """What a plain command gets back: nothing on GPIB, an empty line on TCP."""
+    return "" if profile == "tcp" else NO_REPLY
+
+
+def table(script, profile="tcp", clock=None, **settings) -> tuple[AclTurntable, Scripted]:
+    t = Scripted(script)
+    times = iter(clock or [0.0] * 100)
+    drv = AclTurntable(
+        t,
+        LIMITS,
+        settings=AclSettings(reply_profile=profile, **settings),
+        position_tolerance=R(2 / 3600),
+        settle_time=0.2,
+        rate_tolerance=R(0.01),
+        clock=lambda: next(times),
+    )
+    return drv, t
+
+
+@pytest.mark.parametrize("profile", ["gpib", "tcp"])
+def test_enable_move_spin_stop(profile):
+    a = ack(profile)
+    drv, t = table(
+        [
+            (ENABLE, a),
+            (STB, "0"),
+            (READ, "0.0000;0.0000;0.0000;0.0000;0.0000;0.0000;O;O;O;0"),
+            (":Demand:Position 1,10;Position 2,-20.5;Position 3,45;:Mode:Position 1;Position 2;Position 3", a),
+            (STB, "0"),
+            (":Demand:Rate 3,-15;:Mode:Rate 3", a),
+            (STB, "0"),
+            (":Mode:Off 1;Off 2;Off 3", a),
+            (STB, "0"),
+        ],
+        profile,
+    )
+    drv.move_to([R(10), R(-20.5), R(45)])
+    drv.spin(2, R(-15))
+    drv.stop()
+    drv.heartbeat()  # ACL has no heartbeat: nothing is sent
+    t.done()
+
+
+@pytest.mark.parametrize("profile", ["gpib", "tcp"])
+def test_read_is_one_message_one_frame(profile):
+    drv, t = table(
+        [(READ + ";:Read:Variable? 7", "10.0001;44.1250;-0.0001;0.0000;0.5000;-15.0000;P;P;R;0;1234.5")],
+        profile,
+        time_variable=7,
+        time_scale_s=0.001,
+    )
+    s = drv.read_state()
+    np.testing.assert_allclose(np.degrees(s.angles), [10.0001, 44.125, -0.0001], atol=1e-12)
+    np.testing.assert_allclose(np.degrees(s.rates), [0.0, 0.5, -15.0], atol=1e-12)
+    assert s.modes == (AxisMode.POSITION, AxisMode.POSITION, AxisMode.RATE)
+    assert s.time == pytest.approx(1.2345) and s.fault_code == FaultCode.NONE
+    t.done()
+
+
+def test_word_mode_replies_and_axis_numbers():
+    msg = ":Read:Position? 3;Position? 1;Position? 2;Rate? 3;Rate? 1;Rate? 2;:Mode? 3;:Mode? 1;:Mode? 2;:Status:STB?"
+    drv, t = table([(msg, "1.0;2.0;3.0;0;0;0;Position;Rate;Off;0")], mode_reply="word", axes=(3, 1, 2))
+    s = drv.read_state()
+    assert s.modes == (AxisMode.POSITION, AxisMode.RATE, AxisMode.STOP)
+    t.done()
+    drv, t = table([(READ, "0;0;0;0;0;0;Position;P;P;0")])  # letter expected, word received
+    with pytest.raises(LinkError, match="mode_reply"):
+        drv.read_state()
+
+
+def test_positions_unwrapped_across_the_wrap():
+    # inner axis spinning at +100 °/s, read every 0.2 s: 170° → −170° is +20°, not −340°
+    drv, t = table(
+        [
+            (READ, "0;0;170.0000;0;0;100.0000;O;O;R;0"),
+            (READ, "0;0;-170.0000;0;0;100.0000;O;O;R;0"),
+            (READ, "0;0;-150.0000;0;0;100.0000;O;O;R;0"),
+        ],
+        clock=[0.0, 0.0, 0.2, 0.4],
+    )
+    got = [math.degrees(drv.read_state().angles[2]) for _ in range(3)]
+    np.testing.assert_allclose(got, [170.0, 190.0, 210.0], atol=1e-9)
+    t.done()
+
+
+def test_far_move_on_a_continuous_axis_goes_through_way_points():
+    drv, t = table(
+        [
+            (ENABLE, ""),
+            (STB, "0"),
+            (READ, "0;0;0;0;0;0;O;O;O;0"),
+            (":Demand:Position 1,0;Position 2,0;Position 3,110;:Mode:Position 1;Position 2;Position 3", ""),
+            (STB, "0"),
+            (READ, "0;0;60.0000;0;0;200.0000;P;P;P;0"),  # within 60° of the way-point: the next one (220° → −140°)
+            (":Demand:Position 3,-140", ""),
+            (STB, "0"),
+            (READ, "0;0;170.0000;0;0;200.0000;P;P;P;0"),
+            (":Demand:Position 3,-30", ""),  # 330°
+            (STB, "0"),
+            (READ, "0;0;-70.0000;0;0;200.0000;P;P;P;0"),  # 290° unwrapped
+            (":Demand:Position 3,40", ""),  # 400° → 40°: the target itself, now less than 110° ahead
+            (STB, "0"),
+            (READ, "0;0;40.0000;0;0;0.0000;P;P;P;0"),
+            (READ, "0;0;40.0000;0;0;0.0000;P;P;P;0"),
+        ],
+        clock=[0.0, 0.0, 0.5, 1.0, 1.5, 2.5, 2.7],
+    )
+    drv.move_to([0.0, 0.0, R(400)])
+    drv.read_state()
+    drv.read_state()
+    assert math.degrees(drv.read_state().angles[2]) == pytest.approx(290.0)
+    s = drv.read_state()
+    assert math.degrees(s.angles[2]) == pytest.approx(400.0) and not s.status & TableStatus.IN_POSITION
+    s = drv.read_state()  # inside the window for 0.2 s
+    assert s.status & TableStatus.IN_POSITION and not s.status & TableStatus.MOVING
+    t.done()
+
+
+def test_settled_and_at_rate_decided_from_readings():
+    drv, t = table(
+        [
+            (ENABLE, ""),
+            (STB, "0"),
+            (READ, "0;0;0;0;0;0;O;O;O;0"),
+            (":Demand:Position 1,10;Position 2,0;Position 3,0;:Mode:Position 1;Position 2;Position 3", ""),
+            (STB, "0"),
+            (READ, "10.0010;0;0;0;0;0;P;P;P;0"),  # 3.6″ off: outside the 2″ window
+            (READ, "10.0004;0;0;0;0;0;P;P;P;0"),  # inside from here (1.4″)
+            (READ, "9.9998;0;0;0;0;0;P;P;P;0"),  # 0.1 s later: not yet 0.2 s
+            (READ, "10.0000;0;0;0;0;0;P;P;P;0"),  # 0.2 s inside: settled
+        ],
+        clock=[0.0, 0.0, 1.0, 1.1, 1.2, 1.3],
+    )
+    drv.move_to([R(10), 0.0, 0.0])
+    flags = [drv.read_state().status & TableStatus.IN_POSITION for _ in range(4)]
+    assert [bool(f) for f in flags] == [False, False, False, True]
+    t.done()
+
+
+@pytest.mark.parametrize("profile", ["gpib", "tcp"])
+def test_latched_interlock_fault_is_reported_with_the_controllers_words(profile):
+    a = ack(profile)
+    intl = ":Interlock? 1;:Interlock? 2;:Interlock? 3"
+    drv, t = table(
+        [
+            (READ, "1.0;2.0;3.0;0;0;0;O;O;O;65"),  # *STB? bit 0 (SI) + bit 6 (MSS): the public client's "65"
+            (intl, "Fault;Fault;Fault"),
+            (ENABLE, a),
+            (STB, "65"),
+            (intl, "Fault;Closed;Closed"),
+        ],
+        profile,
+    )
+    s = drv.read_state()
+    assert s.status & TableStatus.FAULT and s.fault_code == FaultCode.INTERLOCK
+    assert "'Fault'" in drv.fault_report and "65" in drv.fault_report
+    with pytest.raises(TableError, match=r"interlock fault latched \(status byte 65.*'Fault'"):
+        drv.move_to([0.0, 0.0, 0.0])  # the enable message cannot close a latched interlock
+    t.done()
+
+
+@pytest.mark.parametrize("profile", ["gpib", "tcp"])
+def test_refused_command_raises_with_the_error_queue_text(profile):
+    a = ack(profile)
+    drv, t = table(
+        [
+            (ENABLE, a),
+            (STB, "0"),
+            (":Demand:Rate 1,250;:Mode:Rate 1", a),
+            (STB, "224"),  # EQ + MSS + ESB
+            (":Status:MSG? QERROR", '-222,"Data out of range"'),
+        ],
+        profile,
+    )
+    with pytest.raises(TableError, match="Data out of range.*status byte 224"):
+        drv.spin(0, R(250))
+    t.done()
+
+
+def test_demands_checked_before_sending():
+    drv, t = table([])
+    with pytest.raises(TableError, match="nothing was sent"):
+        drv.move_to([0.0, R(175), 0.0])  # middle limited to ±170°
+    with pytest.raises(TableError, match="nothing was sent"):
+        drv.spin(2, R(401))
+    assert t.sent == []
+
+
+def test_query_without_answer_is_a_link_error():
+    drv, t = table([(READ, NO_REPLY)], "gpib")
+    with pytest.raises(LinkError, match="no reply"):
+        drv.read_state()
+    drv, t = table([(READ, "1.0;2.0")], "gpib")
+    with pytest.raises(LinkError, match="10 fields.*turntable.acl"):
+        drv.read_state()
+
+
+def test_tcp_profile_acknowledgement_must_be_empty():
+    drv, t = table([(ENABLE, "OK")], "tcp")
+    with pytest.raises(LinkError, match="reply_profile"):
+        drv.enable()
+
+
+@pytest.mark.parametrize("profile", ["gpib", "tcp"])
+def test_close_stops_and_opens_interlocks_when_asked(profile):
+    a = ack(profile)
+    drv, t = table(
+        [
+            (ENABLE, a),
+            (STB, "0"),
+            (":Demand:Rate 2,5;:Mode:Rate 2", a),
+            (STB, "0"),
+            (":Mode:Off 1;Off 2;Off 3", a),
+            (STB, "0"),
+            (":Interlock:Open 1;Open 2;Open 3", a),
+        ],
+        profile,
+        open_interlocks_at_end=True,
+    )
+    drv.spin(1, R(5))
+    drv.close()
+    t.done()
+    with pytest.raises(LinkError, match="closed"):
+        drv.read_state()
+
+
+def test_leave_running_sends_nothing_on_close():
+    drv, t = table([(ENABLE, ""), (STB, "0"), (":Demand:Rate 1,-2.25;:Mode:Rate 1", ""), (STB, "0")])
+    drv.spin(0, R(-2.25))
+    drv.leave_running()
+    drv.close()
+    t.done()
+
+
+def test_controller_working_limits_per_mode():
+    q = ":Limit:Rate? P,{a};Rate? R,{a};Acceleration? P,{a};Acceleration? R,{a};HighPosition? P,{a};LowPosition? P,{a}"
+    drv, t = table([(q.format(a=a), f"{100 * a}.0;{110 * a}.0;50.0;60.0;170.0;-170.0") for a in (1, 2, 3)], "gpib")
+    lim = drv.controller_limits()
+    assert lim[2] == {
+        "rate_position": 300.0,
+        "rate_rate": 330.0,
+        "accel_position": 50.0,
+        "accel_rate": 60.0,
+        "high": 170.0,
+        "low": -170.0,
+    }
+    t.done()
