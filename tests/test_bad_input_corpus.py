@@ -256,11 +256,6 @@ for _kind in DAMAGED:
     ]
 
 KNOWN: dict[str, str] = {
-    # identification / calibration / correct (h12b)
-    "identify/--out=uncreatable": "h12b: benches/identify.py write_calibration lets OSError through (traceback)",
-    "correct/--out=uncreatable": "h12b: commands/correct.py np.save lets OSError through (traceback)",
-    "correct/calibration=directory": "h12b: commands/correct.py reads a folder as calibration (traceback)",
-    "correct/input=empty": "h12b: commands/correct.py np.load of an empty file raises EOFError (traceback)",
     # decode (h15)
     "decode/--rate=huge": "h15: commands/decode.py --rate has no upper bound (1e300 Hz accepted)",
     "decode/--rate=2**64": "h15: commands/decode.py --rate has no upper bound (1.8e19 Hz accepted)",

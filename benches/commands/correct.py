@@ -42,6 +42,16 @@ def load_calibration_vector(path: str | Path) -> tuple[np.ndarray, list[str]]:
     return CalibrationResult.load(path).compensation_vector()
 
 
+def _save(path: str | Path, array: np.ndarray) -> None:
+    """``np.save`` with an unwritable path as one :class:`core.errors.OutputError` naming it."""
+    from core.errors import OutputError
+
+    try:
+        np.save(path, array)
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot be written ({exc.strerror or exc}); choose another --out path") from None
+
+
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench correct``."""
     from analysis.identification.model import correct
@@ -74,8 +84,8 @@ def run(args: argparse.Namespace) -> int:
             data = np.load(src, allow_pickle=False)
         except FileNotFoundError:
             raise InputError(f"{src}: no such file") from None
-        except (OSError, ValueError) as exc:
-            raise InputError(f"{src}: not a readable .npy array ({exc})") from None
+        except (OSError, ValueError, EOFError) as exc:  # EOFError: an empty or truncated file
+            raise InputError(f"{src}: not a readable .npy array ({exc.__class__.__name__}: {exc})") from None
         if data.ndim != 2 or data.shape[1] not in (3, 6) or not np.issubdtype(data.dtype, np.number):
             raise InputError(f"{src}: expected a numeric (n, 3) or (n, 6) array in SI units, got {data.shape}")
         if not np.all(np.isfinite(data)):
@@ -86,10 +96,10 @@ def run(args: argparse.Namespace) -> int:
         f = correct(x, f_out, omega)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
-    np.save(args.out, f)
+    _save(args.out, f)
     if times is not None:
         t_path = Path(args.out).with_name(Path(args.out).stem + "_time.npy")
-        np.save(t_path, times)
+        _save(t_path, times)
         print(f"sample times (bench s) → {t_path}", file=sys.stderr)
     if skipped:
         print(f"not applied (not identified): {', '.join(skipped)}", file=sys.stderr)
