@@ -122,3 +122,8 @@ def format_hms(seconds: float) -> str:
         return "--:--:--"
     s = max(0, int(round(seconds)))
     return f"{s // 3600:d}:{(s % 3600) // 60:02d}:{s % 60:02d}"
+
+
+MAX_MAGNITUDE: float = 1e100
+"""Largest |value| (SI) the analyses accept: sums of squares of 10⁸ such values stay far below the float64
+overflow (1.8e308). A larger value is a unit or scale-factor mistake, refused with the channel and sample."""

@@ -39,3 +39,24 @@ def seed(text: str) -> int:
     if not 0 <= value <= MAX_SEED:
         raise argparse.ArgumentTypeError(f"{text} is out of range; allowed 0 … {MAX_SEED} (2**63 - 1)")
     return value
+
+
+def bounded(low: float, high: float, *, integer: bool = False, low_open: bool = False):
+    """argparse ``type=`` for a finite number in [low, high] (``low_open``: (low, high]); whole numbers with
+    ``integer``. The message states the allowed range; argparse names the option and exits with code 2."""
+    kind = "a whole number" if integer else "a number"
+    lo_br = "(" if low_open else "["
+    allowed = f"{kind} in {lo_br}{low:g}, {high:g}]"
+
+    def parse(text: str) -> float | int:
+        try:
+            value: float | int = int(text, 10) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {allowed}, got {text!r}") from None
+        ok = math.isfinite(value) and (value > low if low_open else value >= low) and value <= high
+        if not ok:
+            raise argparse.ArgumentTypeError(f"{text} is out of range; allowed: {allowed}")
+        return value
+
+    parse.__name__ = "integer" if integer else "number"
+    return parse

@@ -256,19 +256,6 @@ for _kind in DAMAGED:
     ]
 
 KNOWN: dict[str, str] = {
-    # decode (h15)
-    "decode/--rate=huge": "h15: commands/decode.py --rate has no upper bound (1e300 Hz accepted)",
-    "decode/--rate=2**64": "h15: commands/decode.py --rate has no upper bound (1.8e19 Hz accepted)",
-    # drift (h17a) and periodic (h17b)
-    "drift/values-1e296": "h17a: drift on values ~1e296 overflows to inf inside the analysis (traceback)",
-    "drift/--detrend=2**64": "h17a: refused (exit 2) but the message does not name --detrend",
-    "drift/--segments=2**64": "h17a: refused (exit 2) but the message does not name --segments",
-    "drift/--outlier-k=huge": "h17a: --outlier-k has no upper bound (1e300 accepted)",
-    "drift/--outlier-k=2**64": "h17a: --outlier-k has no upper bound (1.8e19 accepted)",
-    "drift/--measurement-var=inf": "h17a: --measurement-var inf accepted",
-    "drift/--measurement-var=huge": "h17a: --measurement-var 1e300 accepted",
-    "drift/--measurement-var=2**64": "h17a: --measurement-var 1.8e19 accepted",
-    "periodic/values-1e296": "h17b: periodic on values ~1e296 writes inf to JSON (traceback)",
 }
 """Case id → owner and reason, for failures in areas other changes own (xfail, not strict)."""
 

@@ -16,14 +16,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from analysis.units import MAX_MAGNITUDE
 from core.errors import UserError
 
 MAD_TO_SIGMA: float = 1.4826022185056018
 """Scale factor making the median absolute deviation a consistent estimator of σ for Gaussian data."""
-
-
-MAX_MAGNITUDE: float = 1e100
-"""Largest |value| accepted: sums of squares of 10⁸ such values stay far below the float64 overflow (1.8e308)."""
 
 
 class DriftInputError(UserError, ValueError):

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benches.arguments import bounded
 from core.errors import UsageError
 
 EXAMPLES = """examples:
@@ -59,7 +60,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="NAME=VALUE",
         help="a frame option (the unit's configuration, e.g. gyro_output=rate); repeatable",
     )
-    p.add_argument("--rate", type=float, default=None, help="sample rate, Hz (default: the bench's, else 1000)")
+    p.add_argument(
+        "--rate",
+        type=bounded(0.0, 1e6, low_open=True),
+        default=None,
+        help="sample rate, Hz (default: the bench's, else 1000)",
+    )
     p.add_argument("--out", default=None, metavar="OUT.npy|OUT.csv", help="write the samples here")
     p.set_defaults(func=run)
 

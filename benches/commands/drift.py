@@ -8,6 +8,8 @@ import sys
 import time
 from collections.abc import Callable
 
+from benches.arguments import bounded
+
 EXAMPLES = """examples:
   tablebench drift runs/static-noise-001                          # a recording, all six channels
   tablebench drift runs/static-noise-001 --channel gyro_z --out report/
@@ -62,15 +64,34 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.add_argument("--outliers", choices=("sigma", "mad"), default="sigma", help="outlier scale: 3σ or MAD")
-    p.add_argument("--outlier-k", type=float, default=3.0, help="outlier threshold in scale units (default 3)")
-    p.add_argument("--detrend", type=int, default=None, metavar="ORDER", help="polynomial order (default: by BIC)")
-    p.add_argument("--segments", type=int, default=50, help="sub-series for the stationarity tests (default 50)")
+    p.add_argument(
+        "--outlier-k",
+        type=bounded(0.0, 100.0, low_open=True),
+        default=3.0,
+        help="outlier threshold in scale units (default 3)",
+    )
+    p.add_argument(
+        "--detrend",
+        type=bounded(0, 10, integer=True),
+        default=None,
+        metavar="ORDER",
+        help="polynomial order (default: by BIC)",
+    )
+    p.add_argument(
+        "--segments",
+        type=bounded(2, 100000, integer=True),
+        default=50,
+        help="sub-series for the stationarity tests (default 50)",
+    )
     p.add_argument("--alpha", type=float, default=0.05, help="significance level of the tests (default 0.05)")
     p.add_argument("--forgetting", type=float, default=1.0, help="RLS forgetting factor λ in (0, 1] (default 1)")
     p.add_argument("--keep-tones", action="store_true", help="do not subtract detected tones before the ARMA fit")
     p.add_argument("--no-online", action="store_true", help="skip the online RLS/ELS pass")
     p.add_argument(
-        "--measurement-var", type=float, default=None, help="R of the compensation model, SI unit² (default: σ²)"
+        "--measurement-var",
+        type=bounded(0.0, 1e12, low_open=True),
+        default=None,
+        help="R of the compensation model, SI unit² (default: σ²)",
     )
     p.set_defaults(func=run)
 
