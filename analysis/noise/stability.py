@@ -1,0 +1,655 @@
+"""The frequency-stability family on frequency or phase records, several channels at once, gaps allowed.
+
+Estimators (NIST SP 1065 definitions, each equal to allantools 2024.06 with the same ``data_type`` and τ;
+τ = m τ₀, x the phase (time error) with N points, y the frequency with N − 1 = N_f samples):
+
+=========  =====================================================================  ==========================
+name       definition                                                             terms per τ
+=========  =====================================================================  ==========================
+adev       non-overlapping Allan: (x_{i+2m} − 2x_{i+m} + x_i)², stride m           ⌈(N − 2m)/m⌉
+oadev      overlapping Allan, stride 1                                            N − 2m
+mdev       modified Allan: m-sums of the second differences                       N − 3m + 1
+tdev       τ/√3 · mdev (seconds of phase)                                          as mdev
+hdev       Hadamard: (x_{i+3m} − 3x_{i+2m} + 3x_{i+m} − x_i)², stride m            ⌈(N − 3m)/m⌉
+ohdev      overlapping Hadamard, stride 1                                         N − 3m
+totdev     total: second differences of the phase reflected (inverted) at both    N − 2
+           ends, centred on the N − 2 interior points
+mtotdev    modified total: per 3m-point subsequence, linear trend (half means)    N − 3m + 1 subsequences
+           removed, extended by even reflection to 9m, 6m modified second
+           differences
+ttotdev    τ/√3 · mtotdev                                                         as mtotdev
+htotdev    Hadamard total: as mtotdev on the frequency (m = 1: ohdev)             N_f − 3m + 1
+theo1      Theo1 (SP 1065 eq. 30), even m, reported at τ = m τ₀ like allantools     (N − m) m/2
+           (Stable32 plots it at the effective τ = 0.75 m τ₀)
+theoh      TheoH: overlapping ADEV up to τ_split, Theo1 (at 0.75 m τ₀) beyond      —
+mtie       maximum time-interval error over windows of m + 1 phase points          N − m windows
+tierms     rms of x_{i+m} − x_i                                                    N − m
+=========  =====================================================================  ==========================
+
+Frequency input is integrated to phase as allantools does (mean removed, x_0 = 0, x_j = x_{j−1} + y_j τ₀);
+phase input for ``htotdev`` is differenced to frequency.
+
+Speed. Every estimator except the total family and Theo1 costs O(N) per τ (chunked second/third
+differences, a cumulative sum for the modified variances, an O(N) running max/min filter for MTIE). The
+classic ADEV/OADEV/MDEV/TOTDEV of gap-free frequency records use :func:`analysis.noise.allan.allan_variances`
+(one chunked pass per τ with analytic ramp handling). MTOTDEV/HTOTDEV evaluate each subsequence's reflected
+sums in closed form from prefix sums of the record (no 9m-point windows are materialised; the even
+reflection makes the 6m terms one period of a circular filter, so only half of them are evaluated) and
+Theo1 evaluates its m/2 lag terms as whole-record vector operations: O(N·m) per τ, vectorised over
+channels and subsequences (not yet the O(N log N) closed form — see the module's report).
+
+Gaps. NaN samples are gaps. A term is skipped when it touches a gap: for phase input (allantools'
+gap-robust ``gradev`` convention) the phase points a point-estimator uses (ADEV, OADEV, HDEV, OHDEV, TIE rms)
+must be finite; for the span-estimators (MDEV, TOTDEV, the total family, Theo1, MTIE) and for every
+estimator on frequency input, the whole span of the term must be gap-free (with frequency input a missing
+sample leaves the phase after it unknown, so a term across it is meaningless). Each estimator reports the
+number of terms it used per τ and channel.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+ESTIMATORS: tuple[str, ...] = (
+    "adev",
+    "oadev",
+    "mdev",
+    "tdev",
+    "hdev",
+    "ohdev",
+    "totdev",
+    "mtotdev",
+    "ttotdev",
+    "htotdev",
+    "theo1",
+    "theoh",
+    "mtie",
+    "tierms",
+)
+"""Every estimator name accepted by :func:`stability`."""
+
+DATA_TYPES: tuple[str, ...] = ("freq", "phase")
+
+_CHUNK = 1 << 17
+"""Columns per chunk of the O(N) passes."""
+
+
+@dataclass
+class Estimate:
+    """One estimator of C channels on its τ grid.
+
+    Attributes
+    ----------
+    tau : ndarray (M,)
+        τ = m τ₀, s (Theo1: allantools' convention m τ₀; its effective τ is 0.75 m τ₀).
+    m : ndarray (M,) of int
+        Averaging factors.
+    dev : ndarray (M, C)
+        Deviation in the data unit (phase unit for ``tdev``, ``ttotdev``, ``mtie``, ``tierms``), NaN where
+        undefined (fewer than two terms).
+    n_terms : ndarray (M, C) of int
+        Terms (squared differences, subsequences, windows) actually used, gaps skipped.
+    """
+
+    tau: NDArray[np.float64]
+    m: NDArray[np.int64]
+    dev: NDArray[np.float64]
+    n_terms: NDArray[np.int64]
+    edf: NDArray[np.float64] | None = None
+    alpha: NDArray[np.int64] | None = None
+    lo: NDArray[np.float64] | None = None
+    hi: NDArray[np.float64] | None = None
+
+
+@dataclass
+class StabilityResult:
+    """Result of :func:`stability`: the estimates by name, plus record facts."""
+
+    rate: float
+    data_type: str
+    n_points: int
+    estimates: dict[str, Estimate]
+    gap_samples: NDArray[np.int64]
+    gap_runs: NDArray[np.int64]
+    confidence: float = 0.683
+    notes: list[str] = field(default_factory=list)
+
+
+# ----------------------------------------------------------------------------------------------- input
+
+
+class _Record:
+    """Phase (C, N) with gaps zero-filled, plus gap bookkeeping for term validity."""
+
+    def __init__(self, data: ArrayLike, rate: float, data_type: str) -> None:
+        a = np.asarray(data)
+        if a.ndim == 1:
+            a = a[:, None]
+        if a.ndim != 2:
+            raise ValueError(f"expected a 1-D record or a 2-D array (samples × channels), got shape {a.shape}")
+        if not np.issubdtype(a.dtype, np.number) or np.iscomplexobj(a):
+            raise ValueError(f"expected real numeric data, got dtype {a.dtype}")
+        if not (math.isfinite(rate) and rate > 0):
+            raise ValueError(f"sample rate must be a positive number of Hz, got {rate}")
+        if data_type not in DATA_TYPES:
+            raise ValueError(f"data_type must be 'freq' or 'phase', got {data_type!r}")
+        a = np.ascontiguousarray(np.asarray(a, dtype=np.float64).T)  # (C, n)
+        if np.any(np.isinf(a)):
+            raise ValueError("record contains ±inf; only NaN marks a gap")
+        self.ts = 1.0 / rate
+        self.data_type = data_type
+        bad = np.isnan(a)
+        self.gap_samples = bad.sum(axis=1)
+        self.gap_runs = (np.diff(bad.astype(np.int8), axis=1, prepend=0) == 1).sum(axis=1)
+        self.has_gaps = bool(bad.any())
+        if np.all(bad, axis=1).any():
+            raise ValueError("a channel holds no finite sample")
+        c = a.shape[0]
+        if data_type == "freq":
+            self.freq_raw = a
+            y = a - np.nanmean(a, axis=1, keepdims=True)
+            y[bad] = 0.0
+            x = np.empty((c, a.shape[1] + 1))
+            x[:, 0] = 0.0
+            np.cumsum(y, axis=1, out=x[:, 1:])
+            x *= self.ts
+            self.x = x
+            # bad intervals: prefix count over frequency samples, aligned with phase points
+            self.bad_prefix = np.zeros((c, a.shape[1] + 1), dtype=np.int64) if self.has_gaps else None
+            if self.has_gaps:
+                np.cumsum(bad, axis=1, out=self.bad_prefix[:, 1:])
+            self.point_ok = None
+        else:
+            x = a.copy()
+            x[bad] = 0.0
+            self.x = x
+            self.freq_raw = None
+            self.bad_prefix = np.zeros((c, a.shape[1] + 1), dtype=np.int64) if self.has_gaps else None
+            if self.has_gaps:
+                np.cumsum(bad, axis=1, out=self.bad_prefix[:, 1:])
+            self.point_ok = ~bad if self.has_gaps else None
+        self.n = self.x.shape[1]
+
+    def span_ok(self, start: int, count: int, span: int) -> NDArray[np.bool_] | None:
+        """Validity of terms i = start … start+count−1 whose phase span is [i, i+span]; None: all valid."""
+        if not self.has_gaps:
+            return None
+        bp = self.bad_prefix
+        if self.data_type == "freq":  # frequency samples i … i+span−1 lie between phase points i and i+span
+            return bp[:, start + span : start + span + count] == bp[:, start : start + count]
+        return bp[:, start + span + 1 : start + span + 1 + count] == bp[:, start : start + count]
+
+    def points_ok(self, start: int, count: int, offsets: tuple[int, ...], stride: int = 1) -> NDArray | None:
+        """Validity of terms using phase points i + offsets (phase input); span validity for frequency input."""
+        if not self.has_gaps:
+            return None
+        if self.data_type == "freq":
+            ok = self.span_ok(start, count, max(offsets))
+            return ok[:, ::stride]
+        ok = np.ones((self.x.shape[0], len(range(start, start + count, stride))), dtype=bool)
+        for o in offsets:
+            ok &= self.point_ok[:, start + o : start + o + count : stride]
+        return ok
+
+    def frequency(self) -> tuple[NDArray[np.float64], NDArray[np.int64] | None]:
+        """Frequency (C, N_f) with gaps zero-filled, and the prefix count of bad frequency samples."""
+        if self.data_type == "freq":
+            y = self.freq_raw.copy()
+            if self.has_gaps:
+                y[np.isnan(y)] = 0.0
+                return y, self.bad_prefix
+            return y, None
+        y = np.diff(self.x, axis=1) / self.ts
+        if not self.has_gaps:
+            return y, None
+        bad_y = ~(self.point_ok[:, 1:] & self.point_ok[:, :-1])
+        y[bad_y] = 0.0
+        bp = np.zeros((y.shape[0], y.shape[1] + 1), dtype=np.int64)
+        np.cumsum(bad_y, axis=1, out=bp[:, 1:])
+        return y, bp
+
+
+# ------------------------------------------------------------------------------------------------ τ grid
+
+
+def m_grid(n_points: int, taus: str | ArrayLike, rate: float) -> NDArray[np.int64]:
+    """Candidate averaging factors for a record of ``n_points`` phase points (each estimator keeps its range).
+
+    ``octave``: 1, 2, 4, …; ``decade``: 1, 2, 4, 10, 20, 40, … (Stable32's spacing); ``all``: every m;
+    an array: τ in seconds, rounded to the nearest m (as allantools).
+    """
+    top = max(int(n_points) - 1, 1)
+    if isinstance(taus, str):
+        kind = taus.lower()
+        if kind == "octave":
+            m = 2 ** np.arange(int(math.floor(math.log2(top))) + 1, dtype=np.int64)
+        elif kind == "decade":
+            k = int(math.floor(math.log10(top))) + 1
+            m = np.array([f * 10**e for e in range(k) for f in (1, 2, 4)], dtype=np.int64)
+        elif kind == "all":
+            m = np.arange(1, top + 1, dtype=np.int64)
+        elif kind == "log":
+            k = int(math.floor(10 * math.log10(top))) if top > 1 else 0
+            m = np.unique(np.rint(10.0 ** (np.arange(k + 1) / 10)).astype(np.int64))
+        else:
+            raise ValueError(f"unknown τ grid {taus!r}; use octave, decade, all, log or a list of τ in seconds")
+    else:
+        t = np.atleast_1d(np.asarray(taus, dtype=np.float64))
+        if t.size == 0 or not np.all(np.isfinite(t)) or np.any(t <= 0):
+            raise ValueError("τ values must be positive finite seconds")
+        m = np.rint(t * rate).astype(np.int64)
+    m = np.unique(m)
+    return m[(m >= 1) & (m <= top)]
+
+
+# --------------------------------------------------------------------------------- point and span sums
+
+
+def _diff_sumsq(
+    rec: _Record, m: int, coeffs: tuple[float, ...], stride: int
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Σ (Σ_k c_k x_{i+km})² over i = 0, stride, … (i + (len(c)−1) m ≤ N − 1), skipping gap terms."""
+    x = rec.x
+    n = rec.n
+    d = len(coeffs) - 1
+    count = n - d * m
+    c = x.shape[0]
+    s = np.zeros(c)
+    k = np.zeros(c, dtype=np.int64)
+    if count <= 0:
+        return s, k
+    offs = tuple(j * m for j in range(d + 1))
+    step = max(_CHUNK - _CHUNK % stride, stride)
+    for a in range(0, count, step):
+        b = min(count, a + step)
+        v = coeffs[0] * x[:, a:b:stride]
+        for j in range(1, d + 1):
+            v += coeffs[j] * x[:, a + offs[j] : b + offs[j] : stride]
+        ok = rec.points_ok(a, b - a, offs, stride)
+        if ok is not None:
+            v[~ok] = 0.0
+            k += ok.sum(axis=1)
+        else:
+            k += v.shape[1]
+        s += np.einsum("ij,ij->i", v, v)
+    return s, k
+
+
+def _mod_sumsq(rec: _Record, m: int) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Modified Allan: Σ_j (Σ_{i=j}^{j+m−1} x_{i+2m} − 2x_{i+m} + x_i)² over j = 0 … N−3m, gaps skipped."""
+    x = rec.x
+    n = rec.n
+    count = n - 3 * m + 1
+    c = x.shape[0]
+    if count <= 0:
+        return np.zeros(c), np.zeros(c, dtype=np.int64)
+    nd = n - 2 * m
+    d = x[:, 2 * m :] - 2.0 * x[:, m : n - m] + x[:, :nd]
+    if rec.has_gaps:
+        ok_d = rec.span_ok(0, nd, 2 * m)
+        d[~ok_d] = 0.0
+    cs = np.zeros((c, nd + 1))
+    np.cumsum(d, axis=1, out=cs[:, 1:])
+    del d
+    v = cs[:, m : m + count] - cs[:, :count]
+    ok = rec.span_ok(0, count, 3 * m - 1)
+    if ok is not None:
+        v[~ok] = 0.0
+        return np.einsum("ij,ij->i", v, v), ok.sum(axis=1)
+    return np.einsum("ij,ij->i", v, v), np.full(c, count, dtype=np.int64)
+
+
+def _tot_sumsq(rec: _Record, m: int) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Total variance: Σ over centres i = 1 … N−2 of (x*_{i−m} − 2x_i + x*_{i+m})², phase reflected
+    (inverted) at both ends; gap terms skipped (their mapped points / span)."""
+    x = rec.x
+    n = rec.n
+    c = x.shape[0]
+    i = np.arange(1, n - 1)
+    lo = i - m
+    hi = i + m
+
+    def refl(j: NDArray[np.int64]) -> NDArray[np.float64]:
+        out = np.empty((c, j.size))
+        left = j < 0
+        right = j > n - 1
+        mid = ~(left | right)
+        out[:, mid] = x[:, j[mid]]
+        out[:, left] = 2.0 * x[:, :1] - x[:, -j[left]]
+        out[:, right] = 2.0 * x[:, n - 1 : n] - x[:, 2 * (n - 1) - j[right]]
+        return out
+
+    if m > n - 2:
+        return np.zeros(c), np.zeros(c, dtype=np.int64)
+    v = refl(lo) - 2.0 * x[:, 1 : n - 1] + refl(hi)
+    if not rec.has_gaps:
+        return np.einsum("ij,ij->i", v, v), np.full(c, n - 2, dtype=np.int64)
+    if rec.data_type == "phase":
+        p = rec.point_ok
+        ok = p[:, 1 : n - 1].copy()
+        for j in (lo, hi):
+            jj = np.where(j < 0, -j, np.where(j > n - 1, 2 * (n - 1) - j, j))
+            ok &= p[:, jj]
+        ok &= np.where(lo < 0, p[:, :1], True)
+        ok &= np.where(hi > n - 1, p[:, n - 1 : n], True)
+    else:
+        a = np.where(lo >= 0, lo, 0)
+        b = np.where(hi <= n - 1, hi, n - 1)
+        b = np.where(lo < 0, np.maximum(b, np.minimum(-lo, n - 1)), b)
+        a = np.where(hi > n - 1, np.minimum(a, np.maximum(2 * (n - 1) - hi, 0)), a)
+        bp = rec.bad_prefix
+        ok = bp[:, b] == bp[:, a]
+    v[~ok] = 0.0
+    return np.einsum("ij,ij->i", v, v), ok.sum(axis=1)
+
+
+# ------------------------------------------------------------------------------------- the total family
+
+
+def _reflected_sumsq(
+    s: NDArray[np.float64], m: int, ok: NDArray[np.bool_] | None
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Σ over subsequences i and j = 0 … 6m−1 of (S₁ − 2S₂ + S₃)² (m-sums, not averages) of the 3m-point
+    subsequence s[i : i+3m], its linear trend (half means) removed, extended by even reflection to 9m points.
+
+    Closed form per j from prefix sums P of s: with Z(p) = P[i+p] − P[i] − b_i p(p−1)/2 the partial sums of
+    the detrended subsequence, the prefix sums of the reflected 9m series are F(a) = Z(3m) − Z(3m−a)
+    (a ≤ 3m), Z(3m) + Z(a−3m) (a ≤ 6m), 3Z(3m) − Z(9m−a), and S₁ − 2S₂ + S₃ = −F(j) + 3F(j+m) − 3F(j+2m) +
+    F(j+3m). The reflected series is one and a half periods of the even 6m-periodic extension and the
+    kernel is symmetric, so term j equals term 3m − j (mod 6m): only ⌈3m⌉ of the 6m terms are evaluated.
+    """
+    c, n_s = s.shape
+    L = 3 * m
+    count = n_s - L + 1
+    if count <= 0:
+        return np.zeros(c), np.zeros(c, dtype=np.int64)
+    P = np.zeros((c, n_s + 1))
+    np.cumsum(s - s.mean(axis=1, keepdims=True), axis=1, out=P[:, 1:])
+    h1 = L // 2
+    h2 = L - h1  # ceil
+    D = (0.5 * (L - 1) + 1) if L % 2 else 0.5 * L
+    P0 = P[:, :count]
+    b = ((P[:, L : L + count] - P[:, h2 : h2 + count]) - (P[:, h1 : h1 + count] - P0)) / (h1 * D)
+
+    def q(p: int) -> float:
+        return 0.5 * p * (p - 1)
+
+    # F(a) = gz·Ztot + sz·Z(pz); Z(p) = P[p] − P0 − b q(p); Ztot = Z(L)
+    def f_parts(a: int) -> tuple[float, float, int]:
+        if a <= L:
+            return 1.0, -1.0, L - a
+        if a <= 2 * L:
+            return 1.0, 1.0, a - L
+        return 3.0, -1.0, 3 * L - a
+
+    reps: list[tuple[int, float]] = []
+    for j in range(0, L // 2 + 1):
+        reps.append((j, 1.0 if 2 * j == L else 2.0))
+    for j in range(L + 1, (9 * m) // 2 + 1):
+        if 2 * j == 9 * m:
+            reps.append((j, 1.0))
+        elif 2 * j < 9 * m:
+            reps.append((j, 2.0))
+    ztot = P[:, L : L + count] - P0 - b * q(L)
+    acc = np.zeros((c, count))
+    for j, w in reps:
+        coef_p: dict[int, float] = {}
+        g_tot = 0.0
+        for k, sign in ((0, -1.0), (1, 3.0), (2, -3.0), (3, 1.0)):
+            gz, sz, pz = f_parts(j + k * m)
+            g_tot += sign * gz
+            coef_p[pz] = coef_p.get(pz, 0.0) + sign * sz
+        # Σ_p κ_p Z(p) = Σ κ_p P[p] − (Σκ_p) P0 − b Σ κ_p q(p)
+        kappa_sum = sum(coef_p.values())
+        qsum = sum(kp * q(p) for p, kp in coef_p.items())
+        v = g_tot * ztot
+        for p, kp in coef_p.items():
+            if kp != 0.0:
+                v += kp * P[:, p : p + count]
+        if kappa_sum != 0.0:
+            v -= kappa_sum * P0
+        if qsum != 0.0:
+            v -= qsum * b
+        acc += w * (v * v)
+    if ok is not None:
+        acc[~ok] = 0.0
+        return acc.sum(axis=1), ok.sum(axis=1)
+    return acc.sum(axis=1), np.full(c, count, dtype=np.int64)
+
+
+def _theo1_sumsq(rec: _Record, m: int) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Σ_i Σ_{δ<m/2} [(x_i − x_{i+m/2−δ}) + (x_{i+m} − x_{i+m/2+δ})]² / (m/2 − δ), i = 0 … N−m−1."""
+    x = rec.x
+    n = rec.n
+    c = x.shape[0]
+    count = n - m
+    h = m // 2
+    if count <= 0 or m % 2:
+        return np.zeros(c), np.zeros(c, dtype=np.int64)
+    base = x[:, :count] + x[:, m : m + count]
+    acc = np.zeros((c, count))
+    for dlt in range(h):
+        e = base - x[:, h - dlt : h - dlt + count]
+        e -= x[:, h + dlt : h + dlt + count]
+        e *= e
+        acc += e * (1.0 / (h - dlt))
+    ok = rec.span_ok(0, count, m)
+    if ok is not None:
+        acc[~ok] = 0.0
+        return acc.sum(axis=1), ok.sum(axis=1) * h
+    return acc.sum(axis=1), np.full(c, count * h, dtype=np.int64)
+
+
+def _mtie(rec: _Record, m: int) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Largest max − min of the phase over windows of m + 1 points (O(N) running max/min filter)."""
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    x = rec.x
+    n = rec.n
+    c = x.shape[0]
+    w = m + 1
+    count = n - m
+    if count <= 0:
+        return np.full(c, np.nan), np.zeros(c, dtype=np.int64)
+    xx = x
+    if rec.has_gaps:
+        ok_pt = rec.point_ok if rec.point_ok is not None else np.ones(x.shape, dtype=bool)
+        xx_hi = np.where(ok_pt, x, -np.inf)
+        xx_lo = np.where(ok_pt, x, np.inf)
+    else:
+        xx_hi = xx_lo = xx
+    origin = -(w // 2) + (0 if w % 2 else 1) - 1 + 1  # window [i, i+m] at output index i
+    origin = (w - 1) // 2 - (w - 1) + (w - 1) // 2 * 0
+    hi = maximum_filter1d(xx_hi, size=w, axis=1, mode="nearest")
+    lo = minimum_filter1d(xx_lo, size=w, axis=1, mode="nearest")
+    del origin
+    # the centred filter at index k covers [k − w//2, k + (w−1)//2]; a full window [i, i+m] sits at k = i + w//2
+    k0 = w // 2
+    tie = hi[:, k0 : k0 + count] - lo[:, k0 : k0 + count]
+    ok = rec.span_ok(0, count, m)
+    if ok is not None:
+        tie = np.where(ok, tie, -np.inf)
+        used = ok.sum(axis=1)
+        return np.where(used > 0, tie.max(axis=1), np.nan), used
+    return tie.max(axis=1), np.full(c, count, dtype=np.int64)
+
+
+# ------------------------------------------------------------------------------------------------ driver
+
+_MAX_M = {
+    "adev": lambda n: (n - 1) // 2,
+    "oadev": lambda n: (n - 1) // 2,
+    "mdev": lambda n: (n + 1) // 3,
+    "tdev": lambda n: (n + 1) // 3,
+    "hdev": lambda n: (n - 1) // 3,
+    "ohdev": lambda n: (n - 1) // 3,
+    "totdev": lambda n: (n - 1) // 2,
+    "mtotdev": lambda n: n // 3,
+    "ttotdev": lambda n: n // 3,
+    "htotdev": lambda n: (n - 1) // 3,
+    "theo1": lambda n: n - 1,
+    "theoh": lambda n: n - 1,
+    "mtie": lambda n: n - 1,
+    "tierms": lambda n: n - 1,
+}
+
+
+def _one(rec: _Record, name: str, m: int, cache: dict) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """(variance-or-deviation, n_terms) of estimator ``name`` at m for every channel; see :func:`stability`."""
+    ts = rec.ts
+    tau = m * ts
+    if name in ("adev", "oadev"):
+        s, k = _diff_sumsq(rec, m, (1.0, -2.0, 1.0), m if name == "adev" else 1)
+        return np.sqrt(s / (2.0 * np.maximum(k, 1) * tau * tau)), k
+    if name in ("hdev", "ohdev"):
+        s, k = _diff_sumsq(rec, m, (-1.0, 3.0, -3.0, 1.0), m if name == "hdev" else 1)
+        return np.sqrt(s / (6.0 * np.maximum(k, 1) * tau * tau)), k
+    if name in ("mdev", "tdev"):
+        if ("mdev", m) not in cache:
+            cache[("mdev", m)] = _mod_sumsq(rec, m)
+        s, k = cache[("mdev", m)]
+        md = np.sqrt(s / (2.0 * m * m * tau * tau * np.maximum(k, 1)))
+        return (md if name == "mdev" else tau * md / math.sqrt(3.0)), k
+    if name == "totdev":
+        s, k = _tot_sumsq(rec, m)
+        return np.sqrt(s / (2.0 * tau * tau * np.maximum(k, 1))), k
+    if name in ("mtotdev", "ttotdev"):
+        if ("mtot", m) not in cache:
+            cnt = rec.n - 3 * m + 1
+            ok = rec.span_ok(0, cnt, 3 * m - 1) if cnt > 0 else None
+            cache[("mtot", m)] = _reflected_sumsq(rec.x, m, ok)
+        s, k = cache[("mtot", m)]
+        v = np.sqrt(s / (m * m * 6.0 * m * 2.0 * tau * tau * np.maximum(k, 1)))
+        return (v if name == "mtotdev" else tau * v / math.sqrt(3.0)), k
+    if name == "htotdev":
+        if m == 1:
+            return _one(rec, "ohdev", 1, cache)
+        if "freq" not in cache:
+            cache["freq"] = rec.frequency()
+        y, bp = cache["freq"]
+        cnt = y.shape[1] - 3 * m + 1
+        ok = None
+        if bp is not None and cnt > 0:
+            ok = bp[:, 3 * m : 3 * m + cnt] == bp[:, :cnt]
+        s, k = _reflected_sumsq(y, m, ok)
+        return np.sqrt(s / (m * m * 36.0 * m * np.maximum(k, 1))), k
+    if name == "theo1":
+        s, k = _theo1_sumsq(rec, m)
+        cnt = k // max(m // 2, 1)
+        return np.sqrt(s / (0.75 * np.maximum(cnt, 1) * tau * tau)), k
+    if name == "mtie":
+        return _mtie(rec, m)
+    if name == "tierms":
+        s, k = _diff_sumsq(rec, m, (-1.0, 1.0), 1)
+        return np.sqrt(s / np.maximum(k, 1)), k
+    raise ValueError(f"unknown estimator {name!r}; choose from {', '.join(ESTIMATORS)}")
+
+
+def stability(
+    data: ArrayLike,
+    rate: float,
+    estimators: tuple[str, ...] | list[str] = ("adev", "oadev", "mdev", "totdev"),
+    taus: str | ArrayLike = "octave",
+    data_type: str = "freq",
+    theoh_split: float = 0.1,
+) -> StabilityResult:
+    """Frequency-stability deviations of every channel of a record.
+
+    Parameters
+    ----------
+    data : array_like (N,) or (N, C)
+        Frequency (rate, specific force, fractional frequency) or phase (angle, velocity, time error) record,
+        one column per channel, SI; NaN marks a gap.
+    rate : float
+        Sample rate, Hz.
+    estimators : sequence of str
+        Names from :data:`ESTIMATORS`.
+    taus : {"octave", "decade", "all", "log"} or array_like
+        τ grid (:func:`m_grid`); each estimator keeps the m inside its own range.
+    data_type : {"freq", "phase"}
+        What ``data`` holds.
+    theoh_split : float
+        TheoH: fraction of the record length up to which the overlapping ADEV is used.
+
+    Returns
+    -------
+    StabilityResult
+    """
+    bad = [e for e in estimators if e not in ESTIMATORS]
+    if bad:
+        raise ValueError(f"unknown estimator(s) {', '.join(bad)}; choose from {', '.join(ESTIMATORS)}")
+    if not estimators:
+        raise ValueError("no estimator chosen")
+    rec = _Record(data, rate, data_type)
+    if rec.n < 4:
+        raise ValueError(f"record too short: {rec.n} phase points (need at least 4)")
+    grid = m_grid(rec.n, taus, rate)
+    if grid.size == 0:
+        raise ValueError(f"no averaging time of the requested grid fits a record of {rec.n} points at {rate} Hz")
+    c = rec.x.shape[0]
+    out: dict[str, Estimate] = {}
+    cache: dict = {}
+    classic = None
+    if rec.data_type == "freq" and not rec.has_gaps:
+        want = [e for e in ("adev", "oadev", "mdev", "totdev") if e in estimators]
+        if want:
+            from analysis.noise.allan import allan_variances
+
+            ms = grid[grid <= max(_MAX_M[e](rec.n) for e in want)]
+            classic = allan_variances(rec.freq_raw.T, rate, ms / rate, max_m=int(ms.max()) if ms.size else 1)
+    key = {"adev": "avar", "oadev": "oavar", "mdev": "mvar", "totdev": "totvar"}
+    for name in estimators:
+        if name == "theoh":
+            continue
+        ms = grid[grid <= _MAX_M[name](rec.n)]
+        if name == "theo1":
+            ms = ms[ms % 2 == 0]
+        dev = np.full((ms.size, c), np.nan)
+        nt = np.zeros((ms.size, c), dtype=np.int64)
+        for j, m in enumerate(ms):
+            m = int(m)
+            if classic is not None and name in key and m in set(classic.m.tolist()):
+                jj = int(np.searchsorted(classic.m, m))
+                dev[j] = np.sqrt(classic.var[key[name]][jj])
+                nt[j] = classic.n_terms[key[name]][jj]
+                if name == "adev":  # allantools counts ⌈(N−2m)/m⌉ terms (allan.py: K−1 with K = ⌊N_f/m⌋)
+                    nt[j] = classic.n_terms["avar"][jj]
+                continue
+            dev[j], nt[j] = _one(rec, name, m, cache)
+        dev[nt <= 1] = np.nan
+        out[name] = Estimate(ms * rec.ts, ms, dev, nt)
+    if "theoh" in estimators:
+        out["theoh"] = _theoh(rec, grid, out, cache, theoh_split)
+    return StabilityResult(float(rate), data_type, rec.n, out, rec.gap_samples, rec.gap_runs)
+
+
+def _theoh(rec: _Record, grid: NDArray[np.int64], done: dict, cache: dict, split: float) -> Estimate:
+    """TheoH: overlapping ADEV for τ ≤ split·T, Theo1 at its effective τ = 0.75 m τ₀ beyond (no bias removal)."""
+    t_rec = (rec.n - 1) * rec.ts
+    m_split = max(1, int(math.floor(split * t_rec / rec.ts)))
+    ms_a = grid[grid <= min(m_split, _MAX_M["oadev"](rec.n))]
+    c = rec.x.shape[0]
+    rows_m, rows_tau, rows_dev, rows_n = [], [], [], []
+    for m in ms_a:
+        d, k = _one(rec, "oadev", int(m), cache)
+        rows_m.append(int(m))
+        rows_tau.append(m * rec.ts)
+        rows_dev.append(d)
+        rows_n.append(k)
+    ms_t = grid[(grid % 2 == 0) & (0.75 * grid > m_split) & (grid <= rec.n - 1)]
+    for m in ms_t:
+        d, k = _one(rec, "theo1", int(m), cache)
+        rows_m.append(int(m))
+        rows_tau.append(0.75 * m * rec.ts)
+        rows_dev.append(d)
+        rows_n.append(k)
+    if not rows_m:
+        return Estimate(np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros((0, c)), np.zeros((0, c), dtype=np.int64))
+    dev = np.array(rows_dev)
+    nt = np.array(rows_n, dtype=np.int64)
+    dev[nt <= 1] = np.nan
+    return Estimate(np.array(rows_tau), np.array(rows_m, dtype=np.int64), dev, nt)
