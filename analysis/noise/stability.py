@@ -103,6 +103,13 @@ class Estimate:
     alpha: NDArray[np.int64] | None = None
     lo: NDArray[np.float64] | None = None
     hi: NDArray[np.float64] | None = None
+    bias: NDArray[np.float64] | None = None
+    """Variance bias factor B for the identified noise (TOTDEV: 1 − a(α)·τ/T, Howe; HTOTDEV: 1 + a(α) for
+    m ≥ 2), as Stable32 applies it; None for estimators reported unbiased."""
+
+    def unbiased(self) -> NDArray[np.float64]:
+        """The deviation divided by √B (Stable32's printed TOTDEV/HTOTDEV); ``dev`` where no bias applies."""
+        return self.dev if self.bias is None else self.dev / np.sqrt(self.bias)
 
 
 @dataclass
@@ -556,6 +563,7 @@ def stability(
     taus: str | ArrayLike = "octave",
     data_type: str = "freq",
     theoh_split: float = 0.1,
+    confidence: float | None = 0.683,
 ) -> StabilityResult:
     """Frequency-stability deviations of every channel of a record.
 
@@ -574,6 +582,9 @@ def stability(
         What ``data`` holds.
     theoh_split : float
         TheoH: fraction of the record length up to which the overlapping ADEV is used.
+    confidence : float or None
+        Two-sided probability of the χ² intervals (default 0.683); None: no noise identification, EDF or
+        intervals (faster).
 
     Returns
     -------
@@ -624,7 +635,83 @@ def stability(
         out[name] = Estimate(ms * rec.ts, ms, dev, nt)
     if "theoh" in estimators:
         out["theoh"] = _theoh(rec, grid, out, cache, theoh_split)
-    return StabilityResult(float(rate), data_type, rec.n, out, rec.gap_samples, rec.gap_runs)
+    res = StabilityResult(float(rate), data_type, rec.n, out, rec.gap_samples, rec.gap_runs)
+    if confidence is not None:
+        if not 0.0 < confidence < 1.0:
+            raise ValueError(f"confidence must be in (0, 1), got {confidence}")
+        res.confidence = float(confidence)
+        _attach_intervals(rec, res)
+    return res
+
+
+_USE_RN = ("mdev", "tdev", "mtotdev", "ttotdev", "htotdev", "theoh", "theo1")
+"""Estimators whose B1 fallback splits phase noise by R(n) (Stable32)."""
+
+_ID_POINTS = 1 << 20
+"""Noise identification uses at most this many decimated points per τ (the lag-1 ACF is then exact to ~1e-3)."""
+
+
+def _id_phase(rec: _Record, ch: int) -> NDArray[np.float64]:
+    """One channel's phase for noise identification: gaps bridged (frequency gaps are zero-filled after the
+    mean is removed; missing phase points are interpolated linearly)."""
+    x = rec.x[ch]
+    if rec.point_ok is not None and not rec.point_ok[ch].all():
+        ok = rec.point_ok[ch]
+        idx = np.arange(x.size)
+        x = np.interp(idx, idx[ok], x[ok])
+    return x
+
+
+def _attach_intervals(rec: _Record, res: StabilityResult) -> None:
+    """Noise type, EDF and χ² interval per estimator, τ and channel (see :mod:`analysis.noise.confidence`)."""
+    from analysis.noise import confidence as ci
+
+    lag1_cache: dict[tuple[int, int, int], int | None] = {}
+    phases: dict[int, NDArray[np.float64]] = {}
+    prev: dict[tuple[str, int], int] = {}
+
+    def alpha_of(name: str, ch: int, m: int, dmax: int, n_terms: int) -> int:
+        if ch not in phases:
+            phases[ch] = _id_phase(rec, ch)
+        x = phases[ch]
+        key = (ch, m, dmax)
+        if key not in lag1_cache:
+            lag1_cache[key] = ci.lag1_alpha(x[: _ID_POINTS * m], m, dmax)
+        a = lag1_cache[key]
+        if a is None:
+            a = ci.b1_alpha(x, m, rec.ts, n_terms, name in _USE_RN)
+        if a is None:
+            a = prev.get((name, ch), 0)
+        a = int(min(2, max(-2, a)))
+        prev[(name, ch)] = a
+        return a
+
+    n = rec.n
+    for name, est in res.estimates.items():
+        if name in ("mtie", "tierms"):
+            continue
+        mcount, c = est.dev.shape
+        alpha = np.zeros((mcount, c), dtype=np.int64)
+        e = np.full((mcount, c), np.nan)
+        dmax = 3 if name in ("hdev", "ohdev", "htotdev") else 2
+        for j, m in enumerate(est.m):
+            m = int(m)
+            kind = name
+            if name == "theoh":
+                kind = "theo1" if est.tau[j] < m * rec.ts * 0.99 else "oadev"
+            m_id = max(1, int(round(0.75 * m))) if kind == "theo1" else m
+            for ch in range(c):
+                if not np.isfinite(est.dev[j, ch]):
+                    continue
+                a = alpha_of(name, ch, m_id, dmax, int(est.n_terms[j, ch]))
+                alpha[j, ch] = a
+                e[j, ch] = ci.edf(kind, a, m, n)
+        est.alpha = alpha
+        est.edf = e
+        if name in ("totdev", "htotdev"):
+            t_rec = (n - 1) * rec.ts
+            est.bias = ci.bias_factor(name, alpha, est.m, est.tau, t_rec)
+        est.lo, est.hi = ci.chi2_interval(est.unbiased(), e, res.confidence)
 
 
 def _theoh(rec: _Record, grid: NDArray[np.int64], done: dict, cache: dict, split: float) -> Estimate:
