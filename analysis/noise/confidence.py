@@ -256,7 +256,10 @@ def edf_avar_simple(n: int, m: int, alpha: int) -> float:
 
 _TOT = {0: (1.50, 0.0), -1: (1.17, 0.22), -2: (0.93, 0.36)}
 _MTOT = {2: (1.90, 2.10), 1: (1.20, 1.40), 0: (1.10, 1.20), -1: (0.85, 0.50), -2: (0.75, 0.31)}
-_HTOT = {2: (0.559, 1.004), 1: (0.868, 1.140), 0: (0.938, 1.696), -1: (2.554, 0.974), -2: (3.149, 1.276)}
+_HTOT = {0: (0.559, 1.004), -1: (0.868, 1.140), -2: (0.938, 1.696), -3: (2.554, 0.974), -4: (3.149, 1.276)}
+"""HTOTVAR EDF = (N/m)/(b₀ + b₁ m/N) for white, flicker, random-walk, flicker-walk, random-run FM (Howe et al.
+2000, Table 1). Stable32's Sr87 intervals confirm this row order (allantoolkit's table labels the same rows
+α = 2 … −2)."""
 
 
 def edf_theo1(n: int, m: int, alpha: int) -> float:
@@ -297,9 +300,9 @@ def edf(estimator: str, alpha: int, m: int, n: int) -> float:
         b, c = _MTOT[max(-2, min(2, a))]
         return b * n / m - c
     if estimator == "htotdev":
-        if m < 16:
-            return edf_greenhall(max(a, -4), 3, m, n, False, False)
-        b0, b1 = _HTOT[max(-2, min(2, a))]
+        if m < 16 or a > 0:  # short τ, and phase noise (no published HTOT fit): the OHDEV EDF
+            return edf_greenhall(max(a, -4), 3, m, n, True, False)
+        b0, b1 = _HTOT[max(-4, a)]
         return (n / m) / (b0 + b1 * m / n)
     if estimator == "theo1":
         return edf_theo1(n, m, max(-2, min(2, a)))
