@@ -766,8 +766,10 @@ def stability(
     return res
 
 
-_USE_RN = ("mdev", "tdev", "mtotdev", "ttotdev", "htotdev", "theoh", "theo1")
-"""Estimators whose B1 fallback splits phase noise by R(n) (Stable32)."""
+_USE_RN = ESTIMATORS
+"""Estimators whose B1 fallback splits phase noise by R(n) = MVAR/AVAR. Stable32 does it only for the modified
+and total estimators and calls every B1 phase-noise result flicker PM for the others; that misreads white PM
+at long τ (coverage test) — the split costs one MVAR per τ and is used for all."""
 
 _ID_POINTS = 1 << 20
 """Noise identification uses at most this many decimated points per τ (the lag-1 ACF is then exact to ~1e-3)."""
