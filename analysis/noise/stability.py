@@ -29,14 +29,19 @@ tierms     rms of x_{i+m} − x_i                                               
 Frequency input is integrated to phase as allantools does (mean removed, x_0 = 0, x_j = x_{j−1} + y_j τ₀);
 phase input for ``htotdev`` is differenced to frequency.
 
-Speed. Every estimator except the total family and Theo1 costs O(N) per τ (chunked second/third
-differences, a cumulative sum for the modified variances, an O(N) running max/min filter for MTIE). The
-classic ADEV/OADEV/MDEV/TOTDEV of gap-free frequency records use :func:`analysis.noise.allan.allan_variances`
-(one chunked pass per τ with analytic ramp handling). MTOTDEV/HTOTDEV evaluate each subsequence's reflected
-sums in closed form from prefix sums of the record (no 9m-point windows are materialised; the even
-reflection makes the 6m terms one period of a circular filter, so only half of them are evaluated) and
-Theo1 evaluates its m/2 lag terms as whole-record vector operations: O(N·m) per τ, vectorised over
-channels and subsequences (not yet the O(N log N) closed form — see the module's report).
+Speed. Every estimator costs O(N) or O(N log N) per τ, all channels at once. ADEV/OADEV/HDEV/OHDEV/TIE rms:
+chunked differences; MDEV/TDEV: a cumulative sum of the second differences; MTIE: an O(N) running max/min
+filter; the classic ADEV/OADEV/MDEV/TOTDEV of gap-free frequency records go through
+:func:`analysis.noise.allan.allan_variances` (one chunked pass per τ, analytic ramp handling).
+MTOTDEV/TTOTDEV/HTOTDEV: the even reflection makes each subsequence's 6m terms one period of a circular
+filter, i.e. a quadratic form zᵀQz with Q Toeplitz + Hankel; summed over subsequences it reduces to the
+record's autocorrelation and FFT correlations of the 3m − 1 end samples (:func:`_reflected_sumsq_fft`,
+O(N log N) per τ). Theo1: FFT convolutions plus two anti-diagonal triangle sums by divide and conquer
+(:func:`_theo1_sumsq_fft`, O(N log N + m log² m)). Both closed forms expand squares into products, so they are
+used only where their rounding estimate is below 1e-9 of the variance (and for m ≥ 8 / 64); otherwise, and
+with gaps, the exact direct sums (O(N·m) per τ, vectorised) are used. Memory: the classic path about twice the
+record; the FFT forms hold a few complex spectra of twice the record length (measured in
+benchmarks/bench_noise.py).
 
 Gaps. NaN samples are gaps. A term is skipped when it touches a gap: for phase input (allantools'
 gap-robust ``gradev`` convention) the phase points a point-estimator uses (ADEV, OADEV, HDEV, OHDEV, TIE rms)
