@@ -42,6 +42,12 @@ M_PER_S_PER_SQRT_HOUR: float = 1.0 / math.sqrt(HOUR)
 CELSIUS_ZERO: float = 273.15
 """0 °C in kelvin."""
 
+FOOT: float = 0.3048
+"""One international foot, m (KVH velocity increments in ft/s)."""
+
+GAUSS: float = 1e-4
+"""One gauss, T (magnetometer outputs)."""
+
 # Display unit of each quantity kind: (unit label, SI value of one display unit).
 DISPLAY_UNITS: dict[str, tuple[str, float]] = {
     "bias": ("µg", UG),

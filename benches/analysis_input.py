@@ -177,6 +177,7 @@ def _load_recording(
             start, stop = int(row["start_sample"]), int(row["end_sample"])
         accel = fh["imu/accel"][start:stop]
         gyro = fh["imu/gyro"][start:stop]
+        status = fh["imu/status"][start:stop] if "status" in fh["imu"] else np.zeros(0, np.uint16)
     channels = {
         "accel_x": accel[:, 0],
         "accel_y": accel[:, 1],
@@ -187,6 +188,13 @@ def _load_recording(
     }
     channels = {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in channels.items()}
     sel = _select(channels, wanted, source)
+    mask = sum(1 << RECORDING_CHANNELS.index(s) for s in sel)  # status bit i = channel i invalid
+    flagged = np.flatnonzero(status & mask)
+    if flagged.size:
+        raise InputError(
+            f"{source}: {flagged.size} sample(s) of {', '.join(sel)} flagged invalid by the unit's status, first at "
+            f"sample {start + int(flagged[0])}; analyse a clean step with --step NAME"
+        )
     data = np.stack([channels[s] for s in sel], axis=1) if sel else np.zeros((0, 0))
     _finite_columns(data, sel, source, allow_gaps)
     return AnalysisInput(source, file_rate, {s: channels[s] for s in sel}, {s: CHANNEL_UNITS[s] for s in sel})

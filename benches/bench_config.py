@@ -42,6 +42,15 @@ from core.yaml_source import (
     load_yaml_text,
 )
 from drivers.imu_counts import CountScale
+from drivers.imu_frame_desc import (
+    DEFAULT_FRAME,
+    FrameDescription,
+    FrameFormat,
+    compile_format,
+    frame_path,
+    load_frame,
+    shipped_frames,
+)
 from drivers.protocols import AXIS_NAMES, AxisLimits, FaultCode
 from drivers.sim.config import (
     ACCEL_PARAM_NAMES,
@@ -67,6 +76,7 @@ __all__ = [
     "load_bench",
     "load_bench_text",
     "PARAM_GROUPS",
+    "unit_frame_format",
 ]
 
 # parameter groups of the 18-parameter model: YAML key stem, unit suffix, SI per display unit, names
@@ -152,6 +162,10 @@ class UnitSpec:
     noise: NoiseSpec
     prior: dict[str, float] = field(default_factory=dict)
     latency: float = 0.0  # s: output latency (anti-alias group delay) from the datasheet
+    frame: str = "tablebench-v1"  # frame format: shipped name or description path (drivers/frames/README.md)
+    frame_options: dict[str, Any] = field(default_factory=dict)  # the unit's output configuration
+    frame_desc: FrameDescription | None = None
+    keep_raw: bool = False  # keep the raw serial stream as RUN_DIR/unit-raw.bin
 
 
 @dataclass(frozen=True)
@@ -371,21 +385,34 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
             "mounting",
             "noise",
             "prior",
+            "frame",
+            "frame_options",
+            "keep_raw",
         ],
     )
     driver = get_str(d, smap, p, "driver", choices=["sim", "serial"])
     address = _opt_str(d, smap, p, "address")
     if driver == "serial" and not address:
         raise smap.error(p + ("address",), "is required for driver 'serial' (e.g. '/dev/ttyUSB0')")
-    sc = _section(d, smap, p, "scale")
-    assert sc is not None
-    sp = p + ("scale",)
-    check_keys(sc, smap, sp, ["accel_ug_per_count", "gyro_dph_per_count", "temperature_c_per_count"])
-    scale = CountScale(
-        accel_lsb=get_number(sc, smap, sp, "accel_ug_per_count", minimum=0, exclusive_minimum=True) * UG,
-        gyro_lsb=get_number(sc, smap, sp, "gyro_dph_per_count", minimum=0, exclusive_minimum=True) * DEG_PER_HOUR,
-        temperature_lsb=get_number(sc, smap, sp, "temperature_c_per_count", 0.01, minimum=0, exclusive_minimum=True),
-    )
+    frame = get_str(d, smap, p, "frame", DEFAULT_FRAME)
+    sc = _section(d, smap, p, "scale", required=frame == DEFAULT_FRAME)
+    if sc is None:  # another frame format carries its own scale; the simulator's internal counts are fine
+        scale = CountScale(accel_lsb=0.01 * UG, gyro_lsb=1e-4 * DEG_PER_HOUR, temperature_lsb=0.01)
+    else:
+        sp = p + ("scale",)
+        check_keys(sc, smap, sp, ["accel_ug_per_count", "gyro_dph_per_count", "temperature_c_per_count"])
+        scale = CountScale(
+            accel_lsb=get_number(sc, smap, sp, "accel_ug_per_count", minimum=0, exclusive_minimum=True) * UG,
+            gyro_lsb=get_number(sc, smap, sp, "gyro_dph_per_count", minimum=0, exclusive_minimum=True) * DEG_PER_HOUR,
+            temperature_lsb=get_number(
+                sc, smap, sp, "temperature_c_per_count", 0.01, minimum=0, exclusive_minimum=True
+            ),
+        )
+    sample_rate = get_number(d, smap, p, "sample_rate_hz", minimum=1, maximum=100_000)
+    frame_desc, frame_options = _unit_frame(d, smap, p, frame, sample_rate)
+    keep_raw = d.get("keep_raw", False)
+    if not isinstance(keep_raw, bool):
+        raise smap.error(p + ("keep_raw",), f"expected true or false, got {keep_raw!r}")
     mount = np.asarray(_matrix(d, smap, p, "mounting", 1.0, ((1.0, 0, 0), (0, 1.0, 0), (0, 0, 1.0))), dtype=float)
     if not np.allclose(mount.T @ mount, np.eye(3), atol=1e-6) or np.linalg.det(mount) < 0:
         raise smap.error(p + ("mounting",), "must be a proper rotation matrix C_b^t (orthonormal rows, det +1)")
@@ -410,13 +437,62 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
         baudrate=_int(d, smap, p, "baudrate", 921600, 300, 20_000_000),
         model=str(d.get("model") or ""),
         serial_number=str(d.get("serial_number") or ""),
-        sample_rate=get_number(d, smap, p, "sample_rate_hz", minimum=1, maximum=100_000),
+        sample_rate=sample_rate,
         scale=scale,
         mounting=mount,
         noise=noise,
         prior=prior,
         latency=get_number(d, smap, p, "latency_ms", 0.0, minimum=0.0, maximum=1000.0) * 1e-3,
+        frame=frame,
+        frame_options=frame_options,
+        frame_desc=frame_desc,
+        keep_raw=keep_raw,
     )
+
+
+def _unit_frame(
+    d: dict, smap: SourceMap, p: KeyPath, frame: str, rate: float
+) -> tuple[FrameDescription | None, dict[str, Any]]:
+    """Load ``unit.frame`` (shipped name or path relative to the bench file) and check ``unit.frame_options``."""
+    od = _section(d, smap, p, "frame_options", required=False) or {}
+    opts = {k: (str(int(v)) if isinstance(v, float) and v.is_integer() else v) for k, v in od.items()}
+    opts = {k: (str(v) if isinstance(v, int) and not isinstance(v, bool) else v) for k, v in opts.items()}
+    bench_file = Path(smap.file)
+    try:
+        path = frame_path(frame, bench_file.parent)
+    except KeyError:
+        raise smap.error(
+            p + ("frame",), f"unknown frame format {frame!r}; shipped: {', '.join(shipped_frames())}, or a .yaml path"
+        ) from None
+    if not path.exists():
+        if not bench_file.exists():  # a bench text kept in a recording: the description may live elsewhere
+            return None, opts
+        raise smap.error(p + ("frame",), f"frame description {str(path)!r} not found")
+    desc = load_frame(str(path))
+    if frame == DEFAULT_FRAME and od:
+        raise smap.error(p + ("frame_options",), "the tablebench-v1 frame takes its scale from unit.scale")
+    if frame != DEFAULT_FRAME:
+        try:
+            compile_format(desc, opts, rate, where="frame_options")
+        except ValueError as exc:
+            raise smap.error(p + ("frame_options",), str(exc).removeprefix("frame_options: ")) from None
+    return desc, opts
+
+
+def unit_frame_format(unit: UnitSpec) -> FrameFormat:
+    """The unit's compiled frame format (``tablebench-v1`` takes its count scale from ``unit.scale``).
+
+    Raises
+    ------
+    ConfigError
+        The description named by a recorded bench cannot be found any more.
+    """
+    if unit.frame == DEFAULT_FRAME:
+        from drivers.serial_imu import count_format
+
+        return count_format(unit.scale, unit.sample_rate)
+    desc = unit.frame_desc if unit.frame_desc is not None else load_frame(unit.frame)
+    return compile_format(desc, unit.frame_options, unit.sample_rate)
 
 
 def _channel_unit(ch: str, smap: SourceMap, p: KeyPath, d: dict, stem: str) -> tuple[str, float]:

@@ -18,6 +18,11 @@ Transports:
     ``turntable.driver`` "modbus-tcp" (address ``host:port``, default port 502) or "ascii-serial" (a pyserial
     URL or device, e.g. ``/dev/ttyS0`` or ``socket://host:9888``); ``unit.driver`` "serial" (device/URL at
     ``unit.baudrate``, free-running stream). The factory opens the clients; the drivers never do.
+
+The unit's frame format is ``unit.frame`` with ``unit.frame_options`` (:func:`benches.bench_config.unit_frame_format`):
+the serial driver decodes it on hardware and on loopback, where the simulated unit speaks it. With
+``unit.keep_raw`` and a ``run_folder``, every byte read from the unit is kept in ``RUN_FOLDER/unit-raw.bin``
+(appended on resume); the in-process transport has no byte stream, so nothing is kept there.
 """
 
 from __future__ import annotations
@@ -71,7 +76,26 @@ def _bad(config: Any, message: str) -> ConfigError:
     return ConfigError(getattr(config, "path", "<bench>"), None, message)
 
 
-def open_bench(config: Any, *, seed: int | None = None, transport: str | None = None) -> Bench:
+RAW_FILE = "unit-raw.bin"
+
+
+def _raw_sink(config: Any, run_folder: Any, closers: list[Any]) -> tuple[Any, str]:
+    """The open raw-stream file when the bench keeps it (``unit.keep_raw``) and a run folder is given."""
+    if run_folder is None or not getattr(config.unit, "keep_raw", False):
+        return None, ""
+    from pathlib import Path
+
+    path = Path(run_folder) / RAW_FILE
+    try:
+        fh = open(path, "ab")  # noqa: SIM115 - closed by the bench
+    except OSError as exc:
+        raise _bad(config, f"unit.keep_raw: cannot write {path} ({exc.strerror})") from None
+    closers.append(fh.close)
+    start = fh.seek(0, 2)  # a resumed run appends: say where this session's bytes begin
+    return fh, RAW_FILE if start == 0 else f"{RAW_FILE} (this session from byte {start})"
+
+
+def open_bench(config: Any, *, seed: int | None = None, transport: str | None = None, run_folder: Any = None) -> Bench:
     """Open the bench described by ``config`` (a ``benches.bench_config.BenchConfig``).
 
     Parameters
@@ -81,6 +105,8 @@ def open_bench(config: Any, *, seed: int | None = None, transport: str | None = 
         Simulated benches: seed of the world (None: the bench's default seed).
     transport : {"in-process", "loopback", "hardware"} or None
         None: the simulation section's ``transport`` for simulated benches, "hardware" for real ones.
+    run_folder : path or None
+        The run folder, where ``unit-raw.bin`` is kept when the bench says ``unit.keep_raw: true``.
 
     Raises
     ------
@@ -96,16 +122,16 @@ def open_bench(config: Any, *, seed: int | None = None, transport: str | None = 
         transport = transport or getattr(sim, "transport", "in-process")
         if transport == "hardware":
             raise _bad(config, "this is a simulated bench; transport must be 'in-process' or 'loopback'")
-        return _open_simulated(config, seed, transport)
+        return _open_simulated(config, seed, transport, run_folder)
     transport = transport or "hardware"
     if transport != "hardware":
         raise _bad(
             config, f"bench {config.name!r} is a real bench (no simulation section): transport must be 'hardware'"
         )
-    return _open_hardware(config)
+    return _open_hardware(config, run_folder)
 
 
-def _open_simulated(config: Any, seed: int | None, transport: str) -> Bench:
+def _open_simulated(config: Any, seed: int | None, transport: str, run_folder: Any = None) -> Bench:
     from drivers.sim.world import SimulatedWorld
 
     world = SimulatedWorld.from_bench(config, seed)
@@ -118,7 +144,8 @@ def _open_simulated(config: Any, seed: int | None, transport: str) -> Bench:
             unit,
             world,
             "in-process",
-            f"{config.name}: simulated bench, in-process drivers",
+            f"{config.name}: simulated bench, in-process drivers (no byte stream: unit.frame "
+            f"{getattr(config.unit, 'frame', 'tablebench-v1')} and unit.keep_raw apply over loopback)",
             [table.close, unit.close],
         )
     from drivers.sim.loopback import Loopback
@@ -126,14 +153,31 @@ def _open_simulated(config: Any, seed: int | None, transport: str) -> Bench:
     tt = config.turntable
     dialect = "ascii" if getattr(tt, "driver", "sim") == "ascii-serial" else "modbus"
     wd = getattr(tt, "watchdog", None)
-    lb = Loopback(
-        world,
-        dialect=dialect,
-        word_order=getattr(tt, "float_word_order", "big") or "big",
-        watchdog_s=max(float(wd), LOOPBACK_MIN_WATCHDOG_S) if wd else None,
-    )
+    from benches.bench_config import unit_frame_format
+
+    closers: list[Any] = []
+    raw, raw_name = _raw_sink(config, run_folder, closers)
+    try:
+        lb = Loopback(
+            world,
+            dialect=dialect,
+            word_order=getattr(tt, "float_word_order", "big") or "big",
+            watchdog_s=max(float(wd), LOOPBACK_MIN_WATCHDOG_S) if wd else None,
+            unit_frame=unit_frame_format(config.unit),
+            unit_raw=raw,
+            unit_raw_name=raw_name,
+        )
+    except BaseException:
+        for fn in closers:
+            fn()
+        raise
     return Bench(
-        lb.turntable, lb.unit, world, "loopback", f"{config.name}: simulated bench, {lb.describe()}", [lb.close]
+        lb.turntable,
+        lb.unit,
+        world,
+        "loopback",
+        f"{config.name}: simulated bench, {lb.describe()}",
+        [*closers, lb.close],
     )
 
 
@@ -150,7 +194,7 @@ def _host_port(config: Any, address: str | None, default_port: int) -> tuple[str
     return host, p
 
 
-def _open_hardware(config: Any) -> Bench:
+def _open_hardware(config: Any, run_folder: Any = None) -> Bench:
     import serial
 
     closers: list[Any] = []
@@ -194,8 +238,11 @@ def _open_hardware(config: Any) -> Bench:
             raise _bad(config, f"unit.driver {un.driver!r} needs a simulation section; a real unit uses 'serial'")
         if not un.address:
             raise _bad(config, "unit.address is required for a serial unit (e.g. '/dev/ttyUSB0')")
+        from benches.bench_config import unit_frame_format
         from drivers.serial_imu import SerialInertialUnit
 
+        fmt = unit_frame_format(un)
+        raw, raw_name = _raw_sink(config, run_folder, closers)
         try:
             uport = serial.serial_for_url(
                 un.address, baudrate=int(getattr(un, "baudrate", 921600) or 921600), timeout=0.02
@@ -203,9 +250,13 @@ def _open_hardware(config: Any) -> Bench:
         except (serial.SerialException, ValueError) as exc:
             raise LinkError(f"unit: cannot open {un.address!r}: {exc}") from exc
         closers.append(uport.close)
-        unit = SerialInertialUnit(uport, un.scale, un.sample_rate, timeout=DEFAULT_TIMEOUT_S, polled=False)
+        unit = SerialInertialUnit(
+            uport, fmt, un.sample_rate, timeout=DEFAULT_TIMEOUT_S, polled=False, raw_sink=raw, raw_name=raw_name
+        )
         closers.append(unit.close)
-        bench = Bench(table, unit, None, "hardware", f"{config.name}: table {where}, unit on {un.address}", closers)
+        bench = Bench(
+            table, unit, None, "hardware", f"{config.name}: table {where}, unit ({fmt.name}) on {un.address}", closers
+        )
         bench_ok = True
         return bench
     finally:

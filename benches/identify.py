@@ -260,6 +260,11 @@ def _sha256_file(path: Path) -> str:
     return h.hexdigest()
 
 
+ACCEL_INVALID = 0b111
+"""``/imu/status`` bits of the accelerometer channels (bit set = sample invalid, drivers.imu_frame_desc.FLAG_BITS):
+flagged samples are left out of the identification, never silently used."""
+
+
 def load_run(run: str | Path) -> RecordedRun:
     """Read a recording's acquisition windows and reference; clear errors for unusable recordings."""
     from benches.bench_config import load_bench_text
@@ -301,6 +306,11 @@ def load_run(run: str | Path) -> RecordedRun:
                 continue
             t = f["imu/time"][s.acq_start : s.acq_end]
             fo = f["imu/accel"][s.acq_start : s.acq_end]
+            valid = (f["imu/status"][s.acq_start : s.acq_end] & ACCEL_INVALID) == 0  # flagged by the unit
+            if not valid.all():
+                t, fo = t[valid], fo[valid]
+                if t.size == 0:
+                    continue
             ang, rat = interpolate_table(t - latency, table_t, table_a, table_r)
             fr, om = reference_at(ang, rat, config.site.g, config.unit.mounting)
             windows.append(StepWindow(s.name, s.kind, t, fo, fr, om))

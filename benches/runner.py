@@ -193,9 +193,12 @@ class Runner:
         if self._recording:
             self.rec.add_samples(block)
             self.rec.add_table(state)
-            if block.dropped or block.rejected:
+            t_ev = float(block.time[-1]) if len(block) else state.time
+            for msg in block.events:  # the driver's link events (format, gaps, resets, duplicates, rejects)
+                self.rec.event(t_ev, "warning" if "(s)" in msg else "info", f"{msg} (step {step.name})")
+            if (block.dropped or block.rejected) and not block.events:
                 self.rec.event(
-                    float(block.time[-1]) if len(block) else state.time,
+                    t_ev,
                     "warning",
                     f"unit link: {block.dropped} frame(s) dropped, {block.rejected} rejected in step {step.name}",
                 )

@@ -138,7 +138,7 @@ def execute(
             replay = done_idx
         else:
             steps = [s for s in steps if s.index not in set(done_idx)]
-    bench = open_bench(config, seed=seed, transport=transport)
+    bench = open_bench(config, seed=seed, transport=transport, run_folder=folder)
     try:
         world = getattr(bench, "world", None)
         if resume:

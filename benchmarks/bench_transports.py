@@ -30,7 +30,9 @@ import numpy as np
 from benches.bench_config import load_bench
 from benches.factory import open_bench
 from benchmarks._results import write_section
-from drivers.imu_frame import FrameDecoder, encode_frames
+from drivers.imu_frame import FrameDecoder
+from drivers.imu_frame_desc import load_frame
+from drivers.sim.serial_unit import encode_frames
 
 BENCH = Path(__file__).resolve().parents[1] / "benches" / "sim.yaml"
 BLOCK = 200  # samples per block (0.2 s at 1 kHz, the runner's default)
@@ -80,7 +82,7 @@ def codec_speed(world, seconds: float) -> tuple[float, float, float]:
     t0 = time.perf_counter()
     data = encode_frames(frames)
     t_enc = time.perf_counter() - t0
-    dec = FrameDecoder()
+    dec = FrameDecoder(load_frame("tablebench-v1"))
     chunk = 64 * 1024
     t0 = time.perf_counter()
     got = 0

@@ -14,6 +14,7 @@ from pathlib import Path
 BENCHMARKS = (
     "bench_simulation",
     "bench_transports",
+    "bench_frames",
     "bench_procedure",
     "bench_identification",
     "bench_calibration",

@@ -1,9 +1,11 @@
-"""Raw inertial-unit output (integer counts, as on the wire) and its conversion to SI.
+"""Raw inertial-unit output of the simulated unit (integer counts) and its conversion to SI; counter checks.
 
-The simulated unit produces :class:`RawFrames`; the serial frame codec encodes and decodes exactly these;
-the in-process simulated unit and the serial driver both convert them to an SI
-:class:`~drivers.protocols.ImuBlock` with :func:`frames_to_block` and the unit's :class:`CountScale`, so
-both paths give identical samples.
+The simulated unit produces :class:`RawFrames` (counts in the bench's :class:`CountScale`); the in-process
+driver converts them to an SI :class:`~drivers.protocols.ImuBlock` with :func:`frames_to_block`, and the
+simulated serial unit puts them on the wire in the project's frame ``tablebench-v1`` unchanged (so both paths
+give identical samples) or re-quantised to another described format (:mod:`drivers.sim.serial_unit`).
+
+:class:`CounterTracker` judges a wrapping frame counter: gaps, resets and duplicates counted separately.
 """
 
 from __future__ import annotations
@@ -101,14 +103,104 @@ def frames_to_block(frames: RawFrames, scale: CountScale, dropped: int = 0, reje
     )
 
 
+@dataclass
+class CounterCheck:
+    """What :meth:`CounterTracker.update` found in one run of frames.
+
+    Attributes
+    ----------
+    keep : (n,) bool — False for duplicates (a frame repeating the previous counter), which are dropped.
+    index : (n,) int64 — sample index of each frame, unwrapped from the counter: a gap advances it by the
+        missing frames; a reset (the counter jumping back, or an advance that is not a whole number of steps)
+        advances it by one (the unit restarted: the time lost is unknown).
+    gaps : int — frames missing (sum over forward jumps of jump/step − 1).
+    resets : int — backward jumps / irregular steps.
+    duplicates : int — frames repeating the previous counter.
+    """
+
+    keep: NDArray[np.bool_]
+    index: NDArray[np.int64]
+    gaps: int = 0
+    resets: int = 0
+    duplicates: int = 0
+
+
+class CounterTracker:
+    """Judge a wrapping frame counter across feeds: gaps, resets and duplicates counted separately.
+
+    A counter advancing by ``d`` (mod ``modulus``) from the previous frame is: a duplicate if d = 0; a
+    forward step of d/step samples (d/step − 1 missing) if 0 < d ≤ modulus/2 and d is a multiple of
+    ``step``; otherwise a reset (the counter jumped back — a unit restart — or moved irregularly). With a
+    128-value counter (KVH) a gap of more than 63 frames is indistinguishable from a reset; with a 32-bit one
+    a restart at 0 is a reset, never 4.29e9 missing frames.
+
+    Parameters
+    ----------
+    modulus : int
+        Counter period (2³² for a uint32 counter, 128 for KVH, 256 for STIM300); 0: no counter.
+    step : int
+        Counter advance per sample (STIM300: 2000 Hz / sample rate).
+    start_index : int or None
+        Sample index of the first frame (None: counter // step).
+    """
+
+    def __init__(self, modulus: int, step: int = 1, start_index: int | None = None) -> None:
+        self.modulus = int(modulus)
+        self.step = int(step)
+        self.start_index = start_index
+        self.last_raw: int | None = None
+        self.last_index: int | None = None
+        self.gaps = 0
+        self.resets = 0
+        self.duplicates = 0
+
+    def update_uncounted(self, n: int) -> CounterCheck:
+        """A frame format without a counter: consecutive indices, nothing detectable."""
+        first = (self.last_index + 1) if self.last_index is not None else int(self.start_index or 0)
+        idx = np.arange(first, first + n, dtype=np.int64)
+        if n:
+            self.last_index = int(idx[-1])
+        return CounterCheck(np.ones(n, dtype=bool), idx)
+
+    def update(self, counter: NDArray[np.integer]) -> CounterCheck:
+        """Classify the steps of ``counter`` (raw, in stream order), continuing from the previous call."""
+        c = np.asarray(counter, dtype=np.int64)
+        n = c.size
+        if n == 0:
+            return CounterCheck(np.zeros(0, bool), np.zeros(0, np.int64))
+        m, step = self.modulus, self.step
+        if self.last_raw is None:
+            first = self.start_index if self.start_index is not None else int(c[0]) // step
+            prev = np.concatenate([[c[0]], c[:-1]])
+            base = int(first)
+        else:
+            prev = np.concatenate([[self.last_raw], c[:-1]])
+            base = int(self.last_index)  # type: ignore[arg-type]
+        d = (c - prev) % m
+        dup = d == 0
+        fwd = (d > 0) & (d <= m // 2) & (d % step == 0)
+        reset = ~dup & ~fwd
+        if self.last_raw is None:
+            dup[0], fwd[0], reset[0] = False, False, False
+        inc = np.where(fwd, d // step, np.where(reset, 1, 0))
+        index = base + np.cumsum(inc)
+        gaps = int(np.sum(d[fwd] // step - 1))
+        resets = int(reset.sum())
+        dups = int(dup.sum())
+        self.last_raw = int(c[-1])
+        self.last_index = int(index[-1])
+        self.gaps += gaps
+        self.resets += resets
+        self.duplicates += dups
+        return CounterCheck(~dup, index, gaps, resets, dups)
+
+
 def counter_gaps(previous: int | None, counter: NDArray[np.uint32]) -> int:
-    """Frames missing according to the counter (mod 2³²), including the gap after ``previous``."""
+    """Frames missing according to a 32-bit counter, including the gap after ``previous`` (resets excluded:
+    a counter jumping back is a unit restart, not 4.29e9 missing frames; see :class:`CounterTracker`)."""
     if counter.size == 0:
         return 0
-    c = counter.astype(np.int64)
-    steps = np.diff(c) % (1 << 32)
-    missing = int(np.sum(steps[steps > 0] - 1))
+    t = CounterTracker(1 << 32, 1)
     if previous is not None:
-        first = (int(c[0]) - int(previous)) % (1 << 32)
-        missing += max(first - 1, 0)
-    return missing
+        t.last_raw, t.last_index = int(previous), 0
+    return t.update(counter).gaps

@@ -155,11 +155,18 @@ class ImuBlock:
     temperature : ndarray (n,) float64
         Unit temperature, K.
     status : ndarray (n,) uint16
-        The unit's status word per sample.
+        Per-sample flags, bit set = invalid: bits 0–2 accel x/y/z, 3–5 gyro x/y/z, 6 temperature, 7 a
+        unit-level problem (``drivers.imu_frame_desc.FLAG_BITS``); 0 = every channel valid.
     dropped : int
         Frames missing in this block (from counter gaps, including the gap from the previous block).
     rejected : int
         Frames rejected in this block (bad CRC, bad sync/length).
+    resets : int
+        Counter resets in this block (the counter jumped back: a unit restart), never counted as drops.
+    duplicates : int
+        Frames repeating the previous counter in this block (dropped, never used twice).
+    events : list of str
+        Link events the driver wants in the recording's event log.
     """
 
     counter: NDArray[np.uint32]
@@ -171,6 +178,8 @@ class ImuBlock:
     dropped: int = 0
     rejected: int = 0
     events: list[str] = field(default_factory=list)
+    resets: int = 0
+    duplicates: int = 0
 
     def __len__(self) -> int:
         return int(self.time.shape[0])

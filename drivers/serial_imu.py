@@ -1,14 +1,16 @@
-"""Inertial-unit driver for the binary serial frame stream (:mod:`drivers.imu_frame`).
+"""Inertial-unit driver for a binary serial frame stream in any described format (:mod:`drivers.imu_frame`).
 
 :class:`SerialInertialUnit` implements :class:`drivers.protocols.InertialUnit` over any pyserial-like port
 (``serial.Serial`` for a real RS-232/RS-422/USB line, ``serial.serial_for_url("socket://127.0.0.1:PORT")``
-for the simulated unit on loopback). The driver never opens or closes the port; it sets the port's read
-``timeout`` to a short poll interval.
+for the simulated unit on loopback). The frame format is a compiled description
+(:class:`~drivers.imu_frame_desc.FrameFormat`: the project's ``tablebench-v1``, KVH 1750/1775 A/B/C, STIM300
+datagrams, or a user's own). The driver never opens or closes the port; it sets the port's read ``timeout``
+to a short poll interval.
 
 Two modes:
 
 free-running (``polled=False``)
-    The unit streams frames at its sample rate; ``read(n)`` returns the next n decoded frames, keeping any
+    The unit streams frames at its sample rate; ``read(n)`` returns the next n decoded samples, keeping any
     surplus for the next call.
 polled burst (``polled=True``)
     ``read(n)`` sends ``BURST n`` (ASCII, CR-LF) and the unit answers with exactly the frames of the next n
@@ -17,25 +19,85 @@ polled burst (``polled=True``)
 
 A read is bounded in time: if no byte arrives for ``timeout`` seconds, or the connection is lost, a
 :class:`~drivers.protocols.LinkError` is raised. In polled mode a burst is complete when the frame with the
-expected last counter arrives, or when the line has been idle for ``burst_idle_s`` after data (the tail of
-the burst was lost: the missing frames show up as dropped). Rejected (bad CRC) and dropped (counter gap)
-frames are counted per block (``ImuBlock.rejected`` / ``dropped``), in totals, and logged.
+expected last sample index arrives, or when the line has been idle for ``burst_idle_s`` after data (the tail
+of the burst was lost: the missing frames show up as dropped).
+
+Link accounting per block (``ImuBlock``): ``rejected`` (checksum failures), ``dropped`` (counter gaps),
+``resets`` (counter jumped back) and ``duplicates`` (repeated counter; dropped) are counted separately, in
+totals, logged, and put in ``block.events`` for the recording. The first block's events also say which
+format and unit configuration were used and what was converted (increments → rates). With ``raw_sink``
+every byte read from the port is written there first, so a decoding mistake can be corrected later by
+re-decoding the raw stream (``tablebench decode``).
 """
 
 from __future__ import annotations
 
 import logging
 import time
-from typing import Any
+from typing import Any, BinaryIO
 
-from drivers.imu_counts import CountScale, RawFrames, concat_frames, counter_gaps, empty_frames, frames_to_block
-from drivers.imu_frame import FRAME_SIZE, DecodeStats, FrameDecoder, slice_frames
+import numpy as np
+
+from drivers.imu_counts import CountScale
+from drivers.imu_frame import DecodeStats, FrameDecoder
+from drivers.imu_frame_desc import FrameFormat, compile_format, load_frame
+from drivers.imu_frame_samples import SampleConverter, Samples
 from drivers.protocols import ImuBlock, LinkError
 
 log = logging.getLogger(__name__)
 
 MAX_BURST = 1_000_000
 """Largest frame count one ``BURST`` request may ask for (longer reads send several requests)."""
+
+
+def count_format(scale: CountScale, sample_rate: float) -> FrameFormat:
+    """The project's own frame ``tablebench-v1`` with a count scale (SI per count)."""
+    opts = {"accel_lsb": scale.accel_lsb, "gyro_lsb": scale.gyro_lsb, "temperature_lsb": scale.temperature_lsb}
+    return compile_format(load_frame("tablebench-v1"), opts, sample_rate)
+
+
+def _empty() -> Samples:
+    z = np.zeros(0)
+    return Samples(
+        np.zeros(0, np.int64), np.zeros(0, np.int64), z, np.zeros((0, 3)), np.zeros((0, 3)), z, np.zeros(0, np.uint16)
+    )
+
+
+def _slice(s: Samples, start: int, stop: int | None = None) -> Samples:
+    sl = slice(start, stop)
+    return Samples(
+        s.index[sl],
+        s.counter[sl],
+        s.time[sl],
+        s.accel[sl],
+        s.gyro[sl],
+        s.temperature[sl],
+        s.status[sl],
+        {k: v[sl] for k, v in s.extras.items()},
+    )
+
+
+def concat_samples(parts: list[Samples]) -> Samples:
+    """Concatenate samples in order (counts summed)."""
+    parts = [p for p in parts if len(p) or p.gaps or p.resets or p.duplicates]
+    if not parts:
+        return _empty()
+    if len(parts) == 1:
+        return parts[0]
+    keys = set.intersection(*(set(p.extras) for p in parts)) if all(len(p) for p in parts) else set()
+    return Samples(
+        np.concatenate([p.index for p in parts]),
+        np.concatenate([p.counter for p in parts]),
+        np.concatenate([p.time for p in parts]),
+        np.concatenate([p.accel for p in parts]),
+        np.concatenate([p.gyro for p in parts]),
+        np.concatenate([p.temperature for p in parts]),
+        np.concatenate([p.status for p in parts]),
+        {k: np.concatenate([p.extras[k] for p in parts]) for k in keys},
+        sum(p.gaps for p in parts),
+        sum(p.resets for p in parts),
+        sum(p.duplicates for p in parts),
+    )
 
 
 class SerialInertialUnit:
@@ -45,8 +107,9 @@ class SerialInertialUnit:
     ----------
     port : pyserial-like object
         Already open; needs ``read(n)``, ``write(b)`` and a writable ``timeout`` attribute.
-    scale : CountScale
-        SI value of one count (body frame channels).
+    frame : FrameFormat or CountScale
+        The unit's compiled frame format; a :class:`~drivers.imu_counts.CountScale` means the project's
+        own frame ``tablebench-v1`` with that count scale.
     sample_rate : float
         Nominal sample rate, Hz.
     timeout : float
@@ -54,40 +117,57 @@ class SerialInertialUnit:
     polled : bool
         Use burst requests (see module docstring).
     burst_idle_s : float
-        Polled mode: idle time after data that ends an incomplete burst, s. Long enough that a loaded host
-        never cuts a healthy burst short (which would shift block boundaries), short enough that a lost tail
-        costs little.
+        Polled mode: idle time after data that ends an incomplete burst, s.
     name : str
         For messages.
+    raw_sink : binary file or None
+        Every byte read is written here (the raw stream kept beside the recording).
+    raw_name : str
+        How the events name the raw file.
+    start_index : int or None
+        Sample index of the first frame (None: from its counter).
     """
 
     def __init__(
         self,
         port: Any,
-        scale: CountScale,
+        frame: FrameFormat | CountScale,
         sample_rate: float,
         timeout: float = 2.0,
         *,
         polled: bool = False,
         burst_idle_s: float = 0.2,
         name: str = "inertial unit",
+        raw_sink: BinaryIO | None = None,
+        raw_name: str = "",
+        start_index: int | None = None,
     ) -> None:
         if sample_rate <= 0:
             raise ValueError(f"{name}: sample_rate must be > 0 Hz, got {sample_rate}")
         if timeout <= 0:
             raise ValueError(f"{name}: timeout must be > 0 s, got {timeout}")
         self.port = port
-        self.scale = scale
+        self.format = frame if isinstance(frame, FrameFormat) else count_format(frame, sample_rate)
+        if abs(self.format.sample_rate - sample_rate) > 1e-9 * sample_rate:
+            raise ValueError(
+                f"{name}: the frame format was compiled for {self.format.sample_rate} Hz, not {sample_rate}"
+            )
         self._rate = float(sample_rate)
         self.timeout = float(timeout)
         self.polled = bool(polled)
         self.burst_idle_s = float(burst_idle_s)
         self.name = name
-        self.decoder = FrameDecoder()
-        self._pending: RawFrames = empty_frames()
-        self._last_counter: int | None = None
+        self.decoder = FrameDecoder(self.format.desc)
+        self.converter = SampleConverter(self.format, start_index)
+        self.raw_sink = raw_sink
+        self.raw_name = raw_name
+        self._pending: Samples = _empty()
         self.rejected_total = 0
         self.dropped_total = 0
+        self.resets_total = 0
+        self.duplicates_total = 0
+        self.invalid_total = 0
+        self._announced = False
         self._closed = False
         try:
             self.port.timeout = min(0.02, self.timeout)
@@ -105,12 +185,14 @@ class SerialInertialUnit:
         except Exception as exc:  # serial.SerialException, OSError, socket errors
             raise LinkError(f"{self.name}: serial link failed ({exc.__class__.__name__}: {exc})") from exc
 
-    def _take(self, frames: RawFrames, n: int) -> RawFrames:
-        if len(frames) <= n:
-            self._pending = empty_frames()
-            return frames
-        self._pending = slice_frames(frames, n)
-        return slice_frames(frames, 0, n)
+    def _take(self, s: Samples, n: int) -> Samples:
+        if len(s) <= n:
+            self._pending = _empty()
+            return s
+        self._pending = _slice(s, n)
+        head = _slice(s, 0, n)
+        head.gaps, head.resets, head.duplicates = s.gaps, s.resets, s.duplicates
+        return head
 
     def read(self, n: int) -> ImuBlock:
         """Return the next ``n`` samples (fewer only if frames were lost); SI, body frame.
@@ -127,13 +209,14 @@ class SerialInertialUnit:
         n = int(n)
         if n < 1:
             raise ValueError(f"{self.name}: read(n) needs n >= 1, got {n}")
-        got: list[RawFrames] = [self._pending] if len(self._pending) else []
+        got: list[Samples] = [self._pending] if len(self._pending) else []
         have = len(self._pending)
-        self._pending = empty_frames()
+        self._pending = _empty()
         stats = DecodeStats()
+        L = self.format.length
         if have < n:
             want = n - have
-            # The burst's last counter is estimated from its first received frame: if that frame was lost the
+            # The burst's last index is estimated from its first received frame: if that frame was lost the
             # estimate is too high and the idle rule ends the burst (slow but safe); it is never too low, so a
             # burst is never cut short while its frames are still arriving.
             expected_last: int | None = None
@@ -142,50 +225,101 @@ class SerialInertialUnit:
                 reqs = [min(MAX_BURST, want - k) for k in range(0, want, MAX_BURST)]
                 self._io(self.port.write, "".join(f"BURST {r}\r\n" for r in reqs).encode("ascii"))
             deadline = time.monotonic() + self.timeout
+            frame_deadline = deadline  # bytes that never form a valid frame must not keep the read alive
+            garbage_seen = 0
             idle_since: float | None = None
             while have < n:
-                chunk = self._io(self.port.read, max(FRAME_SIZE, (n - have) * FRAME_SIZE - self.decoder.pending_bytes))
+                chunk = self._io(self.port.read, max(L, (n - have) * L - self.decoder.pending_bytes))
                 now = time.monotonic()
                 if chunk:
+                    if self.raw_sink is not None:
+                        self.raw_sink.write(chunk)
                     received_any = True
                     deadline = now + self.timeout
                     idle_since = None
-                    frames, st = self.decoder.feed(chunk)
-                    stats.rejected += st.rejected
-                    stats.garbage_bytes += st.garbage_bytes
-                    if len(frames):
-                        got.append(frames)
-                        have += len(frames)
-                        if expected_last is None and self.polled:
-                            expected_last = (int(frames.counter[0]) + want - 1) % (1 << 32)
-                        if self.polled and int(frames.counter[-1]) == expected_last:
+                    batch, st = self.decoder.feed(chunk)
+                    stats.add(st)
+                    garbage_seen += st.garbage_bytes
+                    if not len(batch) and now >= frame_deadline:
+                        raise LinkError(
+                            f"{self.name}: {garbage_seen} byte(s) received in {self.timeout:.3g} s but no valid "
+                            f"{self.format.name} frame; check the frame format and options, the baud rate and "
+                            "the unit's output configuration (tablebench decode on a capture shows what arrives)"
+                        )
+                    if len(batch):
+                        frame_deadline = now + self.timeout
+                        s = self.converter.convert(batch)
+                        got.append(s)
+                        have += len(s)
+                        if len(s) and expected_last is None and self.polled:
+                            expected_last = int(s.index[0]) + want - 1
+                        if self.polled and len(s) and expected_last is not None and int(s.index[-1]) >= expected_last:
                             break  # the burst's last frame arrived: anything missing was lost
                     continue
                 if now >= deadline:
                     raise LinkError(
                         f"{self.name}: no data for {self.timeout:.3g} s ({have} of {n} frames received); "
-                        "check the cable/port, the unit's power and (polled mode) that it answers BURST requests"
+                        "check the cable/port, the unit's power, the frame format "
+                        f"({self.format.name}) and (polled mode) that it answers BURST requests"
                     )
                 if self.polled and received_any:
                     idle_since = idle_since or now
                     if now - idle_since >= self.burst_idle_s:
                         break  # the end of the burst was lost
-        frames = self._take(concat_frames(got), n)
-        dropped = counter_gaps(self._last_counter, frames.counter)
-        if len(frames):
-            self._last_counter = int(frames.counter[-1])
+        s = self._take(concat_samples(got), n)
+        return self._block(s, stats)
+
+    def _block(self, s: Samples, stats: DecodeStats) -> ImuBlock:
+        invalid = int(np.count_nonzero(s.status))
         self.rejected_total += stats.rejected
-        self.dropped_total += dropped
-        block = frames_to_block(frames, self.scale, dropped=dropped, rejected=stats.rejected)
-        if dropped or stats.rejected or stats.garbage_bytes:
-            msg = (
-                f"{self.name}: {dropped} frame(s) dropped, {stats.rejected} rejected (bad CRC), "
-                f"{stats.garbage_bytes} byte(s) skipped"
-            )
+        self.dropped_total += s.gaps
+        self.resets_total += s.resets
+        self.duplicates_total += s.duplicates
+        self.invalid_total += invalid
+        block = ImuBlock(
+            counter=(s.index % (1 << 32)).astype(np.uint32),
+            time=s.time,
+            accel=s.accel,
+            gyro=s.gyro,
+            temperature=s.temperature,
+            status=s.status,
+            dropped=s.gaps,
+            rejected=stats.rejected,
+            resets=s.resets,
+            duplicates=s.duplicates,
+        )
+        if not self._announced:
+            self._announced = True
+            block.events.append(f"{self.name}: {self.format.describe()}")
+            if self.raw_sink is not None:
+                block.events.append(
+                    f"{self.name}: raw serial stream kept in {self.raw_name or 'the raw file'}; re-decode with "
+                    f"'tablebench decode --frame {self.format.name} …'"
+                )
+        parts = []
+        if s.gaps:
+            parts.append(f"{s.gaps} frame(s) missing (counter gaps)")
+        if s.resets:
+            parts.append(f"{s.resets} counter reset(s) (unit restart?)")
+        if s.duplicates:
+            parts.append(f"{s.duplicates} duplicate frame(s) dropped")
+        if stats.rejected:
+            parts.append(f"{stats.rejected} frame(s) rejected (bad checksum)")
+        if stats.garbage_bytes:
+            parts.append(f"{stats.garbage_bytes} byte(s) skipped while resynchronising")
+        if invalid:
+            parts.append(f"{invalid} sample(s) flagged invalid by the unit's status")
+        if parts:
+            msg = f"{self.name}: " + ", ".join(parts)
             block.events.append(msg)
             log.warning(msg)
         return block
 
     def close(self) -> None:
-        """Release the driver (the port is the caller's to close)."""
+        """Release the driver (the port and the raw sink are the caller's to close)."""
         self._closed = True
+        if self.raw_sink is not None:
+            try:
+                self.raw_sink.flush()
+            except (OSError, ValueError):  # pragma: no cover - already closed
+                pass

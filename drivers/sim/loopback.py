@@ -43,6 +43,10 @@ class Loopback:
         Driver timeouts, s.
     unit_id : int
         Modbus unit id used by the driver.
+    unit_frame : drivers.imu_frame_desc.FrameFormat or None
+        The frame format the simulated unit speaks and the driver decodes (None: ``tablebench-v1``).
+    unit_raw : binary file or None
+        Where the unit driver keeps the raw byte stream; ``unit_raw_name`` names it in events.
     """
 
     def __init__(
@@ -55,6 +59,9 @@ class Loopback:
         corruption: Any = None,
         timeout: float = 2.0,
         unit_id: int = 1,
+        unit_frame: Any = None,
+        unit_raw: Any = None,
+        unit_raw_name: str = "",
     ) -> None:
         import serial
 
@@ -93,12 +100,19 @@ class Loopback:
                 self.client = serial.serial_for_url(self.table_server.url, timeout=timeout)
                 self._closers.insert(0, self.client.close)
                 self.turntable = AsciiTurntable(self.client, timeout=timeout)
-            self.unit_server = SerialUnitServer(world, corruption=corruption)
+            self.unit_server = SerialUnitServer(world, corruption=corruption, frame=unit_frame)
             self._closers.append(self.unit_server.close)
             self.unit_port = serial.serial_for_url(self.unit_server.url, timeout=0.02)
             self._closers.insert(0, self.unit_port.close)
             self.unit: Any = SerialInertialUnit(
-                self.unit_port, world.scale, world.sample_rate, timeout=timeout, polled=True, name="simulated unit"
+                self.unit_port,
+                self.unit_server.frame,
+                world.sample_rate,
+                timeout=timeout,
+                polled=True,
+                name="simulated unit",
+                raw_sink=unit_raw,
+                raw_name=unit_raw_name,
             )
         except BaseException:
             self.close()
@@ -109,7 +123,7 @@ class Loopback:
         table = "Modbus TCP" if self.dialect == "modbus" else "ASCII"
         return (
             f"loopback: {table} controller on 127.0.0.1:{self.table_server.port}, "
-            f"serial unit (polled) on 127.0.0.1:{self.unit_server.port}"
+            f"serial unit (polled, {self.unit_server.frame.name}) on 127.0.0.1:{self.unit_server.port}"
         )
 
     def close(self) -> None:

@@ -1,8 +1,10 @@
 """The simulated inertial unit on a loopback TCP socket, speaking the serial frame format.
 
 A :class:`SerialUnitServer` listens on 127.0.0.1 (ephemeral port by default) in a background thread and
-serves one client at a time with the bytes the unit would put on its serial line: frames from
-``world.produce(n)`` encoded by :func:`drivers.imu_frame.encode_frames`. Connect to it with
+serves one client at a time with the bytes the unit would put on its serial line: the samples of
+``world.produce(n)`` encoded by :func:`encode_frames` in any described frame format (the project's
+``tablebench-v1`` carries the model's integer counts unchanged; KVH, STIM300 or a user's format re-quantise
+the SI samples to that format's fields, increments = rate × sample interval). Connect to it with
 ``serial.serial_for_url(f"socket://127.0.0.1:{server.port}")``.
 
 Host → unit commands (ASCII lines, CR-LF or LF terminated; the unit never answers in text):
@@ -30,8 +32,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drivers.imu_frame import FRAME_SIZE, encode_frames
-from drivers.serial_imu import MAX_BURST
+from drivers.imu_counts import CountScale, RawFrames, frames_to_block
+from drivers.imu_frame import FrameCodec
+from drivers.imu_frame_desc import DEFAULT_FRAME, FrameFormat, load_frame
+from drivers.imu_frame_samples import encode_samples
+from drivers.serial_imu import MAX_BURST, count_format
 from drivers.sim.tcp_server import SingleClientServer
 
 log = logging.getLogger(__name__)
@@ -46,7 +51,7 @@ class Corruption:
     garbage : float
         Probability of inserting 1–``garbage_max`` random bytes before a frame.
     flip : float
-        Probability of flipping one random bit of a frame (after the sync word: the CRC catches it).
+        Probability of flipping one random bit of a frame (after the sync bytes: the CRC catches it).
     drop : float
         Probability of omitting a frame.
     garbage_max : int
@@ -64,6 +69,38 @@ class Corruption:
         return self.garbage > 0 or self.flip > 0 or self.drop > 0
 
 
+def encode_frames(
+    frames: RawFrames, fmt: FrameFormat | None = None, scale: CountScale | None = None, codec: FrameCodec | None = None
+) -> bytes:
+    """Wire bytes of simulated frames in format ``fmt`` (None: ``tablebench-v1``).
+
+    ``tablebench-v1`` carries the counts as they are; any other format gets the SI samples (converted with
+    ``scale``, a CountScale) quantised to its own fields, with the frame counter ``index × step mod modulus``.
+    """
+    n = len(frames)
+    if fmt is None or fmt.desc.name == DEFAULT_FRAME:
+        codec = codec or FrameCodec(fmt.desc if fmt is not None else load_frame(DEFAULT_FRAME))
+        c = frames.counts
+        values = {
+            "counter": frames.counter,
+            "timestamp": frames.timestamp_ns,
+            "accel_x": c[:, 0],
+            "accel_y": c[:, 1],
+            "accel_z": c[:, 2],
+            "gyro_x": c[:, 3],
+            "gyro_y": c[:, 4],
+            "gyro_z": c[:, 5],
+            "temperature": frames.temperature,
+            "status": frames.status,
+        }
+        return codec.encode(values, n).tobytes()
+    if scale is None:
+        raise ValueError("encoding simulated counts into another format needs the count scale")
+    b = frames_to_block(frames, scale)
+    rows = encode_samples(fmt, frames.counter.astype(np.int64), b.time, b.accel, b.gyro, b.temperature, codec=codec)
+    return rows.tobytes()
+
+
 class _Corrupter:
     def __init__(self, spec: Corruption) -> None:
         self.spec = spec
@@ -71,21 +108,21 @@ class _Corrupter:
         self.injected = {"garbage": 0, "flip": 0, "drop": 0}
         self.lost_counters: list[int] = []  # counters of frames flipped or omitted (for tests)
 
-    def apply(self, data: bytes, n: int) -> bytes:
+    def apply(self, data: bytes, n: int, index: np.ndarray, sync_len: int = 2) -> bytes:
         s = self.spec
-        original = np.frombuffer(data, dtype=np.uint8).reshape(n, FRAME_SIZE)
-        frames = original.copy()
+        length = len(data) // n
+        frames = np.frombuffer(data, dtype=np.uint8).reshape(n, length).copy()
         flip = self.rng.random(n) < s.flip
         if flip.any():
             rows = np.flatnonzero(flip)
-            byte = self.rng.integers(2, FRAME_SIZE, rows.size)
+            byte = self.rng.integers(sync_len, length, rows.size)
             bit = self.rng.integers(0, 8, rows.size)
             frames[rows, byte] ^= (1 << bit).astype(np.uint8)
         keep = self.rng.random(n) >= s.drop
         garbage_before = self.rng.random(n) < s.garbage
         lost = flip | ~keep
         if lost.any():
-            self.lost_counters.extend(original[lost, 4:8].copy().view("<u4").reshape(-1).tolist())
+            self.lost_counters.extend(np.asarray(index)[lost].tolist())
         self.injected["flip"] += int(flip.sum())
         self.injected["drop"] += int((~keep).sum())
         self.injected["garbage"] += int((garbage_before & keep).sum())
@@ -117,6 +154,8 @@ class SerialUnitServer(SingleClientServer):
         Free-running speed at connection (0: polled mode until the host sends ``STREAM``).
     chunk_s : float
         In free-running mode, wall-clock period between writes, s.
+    frame : FrameFormat or None
+        The format the unit speaks (None: ``tablebench-v1`` with the world's count scale).
     """
 
     def __init__(
@@ -127,8 +166,11 @@ class SerialUnitServer(SingleClientServer):
         corruption: Corruption | None = None,
         stream_factor: float = 0.0,
         chunk_s: float = 0.01,
+        frame: FrameFormat | None = None,
     ) -> None:
         self.world = world
+        self.frame = frame if frame is not None else count_format(world.scale, world.sample_rate)  # type: ignore[attr-defined]
+        self._codec = FrameCodec(self.frame.desc)
         self.corruption = corruption if corruption is not None and corruption.active else None
         self._corrupter = _Corrupter(self.corruption) if self.corruption else None
         self.initial_stream_factor = float(stream_factor)
@@ -163,9 +205,9 @@ class SerialUnitServer(SingleClientServer):
 
     def _send(self, conn: socket.socket, n: int) -> None:
         frames = self.world.produce(n)
-        data = encode_frames(frames)
+        data = encode_frames(frames, self.frame, self.world.scale, self._codec)
         if self._corrupter is not None and len(frames):
-            data = self._corrupter.apply(data, len(frames))
+            data = self._corrupter.apply(data, len(frames), frames.counter, len(self.frame.desc.sync))
         conn.sendall(data)
         self.frames_sent += len(frames)
 

@@ -1,0 +1,733 @@
+"""Frame descriptions as data: the YAML format that says how an inertial unit's binary frame is laid out.
+
+A description (shipped ones in ``drivers/frames/*.yaml``; the format is documented in
+``drivers/frames/README.md``) gives the sync/identifier bytes, the frame length, the fields (offset, type,
+byte order, channel, scale and unit), the counter (modulus and step, or the tick rate it counts), the status
+fields and what "valid" means, the checksum (algorithm, parameters, coverage, zero padding) and the
+configuration *options* the unit's output depends on (delta angle vs rate, g vs Δv, range…). Options are not
+in the frame: the bench says how its unit is configured (``unit.frame_options``), and
+:func:`compile_format` resolves every scale and unit into SI factors for that configuration and sample rate.
+
+Every mistake in a description is a :class:`~core.yaml_source.ConfigError` naming the description file and
+line. The decoder itself lives in :mod:`drivers.imu_frame`.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from analysis.units import CELSIUS_ZERO, DEG, DEG_PER_HOUR, FOOT, G0, GAUSS, UG
+from core.yaml_source import (
+    ConfigError,
+    KeyPath,
+    SourceMap,
+    check_keys,
+    get_mapping,
+    get_str,
+    load_yaml,
+)
+from drivers.imu_frame_crc import PRESETS, CrcSpec
+
+FRAMES_DIR = Path(__file__).resolve().parent / "frames"
+DEFAULT_FRAME = "tablebench-v1"
+
+TYPES: dict[str, tuple[str, int]] = {
+    "uint8": ("u1", 1),
+    "int8": ("i1", 1),
+    "uint16": ("u2", 2),
+    "int16": ("i2", 2),
+    "uint24": ("u4", 3),
+    "int24": ("i4", 3),
+    "uint32": ("u4", 4),
+    "int32": ("i4", 4),
+    "uint64": ("u8", 8),
+    "int64": ("i8", 8),
+    "float32": ("f4", 4),
+    "float64": ("f8", 8),
+}
+"""Field type → (numpy kind without byte order, bytes on the wire). 24-bit fields are widened to 32."""
+
+# unit → (SI factor, kind). Kinds: inc (angle increment), rate, acc, dv (velocity increment), temp, time, mag, any
+UNITS: dict[str, tuple[float, str]] = {
+    "rad": (1.0, "inc"),
+    "deg": (DEG, "inc"),
+    "rad/s": (1.0, "rate"),
+    "deg/s": (DEG, "rate"),
+    "deg/h": (DEG_PER_HOUR, "rate"),
+    "g": (G0, "acc"),
+    "ug": (UG, "acc"),
+    "m/s^2": (1.0, "acc"),
+    "m/s": (1.0, "dv"),
+    "ft/s": (FOOT, "dv"),
+    "degC": (1.0, "temp"),
+    "degF": (5.0 / 9.0, "temp"),
+    "K": (1.0, "temp"),
+    "s": (1.0, "time"),
+    "us": (1e-6, "time"),
+    "ns": (1e-9, "time"),
+    "gauss": (GAUSS, "mag"),
+    "T": (1.0, "mag"),
+    "1": (1.0, "any"),
+}
+TEMP_OFFSET: dict[str, float] = {"degC": CELSIUS_ZERO, "degF": CELSIUS_ZERO - 32.0 * 5.0 / 9.0, "K": 0.0}
+
+AXES = ("x", "y", "z")
+RECORDED = tuple(f"accel_{a}" for a in AXES) + tuple(f"gyro_{a}" for a in AXES)
+CHANNEL_KINDS: dict[str, tuple[str, ...]] = {
+    **{f"accel_{a}": ("acc", "dv") for a in AXES},
+    **{f"gyro_{a}": ("rate", "inc") for a in AXES},
+    **{f"incl_{a}": ("acc",) for a in AXES},
+    **{f"mag_{a}": ("mag",) for a in AXES},
+    "temperature": ("temp",),
+    "time": ("time",),
+    "latency": ("time",),
+    "pps": ("any", "time"),
+    "aux": ("any",),
+}
+"""Channels a field may feed, with the unit kinds allowed. ``temperature`` fields are averaged into one."""
+
+FLAG_BITS: dict[str, int] = {**{ch: i for i, ch in enumerate(RECORDED)}, "temperature": 6, "unit": 7}
+"""Normalised per-sample status flags (``ImuBlock.status``): bit set = that channel is invalid.
+Bits 0–2 accel x/y/z, 3–5 gyro x/y/z, 6 temperature, 7 a unit-level problem; 0 = every channel valid."""
+
+_POW2 = re.compile(r"^\s*2\s*(\^|\*\*)\s*([-+]?\d+)\s*$")
+
+
+def parse_number(v: Any) -> float | None:
+    """A finite number, or a power of two written ``2^-14`` / ``2**-14``; None if neither."""
+    if isinstance(v, bool):
+        return None
+    if isinstance(v, (int, float)):
+        return float(v) if math.isfinite(v) else None
+    if isinstance(v, str):
+        m = _POW2.match(v)
+        if m:
+            return math.ldexp(1.0, int(m.group(2)))
+        try:
+            x = float(v)
+        except ValueError:
+            return None
+        return x if math.isfinite(x) else None
+    return None
+
+
+@dataclass(frozen=True)
+class OptionDesc:
+    """A configuration option of the unit (not in the frame). ``choices`` None: a positive number."""
+
+    name: str
+    default: Any
+    choices: tuple[str, ...] | None
+    help: str = ""
+
+
+@dataclass(frozen=True)
+class FieldDesc:
+    """One field of the frame. ``scale``/``unit`` may be literal, ``{by: OPTION, values: {...}}`` or
+    ``{option: NAME}`` (a numeric option); resolved by :func:`compile_format`."""
+
+    name: str
+    offset: int
+    type: str
+    byte_order: str
+    channel: str | None
+    scale: Any
+    unit: Any
+    mux: tuple[tuple[int, str, Any, Any], ...] = ()
+    mux_selector: str | None = None
+    mux_modulus: int = 0
+    sim_value: float = 0.0
+    path: KeyPath = ()
+
+    @property
+    def size(self) -> int:
+        return TYPES[self.type][1]
+
+    def dtype(self) -> np.dtype:
+        """numpy dtype of the (widened) value."""
+        kind = TYPES[self.type][0]
+        return np.dtype(("<" if self.byte_order == "little" else ">") + kind)
+
+
+@dataclass(frozen=True)
+class CounterDesc:
+    """The frame counter: ``modulus`` values, advancing by ``step`` per sample (or tick_hz / sample rate)."""
+
+    field: str
+    modulus: int
+    step: int | None
+    tick_hz: float | None
+
+
+@dataclass(frozen=True)
+class StatusDesc:
+    """A status field. ``valid``: ``bits_set`` (bit set = channel valid, ``bits`` map channel → bit),
+    ``zero`` (0 = valid, anything else invalidates ``channels``), ``flags`` (the project's flag bits)."""
+
+    field: str
+    valid: str
+    bits: tuple[tuple[str, int], ...] = ()
+    channels: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class ChecksumDesc:
+    """Where the checksum sits and what it covers: bytes [start, end) then ``pad`` zero bytes."""
+
+    spec: CrcSpec
+    offset: int
+    start: int
+    end: int
+    pad: int
+    byte_order: str
+
+
+@dataclass(frozen=True)
+class FrameDescription:
+    """A loaded frame description (validated; scales and units still depend on options)."""
+
+    name: str
+    title: str
+    path: str
+    sync: bytes
+    length: int
+    byte_order: str
+    fields: tuple[FieldDesc, ...]
+    counter: CounterDesc | None
+    status: tuple[StatusDesc, ...]
+    checksum: ChecksumDesc | None
+    options: tuple[OptionDesc, ...]
+    time_field: str | None = None
+    time_modulus: int = 0
+    trailer: bytes = b""
+    notes: str = ""
+    smap: SourceMap = field(default_factory=lambda: SourceMap("<description>"), repr=False, compare=False)
+
+    def field_named(self, name: str) -> FieldDesc:
+        for f in self.fields:
+            if f.name == name:
+                return f
+        raise KeyError(name)
+
+    def option_named(self, name: str) -> OptionDesc:
+        for o in self.options:
+            if o.name == name:
+                return o
+        raise KeyError(name)
+
+
+# ---- loading ----------------------------------------------------------------------------------------
+
+
+def shipped_frames() -> list[str]:
+    """Names of the shipped frame descriptions (``drivers/frames/*.yaml``)."""
+    return sorted(p.stem for p in FRAMES_DIR.glob("*.yaml"))
+
+
+def frame_path(name_or_path: str, base_dir: str | Path | None = None) -> Path:
+    """The description file for a shipped name (``kvh-1750-a``) or a path (``.yaml``, relative to base_dir)."""
+    s = str(name_or_path)
+    if s.endswith((".yaml", ".yml")) or "/" in s or "\\" in s:
+        p = Path(s).expanduser()
+        if not p.is_absolute() and base_dir is not None:
+            p = Path(base_dir) / p
+        return p
+    p = FRAMES_DIR / f"{s}.yaml"
+    if not p.exists():
+        raise KeyError(s)
+    return p
+
+
+def load_frame(name_or_path: str, base_dir: str | Path | None = None) -> FrameDescription:
+    """Load and validate a frame description by shipped name or path.
+
+    Raises
+    ------
+    ConfigError
+        Unknown name (the message lists the shipped ones) or a bad description (file:line).
+    """
+    try:
+        path = frame_path(name_or_path, base_dir)
+    except KeyError:
+        raise ConfigError(
+            str(name_or_path),
+            None,
+            f"unknown frame format; shipped: {', '.join(shipped_frames())} "
+            "(or give a path to a .yaml description)",
+        ) from None
+    data, smap, _text = load_yaml(path)
+    return parse_description(data, smap)
+
+
+def _int(d: dict, smap: SourceMap, p: KeyPath, key: str, default: Any = None, lo: int = 0, hi: int = 1 << 62) -> int:
+    if key not in d or d[key] is None:
+        if default is None:
+            raise smap.error(p + (key,), "is required (an integer)")
+        return int(default)
+    v = d[key]
+    if isinstance(v, bool) or not isinstance(v, int):
+        raise smap.error(p + (key,), f"expected an integer (decimal or 0x hex), got {v!r}")
+    if not lo <= v <= hi:
+        raise smap.error(p + (key,), f"{v} is out of range; allowed [{lo}, {hi}]")
+    return int(v)
+
+
+def _bytes(d: dict, smap: SourceMap, p: KeyPath, key: str, required: bool) -> bytes:
+    v = d.get(key)
+    if v is None:
+        if required:
+            raise smap.error(p + (key,), "is required (a list of byte values like [0xFE, 0x81])")
+        return b""
+    if not isinstance(v, list) or not v:
+        raise smap.error(p + (key,), f"expected a non-empty list of byte values like [0xFE, 0x81], got {v!r}")
+    out = bytearray()
+    for i, b in enumerate(v):
+        if isinstance(b, bool) or not isinstance(b, int) or not 0 <= b <= 255:
+            raise smap.error(p + (key, i), f"expected a byte value 0…255 (e.g. 0x55), got {b!r}")
+        out.append(b)
+    return bytes(out)
+
+
+def _check_selectable(v: Any, smap: SourceMap, p: KeyPath, options: dict[str, OptionDesc], what: str) -> None:
+    """Validate a literal / {by, values} / {option} scale or unit (recursively)."""
+    if isinstance(v, dict):
+        if "option" in v:
+            check_keys(v, smap, p, ["option"])
+            o = options.get(v["option"])
+            if o is None or o.choices is not None:
+                raise smap.error(p + ("option",), f"{v['option']!r} is not a numeric option of this description")
+            if what != "scale":
+                raise smap.error(p, "only a scale can come from a numeric option")
+            return
+        check_keys(v, smap, p, ["by", "values"])
+        by = v.get("by")
+        o = options.get(by) if isinstance(by, str) else None
+        if o is None or o.choices is None:
+            raise smap.error(p + ("by",), f"{by!r} is not a choice option of this description ({', '.join(options)})")
+        vals = v.get("values")
+        if not isinstance(vals, dict):
+            raise smap.error(p + ("values",), "expected a mapping choice: value")
+        missing = [c for c in o.choices if c not in vals and str(c) not in {str(k) for k in vals}]
+        if missing:
+            raise smap.error(p + ("values",), f"no value for choice(s) {', '.join(map(str, missing))} of {by!r}")
+        for k, sub in vals.items():
+            _check_selectable(sub, smap, p + ("values", str(k)), options, what)
+        return
+    if what == "scale":
+        if parse_number(v) is None:
+            raise smap.error(p, f"expected a number or a power of two like 2^-14, got {v!r}")
+    elif v not in UNITS:
+        raise smap.error(p, f"unknown unit {v!r}; known: {', '.join(UNITS)}")
+
+
+def parse_description(data: Any, smap: SourceMap) -> FrameDescription:
+    """Validate parsed YAML into a :class:`FrameDescription` (errors name the file and line)."""
+    if data is None:
+        raise ConfigError(smap.file, None, "the frame description is empty; see drivers/frames/README.md")
+    d = get_mapping(data, smap, ())
+    check_keys(
+        d,
+        smap,
+        (),
+        [
+            "name",
+            "title",
+            "notes",
+            "byte_order",
+            "sync",
+            "length",
+            "options",
+            "fields",
+            "counter",
+            "status",
+            "checksum",
+            "time",
+            "trailer",
+        ],
+    )
+    name = get_str(d, smap, (), "name")
+    order = get_str(d, smap, (), "byte_order", "big", choices=["big", "little"])
+    sync = _bytes(d, smap, (), "sync", True)
+    length = _int(d, smap, (), "length", None, 2, 4096)
+    if len(sync) >= length:
+        raise smap.error(("sync",), f"{len(sync)} sync bytes leave nothing of a {length}-byte frame")
+    # options
+    options: dict[str, OptionDesc] = {}
+    od = d.get("options") or {}
+    if not isinstance(od, dict):
+        raise smap.error(("options",), "expected a mapping option-name: {default, choices}")
+    for oname, spec in od.items():
+        p = ("options", str(oname))
+        spec = get_mapping(spec, smap, p)
+        check_keys(spec, smap, p, ["default", "choices", "help"])
+        ch = spec.get("choices")
+        if ch is None:
+            dv = parse_number(spec.get("default"))
+            if dv is None or dv <= 0:
+                raise smap.error(p + ("default",), "a numeric option needs a positive default (or give choices)")
+            options[str(oname)] = OptionDesc(str(oname), dv, None, str(spec.get("help", "")))
+            continue
+        if not isinstance(ch, list) or not ch or not all(isinstance(c, (str, int, float)) for c in ch):
+            raise smap.error(p + ("choices",), "expected a list of choices like [rate, delta_angle]")
+        choices = tuple(str(c) for c in ch)
+        default = str(spec.get("default", choices[0]))
+        if default not in choices:
+            raise smap.error(p + ("default",), f"{default!r} is not one of the choices {', '.join(choices)}")
+        options[str(oname)] = OptionDesc(str(oname), default, choices, str(spec.get("help", "")))
+    # fields
+    fl = d.get("fields")
+    if not isinstance(fl, list) or not fl:
+        raise smap.error(("fields",), "is required (a list of {name, offset, type, …})")
+    fields: list[FieldDesc] = []
+    names: set[str] = set()
+    occupied = np.zeros(length, dtype=bool)
+    occupied[: len(sync)] = True
+    for i, fd in enumerate(fl):
+        p: KeyPath = ("fields", i)
+        fd = get_mapping(fd, smap, p)
+        check_keys(
+            fd, smap, p, ["name", "offset", "type", "byte_order", "channel", "scale", "unit", "mux", "sim_value"]
+        )
+        fname = get_str(fd, smap, p, "name")
+        if fname in names:
+            raise smap.error(p + ("name",), f"field name {fname!r} is used twice")
+        names.add(fname)
+        ftype = get_str(fd, smap, p, "type", choices=list(TYPES))
+        off = _int(fd, smap, p, "offset", None, 0, length - 1)
+        size = TYPES[ftype][1]
+        if off + size > length:
+            raise smap.error(p + ("offset",), f"{fname} ({ftype}) at {off} runs past the {length}-byte frame")
+        if occupied[off : off + size].any():
+            raise smap.error(
+                p + ("offset",), f"{fname} at bytes {off}…{off + size - 1} overlaps the sync or another field"
+            )
+        occupied[off : off + size] = True
+        forder = get_str(fd, smap, p, "byte_order", order, choices=["big", "little"])
+        channel = fd.get("channel")
+        if channel is not None and channel not in CHANNEL_KINDS:
+            raise smap.error(p + ("channel",), f"unknown channel {channel!r}; known: {', '.join(CHANNEL_KINDS)}")
+        scale = fd.get("scale", 1)
+        unit = fd.get("unit", "1")
+        mux: list[tuple[int, str, Any, Any]] = []
+        selector, modulus = None, 0
+        if fd.get("mux") is not None:
+            mp = p + ("mux",)
+            md = get_mapping(fd["mux"], smap, mp)
+            check_keys(md, smap, mp, ["selector", "modulus", "slots"])
+            selector = get_str(md, smap, mp, "selector")
+            modulus = _int(md, smap, mp, "modulus", None, 1, 256)
+            slots = get_mapping(md.get("slots"), smap, mp + ("slots",))
+            for k, sd in slots.items():
+                sp = mp + ("slots", str(k))
+                sd = get_mapping(sd, smap, sp)
+                check_keys(sd, smap, sp, ["channel", "scale", "unit"])
+                try:
+                    slot = int(k)
+                except ValueError:
+                    raise smap.error(sp, f"slot {k!r} must be an integer 0…{modulus - 1}") from None
+                sch = get_str(sd, smap, sp, "channel", choices=list(CHANNEL_KINDS))
+                mux.append((slot, sch, sd.get("scale", 1), sd.get("unit", "1")))
+                _check_selectable(sd.get("scale", 1), smap, sp + ("scale",), options, "scale")
+                _check_selectable(sd.get("unit", "1"), smap, sp + ("unit",), options, "unit")
+        else:
+            _check_selectable(scale, smap, p + ("scale",), options, "scale")
+            _check_selectable(unit, smap, p + ("unit",), options, "unit")
+        sim_value = parse_number(fd.get("sim_value", 0))
+        if sim_value is None:
+            raise smap.error(p + ("sim_value",), "expected a number")
+        fields.append(
+            FieldDesc(fname, off, ftype, forder, channel, scale, unit, tuple(mux), selector, modulus, sim_value, p)
+        )
+    for f in fields:
+        if f.mux_selector is not None and f.mux_selector not in names:
+            raise smap.error(f.path + ("mux", "selector"), f"no field named {f.mux_selector!r}")
+    # counter
+    counter = None
+    if d.get("counter") is not None:
+        p = ("counter",)
+        cd = get_mapping(d["counter"], smap, p)
+        check_keys(cd, smap, p, ["field", "modulus", "step", "tick_hz"])
+        cf = get_str(cd, smap, p, "field", choices=sorted(names))
+        modulus = _int(cd, smap, p, "modulus", None, 2, 1 << 64)
+        if "step" in cd and "tick_hz" in cd:
+            raise smap.error(p, "give step or tick_hz, not both")
+        step = _int(cd, smap, p, "step", 1, 1, modulus // 2) if "tick_hz" not in cd else None
+        tick = parse_number(cd.get("tick_hz")) if "tick_hz" in cd else None
+        if "tick_hz" in cd and (tick is None or tick <= 0):
+            raise smap.error(p + ("tick_hz",), "expected a positive number of Hz")
+        counter = CounterDesc(cf, modulus, step, tick)
+    # status
+    status: list[StatusDesc] = []
+    sl = d.get("status") or []
+    if not isinstance(sl, list):
+        raise smap.error(("status",), "expected a list of {field, valid, …}")
+    for i, sd in enumerate(sl):
+        p = ("status", i)
+        sd = get_mapping(sd, smap, p)
+        check_keys(sd, smap, p, ["field", "valid", "bits", "channels"])
+        sf = get_str(sd, smap, p, "field", choices=sorted(names))
+        valid = get_str(sd, smap, p, "valid", choices=["bits_set", "zero", "flags"])
+        bits: list[tuple[str, int]] = []
+        chans: tuple[str, ...] = ()
+        if valid == "bits_set":
+            bd = get_mapping(sd.get("bits"), smap, p + ("bits",))
+            for ch in bd:
+                if ch not in FLAG_BITS:
+                    raise smap.error(p + ("bits", str(ch)), f"unknown channel {ch!r}; known: {', '.join(FLAG_BITS)}")
+                bits.append((str(ch), _int(bd, smap, p + ("bits",), ch, None, 0, 63)))
+        elif valid == "zero":
+            cl = sd.get("channels")
+            if not isinstance(cl, list) or any(c not in FLAG_BITS for c in cl):
+                raise smap.error(
+                    p + ("channels",), f"expected a list (maybe empty) of channels among {', '.join(FLAG_BITS)}"
+                )
+            chans = tuple(cl)
+        status.append(StatusDesc(sf, valid, tuple(bits), chans))
+    # checksum
+    checksum = None
+    if d.get("checksum") is not None:
+        p = ("checksum",)
+        cd = get_mapping(d["checksum"], smap, p)
+        check_keys(
+            cd,
+            smap,
+            p,
+            [
+                "algorithm",
+                "width",
+                "poly",
+                "init",
+                "refin",
+                "refout",
+                "xorout",
+                "offset",
+                "covers",
+                "pad_to",
+                "byte_order",
+            ],
+        )
+        algo = get_str(cd, smap, p, "algorithm", "custom")
+        if algo == "sum8" or algo in PRESETS:
+            spec = CrcSpec.named(algo)
+        elif algo == "custom":
+            spec = CrcSpec(
+                "custom",
+                _int(cd, smap, p, "width", None, 8, 32),
+                _int(cd, smap, p, "poly", None, 1, (1 << 32) - 1),
+                _int(cd, smap, p, "init", 0, 0, (1 << 32) - 1),
+                bool(cd.get("refin", False)),
+                bool(cd.get("refout", False)),
+                _int(cd, smap, p, "xorout", 0, 0, (1 << 32) - 1),
+            )
+            if spec.width not in (8, 16, 32) or spec.poly >= (1 << spec.width):
+                raise smap.error(p + ("width",), "width must be 8, 16 or 32 with poly < 2^width")
+        else:
+            raise smap.error(
+                p + ("algorithm",), f"unknown algorithm {algo!r}; known: sum8, custom, {', '.join(PRESETS)}"
+            )
+        off = _int(cd, smap, p, "offset", None, 0, length - 1)
+        if off + spec.nbytes > length:
+            raise smap.error(p + ("offset",), f"the {spec.nbytes}-byte checksum at {off} runs past the frame")
+        if occupied[off : off + spec.nbytes].any():
+            raise smap.error(p + ("offset",), "the checksum overlaps a field or the sync bytes")
+        cov = cd.get("covers")
+        if not (
+            isinstance(cov, list) and len(cov) == 2 and all(isinstance(x, int) and not isinstance(x, bool) for x in cov)
+        ):
+            raise smap.error(p + ("covers",), "expected [first, end) byte offsets like [0, 32]")
+        start, end = int(cov[0]), int(cov[1])
+        if not 0 <= start < end <= length or (start < off + spec.nbytes and end > off):
+            raise smap.error(p + ("covers",), f"[{start}, {end}) must lie inside the frame and exclude the checksum")
+        pad_to = _int(cd, smap, p, "pad_to", 1, 1, 64)
+        checksum = ChecksumDesc(
+            spec,
+            off,
+            start,
+            end,
+            (-(end - start)) % pad_to,
+            get_str(cd, smap, p, "byte_order", order, choices=["big", "little"]),
+        )
+    # time
+    time_field, time_mod = None, 0
+    if d.get("time") is not None:
+        p = ("time",)
+        td = get_mapping(d["time"], smap, p)
+        check_keys(td, smap, p, ["field", "modulus"])
+        time_field = get_str(td, smap, p, "field", choices=sorted(names))
+        if dict((f.name, f.channel) for f in fields)[time_field] != "time":
+            raise smap.error(p + ("field",), f"field {time_field!r} must have channel: time")
+        time_mod = _int(td, smap, p, "modulus", 0, 0, 1 << 64)
+    trailer = _bytes(d, smap, (), "trailer", False)
+    return FrameDescription(
+        name=name,
+        title=str(d.get("title", name)),
+        path=smap.file,
+        sync=sync,
+        length=length,
+        byte_order=order,
+        fields=tuple(fields),
+        counter=counter,
+        status=tuple(status),
+        checksum=checksum,
+        options=tuple(options.values()),
+        time_field=time_field,
+        time_modulus=time_mod,
+        trailer=trailer,
+        notes=str(d.get("notes", "")),
+        smap=smap,
+    )
+
+
+# ---- compiling for one configuration ---------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Conversion:
+    """raw → SI: ``si = raw * factor + offset``; ``increment``: the raw value is an increment over one sample."""
+
+    channel: str
+    factor: float
+    offset: float
+    increment: bool
+    unit: str
+    scale: float
+
+
+@dataclass(frozen=True)
+class FrameFormat:
+    """A description compiled for one unit configuration and sample rate.
+
+    Attributes
+    ----------
+    desc : FrameDescription
+    options : dict
+        Every option's value (defaults filled in).
+    sample_rate : float
+        Hz; increments are divided by 1 / sample_rate to give rates / specific force.
+    conversions : dict
+        Field name → :class:`Conversion` (plain fields) or slot → Conversion (multiplexed fields, key
+        ``(name, slot)``).
+    counter_step : int
+        Counter advance per sample (1 if the frame has no counter).
+    """
+
+    desc: FrameDescription
+    options: dict[str, Any]
+    sample_rate: float
+    conversions: dict[Any, Conversion]
+    counter_step: int
+
+    @property
+    def name(self) -> str:
+        return self.desc.name
+
+    @property
+    def length(self) -> int:
+        return self.desc.length
+
+    def increments(self) -> list[str]:
+        """Recorded channels the unit outputs as increments (Δθ, Δv), converted to rates here."""
+        return sorted({c.channel for c in self.conversions.values() if c.increment and c.channel in RECORDED})
+
+    def describe(self) -> str:
+        """One line: format, options and what is converted (for the recording's events)."""
+        opts = ", ".join(f"{k}={v}" for k, v in self.options.items())
+        inc = self.increments()
+        text = f"frame {self.desc.name} ({self.desc.length} B)" + (f", {opts}" if opts else "")
+        if inc:
+            text += (
+                f"; {'/'.join(inc)} are increments per sample, converted to rate/specific force by dividing by "
+                f"the sample interval 1/{self.sample_rate:g} s"
+            )
+        return text
+
+
+def _resolve(v: Any, options: dict[str, Any]) -> Any:
+    while isinstance(v, dict):
+        if "option" in v:
+            return options[v["option"]]
+        vals = v["values"]
+        key = options[v["by"]]
+        v = vals[key] if key in vals else {str(k): x for k, x in vals.items()}[str(key)]
+    return v
+
+
+def _conversion(
+    channel: str, scale: Any, unit: Any, options: dict[str, Any], desc: FrameDescription, path: KeyPath
+) -> Conversion:
+    s = parse_number(_resolve(scale, options))
+    u = str(_resolve(unit, options))
+    assert s is not None
+    factor, kind = UNITS[u]
+    allowed = CHANNEL_KINDS.get(channel, ("any",))
+    if kind not in allowed and "any" not in allowed and kind != "any":
+        raise desc.smap.error(path, f"unit {u!r} does not fit channel {channel} (needs a {'/'.join(allowed)} unit)")
+    offset = TEMP_OFFSET.get(u, 0.0)
+    return Conversion(channel, s * factor, offset, kind in ("inc", "dv"), u, s)
+
+
+def compile_format(
+    desc: FrameDescription, options: dict[str, Any] | None, sample_rate: float, where: str = "frame_options"
+) -> FrameFormat:
+    """Resolve a description for one configuration. Bad options raise ``ValueError`` (the caller locates them).
+
+    Parameters
+    ----------
+    desc : FrameDescription
+    options : dict or None
+        Option values (missing ones take the description's defaults).
+    sample_rate : float
+        Hz.
+    where : str
+        How the caller names the options in messages.
+    """
+    opts: dict[str, Any] = {}
+    given = dict(options or {})
+    known = {o.name: o for o in desc.options}
+    for k in given:
+        if k not in known:
+            raise ValueError(
+                f"{where}: unknown option {k!r} for frame {desc.name}; known: {', '.join(known) or '(none)'}"
+            )
+    for o in desc.options:
+        v = given.get(o.name, o.default)
+        if o.choices is None:
+            x = parse_number(v)
+            if x is None or x <= 0:
+                raise ValueError(f"{where}.{o.name}: expected a positive number, got {v!r}")
+            opts[o.name] = x
+        else:
+            if str(v) not in o.choices:
+                raise ValueError(f"{where}.{o.name}: {v!r} is not allowed; choose one of: {', '.join(o.choices)}")
+            opts[o.name] = str(v)
+    if not (sample_rate > 0 and math.isfinite(sample_rate)):
+        raise ValueError(f"sample rate must be > 0 Hz, got {sample_rate}")
+    conv: dict[Any, Conversion] = {}
+    for f in desc.fields:
+        if f.mux:
+            for slot, ch, sc, un in f.mux:
+                conv[(f.name, slot)] = _conversion(ch, sc, un, opts, desc, f.path + ("mux", "slots", str(slot)))
+        elif f.channel is not None:
+            conv[f.name] = _conversion(f.channel, f.scale, f.unit, opts, desc, f.path)
+    step = 1
+    c = desc.counter
+    if c is not None:
+        if c.tick_hz is not None:
+            ratio = c.tick_hz / sample_rate
+            if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+                raise ValueError(
+                    f"frame {desc.name}: the counter counts {c.tick_hz:g} Hz ticks, so the sample rate must divide "
+                    f"{c.tick_hz:g} Hz (got {sample_rate:g} Hz)"
+                )
+            step = int(round(ratio))
+        else:
+            step = int(c.step or 1)
+        if step > c.modulus // 2:
+            raise ValueError(f"frame {desc.name}: counter step {step} is too large for modulus {c.modulus}")
+    return FrameFormat(desc, opts, float(sample_rate), conv, step)
