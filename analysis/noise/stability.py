@@ -686,11 +686,8 @@ def _mtie(rec: _Record, m: int) -> tuple[NDArray[np.float64], NDArray[np.int64]]
         xx_lo = np.where(ok_pt, x, np.inf)
     else:
         xx_hi = xx_lo = xx
-    origin = -(w // 2) + (0 if w % 2 else 1) - 1 + 1  # window [i, i+m] at output index i
-    origin = (w - 1) // 2 - (w - 1) + (w - 1) // 2 * 0
     hi = maximum_filter1d(xx_hi, size=w, axis=1, mode="nearest")
     lo = minimum_filter1d(xx_lo, size=w, axis=1, mode="nearest")
-    del origin
     # the centred filter at index k covers [k − w//2, k + (w−1)//2]; a full window [i, i+m] sits at k = i + w//2
     k0 = w // 2
     tie = hi[:, k0 : k0 + count] - lo[:, k0 : k0 + count]

@@ -131,7 +131,7 @@ def _parse_taus(text: str) -> str | list[float]:
     return vals
 
 
-def _parse_estimators(text: str, fit: str) -> tuple[str, ...]:
+def _parse_estimators(text: str) -> tuple[str, ...]:
     from analysis.noise.stability import ESTIMATORS
     from core.errors import UsageError
 
@@ -156,7 +156,7 @@ def run(args: argparse.Namespace) -> int:
     if args.channels is not None and not args.channels.strip(" ,"):
         raise UsageError("--channels is empty; name the channels (e.g. gyro_x,gyro_y) or omit it for all")
     taus = _parse_taus(args.taus)
-    estimators = _parse_estimators(args.estimators, args.fit_estimator)
+    estimators = _parse_estimators(args.estimators)
     data = load_input(
         args.input, rate=args.rate, channels=args.channels, step=args.step, min_samples=MIN_SAMPLES, allow_gaps=True
     )
