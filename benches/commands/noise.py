@@ -40,10 +40,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     p = sub.add_parser(
         "noise",
-        help="Allan / total variance and noise terms (Q, N, B, K, R) of a static record",
-        description="Compute the non-overlapping, overlapping, total and modified Allan deviations of each "
-        "channel of a static record, with χ² confidence intervals, and fit the IEEE 952 / 1293 noise terms "
-        "(quantisation Q, white noise N, bias instability B, random walk K, ramp R).",
+        help="stability family (ADEV … HTOTDEV, Theo1, MTIE) and noise terms (Q, N, B, K, R) of a static record",
+        description="Compute the chosen frequency-stability deviations of each channel of a static record "
+        "(frequency or phase data, NaN gaps skipped), with noise type, EDF and χ² confidence interval per τ, and "
+        "fit the IEEE 952 / 1293 noise terms (quantisation Q, white noise N, bias instability B, random walk K, "
+        "ramp R).",
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
