@@ -74,7 +74,7 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="10³ / 10⁶ samples instead of 10⁴ / 10⁷")
     ap.add_argument(
         "--small-m",
-        default="2,8,32",
+        default="2,8,16",
         help="averaging factors of the N = 10⁴ comparison (allantools' total family runs Python loops of "
         "(N − 3m)·6m iterations per τ: the full octave grid takes hours on a shared machine)",
     )

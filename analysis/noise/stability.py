@@ -534,22 +534,68 @@ _FFT_MAX_ERR = 1e-9
 used): far below any confidence interval (a relative half-width of 1e-9 would need EDF ≈ 1e18)."""
 
 
+def _kernel_rho(m: int) -> NDArray[np.float64]:
+    """Circular autocorrelation (period 6m) of the modified-total kernel (1…1, −2…−2, 1…1)."""
+    p = 6 * m
+    w = np.zeros(p)
+    w[:m] = 1.0
+    w[m : 2 * m] = -2.0
+    w[2 * m : 3 * m] = 1.0
+    wf = rfft(w)
+    return irfft(wf * np.conj(wf), p)
+
+
+def _q_apply(rho: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Q v with Q_kl = 2[ρ(k−l) + ρ(k+l+1)], k, l < L = len(v) (FFT products)."""
+    L = v.size
+    kern = rho[np.abs(np.arange(2 * L - 1) - (L - 1))]
+    t1 = _conv(kern, v, 2 * L - 1)[L - 1 : 2 * L - 1]
+    t2 = _conv(rho[1 : 2 * L], v[::-1], 2 * L - 1)[L - 1 : 2 * L - 1]
+    return 2.0 * (t1 + t2)
+
+
 def _total_sumsq(
     s: NDArray[np.float64], m: int, ok: NDArray[np.bool_] | None, cache: dict, key: str
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """:func:`_reflected_sumsq` through the O(N log N) form when the record has no gaps, m ≥ 8 and its
-    rounding estimate is below :data:`_FFT_MAX_ERR`; otherwise directly."""
+    rounding estimate is below :data:`_FFT_MAX_ERR`; otherwise directly.
+
+    For the dynamic range the record's least-squares quadratic a t² + … is removed first: each subsequence is
+    detrended, so the line changes nothing and the quadratic adds the same vector r = a(k² − βk) to every
+    detrended window (β its half-mean slope); its terms 2 Σ_i rᵀQz_i + M rᵀQr are added back exactly."""
     c, n_s = s.shape
     count = n_s - 3 * m + 1
     if ok is None and m >= _FFT_MIN_M and count > 0:
         if key not in cache:
-            # every subsequence is detrended, so a global line changes nothing but the dynamic range
-            t = np.arange(n_s, dtype=np.float64) - 0.5 * (n_s - 1)
-            sd = s - s.mean(axis=1, keepdims=True)
-            sd -= np.outer(sd @ t / (t @ t), t)
-            cache[key] = (sd, _xcorr(sd, sd, n_s - 1))
-        sd, r = cache[key]
+            t = (np.arange(n_s, dtype=np.float64) - 0.5 * (n_s - 1)) / max(n_s, 1)
+            basis = np.vstack([np.ones(n_s), t, t * t - np.mean(t * t)])
+            coef = np.linalg.lstsq(basis.T, s.T, rcond=None)[0]  # (3, C)
+            sd = s - coef.T @ basis
+            a = coef[2] / max(n_s, 1) ** 2  # quadratic coefficient per sample²
+            cache[key] = (sd, _xcorr(sd, sd, n_s - 1), a)
+        sd, r, a = cache[key]
         e, err = _reflected_sumsq_fft(sd, m, r)
+        if np.any(a != 0.0):
+            L = 3 * m
+            k = np.arange(L, dtype=np.float64)
+            h1 = L // 2
+            h2 = L - h1
+            D = (0.5 * (L - 1) + 1) if L % 2 else 0.5 * L
+            beta = ((k[h2:] ** 2).mean() - (k[:h1] ** 2).mean()) / D
+            r1 = k * k - beta * k
+            qr1 = _q_apply(_kernel_rho(m), r1)
+            ps = np.zeros((c, n_s + 1))
+            np.cumsum(sd, axis=1, out=ps[:, 1:])
+            win = ps[:, count : count + L] - ps[:, :L]  # Σ_i sd[i + k]
+            bsum = (
+                (ps[:, L : L + count] - ps[:, h2 : h2 + count]) - (ps[:, h1 : h1 + count] - ps[:, :count])
+            ).sum(axis=1) / (h1 * D)
+            zsum = win - np.outer(bsum, k)
+            cross = 2.0 * a * (zsum @ qr1)
+            square = count * a * a * float(r1 @ qr1)
+            e = e + cross + square
+            with np.errstate(divide="ignore", invalid="ignore"):
+                err = err + 1.1e-16 * 8.0 * (np.abs(cross) + np.abs(square)) / np.abs(e)
         if np.all(err < _FFT_MAX_ERR):
             return e, np.full(c, count, dtype=np.int64)
     return _reflected_sumsq(s, m, ok)
@@ -656,13 +702,33 @@ def _theo1_total(rec: _Record, m: int, cache: dict) -> tuple[NDArray[np.float64]
     n = rec.n
     if not rec.has_gaps and m >= 64 and m % 2 == 0 and n - m > 0:
         if "R_theo" not in cache:
-            # Theo1 is blind to a line in the phase: remove it for the dynamic range
-            t = np.arange(n, dtype=np.float64) - 0.5 * (n - 1)
-            xd = rec.x - rec.x.mean(axis=1, keepdims=True)
-            xd -= np.outer(xd @ t / (t @ t), t)
-            cache["R_theo"] = (xd, _xcorr(xd, xd, n - 1))
-        xd, r = cache["R_theo"]
+            # Theo1 is blind to a line in the phase, and a quadratic a t² adds exactly 2a(h² − δ²) to every
+            # term: remove the least-squares quadratic for the dynamic range and add its terms back below
+            t = (np.arange(n, dtype=np.float64) - 0.5 * (n - 1)) / n
+            basis = np.vstack([np.ones(n), t, t * t - np.mean(t * t)])
+            coef = np.linalg.lstsq(basis.T, rec.x.T, rcond=None)[0]
+            xd = rec.x - coef.T @ basis
+            cache["R_theo"] = (xd, _xcorr(xd, xd, n - 1), coef[2] / float(n) ** 2)
+        xd, r, a = cache["R_theo"]
         v, err = _theo1_sumsq_fft(xd, m, r)
+        if np.any(a != 0.0):
+            h = m // 2
+            count = n - m
+            dl = np.arange(h)
+            w = 1.0 / (h - dl)
+            qd = 2.0 * (h * h - dl * dl.astype(np.float64))
+            ps = np.zeros((xd.shape[0], n + 1))
+            np.cumsum(xd, axis=1, out=ps[:, 1:])
+
+            def wsum(o: NDArray[np.int64] | int) -> NDArray[np.float64]:
+                return ps[:, np.asarray(o) + count] - ps[:, np.asarray(o)]
+
+            esum = wsum(np.zeros(h, dtype=np.int64)) + wsum(np.full(h, m)) - wsum(h - dl) - wsum(h + dl)
+            cross = 2.0 * a * (esum @ (w * qd))
+            square = count * a * a * float(np.sum(w * qd * qd))
+            v = v + cross + square
+            with np.errstate(divide="ignore", invalid="ignore"):
+                err = err + 1.1e-16 * 8.0 * (np.abs(cross) + np.abs(square)) / np.abs(v)
         if np.all(err < _FFT_MAX_ERR):
             return v, np.full(xd.shape[0], (n - m) * (m // 2), dtype=np.int64)
     return _theo1_sumsq(rec, m)
