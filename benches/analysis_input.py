@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -59,6 +60,7 @@ class AnalysisInput:
     rate: float
     channels: dict[str, NDArray[np.float64]]
     units: dict[str, str]
+    integrity_note: str = ""
 
 
 def add_input_arguments(parser: argparse.ArgumentParser, default_channels: str | None = None) -> None:
@@ -151,33 +153,32 @@ def _load_array(path: Path, rate: float | None, wanted: str | None, allow_gaps: 
 def _load_recording(
     path: Path, rate: float | None, wanted: str | None, step: str | None, allow_gaps: bool = False
 ) -> AnalysisInput:
-    import h5py
+    from benches.recording import RecordingError, open_recording
 
     source = str(path)
     try:
-        fh = h5py.File(path, "r")
-    except OSError as exc:
-        raise InputError(f"{source}: not a readable HDF5 recording ({exc})") from None
-    with fh:
-        if fh.attrs.get("format") != "tablebench-recording":
-            raise InputError(f"{source}: not a tablebench recording (missing format attribute)")
-        file_rate = float(fh.attrs["sample_rate_hz"])
+        rec = open_recording(path)
+    except RecordingError as exc:
+        raise InputError(str(exc)) from None
+    with rec:
+        file_rate = rec.header.sample_rate_hz
         if rate is not None and abs(rate - file_rate) > 1e-9 * file_rate:
             raise InputError(f"{source}: --rate {rate} disagrees with the recording's {file_rate} Hz; omit --rate")
-        if "imu" not in fh or "accel" not in fh["imu"]:
-            raise InputError(f"{source}: the recording holds no unit samples (/imu/accel missing)")
-        n = fh["imu/accel"].shape[0]
-        start, stop = 0, n
+        start, stop = 0, rec.n_samples
         if step is not None:
-            steps = fh["steps"][()] if "steps" in fh else np.zeros(0)
-            names = [s.decode() if isinstance(s, bytes) else str(s) for s in steps["name"]] if len(steps) else []
-            if step not in names:
-                raise InputError(f"{source}: no step named {step!r}; steps: {', '.join(names) or '(none)'}")
-            row = steps[names.index(step)]
-            start, stop = int(row["start_sample"]), int(row["end_sample"])
-        accel = fh["imu/accel"][start:stop]
-        gyro = fh["imu/gyro"][start:stop]
-        status = fh["imu/status"][start:stop] if "status" in fh["imu"] else np.zeros(0, np.uint16)
+            try:
+                s = rec.step(step)
+            except RecordingError as exc:
+                raise InputError(str(exc)) from None
+            start, stop = s.start_sample, s.end_sample
+        fields = ("accel", "gyro", "status") if "status" in rec.sample_fields else ("accel", "gyro")
+        try:
+            smp = rec.samples(start, stop, fields)
+        except RecordingError as exc:
+            raise InputError(str(exc)) from None
+    accel, gyro = smp.accel, smp.gyro
+    status = smp.status if smp.status is not None else np.zeros(0, np.uint16)
+    assert accel is not None and gyro is not None
     channels = {
         "accel_x": accel[:, 0],
         "accel_y": accel[:, 1],
@@ -197,13 +198,18 @@ def _load_recording(
         )
     data = np.stack([channels[s] for s in sel], axis=1) if sel else np.zeros((0, 0))
     _finite_columns(data, sel, source, allow_gaps)
-    return AnalysisInput(source, file_rate, {s: channels[s] for s in sel}, {s: CHANNEL_UNITS[s] for s in sel})
+    result = AnalysisInput(source, file_rate, {s: channels[s] for s in sel}, {s: CHANNEL_UNITS[s] for s in sel})
+    result.integrity_note = rec.integrity_note
+    if not rec.integrity_verified:
+        print(f"warning: {rec.integrity_note}", file=sys.stderr)
+    return result
 
 
 def recording_path(path: str | Path) -> Path:
     """The ``recording.h5`` of a run folder, or the path itself if it is a file."""
-    p = Path(path)
-    return p / "recording.h5" if p.is_dir() else p
+    from benches.recording import recording_file
+
+    return recording_file(path)
 
 
 def load_input(

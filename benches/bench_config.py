@@ -7,6 +7,7 @@ wrong and what is allowed. Display units appear only in the YAML, in the key nam
 
 from __future__ import annotations
 
+import datetime as _dt
 import math
 import re
 from dataclasses import dataclass, field
@@ -57,6 +58,7 @@ from drivers.sim.config import (
     CHANNELS,
     AccelTruth,
     ArmaDrift,
+    BudgetInputs,
     GyroTruth,
     NoiseTruth,
     PeriodicTerm,
@@ -102,6 +104,17 @@ class Site:
     latitude: float
     height: float
     g_measured: float | None = None
+    g_uncertainty_given: float | None = None
+
+    @property
+    def g_uncertainty(self) -> float:
+        """Standard uncertainty of :attr:`g`, m/s²: the bench's ``g_uncertainty_mgal`` if given, else 0.1 mGal
+        for a measured g and 30 mGal (a typical free-air anomaly) for WGS-84 normal gravity."""
+        from analysis.identification.budget import default_g_uncertainty
+
+        if self.g_uncertainty_given is not None:
+            return self.g_uncertainty_given
+        return default_g_uncertainty(self.g_measured is not None)
 
     @property
     def g(self) -> float:
@@ -131,6 +144,8 @@ class TurntableSpec:
     model: str = ""
     serial_number: str = ""
     float_word_order: str = "big"
+    rate_accuracy: float = 0.0
+    """Rate accuracy bound of the table (relative, ±; bench key ``rate_accuracy_ppm``); 0: not stated."""
 
 
 @dataclass(frozen=True)
@@ -180,6 +195,30 @@ class BenchConfig:
     unit: UnitSpec
     limits: dict[str, float]
     simulation: SimConfig | None
+    reference_standards: tuple[ReferenceStandard, ...] = ()
+
+
+@dataclass(frozen=True)
+class ReferenceStandard:
+    """A reference standard the bench's traceability rests on (bench key ``reference_standards``).
+
+    Attributes
+    ----------
+    name : str
+        What it is and what it provides (e.g. "turntable angle encoders (attitude)", "site gravimeter survey").
+    serial_number, certificate : str
+        Its identification and the calibration certificate that makes it traceable.
+    calibrated_by : str
+        The laboratory that calibrated it.
+    due : datetime.date
+        Calibration due date; a calibration performed after it is flagged on the certificate.
+    """
+
+    name: str
+    serial_number: str
+    certificate: str
+    calibrated_by: str
+    due: _dt.date
 
 
 # ---- small helpers ---------------------------------------------------------------------------------
@@ -262,13 +301,15 @@ def _opt_str(data: dict, smap: SourceMap, path: KeyPath, key: str) -> str | None
 
 def _site(d: dict, smap: SourceMap) -> Site:
     p: KeyPath = ("site",)
-    check_keys(d, smap, p, ["name", "latitude_deg", "height_m", "g_measured_mps2"])
+    check_keys(d, smap, p, ["name", "latitude_deg", "height_m", "g_measured_mps2", "g_uncertainty_mgal"])
     g = get_number(d, smap, p, "g_measured_mps2", None, minimum=9.7, maximum=9.9)
+    ug = get_number(d, smap, p, "g_uncertainty_mgal", None, minimum=0, exclusive_minimum=True, maximum=1000)
     return Site(
         name=get_str(d, smap, p, "name", ""),
         latitude=get_number(d, smap, p, "latitude_deg", minimum=-90, maximum=90) * DEG,
         height=get_number(d, smap, p, "height_m", 0.0, minimum=-500, maximum=9000),
         g_measured=g,
+        g_uncertainty_given=None if ug is None else ug * 1e-5,
     )
 
 
@@ -306,6 +347,7 @@ def _turntable(d: dict, smap: SourceMap) -> TurntableSpec:
             "position_tolerance_arcsec",
             "in_position_time_s",
             "attitude_accuracy_arcsec",
+            "rate_accuracy_ppm",
             "heartbeat_period_s",
             "watchdog_s",
             "float_word_order",
@@ -342,6 +384,7 @@ def _turntable(d: dict, smap: SourceMap) -> TurntableSpec:
         model=str(d.get("model") or ""),
         serial_number=str(d.get("serial_number") or ""),
         float_word_order=get_str(d, smap, p, "float_word_order", "big", choices=["big", "little"]),
+        rate_accuracy=get_number(d, smap, p, "rate_accuracy_ppm", 0.0, minimum=0, maximum=1e5) * 1e-6,
     )
 
 
@@ -535,6 +578,7 @@ def _simulation(d: dict, smap: SourceMap, site: Site, table: TurntableSpec, unit
             "drop_probability",
             "table",
             "faults",
+            "realise_uncertainty_inputs",
         ],
     )
     fs = unit.sample_rate
@@ -726,6 +770,22 @@ def _simulation(d: dict, smap: SourceMap, site: Site, table: TurntableSpec, unit
         faults=tuple(faults),
         seed=_int(d, smap, p, "seed", 0, 0, 2**63 - 1),
         transport=get_str(d, smap, p, "transport", "in-process", choices=["in-process", "loopback"]),
+        budget_inputs=_budget_inputs(d, smap, p, site, table),
+    )
+
+
+def _budget_inputs(d: dict, smap: SourceMap, p: KeyPath, site: Site, table: TurntableSpec) -> BudgetInputs | None:
+    """``realise_uncertainty_inputs: true``: the simulator draws (seeded) every type-B input the certificate's
+    budget claims, within the bench's own stated uncertainties (local g anomaly, table attitude and rate)."""
+    v = d.get("realise_uncertainty_inputs", False)
+    if not isinstance(v, bool):
+        raise smap.error(p + ("realise_uncertainty_inputs",), f"expected true or false, got {v!r}")
+    if not v:
+        return None
+    return BudgetInputs(
+        gravity_anomaly_std=site.g_uncertainty,
+        attitude_error_bound=table.attitude_accuracy,
+        rate_error_bound=table.rate_accuracy,
     )
 
 
@@ -763,7 +823,7 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
         raise ConfigError(smap.file, None, "the bench file is empty; see benches/BENCH_FORMAT.md")
     data = _coerce_floats(data)
     root = get_mapping(data, smap, ())
-    check_keys(root, smap, (), ["name", "site", "turntable", "unit", "limits", "simulation"])
+    check_keys(root, smap, (), ["name", "site", "turntable", "unit", "limits", "simulation", "reference_standards"])
     name = get_str(root, smap, (), "name")
     site = _site(_section(root, smap, (), "site"), smap)  # type: ignore[arg-type]
     table = _turntable(_section(root, smap, (), "turntable"), smap)  # type: ignore[arg-type]
@@ -777,5 +837,38 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
         raise smap.error(("simulation",), "is only allowed when both turntable.driver and unit.driver are 'sim'")
     sim = _simulation(sim_d, smap, site, table, unit) if sim_d is not None else None
     return BenchConfig(
-        name=name, path=path, text=text, site=site, turntable=table, unit=unit, limits=limits, simulation=sim
+        name=name,
+        path=path,
+        text=text,
+        site=site,
+        turntable=table,
+        unit=unit,
+        limits=limits,
+        simulation=sim,
+        reference_standards=_reference_standards(root, smap),
     )
+
+
+def _reference_standards(d: dict, smap: SourceMap) -> tuple[ReferenceStandard, ...]:
+    """``reference_standards:`` (optional): a list of {name, serial_number, certificate, calibrated_by, due}."""
+    out = []
+    for ip, item in _list_of_maps(d, smap, (), "reference_standards"):
+        check_keys(item, smap, ip, ["name", "serial_number", "certificate", "calibrated_by", "due"])
+        due_v = item.get("due")
+        if isinstance(due_v, _dt.date):
+            due = due_v
+        else:
+            try:
+                due = _dt.date.fromisoformat(str(due_v))
+            except ValueError:
+                raise smap.error(ip + ("due",), f"expected a calibration due date YYYY-MM-DD, got {due_v!r}") from None
+        out.append(
+            ReferenceStandard(
+                name=get_str(item, smap, ip, "name"),
+                serial_number=get_str(item, smap, ip, "serial_number", ""),
+                certificate=get_str(item, smap, ip, "certificate"),
+                calibrated_by=get_str(item, smap, ip, "calibrated_by", ""),
+                due=due,
+            )
+        )
+    return tuple(out)

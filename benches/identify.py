@@ -6,16 +6,16 @@ bench file (or R from the warm-up record), the reference specific force and body
 readings (:mod:`benches.reference`), and the samples from the acquisition windows of complete hold and spin
 steps (moves and settling excluded; the warm-up is used only to estimate R when asked).
 
-Uncertainty reported (``sigma``): the filter's covariance (white noise) plus the systematic term of the
-unit's bias instability (an unmodelled DC offset per step of σ = the bench's ``bias_instability``),
-propagated through the estimator exactly as the plan does. ``sigma_white`` is the filter's own 1σ.
-Results: ``calibration.json`` (format ``benches/CALIBRATION_FORMAT.md``).
+Uncertainty reported (``u``): the identification's combined standard uncertainty — the filter's covariance
+(white noise, ``u_white``) plus the unit's bias instability as correlated flicker between the steps'
+acquisition windows (:mod:`analysis.identification.bias_drift`), propagated through the estimator exactly as
+the plan does. The live display shows the filter's white-noise 1σ. Results: :class:`CalibrationResult`
+(``calibration.json``, ``benches/CALIBRATION_FORMAT.md``).
 """
 
 from __future__ import annotations
 
 import hashlib
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,8 +33,9 @@ from analysis.units import DISPLAY_UNITS
 from core.errors import UserError
 from drivers.protocols import ImuBlock, TableState
 
-from .recording import RecordingError, open_recording, read_steps
-from .reference import interpolate_table, reference_at
+from .calibration_result import CalibrationResult
+from .recording import RecordingError, open_recording
+from .reference import reference_at, reference_for_samples
 
 MODEL_TEXT = (
     "f_out = f + (S + T) f + b + D (f∘f) + diag(r) c(ω), body frame; c(ω) = [ω_y²+ω_z², ω_z²+ω_x², ω_x²+ω_y²]; "
@@ -141,6 +142,19 @@ def plan_for(compiled: Any, config: Any) -> IdentificationPlan:
     )
 
 
+def acquisition_span(t_first: float, t_last: float, latency: float, sample_rate: float) -> tuple[float, float]:
+    """Bench-time span (s) of the table readings that belong to an acquisition window's own motion state.
+
+    From 1.5 sample periods before the first sample's reference time (t_first − latency) to 1.5 sample
+    periods after the last sample: the reading the runner takes with each block is stamped at the next
+    sample, so it closes the window (the half period covers the unit's time-stamp jitter); a reading later
+    than that may already belong to the next motion and is never used
+    (:func:`benches.reference.interpolate_table` extrapolates with the reported rate instead).
+    """
+    dt = 1.5 / sample_rate
+    return (t_first - latency - dt, t_last + dt)
+
+
 # ---- live identification during the run ---------------------------------------------------------------------------
 
 
@@ -174,6 +188,7 @@ class LiveIdentifier:
         self._accel: list[NDArray[np.float64]] = []
         self._n = 0
         self._step: str | None = None
+        self._acq_t0 = 0.0
 
     def on_block(self, step: Any, block: ImuBlock, table: TableState, counts: bool) -> None:
         """Buffer the block if it is inside a hold/spin acquisition window; fuse when enough is buffered."""
@@ -184,6 +199,8 @@ class LiveIdentifier:
             return
         if self._step is not None and self._step != step.name:
             self.flush()
+        if self._step != step.name:
+            self._acq_t0 = float(block.time[0])
         self._step = step.name
         self._times.append(block.time)
         self._accel.append(block.accel)
@@ -201,13 +218,16 @@ class LiveIdentifier:
             return
         t = np.concatenate(self._times)
         rd = self._readings
-        angles, rates = interpolate_table(
-            t - self.latency,
+        f_ref, omega, _ang = reference_for_samples(
+            t,
             np.array([r.time for r in rd]),
             np.stack([r.angles for r in rd]),
             np.stack([r.rates for r in rd]),
+            g=self.config.site.g,
+            mounting=self.config.unit.mounting,
+            latency=self.latency,
+            span=acquisition_span(self._acq_t0, float(t[-1]), self.latency, float(self.config.unit.sample_rate)),
         )
-        f_ref, omega = reference_at(angles, rates, self.config.site.g, self.config.unit.mounting)
         self.filter.update(np.concatenate(self._accel), f_ref, omega, self._step, t=t)
         self._times.clear()
         self._accel.clear()
@@ -220,7 +240,7 @@ class LiveIdentifier:
                 k = PARAM_NAMES.index(name)
                 unit, one = DISPLAY_UNITS[PARAM_KINDS[k]]
                 parts.append(f"{name} {x[k] / one:.4g}±{s[k] / one:.2g} {unit}")
-            self.progress.extra(", ".join(parts))
+            self.progress.extra(", ".join(parts) + " (± = filter white-noise 1σ, k = 1)")
 
 
 # ---- offline: recording → arrays -------------------------------------------------------------------------------------
@@ -236,6 +256,7 @@ class StepWindow:
     f_out: NDArray[np.float64]
     f_ref: NDArray[np.float64]
     omega: NDArray[np.float64]
+    angles: NDArray[np.float64] | None = None
 
 
 @dataclass
@@ -266,28 +287,31 @@ flagged samples are left out of the identification, never silently used."""
 
 
 def load_run(run: str | Path) -> RecordedRun:
-    """Read a recording's acquisition windows and reference; clear errors for unusable recordings."""
+    """Read a recording's acquisition windows and reference; clear errors for unusable recordings.
+
+    The recording is verified first (every checksum): identification never runs on damaged data.
+    """
     from benches.bench_config import load_bench_text
 
     try:
-        f = open_recording(run)
+        rec = open_recording(run)
     except RecordingError as exc:
         raise IdentificationError(str(exc)) from None
-    path = Path(f.filename)
-    with f:
-        attrs = {k: (v.item() if hasattr(v, "item") else v) for k, v in f.attrs.items()}
-        if "bench_yaml" not in f or "imu" not in f or "table" not in f:
+    path = rec.path
+    with rec:
+        hdr = rec.header
+        attrs = hdr.as_dict()
+        attrs["integrity_verified"] = rec.integrity_verified
+        attrs["integrity_note"] = rec.integrity_note
+        bench_text = rec.bench_text
+        if not bench_text or rec.n_table == 0:
             raise IdentificationError(f"{path}: the recording lacks its bench text, samples or table readings")
-        bench_text = f["bench_yaml"][()]
-        bench_text = bench_text.decode() if isinstance(bench_text, bytes) else str(bench_text)
         config = load_bench_text(bench_text, f"{path}:/bench_yaml")
-        steps = read_steps(f)
+        steps = rec.steps
         if not steps:
             raise IdentificationError(f"{path}: no completed step in the recording (was the run stopped at once?)")
-        n = f["imu/time"].shape[0]
-        table_t = f["table/time"][()]
-        table_a = f["table/angles"][()]
-        table_r = f["table/rates"][()]
+        n = rec.n_samples
+        table = rec.table()
         latency = unit_latency(config)
         windows: list[StepWindow] = []
         warm: NDArray[np.float64] | None = None
@@ -295,31 +319,31 @@ def load_run(run: str | Path) -> RecordedRun:
         for s in steps:
             if s.status != "complete" or s.acq_end <= s.acq_start:
                 continue
-            if s.acq_end > n:
-                raise IdentificationError(
-                    f"{path}: step {s.name!r} ends at sample {s.acq_end} but the file holds {n}; it is truncated"
-                )
             if s.kind == "warmup":
-                warm = f["imu/accel"][s.acq_start : s.acq_end]
+                warm = rec.samples(s.acq_start, s.acq_end, ("accel",)).accel
                 continue
             if s.kind not in ACQUISITION_KINDS:
                 continue
-            t = f["imu/time"][s.acq_start : s.acq_end]
-            fo = f["imu/accel"][s.acq_start : s.acq_end]
-            valid = (f["imu/status"][s.acq_start : s.acq_end] & ACCEL_INVALID) == 0  # flagged by the unit
+            smp = rec.samples(s.acq_start, s.acq_end, ("time", "accel", "status"))
+            t, fo, st = smp.time, smp.accel, smp.status
+            assert t is not None and fo is not None and st is not None
+            valid = (st & ACCEL_INVALID) == 0  # flagged by the unit
             if not valid.all():
                 t, fo = t[valid], fo[valid]
                 if t.size == 0:
                     continue
-            ang, rat = interpolate_table(t - latency, table_t, table_a, table_r)
-            fr, om = reference_at(ang, rat, config.site.g, config.unit.mounting)
-            windows.append(StepWindow(s.name, s.kind, t, fo, fr, om))
+            span = acquisition_span(float(t[0]), float(t[-1]), latency, float(config.unit.sample_rate))
+            fr, om, ang = reference_for_samples(
+                t, table.time, table.angles, table.rates, g=config.site.g, mounting=config.unit.mounting,
+                latency=latency, span=span,
+            )  # fmt: skip
+            windows.append(StepWindow(s.name, s.kind, t, fo, fr, om, ang))
+        tr = rec.truth()
         truth = None
-        if "truth" in f:
-            ta = f["truth"].attrs
-            if all(n_ in ta for n_ in PARAM_NAMES):
-                truth = {n_: float(ta[n_]) for n_ in PARAM_NAMES}
-        temp = f["imu/temperature"][:: max(1, n // 10000)] if n else np.zeros(0)
+        if tr is not None and all(n_ in tr.parameters for n_ in PARAM_NAMES):
+            truth = {n_: float(tr.parameters[n_]) for n_ in PARAM_NAMES}
+        temp = rec.samples(fields=("temperature",), index=np.arange(0, n, max(1, n // 10000))).temperature
+        temp = temp if temp is not None else np.zeros(0)
     if not windows:
         raise IdentificationError(
             f"{path}: no complete hold or spin step to identify from (procedure {attrs.get('procedure_name')!r}); "
@@ -347,8 +371,8 @@ def _display(k: int, value: float) -> float:
     return value / DISPLAY_UNITS[PARAM_KINDS[k]][1]
 
 
-def identify_run(run: str | Path, method: str = "kalman", noise: str = "configured") -> dict[str, Any]:
-    """Identify the 18 parameters from a recording; returns the ``calibration.json`` content.
+def identify_run(run: str | Path, method: str = "kalman", noise: str = "configured") -> CalibrationResult:
+    """Identify the 18 parameters from a recording; returns the typed calibration result.
 
     Parameters
     ----------
@@ -434,14 +458,14 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
         unit, _one = DISPLAY_UNITS[kind]
         params[name] = {
             "value": float(x[k]),
-            "sigma": float(sigma[k]),
-            "sigma_white": float(sigma_white[k]),
+            "u": float(sigma[k]),
+            "u_white": float(sigma_white[k]),
             "unit": _SI_UNITS[kind],
             "kind": kind,
             "display_unit": unit,
             "display_value": _display(k, x[k]),
-            "display_sigma": _display(k, sigma[k]),
-            "identifiable": name not in unobs,
+            "display_u": _display(k, sigma[k]),
+            "identified": name not in unobs,
             "prior_sigma": float(math.sqrt(p0[k, k])),
         }
     n_s = np.array([st["samples"] for st in per_step], dtype=float)
@@ -451,13 +475,13 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
     if rr.truth is not None:
         xt = np.array([rr.truth[n_] for n_ in PARAM_NAMES])
         err = x - xt
-        ident = np.array([params[n_]["identifiable"] for n_ in PARAM_NAMES])
+        ident = np.array([params[n_]["identified"] for n_ in PARAM_NAMES])
         idx = np.flatnonzero(ident)
         sub = p_total[np.ix_(idx, idx)]
         nees = float(err[idx] @ np.linalg.solve(sub, err[idx]))
         truth_block = {
             "values": rr.truth,
-            "error_sigma": {n_: float(err[k] / sigma[k]) for k, n_ in enumerate(PARAM_NAMES)},
+            "error_over_u": {n_: float(err[k] / sigma[k]) for k, n_ in enumerate(PARAM_NAMES)},
             "nees": nees,
             "dof": int(idx.size),
             "nees_states": [PARAM_NAMES[i] for i in idx],
@@ -465,11 +489,13 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
     warnings = list(actual.warnings)
     if rr.incomplete_steps:
         warnings.insert(0, f"recording incomplete: step(s) {', '.join(rr.incomplete_steps)} not completed")
+    if not rr.attrs.get("integrity_verified", False):
+        warnings.insert(0, str(rr.attrs.get("integrity_note") or "recording integrity cannot be verified"))
     a = rr.attrs
     temp = rr.temperature
     result = {
         "format": "tablebench-calibration",
-        "format_version": 1,
+        "format_version": 2,
         "recording": rr.path.name,
         "recording_sha256": _sha256_file(rr.path),
         "software_version": str(a.get("software_version", "")),
@@ -478,6 +504,7 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
         "parameter_names": list(PARAM_NAMES),
         "parameters": params,
         "covariance": [list(map(float, row)) for row in p_total],
+        "covariance_white": [list(map(float, row)) for row in p_white],
         "information": {
             "rank": int(rank),
             "condition": float(cond),
@@ -499,7 +526,10 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
             "bench_name": str(a.get("bench_name", "")),
             "procedure_name": str(a.get("procedure_name", "")),
             "procedure_sha256": str(a.get("procedure_sha256", "")),
-            "seed": int(a.get("seed", -1)),
+            "procedure_overrides": dict(a.get("procedure_overrides") or {}),
+            "integrity_verified": bool(a.get("integrity_verified", False)),
+            "integrity_note": str(a.get("integrity_note", "")),
+            "seed": -1 if a.get("seed") is None else int(a["seed"]),
             "created_utc": str(a.get("created_utc", "")),
             "transport": str(a.get("transport", "")),
             "site": {
@@ -523,24 +553,14 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
         },
         "warnings": warnings,
     }
-    return result
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(p_total)) and np.all(np.isfinite(p_white))):
+        raise IdentificationError(
+            f"{rr.path}: the identification produced non-finite estimates or covariance (damaged data?); "
+            "nothing was written"
+        )
+    return CalibrationResult.from_dict(result, str(rr.path))
 
 
-def _json_safe(obj: Any) -> Any:
-    """Non-finite numbers (an unobservable parameter's predicted σ is ∞) become null in JSON."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_json_safe(v) for v in obj]
-    return obj
-
-
-def write_calibration(result: dict[str, Any], out: str | Path) -> Path:
-    """Write ``calibration.json`` (sorted keys, stable float formatting)."""
-    p = Path(out)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    text = json.dumps(_json_safe(result), indent=1, ensure_ascii=False, allow_nan=False)
-    p.write_text(text + "\n", encoding="utf-8")
-    return p
+def write_calibration(result: CalibrationResult, out: str | Path) -> Path:
+    """Write ``calibration.json`` (strict: a non-finite number raises; :meth:`CalibrationResult.save`)."""
+    return result.save(out)

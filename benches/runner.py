@@ -6,7 +6,8 @@ position, settling, at rate, at rest) is counted in samples. Each step's samples
 the table is read once per acquisition block.
 
 Safety: every command of the procedure is checked against the turntable's limits before anything moves;
-the controller gets a heartbeat every block; on Ctrl-C (SIGINT/SIGTERM), a controller fault, or a lost link
+the controller gets a heartbeat every block; on Ctrl-C (SIGINT), SIGTERM, SIGHUP (the terminal or SSH connection
+closed), a controller fault, or a lost link
 the runner stops the table under control, waits for rest (bounded), records the interrupted step, marks the
 recording, and says how to resume. On a simulated bench ``resume`` replays the completed steps without
 recording them (the simulator is deterministic), so the resumed recording equals an uninterrupted one.
@@ -106,8 +107,13 @@ def move_time(start: np.ndarray, target: np.ndarray, limits: Sequence[AxisLimits
     return worst
 
 
+STOP_SIGNALS: tuple[signal.Signals, ...] = tuple(
+    getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n)
+)
+
+
 class _InterruptFlag:
-    """Turns SIGINT/SIGTERM into a flag checked between blocks (installed only in the main thread)."""
+    """Turns SIGINT/SIGTERM/SIGHUP into a flag checked between blocks (installed only in the main thread)."""
 
     def __init__(self) -> None:
         self.signal_name: str | None = None
@@ -115,7 +121,7 @@ class _InterruptFlag:
 
     def __enter__(self) -> _InterruptFlag:
         if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
+            for sig in STOP_SIGNALS:
                 self._old[sig] = signal.signal(sig, self._handler)
         return self
 
@@ -206,7 +212,7 @@ class Runner:
                 obs.on_block(step, block, state, counts)
         self._sample += len(block)
         self._progress_base += len(block) / self.rate
-        self.progress.update(self._progress_base)
+        self._show(self.progress.update, self._progress_base)
         if self._interrupt is not None and self._interrupt.signal_name is not None:
             raise RunAborted("interrupted", f"{self._interrupt.signal_name} received")
         if state.status & TableStatus.FAULT:
@@ -361,6 +367,7 @@ class Runner:
         status, reason = "complete", ""
         self._sample = 0
         current: Step | None = None
+        unexpected: Exception | None = None
         with _InterruptFlag() as flag:
             self._interrupt = flag
             try:
@@ -370,7 +377,7 @@ class Runner:
                     self._recording = step.index not in replay_set
                     self._step_start = self._sample
                     self._acq = None
-                    self.progress.step(step.name + (" (replay)" if not self._recording else ""), step.text)
+                    self._show(self.progress.step, step.name + (" (replay)" if not self._recording else ""), step.text)
                     self._execute(step)
                     if self._recording:
                         self._record_step(step, "complete")
@@ -390,6 +397,9 @@ class Runner:
                 status, reason = "failed", f"link lost: {exc}"
             except TableError as exc:
                 status, reason = "failed", f"turntable refused a command: {exc}"
+            except Exception as exc:  # noqa: BLE001 - never leave the table moving or the recording "complete"
+                status, reason = "failed", f"unexpected error: {exc.__class__.__name__}: {exc}"
+                unexpected = exc
             finally:
                 self._recording = True
                 if status != "complete":
@@ -404,5 +414,14 @@ class Runner:
                     self._safe_stop()
                 self.rec.set_status(status)
                 self._interrupt = None
-                self.progress.update(self._progress_base, force=True)
+                self._show(self.progress.update, self._progress_base, force=True)
+        if unexpected is not None:
+            raise unexpected
         return RunResult(status, completed, self._sample, self._sample / self.rate, reason)
+
+    def _show(self, fn: Callable[..., None], *args: Any, **kw: Any) -> None:
+        """Progress output; a closed terminal (SIGHUP, EIO/EPIPE) silences it instead of stopping the run."""
+        try:
+            fn(*args, **kw)
+        except OSError:
+            self.progress = NullProgress()

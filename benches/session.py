@@ -10,21 +10,18 @@ from __future__ import annotations
 
 import datetime as _dt
 import hashlib
-import json
 import shutil
 import sys
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
-
-import h5py
+from typing import Any, TextIO
 
 from core.errors import UserError
 from core.provenance import software_version
 
 from .progress import ProgressDisplay
-from .recording import Hdf5Recorder, open_recording, read_steps
+from .recording import Hdf5Recorder, RecordingError, open_recording
 from .runner import Runner, RunResult, SampleObserver
 
 DEFAULT_PROCEDURE = "ten-step"
@@ -49,7 +46,10 @@ class Prepared:
 def prepare(
     bench: str | Path | None, procedure: str | Path | None, overrides: dict[str, float] | None = None
 ) -> Prepared:
-    """Load the bench and the procedure (with parameter overrides), compile and check; ConfigError if wrong."""
+    """THE preparation step of ``check``, ``plan`` and ``run``: load the bench and the procedure (with parameter
+    overrides), compile it for the bench's table and mounting, and check it against the unit (every acquisition
+    lasts at least one sample). All three commands accept and reject exactly the same inputs; ConfigError if
+    wrong."""
     from benches.bench_config import load_bench
     from procedures.compiler import compile_procedure
     from procedures.loader import load_procedure
@@ -60,6 +60,7 @@ def prepare(
     config = load_bench(bench_path)
     proc = load_procedure(procedure_path, overrides or None)
     compiled = compile_procedure(proc, limits=config.turntable.limits, mounting=config.unit.mounting)
+    check_against_unit(compiled, float(config.unit.sample_rate))
     return Prepared(
         bench_path,
         procedure_path,
@@ -70,11 +71,25 @@ def prepare(
     )
 
 
+def check_against_unit(compiled: Any, sample_rate: float) -> None:
+    """Every acquisition step must last at least one sample period of the unit; ConfigError otherwise."""
+    from core.yaml_source import ConfigError
+    from procedures.steps import ACQUISITION_KINDS
+
+    for s in compiled.steps:
+        if s.kind in ACQUISITION_KINDS and s.duration * sample_rate < 1.0:
+            raise ConfigError(
+                compiled.path,
+                s.line,
+                f"step {s.name!r}: {s.duration:g} s is shorter than one sample at the unit's {sample_rate:g} Hz; "
+                f"allowed: at least {1.0 / sample_rate:g} s",
+            )
+
+
 def recorded_overrides(folder: Path) -> dict[str, float]:
     """The procedure parameter overrides a run was started with (stored in its recording)."""
-    with open_recording(folder / "recording.h5") as f:
-        text = f.attrs.get("procedure_overrides", "{}")
-    return {str(k): float(v) for k, v in json.loads(text).items()}
+    with open_recording(folder / "recording.h5") as rec:
+        return dict(rec.header.procedure_overrides)
 
 
 def new_run_folder(out: str | Path | None, procedure_name: str) -> Path:
@@ -90,8 +105,29 @@ def new_run_folder(out: str | Path | None, procedure_name: str) -> Path:
             folder = Path("runs") / f"{stamp}-{procedure_name}-{k}"
     if (folder / "recording.h5").exists():
         raise SessionError(f"{folder} already holds a recording; choose another --out or use --resume {folder}")
-    folder.mkdir(parents=True, exist_ok=True)
+    if folder.exists() and not folder.is_dir():
+        raise SessionError(f"--out {folder}: is a file, not a folder; choose a folder for the run")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SessionError(f"--out {folder}: cannot create the run folder ({exc.strerror}); choose another") from None
     return folder
+
+
+def check_seed(seed: int | None) -> None:
+    """A simulator seed must be an integer in [0, 2**64); SessionError otherwise (before anything is created)."""
+    if seed is not None and not 0 <= seed < 2**64:
+        raise SessionError(f"--seed {seed}: must be an integer from 0 to 2**64 - 1 (18446744073709551615)")
+
+
+def unfinished_work(folder: Path) -> list[str]:
+    """What a run with a complete recording has not done yet: "identification" and/or "certificate"."""
+    todo = []
+    if not (folder / "calibration.json").exists():
+        todo.append("identification")
+    if not any(folder.glob("certificate*.pdf")):
+        todo.append("certificate")
+    return todo
 
 
 def _sha256(text: str) -> str:
@@ -108,11 +144,14 @@ def execute(
     observers: Callable[[ProgressDisplay], Iterable[SampleObserver]] | None = None,
     stream: TextIO | None = None,
     live: bool | None = None,
+    storage: str = "counts+gzip",
 ) -> RunResult:
     """Open the bench, run the procedure into ``folder/recording.h5`` and close everything.
 
     With ``resume``, the recording is continued after its last complete step: a simulated bench replays the
-    completed steps (deterministic, not recorded); a real bench skips them.
+    completed steps (deterministic, not recorded); a real bench skips them. ``storage`` (benchmarks):
+    "counts+gzip" (the default: quantised counts + shuffle + gzip-1), "float+gzip", "counts+lzf", or "plain"
+    (float64, uncompressed: the format-1 storage), all with Fletcher-32 and per-step SHA-256.
     """
     from benches.factory import open_bench
 
@@ -124,14 +163,18 @@ def execute(
     replay: list[int] = []
     start_sample = 0
     if resume:
-        with open_recording(rec_path) as f:
-            done = [s for s in read_steps(f) if s.status == "complete"]
-            if f.attrs.get("status") == "complete":
+        with open_recording(rec_path) as rec:
+            done = rec.complete_steps()
+            if rec.header.status == "complete":
                 raise SessionError(f"{folder}: the run is already complete; nothing to resume")
-            if f.attrs.get("procedure_sha256") != compiled.sha256:
+            if rec.header.procedure_sha256 != compiled.sha256:
                 raise SessionError(f"{folder}: the procedure text differs from the recorded one; cannot resume")
-            seed = int(f.attrs.get("seed", -1))
-            seed = None if seed < 0 else seed
+            if seed is not None and seed != rec.header.seed:
+                raise SessionError(
+                    f"{folder}: --seed {seed} differs from the recorded seed {rec.header.seed}; a resumed run must "
+                    "continue with the same seed (omit --seed)"
+                )
+            seed = rec.header.seed
         start_sample = done[-1].end_sample if done else 0
         done_idx = [s.index for s in done]
         if config.simulation is not None:
@@ -156,7 +199,7 @@ def execute(
                 "procedure_name": compiled.name,
                 "procedure_file": str(prep.procedure_path),
                 "procedure_sha256": compiled.sha256,
-                "procedure_overrides": json.dumps(prep.overrides, sort_keys=True),
+                "procedure_overrides": dict(prep.overrides),
                 "bench_sha256": _sha256(config.text),
                 "sample_rate_hz": float(config.unit.sample_rate),
                 "simulated": world is not None,
@@ -164,8 +207,21 @@ def execute(
                 "site_g": float(config.site.g),
                 "site_g_source": config.site.g_source,
             }
+            scale = getattr(config.unit, "scale", None)
+            quanta = {"time": 1e-9}  # the unit clock in ns (drivers decode time stamps as ns · 1e-9)
+            if scale is not None:
+                quanta.update(accel=scale.accel_lsb, gyro=scale.gyro_lsb)
+            counts, _, comp = storage.partition("+")
+            if counts != "counts":
+                quanta = {}
             recorder = Hdf5Recorder(
-                rec_path, attrs=attrs, bench_text=config.text, procedure_text=compiled.text, truth=truth
+                rec_path,
+                attrs=attrs,
+                bench_text=config.text,
+                procedure_text=compiled.text,
+                truth=truth,
+                quanta=quanta,
+                compression=comp or None,
             )
         try:
             progress = ProgressDisplay(prep.estimated_s, stream=stream, live=live)
@@ -199,30 +255,125 @@ def copy_inputs(prep: Prepared, folder: Path) -> None:
 
 
 def recording_status(path: Path) -> dict[str, object]:
-    """Summary of one recording for ``tablebench runs``."""
+    """Summary of one recording for ``tablebench runs`` (verified; a damaged one says so in ``problem``)."""
     try:
-        with h5py.File(path, "r") as f:
-            steps = read_steps(f)
-            rate = float(f.attrs.get("sample_rate_hz", 0.0)) or 1.0
+        with open_recording(path) as rec:
+            h = rec.header
             return {
                 "path": str(path.parent),
-                "status": str(f.attrs.get("status", "?")),
-                "procedure": str(f.attrs.get("procedure_name", "?")),
-                "bench": str(f.attrs.get("bench_name", "?")),
-                "created": str(f.attrs.get("created_utc", "?")),
-                "steps_done": sum(s.status == "complete" for s in steps),
-                "bench_s": f["imu/time"].shape[0] / rate,
+                "status": h.status,
+                "procedure": h.procedure_name or "?",
+                "bench": h.bench_name or "?",
+                "created": h.created_utc or "?",
+                "steps_done": len(rec.complete_steps()),
+                "bench_s": rec.n_samples / h.sample_rate_hz,
+                "overrides": dict(h.procedure_overrides),
+                "seed": h.seed,
+                "integrity": "verified" if rec.integrity_verified else "not verifiable",
             }
-    except (OSError, KeyError) as exc:
-        return {"path": str(path.parent), "status": f"unreadable ({exc.__class__.__name__})"}
+    except RecordingError as exc:
+        return {"path": str(path.parent), "status": "DAMAGED", "problem": str(exc)}
 
 
 __all__ = [
     "Prepared",
     "SessionError",
+    "check_seed",
+    "unfinished_work",
     "copy_inputs",
     "execute",
     "new_run_folder",
     "prepare",
     "recording_status",
 ]
+
+
+def identify_and_certify(
+    folder: Path,
+    todo: list[str],
+    *,
+    live: Any | None = None,
+    say: Callable[..., None] = print,
+    done: list[str] | None = None,
+) -> list[str]:
+    """The end of the session: identify the complete recording (calibration.json) and issue its certificate.
+
+    Parameters
+    ----------
+    folder : Path
+        The run folder.
+    todo : list of str
+        "identification" and/or "certificate".
+    live : benches.identify.LiveIdentifier, optional
+        The live filter of the run, compared with the offline result.
+    say : callable
+        ``say(text, err=True)`` for the closing lines (``err=False``: a result path for stdout).
+    done : list, optional
+        Appended with each finished item as it finishes (so an interruption can say what is left).
+    """
+    import numpy as np
+
+    from benches.identify import IdentificationError, identify_run
+
+    done = [] if done is None else done
+    if "identification" in todo:
+        try:
+            result = identify_run(folder, method="kalman")
+        except IdentificationError as exc:
+            say(f"identification not possible: {exc}")
+            return done
+        if live is not None and live.filter.n_samples:
+            # the live filter saw the same samples and readings (except replayed ones on resume)
+            u_white = np.array([p.u_white for p in result.parameters.values()])
+            result.extra["live_vs_offline_max_u"] = float(np.max(np.abs(live.filter.estimate - result.x) / u_white))
+        path = result.save(folder / "calibration.json")
+        done.append("identification")
+        say(result.summary())
+        say(f"calibration: {path}", err=False)
+    if "certificate" in todo:
+        from benches.certificate import issue_certificate
+
+        pdf, js, verdict = issue_certificate(folder)
+        done.append("certificate")
+        say(f"certificate: {pdf} ({verdict})", err=False)
+        for line in verdict_explanation(js, verdict):
+            say(line)
+    return done
+
+
+def verdict_explanation(certificate_json: Path, verdict: str) -> list[str]:
+    """Plain words for the run's closing lines: why the certificate says what it says, and what to do."""
+    import json
+
+    if verdict != "INCONCLUSIVE":
+        return []
+    try:
+        cert = json.loads(Path(certificate_json).read_text(encoding="utf-8"))
+        params = cert.get("parameters") or {}
+    except (OSError, ValueError):
+        return [f"the certificate is INCONCLUSIVE: conformity not shown for every parameter ({certificate_json})"]
+    not_eval = [n for n, p in params.items() if p.get("verdict") == "NOT EVALUATED" and p.get("limit") is not None]
+    undecided = [n for n, p in params.items() if p.get("verdict") == "UNDECIDED"]
+    out = ["the certificate is INCONCLUSIVE — this is not a failure: no parameter failed its limit, but "
+           "conformity could not be shown for all of them."]  # fmt: skip
+    if not_eval:
+        sizes = [n for n in not_eval if n.startswith("r_")]
+        if sizes:
+            out.append(
+                f"  {', '.join(sizes)}: the size effect (the accelerometers' offsets from the rotation centre) "
+                "cannot be identified by this procedure: its spins are too slow (at the published 1.6 °/s the "
+                "effect is a few µg, below the unit's bias stability)."
+            )
+            out.append(
+                "  To calibrate it as well, run the procedure with fast spins: "
+                "tablebench run --procedure ten-step-fast-spin"
+            )
+        others = [n for n in not_eval if not n.startswith("r_")]
+        if others:
+            out.append(f"  {', '.join(others)}: not identified by this procedure (see the plan's warnings).")
+    if undecided:
+        out.append(
+            f"  {', '.join(undecided)}: the expanded uncertainty U straddles the limit (undecided); a longer or "
+            "better-conditioned procedure reduces U."
+        )
+    return out

@@ -21,6 +21,7 @@ BENCHMARKS = (
     "bench_noise",
     "bench_periodic",
     "bench_drift",
+    "bench_recording",
 )
 
 

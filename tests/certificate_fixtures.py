@@ -17,11 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
+from analysis.identification.budget import data_information
 from analysis.units import ARCSEC, MM, PPM, UG, UG_PER_G2, display_unit, to_display
 from benches.bench_config import load_bench
+from benches.certificate.budget import PARAM_KINDS, PARAM_NAMES, step_geometry
 from benches.recording import Hdf5Recorder, open_recording
 from benches.runner import Runner
-from benches.uncertainty_budget import PARAM_KINDS, PARAM_NAMES, data_information, step_geometry
 from tests import REPO_ROOT
 from tests.fakes import FakeClock, FakeStep, FakeTable, FakeUnit
 
@@ -164,7 +165,7 @@ def calibration_fixture(run: Path, *, seed: int = 3, shift: dict[str, float] | N
         }
     unident = [n for n, ok in zip(PARAM_NAMES, identifiable, strict=True) if not ok]
     with open_recording(run / "recording.h5") as f:
-        status = str(f.attrs["status"])
+        status = f.header.status
     return {
         "format": "tablebench-calibration",
         "format_version": 1,
@@ -244,7 +245,16 @@ def add_analyses(run: Path) -> None:
     periodic = {
         "channels": {
             "gyro_z": {
-                "terms": [{"frequency_hz": 12.5, "frequency_sigma_hz": 1e-4, "amplitude": 2e-5, "phase_rad": 0.3}],
+                "unit": "rad/s",
+                "terms": [
+                    {
+                        "frequency_hz": 12.5,
+                        "frequency_sigma_hz": 1e-4,
+                        "amplitude": 2e-5,
+                        "amplitude_unit": "rad/s",
+                        "phase_rad": 0.3,
+                    }
+                ],
                 "offset": 0.0,
                 "residual_rms_before": 3e-5,
                 "residual_rms_after": 1e-5,

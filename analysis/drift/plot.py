@@ -91,10 +91,9 @@ def plot_channel(result: ChannelDrift, name: str, unit: str, out_dir: Path) -> l
     else:
         ax.text(0.5, 0.5, "white residual: nothing to compensate", ha="center", transform=ax.transAxes)
     c = s["compensation"]
-    ax.set_title(
-        f"{name}: drift compensation, σ before {c['std_before']:.3g}, "
-        f"after filter {c.get('std_after_filter', np.nan):.3g} {unit}"
-    )
+    after = c.get("std_after_filter")
+    after_txt = f", after filter {after:.3g}" if isinstance(after, int | float) and np.isfinite(after) else ""
+    ax.set_title(f"{name}: drift compensation, σ before {c['std_before']:.3g}{after_txt} {unit}")
     ax.set_xlabel("time (s)")
     ax.set_ylabel(unit)
     paths.append(_save(fig, out_dir / f"drift_{name}_compensation.png"))

@@ -2,7 +2,8 @@
 
 The compensator subtracts ``Σ A_i cos(2π f_i t_j + φ_i)`` from each new sample of one channel, with
 ``t_j = j T_s`` counted from sample 0 of the calibration record (the phase reference of
-:class:`~analysis.periodic.error.PeriodicModel`).
+:class:`~analysis.periodic.model.PeriodicModel`). This module imports nothing from the rest of the package: a
+model is anything with ``terms`` (``frequency_hz``, ``amplitude``, ``phase_rad``) and ``rate_hz``.
 
 Phase accuracy
 --------------
@@ -34,13 +35,25 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from fractions import Fraction
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-if TYPE_CHECKING:  # pragma: no cover
-    from analysis.periodic.error import PeriodicModel
+
+class _Term(Protocol):
+    frequency_hz: float
+    amplitude: float
+    phase_rad: float
+
+
+class _Model(Protocol):
+    @property
+    def terms(self) -> Sequence[_Term]: ...
+
+    @property
+    def rate_hz(self) -> float: ...
+
 
 _TWO64 = 1 << 64
 _MASK64 = _TWO64 - 1
@@ -158,9 +171,9 @@ class PeriodicCompensator:
 
     @classmethod
     def from_model(
-        cls, model: PeriodicModel, start_index: int = 0, decimation: int = 1, chunk: int = 4096
+        cls, model: _Model, start_index: int = 0, decimation: int = 1, chunk: int = 4096
     ) -> PeriodicCompensator:
-        """A compensator for an identified :class:`~analysis.periodic.error.PeriodicModel`."""
+        """A compensator for an identified model (``terms`` and ``rate_hz``, e.g. ``periodic.model.PeriodicModel``)."""
         return cls(
             [t.frequency_hz for t in model.terms],
             [t.amplitude for t in model.terms],

@@ -1,27 +1,29 @@
-"""Plots for the periodic error analysis (``tablebench periodic``): PSD before/after and the comparison.
+"""Plot of the periodic error analysis: PSD before/after compensation and the comparison with smoothing.
 
-Plotting lives apart from the maths in :mod:`analysis.periodic.error`; it takes arrays in SI and a display
-scale (SI value of one display unit) for the axis labels.
+Returns a matplotlib :class:`~matplotlib.figure.Figure` (no file is written here; the command saves it). Takes
+arrays in SI and a display scale (SI value of one display unit) for the axis labels.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
-from analysis.periodic.error import ChannelAnalysis, welch_psd
+from analysis.periodic.comparison import welch_psd
+from analysis.periodic.report import ChannelAnalysis
+
+__all__ = ["plot_channel"]
 
 
 def plot_channel(
     result: ChannelAnalysis,
     rate_hz: float,
-    path: str | Path,
     channel: str,
     unit_label: str = "SI",
     unit_si: float = 1.0,
-) -> Path:
-    """Write one PNG: Welch PSD before/after compensation (tones marked), and the residual-vs-bandwidth table.
+) -> Figure:
+    """Welch PSD before/after compensation (tones marked) and the residual-vs-bandwidth comparison.
 
     Parameters
     ----------
@@ -29,22 +31,22 @@ def plot_channel(
         The channel's analysis.
     rate_hz : float
         Sample rate, Hz.
-    path : str or Path
-        PNG file to write.
     channel : str
         Channel name for the title.
     unit_label, unit_si : str, float
         Display unit and the SI value of one display unit (e.g. "deg/s", π/180).
+
+    Returns
+    -------
+    Figure
+        With an Agg canvas attached (``fig.savefig`` works without pyplot).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     fb, pb = welch_psd(result.before, rate_hz)
     _, pa = welch_psd(result.after, rate_hz)
     scale = 1.0 / unit_si**2
-    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(9, 8), gridspec_kw={"height_ratios": [3, 2]})
+    fig = Figure(figsize=(9, 8))
+    FigureCanvasAgg(fig)
+    ax, ax2 = fig.subplots(2, 1, gridspec_kw={"height_ratios": [3, 2]})
     ax.semilogy(fb[1:], pb[1:] * scale, lw=0.8, label="before compensation")
     ax.semilogy(fb[1:], pa[1:] * scale, lw=0.8, label="after compensation")
     for term in result.model.terms:
@@ -68,7 +70,4 @@ def plot_channel(
     ax2.set_xlim(0, resid.max() * 1.9 if resid.size and resid.max() > 0 else 1)
     ax2.grid(True, axis="x", alpha=0.3)
     fig.tight_layout()
-    out = Path(path)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return fig

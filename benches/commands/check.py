@@ -7,11 +7,7 @@ import math
 from pathlib import Path
 
 from core.errors import UsageError
-from core.yaml_source import ConfigError
-from procedures.compiler import compile_procedure
-from procedures.loader import load_procedure
-from procedures.paths import default_bench_path, resolve_bench, resolve_procedure, shipped_procedures
-from procedures.steps import ACQUISITION_KINDS, CompiledProcedure
+from procedures.paths import shipped_procedures
 
 EXAMPLES = """\
 examples:
@@ -68,30 +64,13 @@ def parse_overrides(items: list[str]) -> dict[str, float]:
     return out
 
 
-def check_against_unit(compiled: CompiledProcedure, sample_rate: float) -> None:
-    """Every acquisition step must last at least one sample period of the unit; ConfigError otherwise."""
-    for s in compiled.steps:
-        if s.kind in ACQUISITION_KINDS and s.duration * sample_rate < 1.0:
-            raise ConfigError(
-                compiled.path,
-                s.line,
-                f"step {s.name!r}: {s.duration:g} s is shorter than one sample at the unit's {sample_rate:g} Hz; "
-                f"allowed: at least {1.0 / sample_rate:g} s",
-            )
-
-
 def run(args: argparse.Namespace) -> int:
     """Load, compile and check; print the summary; 0 if valid (errors raise → exit 2)."""
-    from benches.bench_config import load_bench
+    from benches.session import prepare
 
-    proc_path = resolve_procedure(args.procedure)
-    bench_path = resolve_bench(args.bench) if args.bench else default_bench_path()
-    overrides = parse_overrides(args.set)
-    proc = load_procedure(proc_path, overrides)
-    config = load_bench(bench_path)
+    prep = prepare(args.bench, args.procedure, parse_overrides(args.set))  # the same step as plan and run
+    proc_path, bench_path, config, compiled = prep.procedure_path, prep.bench_path, prep.config, prep.compiled
     limits = config.turntable.limits
-    compiled = compile_procedure(proc, limits=limits, mounting=config.unit.mounting)
-    check_against_unit(compiled, float(config.unit.sample_rate))
     if not args.quiet:
         print(compiled.summary(limits))
         if compiled.parameters:

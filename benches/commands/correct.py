@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -14,7 +13,8 @@ EXAMPLES = """examples:
         # raw.npy: (n, 3) specific force in m/s² (body frame), or (n, 6) with the gyro rates (rad/s) used
         # for the size-effect term; without rates the unit is taken as not rotating
   tablebench correct runs/RUN/calibration.json runs/OTHER --out corrected.npy
-        # a recording: rates from the recorded table readings
+        # a recording: only its hold/spin acquisition windows (listed with their times), rates from the
+        # recorded table readings; the sample times are written to corrected_time.npy
 """
 
 
@@ -37,21 +37,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def load_calibration_vector(path: str | Path) -> tuple[np.ndarray, list[str]]:
     """The 18-parameter vector of a calibration.json (not-identified parameters zeroed) and their names."""
-    from analysis.identification.model import PARAM_NAMES
-    from core.errors import UsageError
+    from benches.calibration_result import CalibrationResult
 
-    try:
-        cal = json.loads(Path(path).read_text(encoding="utf-8"))
-        params = cal["parameters"]
-        x = np.array([float(params[n]["value"]) for n in PARAM_NAMES])
-        skipped = [n for n in PARAM_NAMES if not params[n].get("identifiable", True)]
-    except FileNotFoundError:
-        raise UsageError(f"{path}: no such calibration file") from None
-    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
-        raise UsageError(f"{path}: not a tablebench calibration.json ({exc.__class__.__name__}: {exc})") from None
-    for n in skipped:
-        x[PARAM_NAMES.index(n)] = 0.0
-    return x, skipped
+    return CalibrationResult.load(path).compensation_vector()
 
 
 def run(args: argparse.Namespace) -> int:
@@ -62,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
 
     x, skipped = load_calibration_vector(args.calibration)
     src = recording_path(args.input)
+    times = None
     if src.suffix.lower() in (".h5", ".hdf5"):
         from benches.identify import IdentificationError, load_run
 
@@ -71,6 +60,15 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(str(exc)) from None
         f_out = np.concatenate([w.f_out for w in rr.windows])
         omega = np.concatenate([w.omega for w in rr.windows])
+        times = np.concatenate([w.t for w in rr.windows])
+        print(
+            f"{src}: returns only the samples of the {len(rr.windows)} hold/spin acquisition windows "
+            "(warm-up, moves, settling and ramps are left out, as in the identification); bench times:",
+            file=sys.stderr,
+        )
+        for w in rr.windows:
+            line = f"  {w.name:<24s} {w.kind:<5s} {w.t[0]:10.3f} – {w.t[-1]:10.3f} s  ({len(w.t)} samples)"
+            print(line, file=sys.stderr)
     else:
         try:
             data = np.load(src, allow_pickle=False)
@@ -89,6 +87,10 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     np.save(args.out, f)
+    if times is not None:
+        t_path = Path(args.out).with_name(Path(args.out).stem + "_time.npy")
+        np.save(t_path, times)
+        print(f"sample times (bench s) → {t_path}", file=sys.stderr)
     if skipped:
         print(f"not applied (not identified): {', '.join(skipped)}", file=sys.stderr)
     print(f"corrected {f.shape[0]} samples → {args.out}")

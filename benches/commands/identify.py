@@ -5,6 +5,10 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # pragma: no cover
+    from benches.calibration_result import CalibrationResult
 
 EXAMPLES = """examples:
   tablebench identify runs/20261121-101500-ten-step                 # writes RUN/calibration.json
@@ -36,26 +40,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def format_result(result: dict) -> str:
-    """A readable table of a calibration result."""
-    lines = [f"{'param':8s} {'value':>12s} {'1σ':>10s} {'unit':7s} {'err/σ':>7s}  note"]
-    truth = result.get("truth") or {}
-    for name in result["parameter_names"]:
-        p = result["parameters"][name]
-        e = truth.get("error_sigma", {}).get(name)
-        note = "" if p["identifiable"] else "NOT IDENTIFIED (prior-dominated; do not use)"
-        lines.append(
-            f"{name:8s} {p['display_value']:12.4f} {p['display_sigma']:10.4f} {p['display_unit']:7s} "
-            f"{'' if e is None else f'{e:7.2f}':>7s}  {note}"
-        )
-    info = result["information"]
-    lines.append(f"information rank {info['rank']}/18, condition {info['condition']:.3g}; method {result['method']}")
-    if truth:
-        lines.append(f"NEES {truth['nees']:.2f} over {truth['dof']} identified states (simulator truth)")
-    else:
-        lines.append("no simulator truth in the recording (a real bench): errors against truth not computed")
-    lines += [f"warning: {w}" for w in result.get("warnings", [])]
-    return "\n".join(lines)
+def format_result(result: CalibrationResult) -> str:
+    """A readable table of a calibration result (:meth:`CalibrationResult.summary`)."""
+    return result.summary()
 
 
 def run(args: argparse.Namespace) -> int:

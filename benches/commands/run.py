@@ -53,22 +53,60 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def _say(*parts: object, err: bool = True) -> None:
+    """Print, but never fail because the terminal is gone (SIGHUP: EIO/EPIPE on stderr)."""
+    try:
+        print(*parts, file=sys.stderr if err else sys.stdout, flush=True)
+    except OSError:
+        pass
+
+
+class _StopSignalsRaise:
+    """While identifying and certifying: SIGTERM/SIGHUP end the work like Ctrl-C (KeyboardInterrupt)."""
+
+    def __enter__(self) -> _StopSignalsRaise:
+        import signal
+        import threading
+
+        self._old: dict = {}
+        if threading.current_thread() is threading.main_thread():
+            for name in ("SIGTERM", "SIGHUP"):
+                sig = getattr(signal, name, None)
+                if sig is not None:
+                    self._old[sig] = signal.signal(sig, self._raise)
+        return self
+
+    @staticmethod
+    def _raise(signum: int, _frame: object) -> None:
+        raise KeyboardInterrupt
+
+    def __exit__(self, *exc: object) -> None:
+        import signal
+
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+
+
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench run``."""
     from benches.commands.check import parse_overrides
     from benches.session import (
         SessionError,
+        check_seed,
         copy_inputs,
         execute,
         new_run_folder,
         prepare,
         recorded_overrides,
         recording_status,
+        unfinished_work,
     )
     from core.errors import UsageError
 
-    if args.seed is not None and args.seed < 0:
-        raise UsageError("--seed must be a non-negative integer")
+    try:
+        check_seed(args.seed)
+    except SessionError as exc:
+        raise UsageError(str(exc)) from None
     if args.resume is not None:
         folder = Path(args.resume)
         if folder.is_file():
@@ -79,18 +117,33 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError("--resume uses the run's own bench and procedure copies; omit --bench/--procedure")
         if args.set:
             raise UsageError("--resume uses the run's recorded procedure parameters; omit --set")
-        if recording_status(folder / "recording.h5").get("status") == "complete":
-            raise UsageError(f"{folder}: the run is already complete; nothing to resume")
+        st = recording_status(folder / "recording.h5")
+        if st.get("status") == "DAMAGED":
+            raise UsageError(f"{st['problem']} (resume refuses to append to a damaged recording)")
+        if args.seed is not None and st.get("seed") != args.seed:
+            raise UsageError(
+                f"--seed {args.seed} differs from the run's recorded seed {st.get('seed')}; a resumed run continues "
+                "with its own seed (omit --seed)"
+            )
+        if st.get("status") == "complete":
+            todo = unfinished_work(folder)
+            if args.no_identify or not todo:
+                raise UsageError(
+                    f"{folder}: the run is already complete (recording, calibration and certificate); nothing to resume"
+                )
+            _say(f"{folder}: the recording is complete; finishing what was not done: {', '.join(todo)}")
+            prep = prepare(folder / "bench.yaml", folder / "procedure.yaml", recorded_overrides(folder))
+            return _finish(args, folder, prep, [], todo)
         prep = prepare(folder / "bench.yaml", folder / "procedure.yaml", recorded_overrides(folder))
     else:
         prep = prepare(args.bench, args.procedure, parse_overrides(args.set))
-    from benches.identify import IdentificationError, LiveIdentifier, identify_run, plan_for, write_calibration
+    from benches.identify import IdentificationError, LiveIdentifier, plan_for
 
-    print(f"bench: {prep.config.name} ({prep.bench_path})", file=sys.stderr)
-    print(
+    _say(f"bench: {prep.config.name} ({prep.bench_path})")
+    ov = ", ".join(f"{k}={v:g}" for k, v in sorted(prep.overrides.items()))
+    _say(
         f"procedure: {prep.compiled.name} ({prep.procedure_path}), {len(prep.compiled.steps)} steps, "
-        f"estimated {prep.estimated_s / 60:.1f} min of bench time",
-        file=sys.stderr,
+        f"estimated {prep.estimated_s / 60:.1f} min of bench time" + (f"; overrides (--set): {ov}" if ov else "")
     )
     live: list[LiveIdentifier] = []
     identify = not args.no_identify
@@ -98,11 +151,11 @@ def run(args: argparse.Namespace) -> int:
         try:
             plan = plan_for(prep.compiled, prep.config)
         except IdentificationError as exc:
-            print(f"plan: not available ({exc}); the run will only record", file=sys.stderr)
+            _say(f"plan: not available ({exc}); the run will only record")
             identify = False
         else:
-            print("pre-run plan (predicted 1σ):", file=sys.stderr)
-            print(plan.table(), file=sys.stderr)
+            _say("pre-run plan (predicted 1σ):")
+            _say(plan.table())
 
     def observers(progress):
         if not identify:
@@ -113,7 +166,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         folder = folder if args.resume is not None else new_run_folder(args.out, Path(prep.procedure_path).stem)
         copy_inputs(prep, folder)
-        print(f"run folder: {folder}", file=sys.stderr)
+        _say(f"run folder: {folder}")
         result = execute(
             prep,
             folder,
@@ -126,43 +179,35 @@ def run(args: argparse.Namespace) -> int:
     except SessionError as exc:
         raise UsageError(str(exc)) from None
     if result.status != "complete":
-        print(f"run {result.status}: {result.reason}", file=sys.stderr)
-        print(
-            f"the table was brought to rest; the recording keeps every completed step: {folder}/recording.h5",
-            file=sys.stderr,
-        )
-        print(f"resume with: tablebench run --resume {folder}", file=sys.stderr)
+        _say(f"run {result.status}: {result.reason}")
+        _say(f"the table was brought to rest; the recording keeps every completed step: {folder}/recording.h5")
+        _say(f"resume with: tablebench run --resume {folder}")
         return 130 if result.status == "interrupted" else 1
-    print(
-        f"run complete: {result.samples} samples ({result.bench_seconds / 60:.1f} min of bench time)", file=sys.stderr
-    )
-    print(f"recording: {folder}/recording.h5")
-    if identify:
-        try:
-            result = identify_run(folder, method="kalman")
-        except IdentificationError as exc:
-            print(f"identification not possible: {exc}", file=sys.stderr)
-            return 0
-        if live and live[0].filter.n_samples:
-            # the live filter saw the same samples and readings (except replayed ones on resume)
-            import numpy as np
+    _say(f"run complete: {result.samples} samples ({result.bench_seconds / 60:.1f} min of bench time)")
+    _say(f"recording: {folder}/recording.h5", err=False)
+    if not identify:
+        return 0
+    todo = ["identification"] + ([] if args.no_certificate else ["certificate"])
+    return _finish(args, folder, prep, live, todo)
 
-            offline = np.array([result["parameters"][n]["value"] for n in result["parameter_names"]])
-            diff = np.abs(live[0].filter.estimate - offline) / np.array(
-                [result["parameters"][n]["sigma_white"] for n in result["parameter_names"]]
-            )
-            result["live_vs_offline_max_sigma"] = float(diff.max())
-        path = write_calibration(result, folder / "calibration.json")
-        from benches.commands.identify import format_result
 
-        print(format_result(result), file=sys.stderr)
-        print(f"calibration: {path}")
-        if not args.no_certificate:
-            try:
-                from benches.certificate import issue_certificate
-            except ImportError:
-                print("certificate: not available in this installation", file=sys.stderr)
-            else:
-                pdf, js, verdict = issue_certificate(folder)
-                print(f"certificate: {pdf} ({verdict})")
+def _finish(args: argparse.Namespace, folder: Path, prep, live: list, todo: list[str]) -> int:
+    """Identify and certify a run whose recording is complete (:func:`benches.session.identify_and_certify`);
+    an interruption says what is left to do."""
+    from benches.session import identify_and_certify
+
+    if args.no_certificate:
+        todo = [t for t in todo if t != "certificate"]
+    done: list[str] = []
+    try:
+        with _StopSignalsRaise():
+            identify_and_certify(folder, todo, live=live[0] if live else None, say=_say, done=done)
+    except KeyboardInterrupt:
+        left = [t for t in todo if t not in done]
+        _say(
+            f"interrupted after the recording completed ({folder}/recording.h5 is complete and intact); "
+            f"not done: {', '.join(left)}"
+        )
+        _say(f"finish with: tablebench run --resume {folder}   (or: tablebench certificate {folder})")
+        return 130
     return 0

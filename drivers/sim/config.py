@@ -209,6 +209,28 @@ class ScheduledFault:
 
 
 @dataclass(frozen=True)
+class BudgetInputs:
+    """Type-B inputs of the certificate's uncertainty budget that the simulator realises (seeded draws).
+
+    A real bench has them whether we like it or not; the simulated bench draws them so that the budget's
+    coverage can be measured (benchmarks/bench_calibration.py). Each is drawn from the distribution the
+    budget assumes, from its own random stream (the other streams do not change).
+
+    Attributes
+    ----------
+    gravity_anomaly_std : m/s². True local g = the bench's g + δg, δg ~ N(0, u(g)²), once per run.
+    attitude_error_bound : rad. Every motion command (position or rate) leaves the table at a true attitude
+        C_b^n,true = (I + [δφ×]) C_b^n,reported, δφ uniform in ±bound per navigation axis, until the next one.
+    rate_error_bound : relative. The reported rate of gimbal axis j is (1 + ε_j) × the true rate, ε_j uniform
+        in ±bound, once per run and axis.
+    """
+
+    gravity_anomaly_std: float = 0.0
+    attitude_error_bound: float = 0.0
+    rate_error_bound: float = 0.0
+
+
+@dataclass(frozen=True)
 class SimConfig:
     """Everything the simulated world needs, SI.
 
@@ -247,6 +269,7 @@ class SimConfig:
     faults: tuple[ScheduledFault, ...] = ()
     seed: int = 0
     transport: str = "in-process"
+    budget_inputs: BudgetInputs | None = None
 
     @property
     def local_g(self) -> float:
@@ -278,6 +301,7 @@ __all__ = [
     "MISALIGNMENT_PAIRS",
     "AccelTruth",
     "ArmaDrift",
+    "BudgetInputs",
     "GyroTruth",
     "NoiseTruth",
     "PeriodicTerm",

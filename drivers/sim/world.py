@@ -81,7 +81,6 @@ class SimulatedWorld:
             raise ValueError(f"sample_rate must be > 0 Hz, got {config.sample_rate}")
         self._seed = int(seed)
         self._k = 0
-        self._g = config.local_g
         self._earth_n = earth_rate_enu(config.latitude)
         self._mount = np.asarray(config.mounting, dtype=float)
         tb = config.table
@@ -99,7 +98,16 @@ class SimulatedWorld:
             (max(0, math.ceil(f.time * self._fs - 1e-9)), i, f.fault) for i, f in enumerate(config.faults)
         )
         root = np.random.SeedSequence(self._seed)
-        unit_ss, table_ss, reading_ss = root.spawn(3)
+        # a 4th child leaves the first three streams unchanged (spawn keys are indices)
+        unit_ss, table_ss, reading_ss, budget_ss = root.spawn(4)
+        bi = config.budget_inputs
+        self._rng_budget = np.random.default_rng(budget_ss)
+        self._att_bound = float(bi.attitude_error_bound) if bi is not None else 0.0
+        self._dphi = np.zeros(3)
+        self._g_anomaly = float(self._rng_budget.normal(0.0, bi.gravity_anomaly_std)) if bi is not None else 0.0
+        self._g = config.local_g + self._g_anomaly
+        rb = float(bi.rate_error_bound) if bi is not None else 0.0
+        self._rate_error = self._rng_budget.uniform(-rb, rb, 3) if rb > 0 else np.zeros(3)
         self._model = InertialModel(config, unit_ss)
         self._rng_jitter = np.random.default_rng(table_ss)
         self._reading_entropy = int(reading_ss.generate_state(1)[0])
@@ -147,6 +155,11 @@ class SimulatedWorld:
         """Per-axis limits (outer, middle, inner), SI."""
         return self._limits  # type: ignore[return-value]
 
+    def _new_attitude_error(self) -> None:
+        """A motion command re-positions the table: a new attitude error δφ (navigation frame), if realised."""
+        if self._att_bound > 0:
+            self._dphi = self._rng_budget.uniform(-self._att_bound, self._att_bound, 3)
+
     def _check_ready(self) -> None:
         if self._fault != FaultCode.NONE:
             raise TableError(f"table fault {self._fault.name} is latched; clear_fault() before commanding motion")
@@ -190,6 +203,7 @@ class SimulatedWorld:
                     tolerance=tb.position_tolerance,
                     in_position_time=tb.in_position_time,
                 )
+            self._new_attitude_error()
             self._feed()
 
     def command_rate(self, axis: int, rate: float) -> None:
@@ -215,6 +229,7 @@ class SimulatedWorld:
             t = self._k / self._fs
             p0, v0 = self._plans[axis].state(t)
             self._plans[axis] = plan_rate(t, p0, v0, rate, lim)
+            self._new_attitude_error()
             self._feed()
 
     def command_stop(self) -> None:
@@ -254,7 +269,7 @@ class SimulatedWorld:
             for i, plan in enumerate(self._plans):
                 pi, vi, _ = plan.evaluate(tt)
                 p[i], v[i] = pi[0], vi[0]
-            v = v + self._jit_state * self._spin_mask()
+            v = (v + self._jit_state * self._spin_mask()) * (1.0 + self._rate_error)
             tb = self.cfg.table
             if tb.position_jitter > 0:
                 rng = np.random.default_rng([self._reading_entropy, self._k])
@@ -402,6 +417,11 @@ class SimulatedWorld:
             )
             # ω̇ from perfect-gimbal kinematics (the arcsec-level tilt/wobble effect on ω̇ is neglected)
         c_bn = c_tn @ self._mount
+        if np.any(self._dphi):
+            # realised table attitude error: C_b^n,true = R(δφ) C_b^n,reported (navigation-frame rotation)
+            from scipy.spatial.transform import Rotation
+
+            c_bn = Rotation.from_rotvec(self._dphi).as_matrix() @ c_bn
         omega_b = omega_t @ self._mount
         alpha_b = alpha_t @ self._mount
         return c_bn, omega_b, alpha_b
@@ -498,10 +518,24 @@ class SimulatedWorld:
 
     # ---- truth ---------------------------------------------------------------------------------------
     def truth(self) -> dict[str, float]:
-        """The 18 accelerometer-model parameters by name, SI (r_i = −ρ_{i,i})."""
+        """The 18 accelerometer-model parameters by name, SI, as the model can identify them.
+
+        The size effect is the lever-arm term as the accelerometer senses it: accelerometer i (sensing row
+        m_i = e_i + S_i e_i + τ_ij e_j + τ_ik e_k of I+S+T) at ρ_i, during a spin at ω about body axis j ≠ i,
+        reads m_i·(ω×(ω×ρ_i)) = −ω² [(1+S_i) ρ_ii + τ_ik ρ_ik] (k the third axis), while the model writes
+        r_i c_i = r_i ω². The τ term depends on which axis spins; the ten-step sequences spin equally about
+        the two axes that excite r_i, so the identifiable truth is
+
+            r_i = −(1+S_i) ρ_ii − ½ Σ_{k≠i} τ_ik ρ_ik.
+        """
         a = self.cfg.accel
         rho = np.asarray(a.lever_arms, dtype=float)
-        vals = [*a.bias, *a.scale, *a.misalignment, *a.quadratic, *(-np.diag(rho))]
+        m = np.eye(3) + np.diag(a.scale) + misalignment_matrix(a.misalignment)
+        r = np.empty(3)
+        for i in range(3):
+            others = [k for k in range(3) if k != i]
+            r[i] = -m[i, i] * rho[i, i] - 0.5 * sum(m[i, k] * rho[i, k] for k in others)
+        vals = [*a.bias, *a.scale, *a.misalignment, *a.quadratic, *r]
         return {name: float(v) for name, v in zip(ACCEL_PARAM_NAMES, vals, strict=True)}
 
     def truth_arrays(self) -> dict[str, NDArray[np.float64]]:
@@ -525,6 +559,8 @@ class SimulatedWorld:
             "gyro_random_walk": np.asarray(c.gyro_noise.random_walk, float),
             "mounting": np.asarray(c.mounting, float),
             "g": np.array(self._g),
+            "gravity_anomaly": np.array(self._g_anomaly),
+            "table_rate_error": self._rate_error.copy(),
             "latitude": np.array(c.latitude),
             "earth_rate_enu": self._earth_n.copy(),
             "non_orthogonality": np.asarray(c.table.non_orthogonality, float),

@@ -43,7 +43,10 @@ def test_sim_bench_values_in_si() -> None:
     assert s.accel.lever_arms[1][1] == pytest.approx(-28 * MM)
     assert s.gyro.bias[0] == pytest.approx(0.5 * DEG_PER_HOUR)
     truth = SimulatedWorld.from_bench(b).truth()
-    assert truth["r_y"] == pytest.approx(28 * MM) and truth["tau_xy"] == pytest.approx(30 * ARCSEC)
+    # r as the model identifies it: −(1 + S_y) ρ_yy − ½ (τ_yx ρ_yx + τ_yz ρ_yz) (sim.yaml: S_y −150 ppm,
+    # τ_yx 20″, τ_yz 35″, ρ_y = [5, −28, 6] mm)
+    r_y = (1 - 150 * PPM) * 28 * MM - 0.5 * (20 * ARCSEC * 5 * MM + 35 * ARCSEC * 6 * MM)
+    assert truth["r_y"] == pytest.approx(r_y, rel=1e-12) and truth["tau_xy"] == pytest.approx(30 * ARCSEC)
     assert set(b.limits) == set(b.unit.prior) == set(truth)
     for name, v in truth.items():  # the shipped truth passes its own limits, the prior covers it
         assert abs(v) < b.limits[name] and abs(v) < 3 * b.unit.prior[name]
@@ -154,3 +157,19 @@ def test_defaults_when_simulation_noise_omitted() -> None:
     assert b.simulation is not None
     np.testing.assert_allclose(b.simulation.accel_noise.white, b.unit.noise.vrw)
     assert b.simulation.anti_alias_hz is None and math.isclose(b.simulation.table.overshoot, 5 * ARCSEC)
+
+
+def test_reference_standards_are_validated() -> None:
+    text = (BENCHES / "sim.yaml").read_text(encoding="utf-8")
+    good = text + (
+        "reference_standards:\n"
+        "  - {name: angle encoders, serial_number: E1, certificate: C-1, calibrated_by: Lab, due: 2027-03-01}\n"
+    )
+    cfg = load_bench_text(good, "good.yaml")
+    assert cfg.reference_standards[0].due.isoformat() == "2027-03-01"
+    bad = text + "reference_standards:\n  - {name: encoders, certificate: C-1, due: next spring}\n"
+    with pytest.raises(ConfigError, match="due.*YYYY-MM-DD"):
+        load_bench_text(bad, "bad.yaml")
+    missing = text + "reference_standards:\n  - {name: encoders, due: 2027-03-01}\n"
+    with pytest.raises(ConfigError, match="certificate"):
+        load_bench_text(missing, "missing.yaml")

@@ -21,10 +21,10 @@ def fast_spin_run(tmp_path_factory):
 
 def test_ten_step_fast_spin_identifies_all_18_within_3_sigma(fast_spin_run):
     bench, run, _live = fast_spin_run
-    result = identify_run(run, method="kalman")
+    result = identify_run(run, method="kalman").to_dict()
     assert result["information"]["rank"] == 18
     assert result["information"]["unidentifiable"] == []
-    err = result["truth"]["error_sigma"]
+    err = result["truth"]["error_over_u"]
     assert all(abs(err[n]) < 3.0 for n in PARAM_NAMES), err
     # achieved error against the plan's prediction (single seed: a loose bound; the Monte Carlo is slow)
     plan = plan_for(prepare(bench, "ten-step-fast-spin").compiled, prepare(bench, "ten-step-fast-spin").config)
@@ -36,11 +36,11 @@ def test_ten_step_fast_spin_identifies_all_18_within_3_sigma(fast_spin_run):
 
 def test_kalman_equals_batch_on_a_recording(fast_spin_run):
     _bench, run, _live = fast_spin_run
-    k = identify_run(run, method="kalman")
-    b = identify_run(run, method="batch")
+    k = identify_run(run, method="kalman").to_dict()
+    b = identify_run(run, method="batch").to_dict()
     xk = np.array([k["parameters"][n]["value"] for n in PARAM_NAMES])
     xb = np.array([b["parameters"][n]["value"] for n in PARAM_NAMES])
-    sk = np.array([k["parameters"][n]["sigma_white"] for n in PARAM_NAMES])
+    sk = np.array([k["parameters"][n]["u_white"] for n in PARAM_NAMES])
     # agreement relative to the parameter uncertainty (values themselves can be ~0)
     assert np.max(np.abs(xk - xb) / sk) < 1e-6
 
@@ -73,7 +73,7 @@ def test_nees_over_seeds_is_consistent_with_chi2(tmp_path):
     nees, z = [], []
     for seed in range(8):
         run = run_procedure(tmp_path, bench, "ten-step-fast-spin", seed=100 + seed, out=f"r{seed}")
-        r = identify_run(run)
+        r = identify_run(run).to_dict()
         nees.append(r["truth"]["nees"])
         x = np.array([r["parameters"][n]["value"] for n in PARAM_NAMES])
         t = np.array([r["truth"]["values"][n] for n in PARAM_NAMES])
@@ -101,9 +101,9 @@ def test_sim_bench_states_its_units_latency():
 
 def test_live_identification_during_the_run_equals_offline(fast_spin_run):
     _bench, run, live = fast_spin_run
-    offline = identify_run(run)
+    offline = identify_run(run).to_dict()
     x = np.array([offline["parameters"][n]["value"] for n in PARAM_NAMES])
-    s = np.array([offline["parameters"][n]["sigma_white"] for n in PARAM_NAMES])
+    s = np.array([offline["parameters"][n]["u_white"] for n in PARAM_NAMES])
     assert live.filter.n_samples > 0
     assert np.max(np.abs(live.filter.estimate - x) / s) < 1e-6
     np.testing.assert_allclose(live.filter.sigma, s, rtol=1e-9)

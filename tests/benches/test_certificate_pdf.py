@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 import re
 import shutil
@@ -86,37 +87,48 @@ def test_pdf_text_has_every_parameter_with_uncertainty_and_unit(issued):
         assert must in text, must
 
 
-def test_budget_is_consistent_and_estimation_is_not_the_only_component(issued):
+def test_budget_starts_from_the_identification_covariance(issued):
     _, js, _ = issued
     cert = json.loads(js.read_text(encoding="utf-8"))
     keys = [c["key"] for c in cert["uncertainty_budget"]["components"]]
-    assert keys == ["estimation", "bias_instability", "attitude", "local_g", "model_mismatch"]
+    assert keys == ["white_noise", "bias_instability", "attitude", "local_g", "model_mismatch"]
     cal = json.loads((js.parent / "calibration.json").read_text(encoding="utf-8"))
     for name, p in cert["parameters"].items():
         b = p["budget"]
-        assert b["estimation"] == pytest.approx(cal["parameters"][name]["sigma"], rel=1e-9)
+        # white noise ⊕ bias instability is the identification's own u, exactly
+        assert math.hypot(b["white_noise"], b["bias_instability"]) == pytest.approx(
+            cal["parameters"][name]["sigma"], rel=1e-9
+        )
         assert p["standard_uncertainty"] == pytest.approx(np.sqrt(sum(v**2 for v in b.values())), rel=1e-9)
     # WGS-84 normal gravity (30 mGal) dominates the scale factors; the attitude (1″) matters for misalignments
-    assert cert["parameters"]["S_x"]["budget"]["local_g"] > cert["parameters"]["S_x"]["budget"]["estimation"]
+    assert cert["parameters"]["S_x"]["budget"]["local_g"] > cert["parameters"]["S_x"]["budget"]["white_noise"]
     assert (
-        cert["parameters"]["tau_xy"]["budget"]["attitude"] > 0.1 * cert["parameters"]["tau_xy"]["budget"]["estimation"]
+        cert["parameters"]["tau_xy"]["budget"]["attitude"] > 0.1 * cert["parameters"]["tau_xy"]["budget"]["white_noise"]
     )
-    assert "consistency" in " ".join(cert["uncertainty_budget"]["notes"])
 
 
 def test_same_recording_gives_the_same_bytes_apart_from_the_issue_date(run_ok, issued, tmp_path):
     pdf1, js1, _ = issued
-    # another process, another hash seed: the same bytes
-    cmd = [sys.executable, "-m", "benches.cli", "certificate", str(run_ok), "--issue-date", DATE]
-    cmd += ["--out", str(tmp_path / "again.pdf")]
-    env = dict(os.environ, PYTHONHASHSEED="12345")
-    subprocess.run(cmd, check=True, env=env, capture_output=True, timeout=300)
+    number = json.loads(js1.read_text(encoding="utf-8"))["certificate_number"]
+    # another process, another hash seed, the same number: the same bytes
+    code = (
+        "import sys; from pathlib import Path; from benches.certificate import build_certificate; "
+        "from benches.certificate.pdf import render_pdf; c = build_certificate(sys.argv[1], issue_date=sys.argv[2]); "
+        "c.number = sys.argv[3]; Path(sys.argv[4]).write_bytes(render_pdf(c)); "
+        "Path(sys.argv[5]).write_text(c.to_json(), encoding='utf-8')"
+    )
     pdf2, js2 = tmp_path / "again.pdf", tmp_path / "again.json"
+    env = dict(os.environ, PYTHONHASHSEED="12345")
+    cmd = [sys.executable, "-c", code, str(run_ok), DATE, number, str(pdf2), str(js2)]
+    subprocess.run(cmd, check=True, env=env, capture_output=True, timeout=300)
     assert pdf1.read_bytes() == pdf2.read_bytes()
     assert js1.read_bytes() == js2.read_bytes()
+    # a re-issue: a new number that names the one it supersedes, otherwise the same content
     _, js3, _ = issue_certificate(run_ok, tmp_path / "later.pdf", tmp_path / "later.json", issue_date="2027-01-05")
     a, b = json.loads(js1.read_text(encoding="utf-8")), json.loads(js3.read_text(encoding="utf-8"))
     assert a.pop("issue_date") == DATE and b.pop("issue_date") == "2027-01-05"
+    assert b.pop("supersedes") == a.pop("certificate_number") != b.pop("certificate_number")
+    a.pop("supersedes")
     assert a == b
 
 
@@ -143,7 +155,7 @@ def test_incomplete_recording_needs_allow_incomplete_and_says_so_on_page_one(tmp
     assert main(["certificate", str(run), "--issue-date", DATE, "--allow-incomplete"]) == 0
     cert = json.loads((run / "certificate.json").read_text(encoding="utf-8"))
     assert cert["complete"] is False and cert["verdict"] == "INCOMPLETE"
-    assert cert["incomplete_reason"] and any("not identified" in r for r in cert["reasons"])
+    assert cert["incomplete_reason"] and any("cannot identify" in r for r in cert["reasons"])
     first = _text(run / "certificate.pdf")[0]
     assert "INCOMPLETE RUN" in first and "failed" in first
 
@@ -176,12 +188,14 @@ def test_noise_periodic_and_drift_analyses_are_included_when_present(tmp_path):
     pdf, js, _ = issue_certificate(run, issue_date=DATE)
     cert = json.loads(js.read_text(encoding="utf-8"))
     assert set(cert["analyses"]) == {"noise", "periodic", "drift"}
-    assert {"channel": "accel_x", "item": "N", "value": "14.99 ± 0.015 µg/√Hz"} in cert["analyses"]["noise"]
+    # k = 2 for every ± on the certificate (the analysis file holds the standard uncertainty 0.015)
+    assert {"channel": "accel_x", "item": "N", "value": "14.99 ± 0.03 µg/√Hz (U, k = 2)"} in cert["analyses"]["noise"]
     assert any("12.5" in r["value"] for r in cert["analyses"]["periodic"])
+    assert all("rad/s" in r["value"] for r in cert["analyses"]["periodic"])  # units from periodic.json
     assert any(r["item"] == "ARMA(1,1)" for r in cert["analyses"]["drift"])
     assert list(cert["analysis_plots"]) == ["noise/noise.png"]
     text = "\n".join(_text(pdf))
-    assert "Noise analysis" in text and "14.99 ± 0.015 µg/√Hz" in text and "ARMA(1,1)" in text
+    assert "Noise analysis" in text and "14.99 ± 0.03 µg/√Hz (U, k = 2)" in text and "ARMA(1,1)" in text
 
 
 def test_an_unidentified_limited_parameter_makes_the_result_inconclusive(run_ok, tmp_path):
@@ -193,7 +207,7 @@ def test_an_unidentified_limited_parameter_makes_the_result_inconclusive(run_ok,
     (run / "calibration.json").write_text(json.dumps(cal), encoding="utf-8")
     cert = build_certificate(run, issue_date=DATE, with_plots=False)
     assert cert.verdict == "INCONCLUSIVE"
-    assert [p.verdict for p in cert.parameters if p.name.startswith("r_")] == ["NOT VERIFIED"] * 3
+    assert [p.verdict for p in cert.parameters if p.name.startswith("r_")] == ["NOT EVALUATED"] * 3
     assert any("r_x, r_y, r_z" in w for w in cert.warnings)
     js = json.loads(cert.to_json())
     assert js["compensation"]["use"][15:] == [False] * 3 and all(js["compensation"]["use"][:15])
@@ -210,10 +224,10 @@ def test_decision_rule_with_an_uncertainty_as_large_as_the_limit(run_ok, tmp_pat
     x = {p.name: p.value for p in first.parameters}
     base = bench_info(BENCH_TEXT, {}, {})
     cases = {
-        "b_y": (0.9 * u["b_y"], "NOT VERIFIED"),  # |x| = 0 but U ≥ L: no outcome could show conformity
-        "b_z": (abs(x["b_z"]) + 0.5 * u["b_z"], "PASS (conditional)"),
+        "b_y": (0.9 * u["b_y"], "UNDECIDED"),  # |x| = 0 but U ≥ L: no outcome could show conformity
+        "b_z": (abs(x["b_z"]) + 0.5 * u["b_z"], "UNDECIDED"),  # inside, U straddles (conditional pass)
         "b_x": (abs(x["b_x"]) + 2 * u["b_x"], "PASS"),
-        "S_x": (abs(x["S_x"]) - 0.5 * u["S_x"], "FAIL"),
+        "S_x": (abs(x["S_x"]) - 0.5 * u["S_x"], "UNDECIDED"),  # outside, U straddles (conditional fail)
         "tau_xy": (0.5 * u["tau_xy"], "FAIL"),  # U ≥ L, but |x| − U > L: certainly out
     }
     bench = dataclasses.replace(base, limits={k: v[0] for k, v in cases.items()})
@@ -221,3 +235,31 @@ def test_decision_rule_with_an_uncertainty_as_large_as_the_limit(run_ok, tmp_pat
     got = {p.name: p.verdict for p in cert.parameters if p.name in cases}
     assert got == {k: v[1] for k, v in cases.items()}
     assert cert.verdict == "FAIL"
+
+
+def test_simulated_on_every_page_and_a_traceability_statement(issued):
+    pdf, js, _ = issued
+    pages = _text(pdf)
+    assert len(pages) > 2 and all("SIMULATED BENCH" in p for p in pages)
+    text = " ".join("\n".join(pages).split())
+    assert "Metrological traceability" in text and "attitude accuracy" in text and "u(g)" in text
+    assert "not traceable to SI" in text  # a simulated bench
+    assert "only the accelerometer triad is calibrated" in text
+    assert "procedure steps completed" in text
+    # the legend reconciling the three uncertainty figures
+    assert "live display" in text and "calibration.json give u" in text and "U = 2u" in text
+
+
+def test_reference_standards_from_the_bench_file_with_due_dates(run_ok, tmp_path):
+    run = tmp_path / "real"
+    shutil.copytree(run_ok, run)
+    base = bench_info(BENCH_TEXT, {}, {})
+    keys = ("name", "serial_number", "certificate", "calibrated_by", "due")
+    stds = [
+        dict(zip(keys, ("angle encoders", "E1", "C-1", "Lab", "2000-01-01"), strict=True)),
+        dict(zip(keys, ("gravimeter survey", "", "G-7", "", "2999-01-01"), strict=True)),
+    ]
+    bench = dataclasses.replace(base, reference_standards=stds)
+    cert = build_certificate(run, issue_date=DATE, bench=bench, with_plots=False)
+    got = {r["certificate"]: r["overdue"] for r in cert.bench["reference_standards"]}
+    assert got == {"C-1": True, "G-7": False}

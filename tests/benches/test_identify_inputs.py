@@ -43,7 +43,7 @@ def test_recording_without_truth_identifies_and_says_so(short_run, tmp_path, cap
     shutil.copytree(run, copy)
     with h5py.File(copy / "recording.h5", "r+") as f:
         del f["truth"]
-    result = identify_run(copy)
+    result = identify_run(copy).to_dict()
     assert result["truth"] is None
     assert result["information"]["rank"] < 18 and result["information"]["unidentifiable"]
     assert main(["identify", str(copy), "--out", str(tmp_path / "c.json")]) == 0

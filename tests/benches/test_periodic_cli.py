@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.periodic.error import analyse_periodic
+from analysis.periodic.report import analyse_periodic
 from analysis.units import DEG
 from benches.cli import main
 
@@ -81,8 +81,12 @@ def test_recording_input(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     "args, message",
     [
-        (["--calibrate-seconds", "30"], "shorten --calibrate-seconds"),
+        # the analysis names its parameter, the command maps it to the option
+        (["--calibrate-seconds", "30"], "--calibrate-seconds 30.0: the record has 16000 samples"),
+        (["--calibrate-seconds", "30"], "shorten the calibration"),
+        (["--calibrate-seconds", "0.01"], "--calibrate-seconds 0.01: a calibration of 0.01 s"),
         (["--calibrate-seconds", "0.01"], "at least"),
+        (["--false-alarm", "1.5"], "--false-alarm must be a probability"),
         (["--calibrate-seconds", "nan"], "positive"),
         (["--terms", "-1"], "between 0 and 30"),
         (["--channels", "nope"], "unknown channel"),
@@ -108,3 +112,87 @@ def test_analyse_periodic_structure_for_the_certificate() -> None:
     assert len(ch["terms"]) == 3
     assert ch["residual_rms_after"] < ch["residual_rms_before"]
     json.dumps(doc, allow_nan=False)
+
+
+def test_json_has_explicit_units_and_settled_status(
+    npy: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["periodic", str(npy), "--rate", "1000", "--channels", "ch0", "--out", str(tmp_path)]) == 0
+    text = capsys.readouterr().out
+    assert sum(ln.startswith(("all settled", "not settled")) for ln in text.splitlines()) == 1  # one line
+    assert "all settled" in text
+    doc = json.loads((tmp_path / "periodic.json").read_text())
+    ch = doc["channels"]["ch0"]
+    assert ch["unit"] == "SI" and ch["psd_unit"] == "(SI)^2/Hz"  # .npy input: SI of unknown kind
+    # every number in the channel is either unit-suffixed (_hz, _rad, _db, _samples/_seconds) or listed in units
+    for key, value in ch.items():
+        if isinstance(value, float) and not key.endswith(("_hz", "_rad", "_db")):
+            assert key in ch["units"], key
+    for term in ch["terms"]:
+        assert term["amplitude_unit"] == "SI"
+        for key, value in term.items():
+            if isinstance(value, float) and not key.endswith(("_hz", "_rad", "_db")):
+                assert f"terms[].{key}" in ch["units"], key
+    for key in ("residual_rms", "periodic_rms", "bandwidth_hz", "bandwidth_lost"):
+        assert f"comparison[].{key}" in ch["units"]
+    assert ch["unsettled"] == [] and doc["unsettled"] == []
+    assert ch["identification"]["method"] == "lm" and ch["identification"]["converged"] is True
+    lo, hi = ch["identification"]["search_band_hz"]
+    assert 0 < lo < 80.13 and 127.43 < hi < 500
+
+
+def test_recording_channels_carry_their_si_unit(tmp_path: Path) -> None:
+    doc = analyse_periodic({"gyro_x": gyro_record(12_000)}, FS, units={"gyro_x": "rad/s"})
+    ch = doc["channels"]["gyro_x"]
+    assert ch["unit"] == "rad/s" and ch["terms"][0]["amplitude_unit"] == "rad/s"
+    assert ch["units"]["offset"] == "rad/s" and ch["units"]["psd_median_after"] == "(rad/s)^2/Hz"
+
+
+def test_grid_method_reproduces_the_paper_and_agrees(npy: Path, tmp_path: Path) -> None:
+    out_lm, out_grid = tmp_path / "lm", tmp_path / "grid"
+    assert main(["periodic", str(npy), "--rate", "1000", "--channels", "ch0", "--out", str(out_lm)]) == 0
+    args = ["periodic", str(npy), "--rate", "1000", "--channels", "ch0", "--method", "grid", "--out", str(out_grid)]
+    assert main(args) == 0
+    lm = json.loads((out_lm / "periodic.json").read_text())["channels"]["ch0"]
+    grid = json.loads((out_grid / "periodic.json").read_text())["channels"]["ch0"]
+    assert grid["identification"]["method"] == "grid"
+    for a, b in zip(lm["terms"], grid["terms"], strict=True):
+        assert abs(a["frequency_hz"] - b["frequency_hz"]) < 0.5 * a["frequency_sigma_hz"]
+
+
+def test_unsettled_items_are_one_line_and_in_the_json(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A fit that did not converge (LM and grid both capped: simulated) is listed in periodic.json and in one
+    line of text."""
+    from analysis.periodic import identify
+    from analysis.periodic.model import FitReport
+
+    def capped(x, rate_hz, f0, half, **kw):  # noqa: ANN001, ANN003, ANN202
+        return np.array(f0), FitReport(method="grid", converged=False, message="frequencies still moving")
+
+    monkeypatch.setattr(identify, "refine_frequencies", capped)
+    monkeypatch.setattr(
+        identify, "refine_lm", lambda x, r, f0, h: (np.array(f0), FitReport(converged=False, message="cap"))
+    )
+    p = tmp_path / "g.npy"
+    np.save(p, gyro_record(12_000))
+    assert main(["periodic", str(p), "--rate", "1000", "--out", str(tmp_path / "o")]) == 0
+    lines = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith(("not settled", "all settled"))]
+    assert len(lines) == 1 and lines[0].startswith("not settled: ch0: grid refinement did not converge")
+    doc = json.loads((tmp_path / "o" / "periodic.json").read_text())
+    assert doc["channels"]["ch0"]["identification"]["converged"] is False
+    assert doc["channels"]["ch0"]["identification"]["fallback"] is True
+    assert any("did not converge" in s for s in doc["unsettled"])
+
+
+def test_plot_returns_a_figure_and_writes_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from matplotlib.figure import Figure
+
+    from analysis.periodic.plot import plot_channel
+    from analysis.periodic.report import analyse_channel
+
+    monkeypatch.chdir(tmp_path)
+    res = analyse_channel(gyro_record(12_000), FS, 8.0)
+    fig = plot_channel(res, FS, "gyro_x", "deg/s", DEG)
+    assert isinstance(fig, Figure) and list(tmp_path.iterdir()) == []

@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import math
 
-import h5py
 import numpy as np
 import pytest
 
-from benches.recording import Hdf5Recorder, open_recording, read_steps
+from benches.recording import Hdf5Recorder, open_recording
 from benches.runner import Runner
 from drivers.protocols import TableError
 from tests.fakes import FakeClock, FakeStep, FakeTable, FakeUnit, fake_steps
@@ -31,9 +30,9 @@ def test_complete_run_records_every_step_with_consistent_ranges(tmp_path):
     result, table = _run(tmp_path, fake_steps())
     assert result.status == "complete"
     with open_recording(tmp_path / "recording.h5") as f:
-        steps = read_steps(f)
-        n = f["imu/time"].shape[0]
-        assert f.attrs["status"] == "complete"
+        steps = f.steps
+        n = f.n_samples
+        assert f.header.status == "complete"
         assert [s.name for s in steps] == [s.name for s in fake_steps()]
         assert all(s.status == "complete" for s in steps)
         for a, b in zip(steps, steps[1:], strict=False):
@@ -44,9 +43,9 @@ def test_complete_run_records_every_step_with_consistent_ranges(tmp_path):
         spin = steps[3]
         assert spin.acq_end - spin.acq_start == 1200
         # samples are contiguous and counted from 0; table read once per block
-        assert np.array_equal(f["imu/counter"][()], np.arange(n, dtype=np.uint32))
-        assert f["table/time"].shape[0] >= n // 10
-        messages = [e.decode() if isinstance(e, bytes) else e for e in f["events"]["message"]]
+        assert np.array_equal(f.samples(fields=("counter",)).counter, np.arange(n, dtype=np.uint32))
+        assert f.n_table >= n // 10
+        messages = [e.message for e in f.events()]
         assert any("note: done" in m for m in messages)
     # the table was left at rest
     assert table.commands[-1] == ("stop",)
@@ -68,8 +67,8 @@ def test_fault_stops_the_table_and_marks_the_step(tmp_path):
     result, table = _run(tmp_path, fake_steps(), fail_after=4.0)
     assert result.status == "failed" and "STALL" in result.reason
     with open_recording(tmp_path / "recording.h5") as f:
-        steps = read_steps(f)
-        assert f.attrs["status"] == "failed"
+        steps = f.steps
+        assert f.header.status == "failed"
         assert steps[-1].status == "failed"
         assert all(s.status == "complete" for s in steps[:-1])
     assert ("stop",) in table.commands
@@ -79,21 +78,23 @@ def test_resume_by_replay_equals_uninterrupted_run(tmp_path):
     full, _ = _run(tmp_path, fake_steps(), name="full.h5")
     part, _ = _run(tmp_path, fake_steps(), fail_after=7.0, name="part.h5")
     assert part.status == "failed"
-    with h5py.File(tmp_path / "part.h5", "r") as f:
-        done = [s for s in read_steps(f) if s.status == "complete"]
+    with open_recording(tmp_path / "part.h5") as f:
+        done = f.complete_steps()
     start = done[-1].end_sample
     resumed, _ = _run(
         tmp_path, fake_steps(), replay=[s.index for s in done], resume=True, start_sample=start, name="part.h5"
     )
     assert resumed.status == "complete"
-    with h5py.File(tmp_path / "full.h5", "r") as a, h5py.File(tmp_path / "part.h5", "r") as b:
-        sa, sb = read_steps(a), read_steps(b)
+    with open_recording(tmp_path / "full.h5") as a, open_recording(tmp_path / "part.h5") as b:
+        sa, sb = a.steps, b.steps
         assert [(s.name, s.start_sample, s.acq_start, s.acq_end, s.end_sample) for s in sa] == [
             (s.name, s.start_sample, s.acq_start, s.acq_end, s.end_sample) for s in sb
         ]
         last = sa[-1].end_sample
-        assert np.array_equal(a["imu/accel"][:last], b["imu/accel"][:last])
-        assert b.attrs["status"] == "complete"
+        assert np.array_equal(a.samples(0, last).accel, b.samples(0, last).accel)
+        assert np.array_equal(a.table().time, b.table().time)  # the table stream too
+        assert [s.sha256 for s in sa] == [s.sha256 for s in sb]
+        assert b.header.status == "complete"
 
 
 def test_lost_link_stops_cleanly_and_records_the_failed_step(tmp_path):
@@ -113,6 +114,6 @@ def test_lost_link_stops_cleanly_and_records_the_failed_step(tmp_path):
     assert result.status == "failed" and "link lost" in result.reason
     assert ("stop",) in table.commands  # the stop was still sent on the command channel
     with open_recording(tmp_path / "r.h5") as f:
-        steps = read_steps(f)
-        assert f.attrs["status"] == "failed" and steps[-1].status == "failed"
+        steps = f.steps
+        assert f.header.status == "failed" and steps[-1].status == "failed"
         assert all(s.status == "complete" for s in steps[:-1])

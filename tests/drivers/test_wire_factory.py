@@ -136,17 +136,23 @@ def test_hardware_unreachable_is_a_link_error(sim_config):
 def _run_session(tmp_path: Path, transport: str, procedure: str, overrides: dict | None) -> dict:
     import io
 
-    import h5py
-
     from benches import session
+    from benches.recording import open_recording
 
     prep = session.prepare(BENCHES / "sim.yaml", procedure, overrides)
     folder = tmp_path / transport
     folder.mkdir()
     session.execute(prep, folder, seed=11, transport=transport, stream=io.StringIO(), live=False)
-    with h5py.File(folder / "recording.h5", "r") as f:
-        assert f.attrs["transport"] == transport
-        return {k: f[k][()] for k in ("imu/accel", "imu/gyro", "imu/counter", "table/angles", "table/status")}
+    with open_recording(folder) as rec:
+        assert rec.header.transport == transport
+        smp, table = rec.samples(), rec.table()
+        return {
+            "accel": smp.accel,
+            "gyro": smp.gyro,
+            "counter": smp.counter,
+            "table_angles": table.angles,
+            "table_status": table.status,
+        }
 
 
 @pytest.mark.parametrize(

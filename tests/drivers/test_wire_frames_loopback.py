@@ -55,12 +55,13 @@ def test_ten_step_over_loopback_in_a_real_format_equals_in_process(tmp_path, ben
     bench = _bench(tmp_path, bench_name)
     wire = run_procedure(tmp_path, bench, str(proc), seed=5, out="loopback", transport="loopback")
     local = run_procedure(tmp_path, bench, str(proc), seed=5, out="in-process", transport="in-process")
-    with h5py.File(wire / "recording.h5", "r") as f:
-        events = [e.decode() if isinstance(e, bytes) else str(e) for e in f["events"]["message"]]
-        n = f["imu/time"].shape[0]
-        counter = f["imu/counter"][()]
-        accel = f["imu/accel"][()]
-        status = f["imu/status"][()]
+    from benches.recording import open_recording
+
+    with open_recording(wire) as rec:  # the one reader (accel may be stored as counts)
+        events = [e.message for e in rec.events()]
+        n = rec.n_samples
+        smp = rec.samples(fields=("counter", "accel", "status"))
+        counter, accel, status = smp.counter, smp.accel, smp.status
     assert any(f"frame {frame}" in e for e in events)
     if frame.startswith("kvh"):
         assert any("increments per sample" in e and "dividing by the sample interval" in e for e in events)
@@ -77,11 +78,11 @@ def test_ten_step_over_loopback_in_a_real_format_equals_in_process(tmp_path, ben
     assert stats.frames == n and stats.rejected == 0 and np.array_equal(samples.accel, accel)
     # identification equal within the formats' quantisation (float32 in g; 2^-19 g and 2^-14 °/s LSBs):
     # the quantisation noise is < 1e-3 of the white noise per sample, so estimates move by ≪ their σ
-    a = identify_run(wire)
-    b = identify_run(local)
+    a = identify_run(wire).to_dict()
+    b = identify_run(local).to_dict()
     xa = np.array([a["parameters"][p]["value"] for p in PARAM_NAMES])
     xb = np.array([b["parameters"][p]["value"] for p in PARAM_NAMES])
-    sb = np.array([b["parameters"][p]["sigma_white"] for p in PARAM_NAMES])
+    sb = np.array([b["parameters"][p]["u_white"] for p in PARAM_NAMES])
     assert np.max(np.abs(xa - xb) / sb) < 0.05
     assert a["information"]["rank"] == b["information"]["rank"] == 18
 
@@ -96,7 +97,7 @@ def test_samples_flagged_invalid_are_never_used(tmp_path):
     proc = _short_ten_step(tmp_path)
     bench = _bench(tmp_path, "sim-kvh.yaml")
     run = run_procedure(tmp_path, bench, str(proc), seed=5, out="clean", transport="in-process")
-    base = identify_run(run)
+    base = identify_run(run).to_dict()
     flagged, unflagged = tmp_path / "flagged", tmp_path / "unflagged"
     for folder, flag in ((flagged, True), (unflagged, False)):
         shutil.copytree(run, folder)
@@ -109,9 +110,9 @@ def test_samples_flagged_invalid_are_never_used(tmp_path):
                 f["imu/status"][a:b] = 1  # accel_x invalid
     xs = {}
     for key, folder in (("base", None), ("flagged", flagged), ("unflagged", unflagged)):
-        r = base if folder is None else identify_run(folder)
+        r = base if folder is None else identify_run(folder).to_dict()
         xs[key] = np.array([r["parameters"][p]["value"] for p in PARAM_NAMES])
-    sigma = np.array([base["parameters"][p]["sigma_white"] for p in PARAM_NAMES])
+    sigma = np.array([base["parameters"][p]["u_white"] for p in PARAM_NAMES])
     assert np.max(np.abs(xs["flagged"] - xs["base"]) / sigma) < 0.5
     assert np.max(np.abs(xs["unflagged"] - xs["base"]) / sigma) > 5.0
     with pytest.raises(InputError, match=r"100 sample\(s\) of accel_x flagged invalid"):

@@ -8,13 +8,15 @@ import numpy as np
 import pytest
 from scipy import signal
 
+from analysis.periodic.comparison import smoothing_comparison
 from analysis.periodic.compensator import (
     PeriodicCompensator,
     dirichlet_gain,
     frequency_to_fixed_point,
     naive_accumulated_model,
 )
-from analysis.periodic.error import find_peaks_psd, identify_periodic, smoothing_comparison
+from analysis.periodic.detection import find_peaks_psd
+from analysis.periodic.identify import identify_periodic
 from analysis.units import DEG
 
 FS = 1000.0

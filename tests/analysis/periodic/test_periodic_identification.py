@@ -1,4 +1,5 @@
-"""Periodic error identification (analysis/periodic/error.py) against the spec's acceptance checks.
+"""Periodic error identification (analysis/periodic/identify.py, refine.py, grid.py) against the spec's
+acceptance checks, for the default Levenberg–Marquardt refinement and the published grid search.
 
 Scenario of ``periodic-error.md``: three tones 0.6/0.4/0.3 °/s at 80.13/83.08/127.43 Hz, white noise
 σ = 0.108 °/s, f_s = 1 kHz, 8 s calibration sample.
@@ -13,14 +14,12 @@ import pytest
 from scipy import signal
 from scipy.optimize import least_squares
 
-from analysis.periodic.error import (
-    PeriodicInputError,
-    crb_frequency_sigma,
-    find_peaks_psd,
-    fit_fixed_frequencies,
-    identify_periodic,
-    refine_frequencies,
-)
+from analysis.periodic.detection import find_peaks_psd
+from analysis.periodic.grid import refine_frequencies
+from analysis.periodic.identify import identify_periodic
+from analysis.periodic.linear import fit_fixed_frequencies
+from analysis.periodic.model import PeriodicInputError, crb_frequency_sigma
+from analysis.periodic.refine import refine_lm
 from analysis.units import DEG
 
 FS = 1000.0
@@ -47,12 +46,20 @@ def crb() -> np.ndarray:
     return np.array([crb_frequency_sigma(SIGMA, a, FS, N) for a in AMPS])
 
 
-def monte_carlo(runs: int, seed: int) -> dict[str, np.ndarray]:
-    rng = np.random.default_rng(seed)
-    df, da, dp, sf, sa, sp = [], [], [], [], [], []
-    for _ in range(runs):
-        x, ph = make_sample(rng)
-        m = identify_periodic(x, FS)
+def make_samples(rng: np.random.Generator, runs: int) -> tuple[np.ndarray, np.ndarray]:
+    """``runs`` spec samples at once (vectorised): (runs × N samples, runs × 3 phases)."""
+    ph = rng.uniform(-np.pi, np.pi, (runs, FREQS.size))
+    arg = 2 * np.pi * FREQS[None, :, None] * (np.arange(N) / FS)[None, None, :] + ph[:, :, None]
+    x = OFFSET + np.einsum("k,rkn->rn", AMPS, np.cos(arg))
+    return x + SIGMA * rng.standard_normal((runs, N)), ph
+
+
+def monte_carlo(runs: int, seed: int, method: str = "lm") -> dict[str, np.ndarray]:
+    xs, phs = make_samples(np.random.default_rng(seed), runs)
+    df, da, dp, sf, sa, sp, f = [], [], [], [], [], [], []
+    for x, ph in zip(xs, phs, strict=True):
+        m = identify_periodic(x, FS, method=method)
+        assert m.report.converged and not m.report.fallback, m.report
         assert len(m.terms) == 3, [t.frequency_hz for t in m.terms]
         ts = sorted_terms(m)
         df.append([t.frequency_hz for t in ts] - FREQS)
@@ -61,7 +68,8 @@ def monte_carlo(runs: int, seed: int) -> dict[str, np.ndarray]:
         sf.append([t.frequency_sigma_hz for t in ts])
         sa.append([t.amplitude_sigma for t in ts])
         sp.append([t.phase_sigma_rad for t in ts])
-    return {k: np.array(v) for k, v in dict(df=df, da=da, dp=dp, sf=sf, sa=sa, sp=sp).items()}
+        f.append([t.frequency_hz for t in ts])
+    return {k: np.array(v) for k, v in dict(df=df, da=da, dp=dp, sf=sf, sa=sa, sp=sp, f=f).items()}
 
 
 def test_crb_formula_matches_spec() -> None:
@@ -108,14 +116,17 @@ def test_significance_rule_false_alarm_rate_on_white_noise() -> None:
     assert hits <= 14
 
 
-def test_grid_result_agrees_with_scipy_least_squares() -> None:
-    """Same cost, independent optimiser (LM from the coarse frequencies): agreement within 0.5 √CRB."""
+@pytest.mark.parametrize("method, tol", [("lm", 0.01), ("grid", 0.5)])
+def test_result_agrees_with_scipy_least_squares(method: str, tol: float) -> None:
+    """Same cost, independent optimiser (scipy's MINPACK LM from the coarse frequencies): the grid search within
+    0.5 √CRB (the spec), our LM at the same optimum (0.01 √CRB)."""
     rng = np.random.default_rng(5)
     bound = crb()
     t = np.arange(N) / FS
     for _ in range(4):
         x, _ = make_sample(rng)
-        m = identify_periodic(x, FS)
+        m = identify_periodic(x, FS, method=method)
+        assert m.report.method == method
         coarse = np.sort([p.frequency_hz for p in find_peaks_psd(x, FS)])
         c0, amps, phases, _ = fit_fixed_frequencies(x, FS, coarse)
         a0 = amps * np.cos(phases)
@@ -133,10 +144,10 @@ def test_grid_result_agrees_with_scipy_least_squares() -> None:
         sol = least_squares(resid, p0, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, x_scale="jac")
         f_ls = sol.x[3::3]
         f_grid = np.array([tm.frequency_hz for tm in sorted_terms(m)])
-        assert np.all(np.abs(f_grid - f_ls) <= 0.5 * bound), (f_grid - f_ls) / bound
+        assert np.all(np.abs(f_grid - f_ls) <= tol * bound), (f_grid - f_ls) / bound
         a_ls = np.hypot(sol.x[1::3], sol.x[2::3])
         sa = np.array([tm.amplitude_sigma for tm in sorted_terms(m)])
-        assert np.all(np.abs(a_ls - [tm.amplitude for tm in sorted_terms(m)]) <= 0.5 * sa)
+        assert np.all(np.abs(a_ls - [tm.amplitude for tm in sorted_terms(m)]) <= tol * sa)
 
 
 def test_standard_errors_equal_cramer_rao_for_separated_tones() -> None:
@@ -169,10 +180,98 @@ def test_monte_carlo_fast_frequency_error_near_crb() -> None:
 
 @pytest.mark.slow
 def test_monte_carlo_frequency_error_within_spec_band() -> None:
-    """Spec: frequency RMS error / √CRB within [0.8, 1.25] for every tone; 240 runs (rel. sd ≈ 0.046)."""
+    """240 runs, default LM: RMS δf/√CRB pooled over the 3 tones in [0.9, 1.1] (720 values: rel. sd ≈ 0.026,
+    so ±3.8 sd), every tone in the spec's [0.8, 1.25] (rel. sd ≈ 0.046); 3 tones in every run (no extra tone).
+    The published grid search on the same samples reaches the same frequencies (within 0.1 √CRB)."""
     mc = monte_carlo(240, seed=1234)
     ratio = np.sqrt(np.mean(mc["df"] ** 2, axis=0)) / crb()
+    pooled = float(np.sqrt(np.mean((mc["df"] / crb()) ** 2)))
+    print(f"LM: RMS δf/√CRB per tone {np.round(ratio, 3)}, pooled {pooled:.3f}")
+    assert 0.9 <= pooled <= 1.1, pooled
     assert np.all((ratio >= 0.8) & (ratio <= 1.25)), ratio
+    grid = monte_carlo(240, seed=1234, method="grid")
+    diff = np.abs(grid["f"] - mc["f"]) / crb()
+    print(f"grid vs LM: max |Δf| {diff.max():.3f} √CRB")
+    assert diff.max() < 0.1
+
+
+def test_lm_converges_in_a_few_iterations_and_reports_a_cap() -> None:
+    x, _ = make_sample(np.random.default_rng(13))
+    coarse = [p.frequency_hz for p in find_peaks_psd(x, FS)]
+    freqs, report = refine_lm(x, FS, coarse)
+    assert report.converged and report.iterations <= 8, report
+    capped, report1 = refine_lm(x, FS, coarse, max_iter=1)
+    assert not report1.converged and "iteration cap 1" in report1.message
+    assert np.allclose(np.sort(capped), np.sort(freqs), atol=3 * crb().max())  # one GN step is already close
+
+
+def test_lm_that_does_not_converge_falls_back_to_the_grid_and_says_so(monkeypatch: pytest.MonkeyPatch) -> None:
+    from analysis.periodic import identify
+    from analysis.periodic.model import FitReport
+
+    def stalled(x, rate_hz, f0, half):  # noqa: ANN001, ANN202
+        return np.array(f0), FitReport(method="lm", converged=False, message="iteration cap 50 reached")
+
+    monkeypatch.setattr(identify, "refine_lm", stalled)
+    x, _ = make_sample(np.random.default_rng(14))
+    m = identify.identify_periodic(x, FS)
+    assert m.report.method == "grid" and m.report.fallback and m.report.converged
+    assert "iteration cap 50 reached" in m.report.message
+    assert any("grid search was used" in s for s in m.unsettled())
+    assert np.all(np.abs([t.frequency_hz for t in sorted_terms(m)] - FREQS) < 5 * crb())
+
+
+def test_post_fit_test_fields_and_a_clear_record_is_settled() -> None:
+    x, _ = make_sample(np.random.default_rng(15))
+    m = identify_periodic(x, FS)
+    assert m.unsettled() == [] and m.dropped == []
+    for t in m.terms:
+        assert t.significance > t.significance_threshold > 10
+        assert t.significance == pytest.approx(0.5 * (t.amplitude / t.amplitude_sigma) ** 2)
+        assert t.detection_probability == 1.0 and not t.near_detection_limit
+
+
+def test_weak_tone_is_reported_near_the_detection_limit() -> None:
+    """A tone whose least-squares statistic u ≈ 2γ_coarse (coarse statistic ≈ u/ENBW): detected in about half
+    of the records; when it is detected, it is kept (u is well above the post-fit threshold) and reported as
+    near the detection limit, in the model and its list of unsettled items."""
+    from analysis.periodic.detection import coarse_threshold
+
+    n, sigma = N, SIGMA
+    gamma = coarse_threshold(n, FS, 1e-3)
+    amp = math.sqrt(4 * sigma**2 * 2.0 * gamma / n)  # u0 = A² n / (4σ²) = 2γ
+    rng = np.random.default_rng(16)
+    j = np.arange(n)
+    seen = 0
+    for _ in range(12):
+        x = amp * np.cos(2 * np.pi * 123.4 * j / FS + rng.uniform(0, 6)) + sigma * rng.standard_normal(n)
+        m = identify_periodic(x, FS)
+        if not m.terms:
+            continue
+        seen += 1
+        (t,) = m.terms
+        assert abs(t.frequency_hz - 123.4) < 5 * t.frequency_sigma_hz
+        assert t.near_detection_limit and 0 < t.detection_probability < 0.95
+        assert any("near the detection limit" in s for s in m.unsettled())
+    assert 2 <= seen <= 10
+
+
+def test_insignificant_fitted_amplitude_is_dropped() -> None:
+    """A coarse peak whose exact fit is not significant is dropped, listed and reported: white-noise records at a
+    generous coarse false-alarm probability give coarse peaks; every tone kept passes the post-fit threshold,
+    every dropped one does not, and the dropped peaks are in the unsettled list."""
+    rng = np.random.default_rng(17)
+    dropped = kept = 0
+    for _ in range(40):
+        m = identify_periodic(rng.standard_normal(2048), FS, false_alarm=0.5)
+        for t in m.terms:
+            assert t.significance > t.significance_threshold
+            kept += 1
+        for d in m.dropped:
+            assert d.significance <= d.significance_threshold
+        dropped += len(m.dropped)
+        assert sum("dropped" in s for s in m.unsettled()) == len(m.dropped)
+    assert dropped > 0
 
 
 def test_fine_search_shifts_interval_when_minimum_is_on_the_edge() -> None:
@@ -196,6 +295,8 @@ def test_bad_input_is_reported() -> None:
     x, _ = make_sample(np.random.default_rng(0))
     with pytest.raises(PeriodicInputError, match="between 6 and 30"):
         refine_frequencies(x, FS, [80.0], m_parts=40)
+    with pytest.raises(PeriodicInputError, match="unknown refinement method 'newton'"):
+        identify_periodic(x, FS, method="newton")
     bad = x.copy()
     bad[10] = np.nan
     with pytest.raises(PeriodicInputError, match="NaN"):

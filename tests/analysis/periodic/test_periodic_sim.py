@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from analysis.periodic.error import identify_periodic
+from analysis.periodic.identify import identify_periodic
 from tests import REPO_ROOT
 
 BENCH = REPO_ROOT / "benches" / "sim-gyro-noise.yaml"
@@ -69,7 +69,7 @@ def test_two_hour_sim_record_compensated_without_phase_drift() -> None:
     if not BENCH.exists():
         pytest.skip("benches/sim-gyro-noise.yaml not present")
     from analysis.periodic.compensator import PeriodicCompensator
-    from analysis.periodic.error import fit_fixed_frequencies
+    from analysis.periodic.linear import fit_fixed_frequencies
     from benches.bench_config import load_bench
     from drivers.sim.inprocess import SimInertialUnit
     from drivers.sim.world import SimulatedWorld

@@ -20,9 +20,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
+from analysis.identification.budget import StepGeometry
 from analysis.units import UG, display_unit, to_display
-
-from .uncertainty_budget import StepGeometry
 
 _RC: dict[str, Any] = {
     "font.family": "DejaVu Sans",
@@ -109,6 +108,7 @@ def plot_convergence(
     names: Sequence[str],
     kinds: Sequence[str],
     final: NDArray[np.float64] | None = None,
+    identified: Sequence[bool] | None = None,
 ) -> bytes:
     """Estimate of every parameter after each update, with ±2σ bands, in display units (18 panels).
 
@@ -120,6 +120,8 @@ def plot_convergence(
         Parameter names and quantity kinds (``analysis.units.DISPLAY_UNITS`` keys).
     final : (18,) array, optional
         Final estimate (drawn as a dotted line).
+    identified : sequence of bool, optional
+        Per parameter; a not-identified one is labelled so in its panel (its trace is the prior's).
     """
     t = np.asarray(history.get("time", []), dtype=float)
     est = np.asarray(history.get("estimate", []), dtype=float).reshape(-1, len(names))
@@ -142,9 +144,14 @@ def plot_convergence(
                 span = max(8.0 * float(s[-1]), 1.5 * float(np.max(np.abs(half - centre))), 1e-30)
                 if np.isfinite(span) and np.isfinite(centre):
                     ax.set_ylim(centre - span, centre + span)
-            if final is not None:
+            elif not ax.has_data():
+                ax.text(0.5, 0.5, "no filter history", ha="center", va="center", transform=ax.transAxes, fontsize=7)
+            if final is not None and np.isfinite(final[p]):
                 ax.axhline(to_display(kind, float(final[p])), color="black", lw=0.6, ls=":")
             ax.set_title(f"{name} [{display_unit(kind)}]", pad=2)
+            if identified is not None and not identified[p]:
+                ax.text(0.5, 0.9, "not identified (prior only)", ha="center", va="top", transform=ax.transAxes,
+                        fontsize=6.5, color="#a03000")  # fmt: skip
         for ax in axes[-1]:
             ax.set_xlabel("bench time, min" if t.size == est.shape[0] and t.size else "update")
         fig.suptitle(

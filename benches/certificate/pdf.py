@@ -15,7 +15,7 @@ from pathlib import Path
 import matplotlib
 from fpdf import FPDF, FontFace, XPos, YPos
 
-from .certificate import MODEL_TEXT, SIGN_CONVENTIONS, Certificate
+from .content import MODEL_TEXT, SIGN_CONVENTIONS, Certificate
 
 _FONT = "DejaVu"
 _GREY = (235, 235, 235)
@@ -28,8 +28,9 @@ _VERDICT_COLOURS = {
     "NO LIMITS": (90, 90, 90),
 }
 _COMPONENT_SHORT = {
-    "estimation": "Estimation",
+    "white_noise": "White noise",
     "bias_instability": "Bias inst.",
+    "rate": "Table rate",
     "attitude": "Attitude",
     "local_g": "Local g",
     "model_mismatch": "Mismatch",
@@ -56,6 +57,15 @@ class _CertificatePdf(FPDF):
         self.alias_nb_pages()
 
     def header(self) -> None:
+        if self.cert.bench.get("simulated"):
+            # on EVERY page: a simulated bench calibrates no physical unit
+            y = self.get_y()
+            self.set_y(5)
+            self.set_font(_FONT, "B", 8)
+            self.set_text_color(160, 40, 0)
+            self.cell(0, 4, "SIMULATED BENCH — NOT A CALIBRATION OF A PHYSICAL UNIT", align="C")
+            self.set_text_color(0, 0, 0)
+            self.set_y(max(y, 10))
         if self.page_no() == 1:
             return
         self.set_font(_FONT, "", 7.5)
@@ -74,11 +84,12 @@ class _CertificatePdf(FPDF):
         self.set_y(-13)
         self.set_font(_FONT, "", 7)
         self.set_text_color(90, 90, 90)
+        sim = " · SIMULATED BENCH" if self.cert.bench.get("simulated") else ""
         self.cell(
             0,
             4,
-            f"{self.cert.number} · This certificate shall not be reproduced except in full without the written "
-            "approval of the issuing laboratory.",
+            f"{self.cert.number}{sim} · Not to be reproduced except in full without the issuing laboratory's "
+            "written approval.",
             align="L",
         )
         self.set_x(self.l_margin)
@@ -150,7 +161,11 @@ class _CertificatePdf(FPDF):
 
 
 def _fmt_opt(v: object, spec: str, suffix: str = "") -> str:
-    return "—" if v is None else f"{format(float(v), spec)}{suffix}"  # type: ignore[arg-type]
+    if v is None:
+        return "—"
+    if isinstance(v, str):
+        return v
+    return f"{format(float(v), spec)}{suffix}"  # type: ignore[arg-type]
 
 
 def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
@@ -167,7 +182,8 @@ def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
     pdf.multi_cell(
         pdf.epw - 119,
         4.2,
-        f"Certificate No. {c.number}\nIssue date {c.issue_date}\nPage 1 of {{nb}}",
+        f"Certificate No. {c.number}\nIssue date {c.issue_date}\nPage 1 of {{nb}}"
+        + (f"\nSupersedes No. {c.supersedes}" if getattr(c, "supersedes", "") else ""),
         align="R",
     )
     pdf.set_xy(pdf.l_margin + 4, 23)
@@ -250,14 +266,22 @@ def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
         )
         if x
     )
-    unit_txt = f"Accelerometer triad {c.unit.get('model', '')}, serial No. {c.unit.get('serial_number', '')}"
+    unit_txt = (
+        f"Accelerometer triad of {c.unit.get('model', '')}, serial No. {c.unit.get('serial_number', '')} "
+        "(only the accelerometer triad is calibrated by this certificate; any gyro triad of the unit is not)"
+    )
+    rate_acc = b.get("rate_accuracy_ppm") or 0
     bench_txt = (
         f"{b.get('name', '')}: turntable {b.get('table_model', '')}, serial No. {b.get('table_serial_number', '')}; "
         f"attitude accuracy ±{b.get('attitude_accuracy_arcsec', 0):.2f}″"
+        + (f", rate accuracy ±{rate_acc:.3g} ppm" if rate_acc else ", rate accuracy not stated")
     )
-    g_txt = f"{b['g']:.6f} m/s² — {b.get('g_source', '')}; standard uncertainty {b.get('g_uncertainty', 0):.1e} m/s²"
+    g_txt = (
+        f"{b['g']:.6f} m/s² — {b.get('g_source', '')}; standard uncertainty u(g) = {b.get('g_uncertainty', 0):.1e} m/s²"
+    )
     rec_txt = (
-        f"{rec.get('file')} ({rec.get('status')}, {rec.get('steps_complete')}/{rec.get('steps')} steps, "
+        f"{rec.get('file')} ({rec.get('status')}, {rec.get('steps_complete')} of {rec.get('steps')} procedure "
+        "steps completed, "
         f"{rec.get('samples')} samples at {rec.get('sample_rate_hz', 0):g} Hz, "
         f"{rec.get('duration_s', 0) / 60:.1f} min)\nSHA-256 {rec.get('sha256')}"
     )
@@ -273,7 +297,7 @@ def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
             ("Calibration bench", bench_txt),
             ("Site", site_txt or "—"),
             ("Local gravity g", g_txt),
-            ("Procedure", f"{proc.get('name', '')}; SHA-256 of its text: {proc.get('sha256', '')}"),
+            ("Procedure", f"{proc.get('name', '')}; SHA-256 of its text: {proc.get('sha256', '')}" + _overrides(proc)),
             ("Date of calibration", f"{rec.get('created_utc', '')} to {rec.get('updated_utc', '') or '—'} (UTC)"),
             ("Environment", f"Unit temperature {temp_txt}"),
             ("Recording", rec_txt),
@@ -290,6 +314,14 @@ def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
         size=7.8,
     )
     _signature_block(pdf)
+
+
+def _overrides(proc: dict) -> str:
+    """The procedure parameters overridden for this run (``--set``), as shown on the certificate."""
+    ov = proc.get("procedure_overrides") or {}
+    if not ov:
+        return "; parameters as in the procedure file (no overrides)"
+    return "; parameters overridden for this run: " + ", ".join(f"{k} = {v:g}" for k, v in sorted(ov.items()))
 
 
 def _signature_block(pdf: _CertificatePdf) -> None:
@@ -344,10 +376,16 @@ def _results_page(pdf: _CertificatePdf, c: Certificate) -> None:
     )
     pdf.ln(1.5)
     pdf.para(
-        "Decision rule (ILAC-G8:09/2019, simple acceptance): a parameter passes when |value| ≤ limit. "
-        '"PASS (conditional)": the value is within the limit but the expanded uncertainty interval extends beyond '
-        "it. A parameter not identified by the procedure, or with U ≥ limit, cannot be verified (NOT VERIFIED): "
-        "the overall result is then INCONCLUSIVE unless another parameter fails. Values in SI and the full "
+        "Decision rule (ILAC-G8:09/2019, non-binary statement with guard band w = U, k = 2): PASS when "
+        "|value| + U ≤ limit; FAIL when |value| − U > limit; UNDECIDED when U straddles the limit (conditional "
+        "pass or fail: the reason names the side) or U ≥ limit; NOT EVALUATED when this procedure cannot identify "
+        "the parameter; INVALID for a non-finite value or uncertainty or a recording that failed its integrity "
+        "check. The overall result is PASS only when every limited parameter passes; UNDECIDED or NOT EVALUATED "
+        "make it INCONCLUSIVE, FAIL makes it FAIL, INVALID makes it INVALID. Uncertainty figures: the live "
+        "display during the run shows the filter's white-noise ± (standard, k = 1); 'tablebench identify' and "
+        "calibration.json give u, the identification's combined standard uncertainty (white noise ⊕ bias "
+        "instability, k = 1); this certificate's U adds the type-B components of the budget (table, gravity, "
+        "model mismatch) and is expanded, U = 2u. Values in SI and the full "
         "covariance are in the machine-readable certificate (JSON). µg = 9.80665e-6 m/s²; ppm = 1e-6; ″ = arcsecond.",
         size=7.6,
     )
@@ -355,9 +393,9 @@ def _results_page(pdf: _CertificatePdf, c: Certificate) -> None:
 
 def _budget_page(pdf: _CertificatePdf, c: Certificate) -> None:
     pdf.add_page()
-    pdf.section("Uncertainty budget (standard uncertainties, display units)")
+    pdf.section("Uncertainty budget (standard uncertainties u, k = 1, display units; U = 2u)")
     keys = [comp["key"] for comp in c.budget_components]
-    head = ["Parameter", "Unit"] + [_COMPONENT_SHORT.get(k, k) for k in keys] + ["u_c", f"U (k={c.coverage_factor:g})"]
+    head = ["Parameter", "Unit"] + [_COMPONENT_SHORT.get(k, k) for k in keys] + ["u", f"U (k={c.coverage_factor:g})"]
     rows = []
     for p in c.parameters:
         u_c = p.display_expanded / c.coverage_factor
@@ -383,15 +421,16 @@ def _budget_page(pdf: _CertificatePdf, c: Certificate) -> None:
         pdf.para(f"• {comp['label']} (type {comp['type']}): {comp['source']}", size=7.8)
     pdf.ln(1)
     pdf.para(
-        "Method (GUM law of propagation, linearised estimator): the identification is the information "
-        "(Kalman/least-squares) solution x̂ = P(P0⁻¹x0 + ΣHᵀR⁻¹z), z = f_out − f_ref, so an error e in the reference "
-        "specific force moves the estimate by δx̂ = −PΣHᵀR⁻¹e. Table attitude: a small navigation-frame tilt δφ per "
-        "step, independent between steps, e = −[f×]C_n^b δφ, u = bound/√3 (rectangular). Local g: e = f·δg/g, fully "
-        "correlated over the run. Bias instability: an unknown constant offset per step and axis. Model mismatch: "
-        "per-step residual means scattering beyond noise and bias instability (propagated as per-step offsets), "
-        "plus residual variance beyond the noise model per step (sandwich P(ΣHᵀR⁻¹(β−1)H)P). u_c is the root sum "
-        "of squares of the components (they are uncorrelated by construction); the full combined covariance is "
-        "in the JSON certificate.",
+        "Method (GUM law of propagation, linear estimator): the budget starts from the identification's own "
+        "covariance — white noise (its posterior P) and the unit's bias instability as flicker correlated between "
+        "the steps, exactly as identified — and adds the type-B components through the same 18-parameter model: "
+        "an error e of the measurement equation z = f_out − f_ref moves the estimate by δx̂ = PΣHᵀR⁻¹e. Table "
+        "attitude: a small navigation-frame tilt δφ per step, independent between steps, e = [f×]C_n^b δφ, "
+        "u = bound/√3 (rectangular). Local g: e = f·δg/g, one δg for the run. Table rate (size effect): e = −2ε r̂∘c "
+        "during spins about the axis with rate error ε, u(ε) = bound/√3. Model mismatch: per-step residual means "
+        "scattering beyond what noise, flicker and attitude explain, propagated as per-step offsets. u is the root "
+        "sum of squares of the components (they are uncorrelated by construction), U = 2u; the full combined "
+        "covariance is in the JSON certificate.",
         size=7.6,
     )
     for n in c.budget_notes:
@@ -439,6 +478,37 @@ def _warnings_and_analyses(pdf: _CertificatePdf, c: Certificate) -> None:
                     pdf.add_page()
                 pdf.figure(png, 150)
     pdf.section("Traceability")
+    b = c.bench
+    rate_acc = b.get("rate_accuracy_ppm") or 0
+    statement = (
+        "Metrological traceability: the reference specific force is computed from the turntable's reported "
+        f"attitude (stated accuracy ±{b.get('attitude_accuracy_arcsec', 0):.2f}″ per axis) and the local gravity "
+        f"g = {b.get('g', 0):.6f} m/s² ({b.get('g_source', '')}, u(g) = {b.get('g_uncertainty', 0):.1e} m/s²); the "
+        "centripetal reference from the turntable's reported rate"
+        + (f" (stated accuracy ±{rate_acc:.3g} ppm)" if rate_acc else " (rate accuracy not stated in the bench file)")
+        + ". Each enters the uncertainty budget as a type-B component."
+    )
+    stds = b.get("reference_standards") or []
+    if b.get("simulated"):
+        statement += (
+            " SIMULATED BENCH: no physical reference standard is involved (the simulator realises these stated "
+            "accuracies only when the bench sets realise_uncertainty_inputs), so this certificate is not traceable "
+            "to SI."
+        )
+    elif stds:
+        statement += " Reference standards (bench file):"
+        for r in stds:
+            overdue = " — CALIBRATION OVERDUE at the date of calibration" if r.get("overdue") else ""
+            statement += (
+                f"\n• {r['name']}, S/N {r.get('serial_number') or '—'}, certificate {r['certificate']}"
+                f"{' by ' + r['calibrated_by'] if r.get('calibrated_by') else ''}, due {r['due']}{overdue}"
+            )
+    else:
+        statement += (
+            " The bench file lists no reference standards (reference_standards): traceability of the table "
+            "and of g to SI is not documented by this certificate."
+        )
+    pdf.para(statement, size=7.8)
     pdf.para(
         f"Recording SHA-256: {c.recording.get('sha256')}\n"
         f"Calibration file SHA-256: {c.identification.get('calibration_sha256')}\n"

@@ -1,0 +1,40 @@
+"""The calibration certificate, one package (no import loop):
+
+* :mod:`.content` — what a certificate says (:class:`Certificate`, :class:`BenchInfo`, GUM rounding);
+* :mod:`.budget` — the budget's inputs from a run (step geometry through THE reference function, bench
+  uncertainties), the maths being :mod:`analysis.identification.budget`;
+* :mod:`.build` — run folder → :class:`Certificate` (decision rule, traceability), and issuing it;
+* :mod:`.plots` — figures (PNG bytes); :mod:`.pdf` — the PDF rendering.
+
+Imports flow content ← budget ← build → plots, pdf → content.
+"""
+
+from __future__ import annotations
+
+from .build import bench_info, build_certificate, issue_certificate
+from .content import (
+    FORMAT,
+    FORMAT_VERSION,
+    MODEL_TEXT,
+    SIGN_CONVENTIONS,
+    BenchInfo,
+    Certificate,
+    CertificateError,
+    ParameterResult,
+    format_with_uncertainty,
+)
+
+__all__ = [
+    "FORMAT",
+    "FORMAT_VERSION",
+    "MODEL_TEXT",
+    "SIGN_CONVENTIONS",
+    "BenchInfo",
+    "Certificate",
+    "CertificateError",
+    "ParameterResult",
+    "bench_info",
+    "build_certificate",
+    "format_with_uncertainty",
+    "issue_certificate",
+]

@@ -1,0 +1,225 @@
+"""The certificate's content model: what a certificate says (rendered by :mod:`.pdf` and :meth:`Certificate.to_json`).
+
+Constants of the format, the bench information it needs, one row per parameter, and the GUM rounding of a
+value with its expanded uncertainty. Built by :mod:`benches.certificate.build`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from core.errors import UserError
+
+FORMAT = "tablebench-certificate"
+FORMAT_VERSION = 1
+ANALYSES = ("noise", "periodic", "drift")
+
+MODEL_TEXT = "f_out = f + (S + T) f + b + D (f∘f) + diag(r) c(ω) + v"
+SIGN_CONVENTIONS: tuple[str, ...] = (
+    "Body frame b: the unit's case axes x, y, z as marked on the unit; navigation frame n: East-North-Up.",
+    "f: true specific force at the triad's reference point, body frame; at rest f = C_n^b [0, 0, g]ᵀ, i.e. an "
+    "axis pointing up reads +g.",
+    "f_out: the unit's output (after its own count scaling), body frame, m/s².",
+    "b: bias, added to the output (f_out − f at zero input); shown in µg (1 µg = 9.80665e-6 m/s²).",
+    "S = diag(S_x, S_y, S_z): scale-factor errors, f_out,i ∋ (1 + S_i) f_i; shown in ppm.",
+    "T: misalignment, off-diagonal; convention δf_i += τ_ij f_j (output axis i senses τ_ij of the input along j); "
+    "shown in arcsec (small angles, rad).",
+    "D = diag(d): quadratic (second-order) coefficients, δf_i += d_i f_i²; shown in µg/g².",
+    "r: size effect, δf_i += r_i c_i(ω) with c(ω) = [ω_y²+ω_z², ω_z²+ω_x², ω_x²+ω_y²]; shown in mm. Physically, "
+    "r_i is minus the offset of accelerometer i along its own sensing axis from the table's rotation centre, as the "
+    "accelerometer senses it: r_i = −(1 + S_i) ρ_i,i − ½ Σ_k≠i τ_ik ρ_i,k (ρ_i its position, body frame; the "
+    "correction to −ρ_i,i is ppm-level). It moves with the mounting: r is only valid for the unit mounted as "
+    "calibrated.",
+    "Compensation: f = (I + S + T)⁻¹ (f_out − b − D(f∘f) − diag(r) c(ω)), solved iteratively (first order: "
+    "f ≈ f_out − b − (S + T) f_out).",
+)
+
+
+class CertificateError(UserError, RuntimeError):
+    """A certificate cannot be issued from this run folder; the message says why and what to do."""
+
+
+@dataclass(frozen=True)
+class BenchInfo:
+    """What the certificate needs of the bench file (SI).
+
+    Attributes
+    ----------
+    limits : dict
+        Parameter name → maximum |value| (SI) for pass/fail.
+    mounting : (3, 3) list or None
+        C_b^t (identity if None).
+    attitude_accuracy : float
+        Table attitude accuracy bound, rad.
+    g, g_uncertainty : float
+        Local gravity and its standard uncertainty, m/s².
+    bias_instability : (3,) list or None
+        The unit's bias instability per body axis, m/s² (budget component; None: not budgeted).
+    """
+
+    name: str
+    limits: dict[str, float]
+    mounting: list[list[float]] | None
+    attitude_accuracy: float
+    site_name: str
+    latitude_deg: float | None
+    height_m: float | None
+    g: float
+    g_source: str
+    g_uncertainty: float
+    table_model: str
+    table_serial: str
+    unit_model: str
+    unit_serial: str
+    source: str
+    bias_instability: list[float] | None = None
+    rate_accuracy: float = 0.0
+    latency: float = 0.0
+    reference_standards: list[dict[str, str]] = field(default_factory=list)
+
+
+@dataclass
+class ParameterResult:
+    """One row of the results table (values SI and in display units)."""
+
+    name: str
+    kind: str
+    unit: str
+    display_unit: str
+    value: float
+    standard_uncertainty: float
+    expanded_uncertainty: float
+    display_value: float
+    display_expanded: float
+    value_text: str
+    expanded_text: str
+    identifiable: bool
+    limit: float | None
+    display_limit: float | None
+    verdict: str
+    budget: dict[str, float]
+    display_budget: dict[str, float]
+
+
+@dataclass
+class Certificate:
+    """Everything a certificate says; rendered by :mod:`benches.certificate.pdf` and :meth:`to_json`."""
+
+    number: str
+    issue_date: str
+    verdict: str
+    reasons: list[str]
+    complete: bool
+    incomplete_reason: str
+    unit: dict[str, str]
+    bench: dict[str, Any]
+    procedure: dict[str, str]
+    recording: dict[str, Any]
+    environment: dict[str, Any]
+    identification: dict[str, Any]
+    parameters: list[ParameterResult]
+    budget_components: list[dict[str, str]]
+    budget_notes: list[str]
+    coverage_factor: float
+    covariance: list[list[float]]
+    warnings: list[str]
+    analyses: dict[str, list[dict[str, str]]]
+    software_version: str
+    creation_date: str
+    plots: dict[str, bytes] = field(default_factory=dict)
+    analysis_plots: list[tuple[str, bytes]] = field(default_factory=list)
+    supersedes: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """The machine-readable certificate (SI values; plots by name and SHA-256)."""
+        d = {
+            "format": FORMAT,
+            "format_version": FORMAT_VERSION,
+            "certificate_number": self.number,
+            "supersedes": self.supersedes,
+            "issue_date": self.issue_date,
+            "verdict": self.verdict,
+            "reasons": self.reasons,
+            "complete": self.complete,
+            "incomplete_reason": self.incomplete_reason,
+            "unit": self.unit,
+            "bench": self.bench,
+            "procedure": self.procedure,
+            "recording": self.recording,
+            "environment": self.environment,
+            "identification": self.identification,
+            "model": MODEL_TEXT,
+            "sign_conventions": list(SIGN_CONVENTIONS),
+            "parameter_names": [p.name for p in self.parameters],
+            "compensation": {
+                "model": MODEL_TEXT,
+                "parameter_names": [p.name for p in self.parameters],
+                "x_si": [p.value for p in self.parameters],
+                "use": [p.identifiable for p in self.parameters],
+                "note": "SI values in parameter_names order; entries with use = false are prior-dominated and must "
+                "not be used for compensation (set them to 0)",
+            },
+            "coverage_factor": self.coverage_factor,
+            "parameters": {
+                p.name: {
+                    k: v
+                    for k, v in asdict(p).items()
+                    if k not in ("name", "value_text", "expanded_text", "display_budget")
+                }
+                for p in self.parameters
+            },
+            "uncertainty_budget": {"components": self.budget_components, "notes": self.budget_notes},
+            "covariance": self.covariance,
+            "warnings": self.warnings,
+            "analyses": self.analyses,
+            "software_version": self.software_version,
+            "plots": {k: hashlib.sha256(v).hexdigest() for k, v in sorted(self.plots.items())},
+            "analysis_plots": {k: hashlib.sha256(v).hexdigest() for k, v in self.analysis_plots},
+        }
+        return d
+
+    def to_json(self) -> str:
+        """Deterministic JSON text of :meth:`to_dict`."""
+        return json.dumps(_json_safe(self.to_dict()), indent=2, ensure_ascii=False, allow_nan=False) + "\n"
+
+
+def _json_safe(obj: Any) -> Any:
+    """Copy of ``obj`` with numpy scalars as Python numbers and non-finite floats as None (strict JSON)."""
+    if isinstance(obj, dict):
+        return {str(k): _json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_json_safe(v) for v in obj]
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+# ---- helpers -------------------------------------------------------------------------------------------------
+
+
+def format_with_uncertainty(value: float, expanded: float, digits: int = 2) -> tuple[str, str]:
+    """Value and expanded uncertainty as text, U to ``digits`` significant digits, value to the same place.
+
+    GUM 7.2.6: the uncertainty with at most two significant digits, the value rounded consistently.
+    """
+    if not math.isfinite(expanded) or expanded <= 0:
+        return f"{value:.6g}", "—"
+    exp = math.floor(math.log10(expanded)) - (digits - 1)
+    decimals = max(-exp, 0)
+    q = 10.0**exp
+    u_r = math.ceil(expanded / q - 1e-9) * q  # round the uncertainty up (never understate it)
+    v_r = round(value / q) * q
+    v_txt = f"{v_r:.{decimals}f}"
+    if v_txt.startswith("-") and float(v_txt) == 0.0:
+        v_txt = v_txt[1:]
+    return v_txt, f"{u_r:.{decimals}f}"
+
+

@@ -1,0 +1,45 @@
+"""Issue 12: only benches/recording.py knows the HDF5 layout — no other module imports h5py or names a dataset."""
+
+from __future__ import annotations
+
+import ast
+import re
+
+from tests import REPO_ROOT
+
+PACKAGES = ("core", "analysis", "procedures", "drivers", "benches", "benchmarks", "scripts")
+READER = REPO_ROOT / "benches" / "recording.py"
+DATASET_PATH = re.compile(r"""["'](/?(imu|table)/(counter|time|accel|gyro|temperature|status|angles|rates))["']""")
+
+
+def _python_files():
+    for pkg in PACKAGES:
+        root = REPO_ROOT / pkg
+        if root.is_dir():
+            yield from sorted(root.rglob("*.py"))
+
+
+def _imports_h5py(path) -> bool:
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import) and any(a.name.split(".")[0] == "h5py" for a in node.names):
+            return True
+        if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "h5py":
+            return True
+    return False
+
+
+def test_only_the_recording_module_imports_h5py():
+    offenders = [str(p.relative_to(REPO_ROOT)) for p in _python_files() if p != READER and _imports_h5py(p)]
+    assert offenders == [], f"modules other than benches/recording.py import h5py: {offenders}"
+    assert _imports_h5py(READER)
+
+
+def test_no_other_module_names_a_dataset_path():
+    offenders = [
+        f"{p.relative_to(REPO_ROOT)}: {m.group(1)}"
+        for p in _python_files()
+        if p != READER
+        for m in DATASET_PATH.finditer(p.read_text(encoding="utf-8"))
+    ]
+    assert offenders == [], offenders
