@@ -13,6 +13,26 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+ENU_DIRECTIONS: dict[str, tuple[int, int, int]] = {
+    "East": (1, 0, 0),
+    "West": (-1, 0, 0),
+    "North": (0, 1, 0),
+    "South": (0, -1, 0),
+    "Up": (0, 0, 1),
+    "Down": (0, 0, -1),
+}
+"""The direction words of procedure files and summaries → unit vectors in the ENU navigation frame n."""
+
+
+def direction_word(v: ArrayLike) -> str:
+    """A unit vector in n (ENU) in words: ``"East"`` …, or its components like ``"(E +0.71, U -0.71)"``."""
+    a = np.asarray(v, dtype=float)
+    for word, d in ENU_DIRECTIONS.items():
+        if np.allclose(a, d, atol=1e-6):
+            return word
+    parts = [f"{lab} {c:+.2f}" for lab, c in zip("ENU", a, strict=True) if abs(c) > 5e-3]
+    return "(" + ", ".join(parts) + ")"
+
 
 def _rz(a: NDArray[np.float64]) -> NDArray[np.float64]:
     c, s = np.cos(a), np.sin(a)

@@ -114,3 +114,11 @@ DISPLAY_UNITS.update(
         "accel_ramp": ("µg/s", UG_PER_S),
     }
 )
+
+
+def format_hms(seconds: float) -> str:
+    """A duration in s as ``h:mm:ss`` (rounded to the second; ``--:--:--`` if unknown or infinite)."""
+    if not math.isfinite(seconds):
+        return "--:--:--"
+    s = max(0, int(round(seconds)))
+    return f"{s // 3600:d}:{(s % 3600) // 60:02d}:{s % 60:02d}"

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,8 +21,6 @@ from analysis.units import (
     DEG,
     DEG_PER_HOUR,
     DEG_PER_SQRT_HOUR,
-    G0,
-    HOUR,
     MM,
     PPM,
     UG,
@@ -38,10 +35,14 @@ from core.yaml_source import (
     get_mapping,
     get_number,
     get_str,
-    get_vector,
     load_yaml,
     load_yaml_text,
 )
+from core.yaml_source import get_components as _vec
+from core.yaml_source import get_int as _int
+from core.yaml_source import get_list_of_maps as _list_of_maps
+from core.yaml_source import get_matrix as _matrix
+from core.yaml_source import get_section as _section
 from drivers.imu_counts import CountScale
 from drivers.imu_frame_desc import (
     DEFAULT_FRAME,
@@ -52,20 +53,11 @@ from drivers.imu_frame_desc import (
     load_frame,
     shipped_frames,
 )
-from drivers.protocols import AXIS_NAMES, AxisLimits, FaultCode
+from drivers.protocols import AXIS_NAMES, AxisLimits
+from drivers.sim.bench_section import parse_simulation
 from drivers.sim.config import (
     ACCEL_PARAM_NAMES,
-    CHANNELS,
-    AccelTruth,
-    ArmaDrift,
-    BudgetInputs,
-    GyroTruth,
-    NoiseTruth,
-    PeriodicTerm,
-    ScheduledFault,
     SimConfig,
-    TableModel,
-    TemperatureModel,
 )
 
 __all__ = [
@@ -90,10 +82,10 @@ PARAM_GROUPS: dict[str, tuple[str, float, tuple[str, ...]]] = {
     "size_effect": ("mm", MM, ACCEL_PARAM_NAMES[15:18]),
 }
 _NAME_UNIT = {name: (suffix, si) for suffix, si, names in PARAM_GROUPS.values() for name in names}
+PARAM_MAX: dict[str, float] = {"ug": 1e6, "ppm": 1e6, "arcsec": 360_000.0, "ug_g2": 1e6, "mm": 10_000.0}
+"""Largest prior / limit a bench file may give, display units by key suffix (1 g, 100 %, 100°, 1 g/g², 10 m):
+beyond that the number is a typo, not a datasheet bound."""
 
-RATE_RW = DEG_PER_HOUR / math.sqrt(HOUR)  # 1 °/h/√h in rad/s/√s
-DPH_PER_G = DEG_PER_HOUR / G0  # 1 °/h per g in rad/s per m/s²
-UG_PER_SQRT_S = UG  # 1 µg/√s in m/s²/√s
 
 
 @dataclass(frozen=True)
@@ -223,70 +215,6 @@ class ReferenceStandard:
 
 # ---- small helpers ---------------------------------------------------------------------------------
 
-_FLOAT_RE = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)$")
-
-
-def _coerce_floats(x: Any) -> Any:
-    """YAML 1.1 reads ``1e-4`` (no dot) as text; treat such scalars as numbers."""
-    if isinstance(x, dict):
-        return {k: _coerce_floats(v) for k, v in x.items()}
-    if isinstance(x, list):
-        return [_coerce_floats(v) for v in x]
-    if isinstance(x, str) and _FLOAT_RE.match(x.strip()):
-        return float(x)
-    return x
-
-
-def _section(data: dict[str, Any], smap: SourceMap, path: KeyPath, key: str, required: bool = True) -> dict | None:
-    if key not in data or data[key] is None:
-        if required:
-            raise smap.error(path + (key,), "is required (a mapping of key: value lines)")
-        return None
-    return get_mapping(data[key], smap, path + (key,))
-
-
-def _vec(
-    data: dict, smap: SourceMap, path: KeyPath, key: str, si: float, default: Any = None, length: int = 3, **bounds: Any
-) -> tuple[float, ...]:
-    """A vector in display units (a list, or one number for all components) → SI tuple."""
-    if key not in data or data[key] is None:
-        if default is None:
-            raise smap.error(path + (key,), f"is required (a list of {length} numbers, or one number for all)")
-        return tuple(default)
-    v = data[key]
-    if isinstance(v, (int, float)) and not isinstance(v, bool):
-        vals = [get_number(data, smap, path, key, **bounds)] * length
-    else:
-        vals = get_vector(data, smap, path, key, length)
-        lo, hi = bounds.get("minimum"), bounds.get("maximum")
-        for i, x in enumerate(vals):
-            if (lo is not None and x < lo) or (hi is not None and x > hi):
-                raise smap.error(path + (key, i), f"{x:g} is out of range; allowed [{lo}, {hi}]")
-    return tuple(x * si for x in vals)
-
-
-def _matrix(data: dict, smap: SourceMap, path: KeyPath, key: str, si: float, default: Any) -> tuple:
-    if key not in data or data[key] is None:
-        return default
-    v = data[key]
-    where = path + (key,)
-    if not isinstance(v, list) or len(v) != 3:
-        raise smap.error(where, f"expected a 3×3 matrix as three rows [[a, b, c], [d, e, f], [g, h, i]], got {v!r}")
-    rows = []
-    for i, row in enumerate(v):
-        if not isinstance(row, list):
-            raise smap.error(where + (i,), f"expected a row of 3 numbers, got {row!r}")
-        rows.append(tuple(x * si for x in get_vector({"row": row}, smap, where + (i,), "row", 3)))
-    return tuple(rows)
-
-
-def _int(data: dict, smap: SourceMap, path: KeyPath, key: str, default: int, minimum: int, maximum: int) -> int:
-    v = get_number(data, smap, path, key, default, minimum=minimum, maximum=maximum)
-    if v != int(v):
-        raise smap.error(path + (key,), f"expected a whole number, got {data[key]!r}")
-    return int(v)
-
-
 def _opt_str(data: dict, smap: SourceMap, path: KeyPath, key: str) -> str | None:
     v = data.get(key)
     if v is None:
@@ -400,13 +328,13 @@ def _param_map(d: dict | None, smap: SourceMap, p: KeyPath, positive: bool) -> d
     for g, (suffix, si, names) in PARAM_GROUPS.items():
         key = f"{g}_{suffix}"
         if key in d:
-            v = get_number(d, smap, p, key, **lo)
+            v = get_number(d, smap, p, key, maximum=PARAM_MAX[suffix], **lo)
             out.update({n: v * si for n in names})
     for n in ACCEL_PARAM_NAMES:
         suffix, si = _NAME_UNIT[n]
         key = f"{n}_{suffix}"
         if key in d:
-            out[n] = get_number(d, smap, p, key, **lo) * si
+            out[n] = get_number(d, smap, p, key, maximum=PARAM_MAX[suffix], **lo) * si
     return out
 
 
@@ -538,268 +466,6 @@ def unit_frame_format(unit: UnitSpec) -> FrameFormat:
     return compile_format(desc, unit.frame_options, unit.sample_rate)
 
 
-def _channel_unit(ch: str, smap: SourceMap, p: KeyPath, d: dict, stem: str) -> tuple[str, float]:
-    """The amplitude/sigma key present for a channel and its SI factor (accel: µg; gyro: °/h or °/s)."""
-    options = {"ug": UG} if ch.startswith("accel") else {"dph": DEG_PER_HOUR, "dps": DEG}
-    present = [f"{stem}_{u}" for u in options if f"{stem}_{u}" in d]
-    if len(present) != 1:
-        allowed = " or ".join(f"{stem}_{u}" for u in options)
-        raise smap.error(p, f"give exactly one of {allowed} for channel {ch!r}")
-    return present[0], options[present[0].rsplit("_", 1)[1]]
-
-
-def _list_of_maps(d: dict, smap: SourceMap, p: KeyPath, key: str) -> list[tuple[KeyPath, dict]]:
-    v = d.get(key)
-    if v is None:
-        return []
-    if not isinstance(v, list):
-        raise smap.error(p + (key,), f"expected a list of mappings (lines starting with '- '), got {v!r}")
-    return [(p + (key, i), get_mapping(item, smap, p + (key, i))) for i, item in enumerate(v)]
-
-
-def _simulation(d: dict, smap: SourceMap, site: Site, table: TurntableSpec, unit: UnitSpec) -> SimConfig:
-    p: KeyPath = ("simulation",)
-    check_keys(
-        d,
-        smap,
-        p,
-        [
-            "seed",
-            "transport",
-            "accelerometer",
-            "gyro",
-            "accel_noise",
-            "gyro_noise",
-            "temperature",
-            "periodic",
-            "arma",
-            "anti_alias_hz",
-            "timestamp_jitter_us",
-            "drop_probability",
-            "table",
-            "faults",
-            "realise_uncertainty_inputs",
-        ],
-    )
-    fs = unit.sample_rate
-    z3 = (0.0, 0.0, 0.0)
-    # accelerometer truth
-    ad = _section(d, smap, p, "accelerometer", required=False) or {}
-    ap = p + ("accelerometer",)
-    check_keys(ad, smap, ap, ["bias_ug", "scale_ppm", "misalignment_arcsec", "quadratic_ug_g2", "lever_arm_mm"])
-    accel = AccelTruth(
-        bias=_vec(ad, smap, ap, "bias_ug", UG, z3),  # type: ignore[arg-type]
-        scale=_vec(ad, smap, ap, "scale_ppm", PPM, z3),  # type: ignore[arg-type]
-        misalignment=_vec(ad, smap, ap, "misalignment_arcsec", ARCSEC, (0.0,) * 6, length=6),  # type: ignore[arg-type]
-        quadratic=_vec(ad, smap, ap, "quadratic_ug_g2", UG_PER_G2, z3),  # type: ignore[arg-type]
-        lever_arms=_matrix(ad, smap, ap, "lever_arm_mm", MM, (z3, z3, z3)),
-    )
-    gd = _section(d, smap, p, "gyro", required=False) or {}
-    gp = p + ("gyro",)
-    check_keys(gd, smap, gp, ["bias_dph", "scale_ppm", "misalignment_arcsec", "g_sensitivity_dph_per_g"])
-    gyro = GyroTruth(
-        bias=_vec(gd, smap, gp, "bias_dph", DEG_PER_HOUR, z3),  # type: ignore[arg-type]
-        scale=_vec(gd, smap, gp, "scale_ppm", PPM, z3),  # type: ignore[arg-type]
-        misalignment=_vec(gd, smap, gp, "misalignment_arcsec", ARCSEC, (0.0,) * 6, length=6),  # type: ignore[arg-type]
-        g_sensitivity=_matrix(gd, smap, gp, "g_sensitivity_dph_per_g", DPH_PER_G, (z3, z3, z3)),
-    )
-    # noise truth: defaults to the unit's configured noise
-    nd = _section(d, smap, p, "accel_noise", required=False) or {}
-    np_ = p + ("accel_noise",)
-    check_keys(
-        nd, smap, np_, ["vrw_ug_per_sqrt_hz", "bias_instability_ug", "random_walk_ug_per_sqrt_s", "flicker_band_hz"]
-    )
-    accel_noise = NoiseTruth(
-        white=_vec(nd, smap, np_, "vrw_ug_per_sqrt_hz", UG_PER_SQRT_HZ, tuple(unit.noise.vrw), minimum=0),  # type: ignore[arg-type]
-        bias_instability=_vec(nd, smap, np_, "bias_instability_ug", UG, tuple(unit.noise.bias_instability), minimum=0),  # type: ignore[arg-type]
-        random_walk=_vec(nd, smap, np_, "random_walk_ug_per_sqrt_s", UG_PER_SQRT_S, z3, minimum=0),  # type: ignore[arg-type]
-        flicker_band=_band(nd, smap, np_, fs),
-    )
-    nd = _section(d, smap, p, "gyro_noise", required=False) or {}
-    np_ = p + ("gyro_noise",)
-    check_keys(
-        nd,
-        smap,
-        np_,
-        ["arw_deg_per_sqrt_h", "bias_instability_dph", "rate_random_walk_dph_per_sqrt_h", "flicker_band_hz"],
-    )
-    gyro_noise = NoiseTruth(
-        white=_vec(nd, smap, np_, "arw_deg_per_sqrt_h", DEG_PER_SQRT_HOUR, tuple(unit.noise.arw), minimum=0),  # type: ignore[arg-type]
-        bias_instability=_vec(
-            nd, smap, np_, "bias_instability_dph", DEG_PER_HOUR, tuple(unit.noise.gyro_bias_instability), minimum=0
-        ),  # type: ignore[arg-type]
-        random_walk=_vec(nd, smap, np_, "rate_random_walk_dph_per_sqrt_h", RATE_RW, z3, minimum=0),  # type: ignore[arg-type]
-        flicker_band=_band(nd, smap, np_, fs),
-    )
-    # temperature
-    temperature = None
-    td = _section(d, smap, p, "temperature", required=False)
-    if td is not None:
-        tp = p + ("temperature",)
-        check_keys(
-            td,
-            smap,
-            tp,
-            [
-                "ambient_c",
-                "warmup_rise_c",
-                "warmup_tau_s",
-                "accel_bias_ug_per_c",
-                "accel_scale_ppm_per_c",
-                "gyro_bias_dph_per_c",
-                "gyro_scale_ppm_per_c",
-            ],
-        )
-        temperature = TemperatureModel(
-            ambient_c=get_number(td, smap, tp, "ambient_c", 23.0, minimum=-60, maximum=120),
-            warmup_rise_c=get_number(td, smap, tp, "warmup_rise_c", 0.0, minimum=-50, maximum=100),
-            warmup_tau=get_number(td, smap, tp, "warmup_tau_s", 600.0, minimum=0, exclusive_minimum=True),
-            accel_bias_tc=_vec(td, smap, tp, "accel_bias_ug_per_c", UG, z3),  # type: ignore[arg-type]
-            accel_scale_tc=_vec(td, smap, tp, "accel_scale_ppm_per_c", PPM, z3),  # type: ignore[arg-type]
-            gyro_bias_tc=_vec(td, smap, tp, "gyro_bias_dph_per_c", DEG_PER_HOUR, z3),  # type: ignore[arg-type]
-            gyro_scale_tc=_vec(td, smap, tp, "gyro_scale_ppm_per_c", PPM, z3),  # type: ignore[arg-type]
-        )
-    periodic = []
-    for ip, item in _list_of_maps(d, smap, p, "periodic"):
-        ch = get_str(item, smap, ip, "channel", choices=list(CHANNELS))
-        key, si = _channel_unit(ch, smap, ip, item, "amplitude")
-        check_keys(item, smap, ip, ["channel", "frequency_hz", key, "phase_deg"])
-        periodic.append(
-            PeriodicTerm(
-                channel=ch,
-                frequency_hz=get_number(
-                    item, smap, ip, "frequency_hz", minimum=0, exclusive_minimum=True, maximum=fs / 2
-                ),
-                amplitude=get_number(item, smap, ip, key, minimum=0) * si,
-                phase=get_number(item, smap, ip, "phase_deg", 0.0, minimum=-360, maximum=360) * DEG,
-            )
-        )
-    arma = []
-    for ip, item in _list_of_maps(d, smap, p, "arma"):
-        ch = get_str(item, smap, ip, "channel", choices=list(CHANNELS))
-        key, si = _channel_unit(ch, smap, ip, item, "sigma")
-        check_keys(item, smap, ip, ["channel", "phi", "theta", key])
-        coef = {}
-        for name in ("phi", "theta"):
-            v = item.get(name, [])
-            if isinstance(v, (int, float)) and not isinstance(v, bool):
-                v = [v]
-            if not isinstance(v, list) or len(v) > 5:
-                raise smap.error(ip + (name,), f"expected a list of up to 5 numbers like [0.9], got {v!r}")
-            coef[name] = tuple(get_vector({name: v}, smap, ip, name, len(v)))
-        if coef["phi"] and np.any(np.abs(np.roots([1.0, *(-np.array(coef["phi"]))])) >= 1.0):
-            raise smap.error(
-                ip + ("phi",), f"AR part {list(coef['phi'])} is not stationary (roots must be inside the unit circle)"
-            )
-        arma.append(
-            ArmaDrift(
-                channel=ch, phi=coef["phi"], theta=coef["theta"], sigma=get_number(item, smap, ip, key, minimum=0) * si
-            )
-        )
-    # table imperfections
-    tbd = _section(d, smap, p, "table", required=False) or {}
-    tp = p + ("table",)
-    check_keys(
-        tbd,
-        smap,
-        tp,
-        [
-            "encoder_bits",
-            "position_jitter_arcsec",
-            "rate_jitter_dps",
-            "rate_jitter_tau_s",
-            "overshoot_arcsec",
-            "settle_frequency_hz",
-            "settle_time_constant_s",
-            "slew_fraction",
-            "non_orthogonality_arcsec",
-            "wobble_arcsec",
-        ],
-    )
-    tm = TableModel(
-        limits=table.limits,
-        position_tolerance=table.position_tolerance,
-        in_position_time=table.in_position_time,
-        watchdog=table.watchdog,
-        slew_fraction=get_number(tbd, smap, tp, "slew_fraction", 0.9, minimum=0, exclusive_minimum=True, maximum=1),
-        overshoot=get_number(tbd, smap, tp, "overshoot_arcsec", 5.0, minimum=0) * ARCSEC,
-        settle_frequency_hz=get_number(tbd, smap, tp, "settle_frequency_hz", 4.0, minimum=0, exclusive_minimum=True),
-        settle_time_constant=get_number(
-            tbd, smap, tp, "settle_time_constant_s", 0.08, minimum=0, exclusive_minimum=True
-        ),
-        encoder_bits=_int(tbd, smap, tp, "encoder_bits", 24, 0, 40),
-        position_jitter=get_number(tbd, smap, tp, "position_jitter_arcsec", 0.1, minimum=0) * ARCSEC,
-        rate_jitter=get_number(tbd, smap, tp, "rate_jitter_dps", 1e-4, minimum=0) * DEG,
-        rate_jitter_tau=get_number(tbd, smap, tp, "rate_jitter_tau_s", 0.05, minimum=0, exclusive_minimum=True),
-        non_orthogonality=_vec(tbd, smap, tp, "non_orthogonality_arcsec", ARCSEC, (0.0, 0.0), length=2),  # type: ignore[arg-type]
-        wobble=get_number(tbd, smap, tp, "wobble_arcsec", 0.0, minimum=0, maximum=3600) * ARCSEC,
-    )
-    faults = []
-    for ip, item in _list_of_maps(d, smap, p, "faults"):
-        check_keys(item, smap, ip, ["time_s", "fault"])
-        names = [f.name for f in FaultCode if f != FaultCode.NONE]
-        faults.append(
-            ScheduledFault(
-                time=get_number(item, smap, ip, "time_s", minimum=0),
-                fault=FaultCode[get_str(item, smap, ip, "fault", choices=names)],
-            )
-        )
-    aa = get_number(d, smap, p, "anti_alias_hz", None, minimum=0)
-    if aa is not None and aa >= fs / 2:
-        raise smap.error(
-            p + ("anti_alias_hz",), f"{aa:g} Hz must be below the Nyquist frequency {fs / 2:g} Hz (0: off)"
-        )
-    return SimConfig(
-        latitude=site.latitude,
-        height=site.height,
-        g=site.g_measured,
-        sample_rate=fs,
-        scale=unit.scale,
-        mounting=tuple(tuple(float(x) for x in row) for row in unit.mounting),  # type: ignore[arg-type]
-        accel=accel,
-        gyro=gyro,
-        accel_noise=accel_noise,
-        gyro_noise=gyro_noise,
-        temperature=temperature,
-        periodic=tuple(periodic),
-        arma=tuple(arma),
-        anti_alias_hz=aa or None,
-        timestamp_jitter=get_number(d, smap, p, "timestamp_jitter_us", 0.0, minimum=0, maximum=1e5) * 1e-6,
-        drop_probability=get_number(d, smap, p, "drop_probability", 0.0, minimum=0, maximum=0.5),
-        table=tm,
-        faults=tuple(faults),
-        seed=_int(d, smap, p, "seed", 0, 0, 2**63 - 1),
-        transport=get_str(d, smap, p, "transport", "in-process", choices=["in-process", "loopback"]),
-        budget_inputs=_budget_inputs(d, smap, p, site, table),
-    )
-
-
-def _budget_inputs(d: dict, smap: SourceMap, p: KeyPath, site: Site, table: TurntableSpec) -> BudgetInputs | None:
-    """``realise_uncertainty_inputs: true``: the simulator draws (seeded) every type-B input the certificate's
-    budget claims, within the bench's own stated uncertainties (local g anomaly, table attitude and rate)."""
-    v = d.get("realise_uncertainty_inputs", False)
-    if not isinstance(v, bool):
-        raise smap.error(p + ("realise_uncertainty_inputs",), f"expected true or false, got {v!r}")
-    if not v:
-        return None
-    return BudgetInputs(
-        gravity_anomaly_std=site.g_uncertainty,
-        attitude_error_bound=table.attitude_accuracy,
-        rate_error_bound=table.rate_accuracy,
-    )
-
-
-def _band(d: dict, smap: SourceMap, p: KeyPath, fs: float) -> tuple[float, float]:
-    if d.get("flicker_band_hz") is None:
-        return (1e-4, 1.0)
-    lo, hi = get_vector(d, smap, p, "flicker_band_hz", 2)
-    if not 0 < lo < hi <= fs / 4:
-        raise smap.error(
-            p + ("flicker_band_hz",), f"need 0 < low < high ≤ sample rate/4 ({fs / 4:g} Hz), got {[lo, hi]}"
-        )
-    return (lo, hi)
-
-
 def load_bench_text(text: str, file: str | Path = "<input>") -> BenchConfig:
     """Parse a bench from YAML ``text`` (``file`` names it in errors). See :func:`load_bench`."""
     data, smap = load_yaml_text(text, file)
@@ -821,7 +487,6 @@ def load_bench(path: str | Path) -> BenchConfig:
 def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
     if data is None:
         raise ConfigError(smap.file, None, "the bench file is empty; see benches/BENCH_FORMAT.md")
-    data = _coerce_floats(data)
     root = get_mapping(data, smap, ())
     check_keys(root, smap, (), ["name", "site", "turntable", "unit", "limits", "simulation", "reference_standards"])
     name = get_str(root, smap, (), "name")
@@ -835,7 +500,7 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
         raise smap.error(("simulation",), "is required when a driver is 'sim' (add a simulation: section)")
     if sim_d is not None and not (table.driver == "sim" and unit.driver == "sim"):
         raise smap.error(("simulation",), "is only allowed when both turntable.driver and unit.driver are 'sim'")
-    sim = _simulation(sim_d, smap, site, table, unit) if sim_d is not None else None
+    sim = parse_simulation(sim_d, smap, site, table, unit) if sim_d is not None else None
     return BenchConfig(
         name=name,
         path=path,

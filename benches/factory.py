@@ -29,10 +29,17 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from core.yaml_source import ConfigError
-from drivers.protocols import InertialUnit, LinkError, Turntable
+from drivers import connect
+from drivers.protocols import InertialUnit, Turntable
+from drivers.sim.inprocess import SimInertialUnit, SimTurntable
+from drivers.sim.loopback import Loopback
+from drivers.sim.world import SimulatedWorld
+
+from .bench_config import BenchConfig, unit_frame_format
 
 log = logging.getLogger(__name__)
 
@@ -47,7 +54,7 @@ class Bench:
 
     turntable: Turntable
     unit: InertialUnit
-    world: Any  # drivers.sim.world.SimulatedWorld | None
+    world: SimulatedWorld | None
     transport: str
     description: str
     _closers: list[Any] = field(default_factory=list, repr=False)
@@ -72,19 +79,17 @@ class Bench:
         self.close()
 
 
-def _bad(config: Any, message: str) -> ConfigError:
+def _bad(config: BenchConfig, message: str) -> ConfigError:
     return ConfigError(getattr(config, "path", "<bench>"), None, message)
 
 
 RAW_FILE = "unit-raw.bin"
 
 
-def _raw_sink(config: Any, run_folder: Any, closers: list[Any]) -> tuple[Any, str]:
+def _raw_sink(config: BenchConfig, run_folder: Any, closers: list[Any]) -> tuple[Any, str]:
     """The open raw-stream file when the bench keeps it (``unit.keep_raw``) and a run folder is given."""
     if run_folder is None or not getattr(config.unit, "keep_raw", False):
         return None, ""
-    from pathlib import Path
-
     path = Path(run_folder) / RAW_FILE
     try:
         fh = open(path, "ab")  # noqa: SIM115 - closed by the bench
@@ -95,7 +100,9 @@ def _raw_sink(config: Any, run_folder: Any, closers: list[Any]) -> tuple[Any, st
     return fh, RAW_FILE if start == 0 else f"{RAW_FILE} (this session from byte {start})"
 
 
-def open_bench(config: Any, *, seed: int | None = None, transport: str | None = None, run_folder: Any = None) -> Bench:
+def open_bench(
+    config: BenchConfig, *, seed: int | None = None, transport: str | None = None, run_folder: Any = None
+) -> Bench:
     """Open the bench described by ``config`` (a ``benches.bench_config.BenchConfig``).
 
     Parameters
@@ -131,13 +138,9 @@ def open_bench(config: Any, *, seed: int | None = None, transport: str | None = 
     return _open_hardware(config, run_folder)
 
 
-def _open_simulated(config: Any, seed: int | None, transport: str, run_folder: Any = None) -> Bench:
-    from drivers.sim.world import SimulatedWorld
-
+def _open_simulated(config: BenchConfig, seed: int | None, transport: str, run_folder: Any = None) -> Bench:
     world = SimulatedWorld.from_bench(config, seed)
     if transport == "in-process":
-        from drivers.sim.inprocess import SimInertialUnit, SimTurntable
-
         table, unit = SimTurntable(world), SimInertialUnit(world)
         return Bench(
             table,
@@ -148,13 +151,9 @@ def _open_simulated(config: Any, seed: int | None, transport: str, run_folder: A
             f"{getattr(config.unit, 'frame', 'tablebench-v1')} and unit.keep_raw apply over loopback)",
             [table.close, unit.close],
         )
-    from drivers.sim.loopback import Loopback
-
     tt = config.turntable
     dialect = "ascii" if getattr(tt, "driver", "sim") == "ascii-serial" else "modbus"
     wd = getattr(tt, "watchdog", None)
-    from benches.bench_config import unit_frame_format
-
     closers: list[Any] = []
     raw, raw_name = _raw_sink(config, run_folder, closers)
     try:
@@ -181,7 +180,7 @@ def _open_simulated(config: Any, seed: int | None, transport: str, run_folder: A
     )
 
 
-def _host_port(config: Any, address: str | None, default_port: int) -> tuple[str, int]:
+def _host_port(config: BenchConfig, address: str | None, default_port: int) -> tuple[str, int]:
     if not address:
         raise _bad(config, "turntable.address is required for a Modbus TCP table (e.g. '192.168.0.10:502')")
     host, _, port = address.rpartition(":") if ":" in address else (address, "", str(default_port))
@@ -194,75 +193,63 @@ def _host_port(config: Any, address: str | None, default_port: int) -> tuple[str
     return host, p
 
 
-def _open_hardware(config: Any, run_folder: Any = None) -> Bench:
-    import serial
-
-    closers: list[Any] = []
+def _open_hardware(config: BenchConfig, run_folder: Any = None) -> Bench:
+    opened: list[connect.Connection[Any]] = []
+    closers: list[Any] = []  # the raw-stream file, closed after the drivers
     bench_ok = False
     try:
         tt = config.turntable
         limits = tuple(tt.limits) if getattr(tt, "limits", None) else None
         if tt.driver == "modbus-tcp":
-            from pymodbus.client import ModbusTcpClient
-
-            from drivers.modbus_table import ModbusTurntable
-
             host, port = _host_port(config, tt.address, 502)
-            client = ModbusTcpClient(host, port=port, timeout=DEFAULT_TIMEOUT_S, retries=1)
-            closers.append(client.close)
-            if not client.connect():
-                raise LinkError(f"turntable: no Modbus TCP answer at {host}:{port}; check power, cable and address")
-            table: Any = ModbusTurntable(
-                client, word_order=getattr(tt, "float_word_order", "big") or "big", limits=limits
+            word_order = getattr(tt, "float_word_order", "big") or "big"
+            opened.append(
+                connect.modbus_table(host, port, word_order=word_order, limits=limits, timeout=DEFAULT_TIMEOUT_S)
             )
             where = f"Modbus TCP {host}:{port}"
         elif tt.driver == "ascii-serial":
-            from drivers.ascii_table import AsciiTurntable
-
             if not tt.address:
                 raise _bad(config, "turntable.address is required for an ASCII table (e.g. '/dev/ttyS0')")
-            try:
-                tport = serial.serial_for_url(tt.address, timeout=DEFAULT_TIMEOUT_S)
-            except (serial.SerialException, ValueError) as exc:
-                raise LinkError(f"turntable: cannot open {tt.address!r}: {exc}") from exc
-            closers.append(tport.close)
-            table = AsciiTurntable(tport, timeout=DEFAULT_TIMEOUT_S, limits=limits)
+            opened.append(connect.ascii_table(tt.address, limits=limits, timeout=DEFAULT_TIMEOUT_S))
             where = f"ASCII on {tt.address}"
         else:
             raise _bad(
                 config, f"turntable.driver {tt.driver!r} needs a simulation section; real: modbus-tcp, ascii-serial"
             )
-        closers.append(table.close)
         un = config.unit
         if un.driver != "serial":
             raise _bad(config, f"unit.driver {un.driver!r} needs a simulation section; a real unit uses 'serial'")
         if not un.address:
             raise _bad(config, "unit.address is required for a serial unit (e.g. '/dev/ttyUSB0')")
-        from benches.bench_config import unit_frame_format
-        from drivers.serial_imu import SerialInertialUnit
-
         fmt = unit_frame_format(un)
         raw, raw_name = _raw_sink(config, run_folder, closers)
-        try:
-            uport = serial.serial_for_url(
-                un.address, baudrate=int(getattr(un, "baudrate", 921600) or 921600), timeout=0.02
+        baud = int(getattr(un, "baudrate", 921600) or 921600)
+        opened.append(
+            connect.serial_unit(
+                un.address,
+                fmt,
+                un.sample_rate,
+                baudrate=baud,
+                timeout=DEFAULT_TIMEOUT_S,
+                raw_sink=raw,
+                raw_name=raw_name,
             )
-        except (serial.SerialException, ValueError) as exc:
-            raise LinkError(f"unit: cannot open {un.address!r}: {exc}") from exc
-        closers.append(uport.close)
-        unit = SerialInertialUnit(
-            uport, fmt, un.sample_rate, timeout=DEFAULT_TIMEOUT_S, polled=False, raw_sink=raw, raw_name=raw_name
         )
-        closers.append(unit.close)
+        table, unit = opened[0].driver, opened[1].driver
+        where_unit = f"unit ({fmt.name}) on {un.address}"
         bench = Bench(
-            table, unit, None, "hardware", f"{config.name}: table {where}, unit ({fmt.name}) on {un.address}", closers
+            table,
+            unit,
+            None,
+            "hardware",
+            f"{config.name}: table {where}, {where_unit}",
+            [*closers, *(c.close for c in opened)],
         )
         bench_ok = True
         return bench
     finally:
         if not bench_ok:
+            for c in reversed(opened):
+                c.close()
             for fn in reversed(closers):
-                try:
-                    fn()
-                except Exception:
-                    log.debug("close after failed open", exc_info=True)
+                fn()

@@ -15,7 +15,6 @@ the plan does. The live display shows the filter's white-noise 1σ. Results: :cl
 
 from __future__ import annotations
 
-import hashlib
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,8 +30,12 @@ from analysis.identification.model import PARAM_KINDS, PARAM_NAMES, predict
 from analysis.identification.plan import IdentificationPlan, PlanStep, plan_identification
 from analysis.units import DISPLAY_UNITS
 from core.errors import UserError
+from core.provenance import file_sha256
 from drivers.protocols import ImuBlock, TableState
+from procedures.steps import Hold, Spin, Step, Warmup
+from procedures.trajectory import nominal_samples
 
+from .bench_config import load_bench_text
 from .calibration_result import CalibrationResult
 from .recording import RecordingError, open_recording
 from .reference import reference_at, reference_for_samples
@@ -41,7 +44,9 @@ MODEL_TEXT = (
     "f_out = f + (S + T) f + b + D (f∘f) + diag(r) c(ω), body frame; c(ω) = [ω_y²+ω_z², ω_z²+ω_x², ω_x²+ω_y²]; "
     "misalignment convention δf_i += τ_ij f_j"
 )
-ACQUISITION_KINDS = ("hold", "spin")
+IDENTIFIED_STEPS: tuple[type[Step], ...] = (Hold, Spin)
+"""Steps whose counted samples the identification fits (a warm-up's only estimate the noise)."""
+_IDENTIFIED_KINDS = frozenset(t.kind for t in IDENTIFIED_STEPS)  # as written in a recording's steps table
 _SI_UNITS = {"bias": "m/s^2", "scale": "1", "misalignment": "rad", "quadratic": "s^2/m", "size_effect": "m"}
 
 
@@ -103,20 +108,18 @@ def offset_covariance(windows: list[tuple[float, float]], b: NDArray[np.float64]
 def _plan_steps_and_windows(
     compiled: Any, config: Any, sample_rate: float | None = None
 ) -> list[tuple[PlanStep, tuple[float, float]]]:
-    from procedures.trajectory import nominal_samples
-
     rate = float(sample_rate or config.unit.sample_rate)
     limits = config.turntable.limits
     # nominal acquisition window of every step in bench time (step end minus the spin's ramp down)
     ends = np.cumsum(compiled.step_times(limits))
     window: dict[str, tuple[float, float]] = {}
     for step, end in zip(compiled.steps, ends, strict=True):
-        if step.kind == "spin" and step.axis is not None:
-            end = end - abs(step.rate) / limits[step.axis].accel_max
+        if isinstance(step, Spin):
+            end = end - step.ramp_time(limits)
         window[step.name] = (float(end - step.duration), float(end))
     out: list[tuple[PlanStep, tuple[float, float]]] = []
     for ns in nominal_samples(compiled, rate, limits=limits):
-        if ns.step.kind not in ACQUISITION_KINDS or not np.all(np.isfinite(ns.angles)):
+        if not isinstance(ns.step, IDENTIFIED_STEPS) or not np.all(np.isfinite(ns.angles)):
             continue
         f_ref, omega = reference_at(ns.angles, ns.rates, config.site.g, config.unit.mounting)
         out.append((PlanStep(ns.step.name, f_ref, omega, ns.weights, ns.angles), window[ns.step.name]))
@@ -193,7 +196,7 @@ class LiveIdentifier:
     def on_block(self, step: Any, block: ImuBlock, table: TableState, counts: bool) -> None:
         """Buffer the block if it is inside a hold/spin acquisition window; fuse when enough is buffered."""
         self._readings.append(table)
-        if not counts or step.kind not in ACQUISITION_KINDS or len(block) == 0:
+        if not counts or not isinstance(step, IDENTIFIED_STEPS) or len(block) == 0:
             if self._n == 0:
                 del self._readings[:-3]
             return
@@ -273,14 +276,6 @@ class RecordedRun:
     temperature: NDArray[np.float64]
 
 
-def _sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
-    with path.open("rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 ACCEL_INVALID = 0b111
 """``/imu/status`` bits of the accelerometer channels (bit set = sample invalid, drivers.imu_frame_desc.FLAG_BITS):
 flagged samples are left out of the identification, never silently used."""
@@ -291,8 +286,6 @@ def load_run(run: str | Path) -> RecordedRun:
 
     The recording is verified first (every checksum): identification never runs on damaged data.
     """
-    from benches.bench_config import load_bench_text
-
     try:
         rec = open_recording(run)
     except RecordingError as exc:
@@ -319,10 +312,10 @@ def load_run(run: str | Path) -> RecordedRun:
         for s in steps:
             if s.status != "complete" or s.acq_end <= s.acq_start:
                 continue
-            if s.kind == "warmup":
+            if s.kind == Warmup.kind:
                 warm = rec.samples(s.acq_start, s.acq_end, ("accel",)).accel
                 continue
-            if s.kind not in ACQUISITION_KINDS:
+            if s.kind not in _IDENTIFIED_KINDS:
                 continue
             smp = rec.samples(s.acq_start, s.acq_end, ("time", "accel", "status"))
             t, fo, st = smp.time, smp.accel, smp.status
@@ -497,7 +490,7 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
         "format": "tablebench-calibration",
         "format_version": 2,
         "recording": rr.path.name,
-        "recording_sha256": _sha256_file(rr.path),
+        "recording_sha256": file_sha256(rr.path),
         "software_version": str(a.get("software_version", "")),
         "method": method,
         "model": MODEL_TEXT,

@@ -11,12 +11,7 @@ import sys
 import time
 from typing import TextIO
 
-
-def _hms(seconds: float) -> str:
-    if seconds != seconds or seconds == float("inf"):
-        return "--:--:--"
-    s = max(0, int(round(seconds)))
-    return f"{s // 3600:d}:{(s % 3600) // 60:02d}:{s % 60:02d}"
+from analysis.units import format_hms as _hms
 
 
 class ProgressDisplay:

@@ -26,7 +26,6 @@ from typing import Any, Protocol
 import numpy as np
 
 from drivers.protocols import (
-    AxisLimits,
     ImuBlock,
     InertialUnit,
     LinkError,
@@ -35,7 +34,7 @@ from drivers.protocols import (
     TableStatus,
     Turntable,
 )
-from procedures.steps import Step
+from procedures.steps import Hold, Move, Note, Spin, Step, Warmup, limit_problems, move_time
 
 from .progress import NullProgress, ProgressDisplay
 from .recording import Recorder, StepRecord
@@ -73,38 +72,6 @@ class RunResult:
     samples: int = 0
     bench_seconds: float = 0.0
     reason: str = ""
-
-
-def check_commands(steps: Sequence[Step], limits: Sequence[AxisLimits]) -> list[str]:
-    """Every position/rate the steps command, checked against the table's limits; returns problems (empty: ok)."""
-    problems: list[str] = []
-    for s in steps:
-        if s.angles is not None:
-            for i, (a, lim) in enumerate(zip(s.angles, limits, strict=True)):
-                if lim.position_min is not None and a < lim.position_min - 1e-12:
-                    problems.append(f"step {s.name!r}: axis {i} angle {math.degrees(a):.3f}° below the table's limit")
-                if lim.position_max is not None and a > lim.position_max + 1e-12:
-                    problems.append(f"step {s.name!r}: axis {i} angle {math.degrees(a):.3f}° above the table's limit")
-        if s.kind == "spin":
-            if s.axis is None or not 0 <= s.axis <= 2:
-                problems.append(f"step {s.name!r}: spin without a valid gimbal axis")
-            elif abs(s.rate) > limits[s.axis].rate_max * (1 + 1e-12):
-                problems.append(
-                    f"step {s.name!r}: rate {math.degrees(s.rate):.3f} °/s exceeds the table's "
-                    f"{math.degrees(limits[s.axis].rate_max):.3f} °/s on axis {s.axis}"
-                )
-    return problems
-
-
-def move_time(start: np.ndarray, target: np.ndarray, limits: Sequence[AxisLimits]) -> float:
-    """Trapezoidal-profile time for the slowest axis to go from ``start`` to ``target`` (rad), s."""
-    worst = 0.0
-    for a0, a1, lim in zip(start, target, limits, strict=True):
-        d = abs(float(a1) - float(a0))
-        v, acc = lim.rate_max, lim.accel_max
-        t = 2 * math.sqrt(d / acc) if d < v * v / acc else d / v + v / acc
-        worst = max(worst, t)
-    return worst
 
 
 STOP_SIGNALS: tuple[signal.Signals, ...] = tuple(
@@ -259,16 +226,12 @@ class Runner:
         self._wait_until(step, self._in_position(target), 3 * t + 30.0, "reach position")
 
     def _execute(self, step: Step) -> None:
-        kind = step.kind
-        if kind == "note":
+        if isinstance(step, Note):
             if self._recording:
                 self.rec.event(self._time(), "info", f"note: {step.text}")
-            return
-        if kind == "move":
-            assert step.angles is not None
+        elif isinstance(step, Move):
             self._move(step, step.angles)
-            return
-        if kind in ("hold", "warmup"):
+        elif isinstance(step, (Hold, Warmup)):
             if step.angles is not None:
                 self._move(step, step.angles)  # a hold always verifies its attitude
             self._acquire(step, int(round(step.settle * self.rate)), False)
@@ -276,12 +239,9 @@ class Runner:
             self._acq = (a0, a0)
             self._acquire(step, int(round(step.duration * self.rate)), True)
             self._acq = (a0, self._sample)
-            return
-        if kind == "spin":
-            assert step.axis is not None
-            self.table.spin(int(step.axis), float(step.rate))
-            lim = self.limits[int(step.axis)]
-            ramp = abs(step.rate) / lim.accel_max
+        elif isinstance(step, Spin):
+            self.table.spin(step.axis, float(step.rate))
+            ramp = step.ramp_time(self.limits)
             self._wait_until(step, lambda s: bool(s.status & TableStatus.AT_RATE), 3 * ramp + 30.0, "reach rate")
             self._acquire(step, int(round(step.settle * self.rate)), False)
             a0 = self._sample
@@ -290,8 +250,8 @@ class Runner:
             self._acq = (a0, self._sample)
             self.table.stop()
             self._wait_until(step, self._at_rest, 3 * ramp + 30.0, "come to rest")
-            return
-        raise RunAborted("failed", f"step {step.name!r}: unknown step kind {kind!r}")
+        else:
+            raise RunAborted("failed", f"step {step.name!r}: no runner for a {type(step).__name__} step")
 
     def _time(self) -> float:
         return self._state.time if self._state is not None else 0.0
@@ -358,7 +318,7 @@ class Runner:
             status "complete", or "interrupted" / "failed" with the reason (the recording is closed
             cleanly in every case; the table is left at rest).
         """
-        problems = check_commands(self.steps, self.limits)
+        problems = limit_problems(self.steps, self.limits)
         if problems:
             raise TableError("refusing to start, nothing moved: " + "; ".join(problems))
         replay_set = set(replay)

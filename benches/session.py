@@ -19,7 +19,13 @@ from typing import Any, TextIO
 
 from core.errors import UserError
 from core.provenance import software_version
+from core.yaml_source import ConfigError
+from procedures.compiler import compile_procedure
+from procedures.loader import load_procedure
+from procedures.paths import default_bench_path, resolve_bench, resolve_procedure
+from procedures.steps import CompiledProcedure
 
+from .bench_config import load_bench
 from .progress import ProgressDisplay
 from .recording import Hdf5Recorder, RecordingError, open_recording
 from .runner import Runner, RunResult, SampleObserver
@@ -50,11 +56,6 @@ def prepare(
     overrides), compile it for the bench's table and mounting, and check it against the unit (every acquisition
     lasts at least one sample). All three commands accept and reject exactly the same inputs; ConfigError if
     wrong."""
-    from benches.bench_config import load_bench
-    from procedures.compiler import compile_procedure
-    from procedures.loader import load_procedure
-    from procedures.paths import default_bench_path, resolve_bench, resolve_procedure
-
     bench_path = resolve_bench(bench) if bench else default_bench_path()
     procedure_path = resolve_procedure(procedure or DEFAULT_PROCEDURE)
     config = load_bench(bench_path)
@@ -71,13 +72,10 @@ def prepare(
     )
 
 
-def check_against_unit(compiled: Any, sample_rate: float) -> None:
+def check_against_unit(compiled: CompiledProcedure, sample_rate: float) -> None:
     """Every acquisition step must last at least one sample period of the unit; ConfigError otherwise."""
-    from core.yaml_source import ConfigError
-    from procedures.steps import ACQUISITION_KINDS
-
     for s in compiled.steps:
-        if s.kind in ACQUISITION_KINDS and s.duration * sample_rate < 1.0:
+        if s.acquires and s.duration * sample_rate < 1.0:
             raise ConfigError(
                 compiled.path,
                 s.line,

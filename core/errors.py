@@ -14,3 +14,7 @@ class UserError(Exception):
 
 class UsageError(UserError):
     """Bad command-line arguments or combinations."""
+
+
+class OutputError(UserError, OSError):
+    """An output file or folder cannot be created or written (the path names it)."""

@@ -15,6 +15,8 @@ from typing import Any, Literal
 
 import numpy as np
 
+from core.errors import OutputError
+
 NonFinite = Literal["error", "null"]
 
 
@@ -48,11 +50,18 @@ def dumps(obj: Any, nonfinite: NonFinite = "error", indent: int = 1) -> str:
 
 def write_text_atomic(path: str | Path, text: str | bytes, *, overwrite: bool = True) -> Path:
     """Write ``text`` to ``path`` through a temporary file in the same folder and a rename, so a reader never
-    sees a half-written file. With ``overwrite=False`` an existing file raises ``FileExistsError``."""
+    sees a half-written file. With ``overwrite=False`` an existing file raises ``FileExistsError``. A path
+    that cannot be created (a file where a folder is needed, no permission, a folder given) raises
+    :class:`core.errors.OutputError`, naming it."""
     p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
     data = text.encode("utf-8") if isinstance(text, str) else text
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+    try:
+        if p.is_dir():
+            raise IsADirectoryError(21, "is a folder; give a file name", str(p))
+        p.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+    except OSError as exc:
+        raise OutputError(f"{p}: cannot be written ({exc.strerror or exc}); choose another output path") from None
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)

@@ -10,6 +10,7 @@ and what is allowed, e.g.::
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -58,25 +59,121 @@ class SourceMap:
         return ConfigError(self.file, self.line(path), text)
 
 
-def _walk(node: yaml.Node, path: KeyPath, out: dict[KeyPath, int]) -> None:
-    out.setdefault(path, node.start_mark.line + 1)
-    if isinstance(node, yaml.MappingNode):
-        for key_node, value_node in node.value:
-            key = key_node.value
-            out[path + (key,)] = key_node.start_mark.line + 1
-            _walk(value_node, path + (key,), out)
-            out[path + (key,)] = key_node.start_mark.line + 1
-    elif isinstance(node, yaml.SequenceNode):
-        for i, item in enumerate(node.value):
-            _walk(item, path + (i,), out)
+# ---- the one YAML reader for bench and procedure files ------------------------------------------------
+
+MAX_BYTES = 2_000_000
+"""Largest bench or procedure file, bytes (the shipped ones are a few kB)."""
+MAX_NODES = 50_000
+"""Largest number of values (keys, items, scalars) in a file, counting every alias expansion."""
+MAX_ALIASES = 100
+"""Largest number of alias uses (``*name``) in a file."""
+MAX_DEPTH = 64
+"""Deepest nesting of mappings and lists."""
+
+_FLOAT_EXP = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$")
+
+_BaseLoader: type = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+class _Loader(_BaseLoader):  # type: ignore[misc, valid-type]
+    """Safe YAML loader with one number syntax: ``6e2``, ``1e-4`` are numbers (YAML 1.2), as ``6.0e2`` is."""
+
+
+_Loader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_EXP, list("-+0123456789."))
+
+
+class _Walk:
+    """Record the line of every key / item, reject duplicate keys, and cap aliases, values and depth."""
+
+    def __init__(self, file: str, lines: dict[KeyPath, int]) -> None:
+        self.file = file
+        self.lines = lines
+        self.nodes = 0
+        self.aliases = 0
+        self.seen: set[int] = set()
+
+    def visit(self, node: yaml.Node, path: KeyPath, depth: int) -> None:
+        line = node.start_mark.line + 1
+        self.nodes += 1
+        if self.nodes > MAX_NODES:
+            raise _too_many(self.file, line)
+        if depth > MAX_DEPTH:
+            raise ConfigError(self.file, line, f"nested more than {MAX_DEPTH} levels deep (or a recursive alias)")
+        if isinstance(node, (yaml.MappingNode, yaml.SequenceNode)):
+            if id(node) in self.seen:  # the composer hands an alias out as the anchored node itself
+                self.aliases += 1
+                if self.aliases > MAX_ALIASES:
+                    raise ConfigError(
+                        self.file,
+                        line,
+                        f"more than {MAX_ALIASES} alias uses (*name); write the values out or use repeat:",
+                    )
+            self.seen.add(id(node))
+        self.lines.setdefault(path, line)
+        if isinstance(node, yaml.MappingNode):
+            first: dict[object, int] = {}
+            for key_node, value_node in node.value:
+                key = key_node.value
+                kline = key_node.start_mark.line + 1
+                if isinstance(key_node, yaml.ScalarNode) and key != "<<":
+                    if key in first:
+                        raise ConfigError(
+                            self.file,
+                            kline,
+                            f"duplicate key {key!r} (first on line {first[key]}, again on line {kline}); a key may "
+                            "appear only once in a mapping — delete or rename one",
+                        )
+                    first[key] = kline
+                self.lines[path + (key,)] = kline
+                self.visit(value_node, path + (key,), depth + 1)
+                self.lines[path + (key,)] = kline
+        elif isinstance(node, yaml.SequenceNode):
+            for i, item in enumerate(node.value):
+                self.visit(item, path + (i,), depth + 1)
+
+
+def _too_many(file: str, line: int | None) -> ConfigError:
+    return ConfigError(
+        file,
+        line,
+        f"too many values (more than {MAX_NODES}, counting alias expansions); a bench or procedure file is much "
+        "smaller: use repeat: for repetition, not copies or nested aliases",
+    )
+
+
+def _count_events(text: str, file: str) -> None:
+    """Refuse a document with more than :data:`MAX_NODES` values before building it (a fast C-level scan)."""
+    n = 0
+    for event in yaml.parse(text, Loader=_Loader):
+        if isinstance(event, (yaml.ScalarEvent, yaml.AliasEvent, yaml.CollectionStartEvent)):
+            n += 1
+            if n > MAX_NODES:
+                raise _too_many(file, event.start_mark.line + 1)
 
 
 def load_yaml_text(text: str, file: str | Path = "<input>") -> tuple[Any, SourceMap]:
-    """Parse YAML ``text``; return (data, source map). Syntax errors become :class:`ConfigError`."""
+    """Parse YAML ``text``; return (data, source map).
+
+    The one YAML reader of bench and procedure files: safe types only; ``6e2`` / ``1e-4`` are numbers
+    (as in YAML 1.2); a duplicate key is an error naming both lines; the file size, the number of values
+    (counting alias expansions), alias uses and nesting depth are capped (:data:`MAX_BYTES`,
+    :data:`MAX_NODES`, :data:`MAX_ALIASES`, :data:`MAX_DEPTH`), so a hostile file is refused in well under
+    a second and a few MB. Every problem is a :class:`ConfigError` naming the file and line.
+    """
     smap = SourceMap(str(file))
+    size = len(text.encode("utf-8", "surrogatepass")) if len(text) * 4 > MAX_BYTES else len(text)
+    if size > MAX_BYTES:
+        raise ConfigError(
+            file, None, f"is {size / 1e6:.1f} MB; a bench or procedure file may be at most {MAX_BYTES / 1e6:g} MB"
+        )
+    loader = _Loader(text)
     try:
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
-        data = yaml.safe_load(text)
+        _count_events(text, str(file))
+        node = loader.get_single_node()
+        if node is None:
+            return None, smap
+        _Walk(str(file), smap.lines).visit(node, (), 0)
+        data = loader.construct_document(node)
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line = mark.line + 1 if mark is not None else None
@@ -84,8 +181,10 @@ def load_yaml_text(text: str, file: str | Path = "<input>") -> tuple[Any, Source
         raise ConfigError(file, line, f"YAML syntax error: {problem} (check indentation, colons and quotes)") from None
     except yaml.YAMLError as exc:  # pragma: no cover - non-marked errors are rare
         raise ConfigError(file, None, f"YAML error: {exc}") from None
-    if node is not None:
-        _walk(node, (), smap.lines)
+    except RecursionError:
+        raise ConfigError(file, None, f"nested more than {MAX_DEPTH} levels deep (or a recursive alias)") from None
+    finally:
+        loader.dispose()
     return data, smap
 
 
@@ -95,10 +194,16 @@ def load_yaml(path: str | Path) -> tuple[Any, SourceMap, str]:
     Raises
     ------
     ConfigError
-        If the file cannot be read, is not UTF-8, or is not valid YAML.
+        If the file cannot be read, is larger than :data:`MAX_BYTES`, is not UTF-8, or is not valid YAML
+        (see :func:`load_yaml_text`).
     """
     p = Path(path)
     try:
+        size = p.stat().st_size
+        if p.is_file() and size > MAX_BYTES:
+            raise ConfigError(
+                p, None, f"is {size / 1e6:.1f} MB; a bench or procedure file may be at most {MAX_BYTES / 1e6:g} MB"
+            )
         text = p.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise ConfigError(p, None, "file not found (check the path)") from None
@@ -203,3 +308,66 @@ def get_vector(
             raise smap.error(path + (key, i), f"expected a number, got {item!r}")
         out.append(float(item))
     return out
+
+
+def get_section(data: dict[str, Any], smap: SourceMap, path: KeyPath, key: str, required: bool = True) -> dict | None:
+    """The mapping at ``data[key]`` (None if absent and not ``required``)."""
+    if key not in data or data[key] is None:
+        if required:
+            raise smap.error(path + (key,), "is required (a mapping of key: value lines)")
+        return None
+    return get_mapping(data[key], smap, path + (key,))
+
+
+def get_components(
+    data: dict, smap: SourceMap, path: KeyPath, key: str, si: float, default: Any = None, length: int = 3, **bounds: Any
+) -> tuple[float, ...]:
+    """A vector in display units (a list, or one number for all components) → SI tuple."""
+    if key not in data or data[key] is None:
+        if default is None:
+            raise smap.error(path + (key,), f"is required (a list of {length} numbers, or one number for all)")
+        return tuple(default)
+    v = data[key]
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        vals = [get_number(data, smap, path, key, **bounds)] * length
+    else:
+        vals = get_vector(data, smap, path, key, length)
+        lo, hi = bounds.get("minimum"), bounds.get("maximum")
+        for i, x in enumerate(vals):
+            if (lo is not None and x < lo) or (hi is not None and x > hi):
+                raise smap.error(path + (key, i), f"{x:g} is out of range; allowed [{lo}, {hi}]")
+    return tuple(x * si for x in vals)
+
+
+def get_matrix(data: dict, smap: SourceMap, path: KeyPath, key: str, si: float, default: Any) -> tuple:
+    """A 3×3 matrix in display units (three rows) → SI tuple of rows; ``default`` if absent."""
+    if key not in data or data[key] is None:
+        return default
+    v = data[key]
+    where = path + (key,)
+    if not isinstance(v, list) or len(v) != 3:
+        raise smap.error(where, f"expected a 3×3 matrix as three rows [[a, b, c], [d, e, f], [g, h, i]], got {v!r}")
+    rows = []
+    for i, row in enumerate(v):
+        if not isinstance(row, list):
+            raise smap.error(where + (i,), f"expected a row of 3 numbers, got {row!r}")
+        rows.append(tuple(x * si for x in get_vector({"row": row}, smap, where + (i,), "row", 3)))
+    return tuple(rows)
+
+
+def get_int(data: dict, smap: SourceMap, path: KeyPath, key: str, default: int, minimum: int, maximum: int) -> int:
+    """A whole number in [minimum, maximum]."""
+    v = get_number(data, smap, path, key, default, minimum=minimum, maximum=maximum)
+    if v != int(v):
+        raise smap.error(path + (key,), f"expected a whole number, got {data[key]!r}")
+    return int(v)
+
+
+def get_list_of_maps(d: dict, smap: SourceMap, p: KeyPath, key: str) -> list[tuple[KeyPath, dict]]:
+    """The list of mappings at ``d[key]`` with their key paths (empty if absent)."""
+    v = d.get(key)
+    if v is None:
+        return []
+    if not isinstance(v, list):
+        raise smap.error(p + (key,), f"expected a list of mappings (lines starting with '- '), got {v!r}")
+    return [(p + (key, i), get_mapping(item, smap, p + (key, i))) for i, item in enumerate(v)]

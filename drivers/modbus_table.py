@@ -43,15 +43,10 @@ def check_position(angles: Any, limits: tuple[AxisLimits, AxisLimits, AxisLimits
     if not np.all(np.isfinite(a)):
         raise TableError(f"move_to: angles must be finite, got {a.tolist()}")
     for i, (x, lim) in enumerate(zip(a, limits, strict=True)):
-        if lim.position_min is not None and x < lim.position_min:
+        if not lim.allows_position(x):
             raise TableError(
-                f"move_to: {AXIS_NAMES[i]} axis angle {math.degrees(x):.4f}° below its limit "
-                f"{math.degrees(lim.position_min):.4f}°; nothing was sent"
-            )
-        if lim.position_max is not None and x > lim.position_max:
-            raise TableError(
-                f"move_to: {AXIS_NAMES[i]} axis angle {math.degrees(x):.4f}° above its limit "
-                f"{math.degrees(lim.position_max):.4f}°; nothing was sent"
+                f"move_to: {AXIS_NAMES[i]} axis angle {math.degrees(x):.4f}° outside its limits "
+                f"{lim.position_range_text()}; nothing was sent"
             )
     return a
 
@@ -64,7 +59,7 @@ def check_rate(axis: int, rate: float, limits: tuple[AxisLimits, AxisLimits, Axi
     if not math.isfinite(r):
         raise TableError(f"spin: rate must be finite, got {rate!r}")
     lim = limits[int(axis)]
-    if abs(r) > lim.rate_max * (1 + 1e-12):  # same relative tolerance as the controller and the runner
+    if not lim.allows_rate(r):  # the one limit rule (AxisLimits), as the compiler, runner and controller
         raise TableError(
             f"spin: {AXIS_NAMES[int(axis)]} axis rate {math.degrees(r):.4f} °/s exceeds its limit "
             f"{math.degrees(lim.rate_max):.4f} °/s; nothing was sent"

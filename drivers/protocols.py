@@ -12,6 +12,7 @@ in-process simulator handle) in their constructor; they never open ports themsel
 from __future__ import annotations
 
 import enum
+import math
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
@@ -57,14 +58,64 @@ class AxisMode(enum.IntEnum):
     RATE = 2
 
 
+LIMIT_TOLERANCE: float = 1e-9
+"""The one tolerance of every limit check, relative to the limit (absolute for a limit smaller than 1):
+position limits in rad, rate in rad/s, acceleration in rad/s². Far below any encoder resolution, it only
+absorbs the rounding of unit conversions, so what the compiler accepts the runner, the drivers and the
+simulated controllers accept too."""
+
+
+def _slack(limit: float) -> float:
+    return LIMIT_TOLERANCE * max(1.0, abs(limit))
+
+
 @dataclass(frozen=True)
 class AxisLimits:
-    """Limits of one gimbal axis, SI. ``position_min``/``position_max`` are None for a continuous axis."""
+    """Limits of one gimbal axis, SI. ``position_min``/``position_max`` are None for a continuous axis.
+
+    The only place that answers "is this position / rate / acceleration allowed?" (with
+    :data:`LIMIT_TOLERANCE`): the compiler, the runner, the drivers and the simulated world all ask it.
+    """
 
     rate_max: float  # rad/s
     accel_max: float  # rad/s²
     position_min: float | None = None  # rad
     position_max: float | None = None  # rad
+
+    @property
+    def continuous(self) -> bool:
+        """True for an axis without position limits."""
+        return self.position_min is None and self.position_max is None
+
+    def position_bounds(self) -> tuple[float, float]:
+        """Allowed gimbal angles [low, high], rad, tolerance included (±inf where unlimited)."""
+        lo = -math.inf if self.position_min is None else self.position_min - _slack(self.position_min)
+        hi = math.inf if self.position_max is None else self.position_max + _slack(self.position_max)
+        return lo, hi
+
+    def allows_position(self, angle: float) -> bool:
+        """Is gimbal angle ``angle`` (rad) within the position limits? (False for NaN / inf.)"""
+        a = float(angle)
+        lo, hi = self.position_bounds()
+        return math.isfinite(a) and lo <= a <= hi
+
+    def allows_rate(self, rate: float) -> bool:
+        """Is gimbal rate ``rate`` (rad/s, signed) within the rate limit? (False for NaN / inf.)"""
+        r = float(rate)
+        return math.isfinite(r) and abs(r) <= self.rate_max + _slack(self.rate_max)
+
+    def allows_acceleration(self, accel: float) -> bool:
+        """Is angular acceleration ``accel`` (rad/s², signed) within the acceleration limit?"""
+        a = float(accel)
+        return math.isfinite(a) and abs(a) <= self.accel_max + _slack(self.accel_max)
+
+    def position_range_text(self) -> str:
+        """The position limits in degrees for messages, e.g. ``"[-90°, 90°]"`` or ``"continuous"``."""
+        if self.continuous:
+            return "continuous"
+        lo = "-inf" if self.position_min is None else f"{math.degrees(self.position_min):g}°"
+        hi = "+inf" if self.position_max is None else f"{math.degrees(self.position_max):g}°"
+        return f"[{lo}, {hi}]"
 
 
 @dataclass(frozen=True)

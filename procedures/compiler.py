@@ -1,4 +1,4 @@
-"""Compile a loaded procedure to plain motion/acquisition steps for one table and one unit mounting (pure).
+"""Compile a loaded procedure to typed steps (:mod:`procedures.steps`) for one table and one unit mounting (pure).
 
 Attitudes follow :mod:`analysis.gimbal`: gimbal angles (outer ψ about n-Up, middle θ, inner γ), rad,
 C_t^n = R_z(ψ) R_x(θ) R_y(γ) in ENU, and C_b^n = C_t^n C_b^t with the bench's mounting C_b^t.
@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -49,12 +50,10 @@ from .loader import (
     StepSpec,
     WarmupSpec,
 )
-from .steps import CompiledProcedure, Step, describe_attitude, spin_angle
+from .steps import CompiledProcedure, Hold, Move, Note, Spin, Step, Warmup, describe_attitude, spin_angle
 
 ALIGN_TOL = 1e-9
 """Gimbal/body axis alignment tolerance on 1 − |cos| (≈ 0.009°)."""
-LIMIT_TOL = 1e-9
-"""Position-limit tolerance, rad."""
 MAX_STEPS = 100_000
 """Largest number of leaf steps after expanding repeats."""
 DEFAULT_SETTLE = 2.0
@@ -112,14 +111,10 @@ def _fit_limits(angles: np.ndarray, limits: Sequence[AxisLimits]) -> np.ndarray 
     out = np.empty(3)
     for i, (a, lim) in enumerate(zip(angles, limits, strict=True)):
         w = _wrap(float(a))
-        if lim.position_min is None and lim.position_max is None:
+        if lim.continuous:
             out[i] = w
             continue
-        lo = -math.inf if lim.position_min is None else lim.position_min
-        hi = math.inf if lim.position_max is None else lim.position_max
-        fits = [
-            w + 2 * math.pi * k for k in (0, -1, 1, -2, 2) if lo - LIMIT_TOL <= w + 2 * math.pi * k <= hi + LIMIT_TOL
-        ]
+        fits = [w + 2 * math.pi * k for k in (0, -1, 1, -2, 2) if lim.allows_position(w + 2 * math.pi * k)]
         if not fits:
             return None
         out[i] = fits[0]
@@ -180,21 +175,17 @@ class _Compiler:
     def full(self, group: str, base: str, suffix: str) -> str:
         return self.unique(f"{group}/{base}{suffix}" if group else f"{base}{suffix}")
 
-    def add(self, **kw: object) -> None:
+    def add(self, step_type: type[Step], **kw: Any) -> None:
         if len(self.steps) >= 2 * MAX_STEPS:
             raise self.err(
-                kw.get("line"),  # type: ignore[arg-type]
+                kw.get("line"),
                 str(kw.get("name")),
                 f"the procedure compiles to more than {2 * MAX_STEPS} steps; reduce counts",
             )
-        kw.setdefault("axis", None)
-        kw.setdefault("rate", 0.0)
-        kw.setdefault("duration", 0.0)
-        kw.setdefault("settle", 0.0)
-        kw.setdefault("body_axis", None)
-        kw.setdefault("angles", None)
-        self.starts.append(None if self.current is None else tuple(float(x) for x in self.current))  # type: ignore[misc]
-        self.steps.append(Step(index=len(self.steps), **kw))  # type: ignore[arg-type]
+        self.starts.append(
+            None if self.current is None else (float(self.current[0]), float(self.current[1]), float(self.current[2]))
+        )
+        self.steps.append(step_type(index=len(self.steps), **kw))
 
     def settle_of(self, spec_settle: float | None) -> float:
         if spec_settle is not None:
@@ -205,15 +196,12 @@ class _Compiler:
 
     def check_position(self, angles: np.ndarray, line: int | None, name: str, fix: str) -> None:
         for i, (a, lim) in enumerate(zip(angles, self.limits, strict=True)):
-            lo, hi = lim.position_min, lim.position_max
-            if (lo is not None and a < lo - LIMIT_TOL) or (hi is not None and a > hi + LIMIT_TOL):
-                los = "-inf" if lo is None else f"{lo / DEG:g}°"
-                his = "+inf" if hi is None else f"{hi / DEG:g}°"
+            if not lim.allows_position(a):
                 raise self.err(
                     line,
                     name,
                     f"the {AXIS_NAMES[i]} gimbal would go to {a / DEG:.3f}°, outside the table's limits "
-                    f"[{los}, {his}]; allowed: targets within the limits ({fix})",
+                    f"{lim.position_range_text()}; allowed: targets within the limits ({fix})",
                 )
 
     def known_attitude(self, line: int | None, name: str, what: str) -> np.ndarray:
@@ -256,9 +244,7 @@ class _Compiler:
         for i, leaf in enumerate(leaves):
             spec, group, suffix = leaf.spec, leaf.group, leaf.suffix
             if isinstance(spec, NoteSpec):
-                self.add(
-                    name=self.full(group, "note", suffix), kind="note", group=group, line=spec.line, text=spec.text
-                )
+                self.add(Note, name=self.full(group, "note", suffix), group=group, line=spec.line, text=spec.text)
             elif isinstance(spec, WarmupSpec):
                 self.warmup(spec, group, suffix, self.next_rotation_axis(leaves, i + 1))
             elif isinstance(spec, OrientSpec):
@@ -319,8 +305,8 @@ class _Compiler:
             where = "the current attitude"
         angles = None if self.current is None or self.spun_axis is not None else tuple(float(x) for x in self.current)
         self.add(
+            Warmup,
             name=name,
-            kind="warmup",
             group=group,
             angles=angles,
             duration=spec.duration,
@@ -333,8 +319,8 @@ class _Compiler:
         name = self.full(group, spec.name or "orient", suffix)
         target = self.resolve_attitude(spec.attitude, spec.line, name, next_axis)
         self.add(
+            Move,
             name=name,
-            kind="move",
             group=group,
             angles=tuple(float(x) for x in target),
             line=spec.line,
@@ -347,8 +333,8 @@ class _Compiler:
     ) -> None:
         """Append a static hold of ``duration`` s at gimbal ``angles`` (rad)."""
         self.add(
+            Hold,
             name=name,
-            kind="hold",
             group=group,
             angles=tuple(float(x) for x in angles),
             duration=duration,
@@ -388,8 +374,8 @@ class _Compiler:
             target[j] += sign * spec.angle
             self.check_position(target, spec.line, name, "fewer or smaller steps, or another base orientation")
             self.add(
+                Move,
                 name=name,
-                kind="move",
                 group=group,
                 angles=tuple(float(x) for x in target),
                 axis=j,
@@ -421,7 +407,7 @@ class _Compiler:
             settle = self.settle_of(None)
         for r in spec.rates:
             name = self.full(group, f"{base}{'+' if r > 0 else '-'}", suffix)
-            if abs(r) > lim.rate_max * (1 + 1e-12):
+            if not lim.allows_rate(r):
                 raise self.err(
                     spec.line,
                     name,
@@ -434,7 +420,7 @@ class _Compiler:
             assert self.current is not None
             end = self.current.copy()
             end[j] += travel
-            if lim.position_min is not None or lim.position_max is not None:
+            if not lim.continuous:
                 lo = min(self.current[j], end[j])
                 hi = max(self.current[j], end[j])
                 self.check_position(
@@ -446,8 +432,8 @@ class _Compiler:
             body_axis = spec.axis if r > 0 else ("-" if spec.axis[0] == "+" else "+") + spec.axis[1]
             revs = duration * abs(r) / (2 * math.pi)
             self.add(
+                Spin,
                 name=name,
-                kind="spin",
                 group=group,
                 axis=j,
                 rate=float(gimbal_rate),

@@ -10,31 +10,30 @@ allowed. Attitudes are not resolved here (that needs the bench's mounting and li
 from __future__ import annotations
 
 import hashlib
+import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
+from analysis.gimbal import ENU_DIRECTIONS
 from analysis.units import from_display
 from core.yaml_source import ConfigError, KeyPath, SourceMap, load_yaml, load_yaml_text
 
-STEP_KINDS: tuple[str, ...] = ("warmup", "orient", "hold", "step_rotate", "spin", "repeat", "group", "note")
-DIRECTION_WORDS: dict[str, tuple[int, int, int]] = {
-    "East": (1, 0, 0),
-    "West": (-1, 0, 0),
-    "North": (0, 1, 0),
-    "South": (0, -1, 0),
-    "Up": (0, 0, 1),
-    "Down": (0, 0, -1),
-}
 BODY_AXES: tuple[str, ...] = ("x", "y", "z", "+x", "+y", "+z", "-x", "-y", "-z")
 TOP_KEYS: tuple[str, ...] = ("name", "description", "version", "defaults", "parameters", "steps")
 DEFAULT_KEYS: tuple[str, ...] = ("settle_s", "hold_s", "spin_settle_s")
 MAX_COUNT: int = 10_000
 """Largest ``count`` of a repeat or step_rotate (guards against a typo compiling for ever)."""
+MAX_SECONDS: float = 1e7
+"""Longest duration (warm-up, hold, spin, settling) a step may ask for, s (≈ 116 days): larger is a typo."""
+MAX_REVOLUTIONS: float = 1e5
+"""Most revolutions one spin may count."""
+MAX_RATE_DPS: float = 36_000.0
+"""Largest spin rate a procedure may write, °/s (the bench's own limit is checked by the compiler)."""
 _PARAM_RE = re.compile(r"^\$\{?([A-Za-z_][A-Za-z0-9_]*)\}?$")
 
 
@@ -61,7 +60,7 @@ class Attitude:
     def words(self) -> str:
         """``"x East, y North, z Up"`` or ``"angles (0, -90, 0) deg"``."""
         if self.directions is not None:
-            inv = {v: k for k, v in DIRECTION_WORDS.items()}
+            inv = {v: k for k, v in ENU_DIRECTIONS.items()}
             return ", ".join(f"{a} {inv[self.directions[a]]}" for a in "xyz")
         assert self.angles is not None
         return "angles (" + ", ".join(f"{np.degrees(a):g}" for a in self.angles) + ") deg"
@@ -69,9 +68,12 @@ class Attitude:
 
 @dataclass(frozen=True)
 class StepSpec:
-    """Common fields of a step specification: kind, source line, a label for messages, an optional name."""
+    """Common fields of a step specification: source line, a label for messages, an optional name.
 
-    kind: str
+    ``kind`` (a class attribute) is the step's key in the procedure file.
+    """
+
+    kind: ClassVar[str] = ""
     line: int | None
     label: str
     name: str | None
@@ -81,6 +83,7 @@ class StepSpec:
 class WarmupSpec(StepSpec):
     """Warm-up record of ``duration`` s at ``at`` (None: the current/initial attitude)."""
 
+    kind: ClassVar[str] = "warmup"
     duration: float = 0.0
     at: Attitude | None = None
     settle: float | None = None
@@ -90,6 +93,7 @@ class WarmupSpec(StepSpec):
 class OrientSpec(StepSpec):
     """Move to a base orientation."""
 
+    kind: ClassVar[str] = "orient"
     attitude: Attitude = field(default_factory=Attitude)
 
 
@@ -97,6 +101,7 @@ class OrientSpec(StepSpec):
 class HoldSpec(StepSpec):
     """Static acquisition of ``duration`` s at the current attitude."""
 
+    kind: ClassVar[str] = "hold"
     duration: float = 0.0
     settle: float | None = None
 
@@ -105,6 +110,7 @@ class HoldSpec(StepSpec):
 class StepRotateSpec(StepSpec):
     """``count`` rotations of ``angle`` rad about signed body axis ``axis``, holding ``hold`` s after each."""
 
+    kind: ClassVar[str] = "step_rotate"
     axis: str = "+z"
     angle: float = 0.0
     count: int = 1
@@ -116,6 +122,7 @@ class StepRotateSpec(StepSpec):
 class SpinSpec(StepSpec):
     """Constant-rate spin(s) about signed body axis ``axis``; ``rates`` rad/s (two entries for both directions)."""
 
+    kind: ClassVar[str] = "spin"
     axis: str = "+z"
     rates: tuple[float, ...] = ()
     revolutions: float | None = None
@@ -127,6 +134,7 @@ class SpinSpec(StepSpec):
 class RepeatSpec(StepSpec):
     """``steps`` repeated ``count`` times."""
 
+    kind: ClassVar[str] = "repeat"
     count: int = 1
     steps: tuple[StepSpec, ...] = ()
 
@@ -135,6 +143,7 @@ class RepeatSpec(StepSpec):
 class GroupSpec(StepSpec):
     """Named group of steps (the name prefixes every compiled step name)."""
 
+    kind: ClassVar[str] = "group"
     group: str = ""
     steps: tuple[StepSpec, ...] = ()
 
@@ -143,6 +152,7 @@ class GroupSpec(StepSpec):
 class NoteSpec(StepSpec):
     """Free text, logged in the recording when reached."""
 
+    kind: ClassVar[str] = "note"
     text: str = ""
 
 
@@ -168,6 +178,20 @@ class Procedure:
     sha256: str
     path: str | None
     parameters: dict[str, float] = field(default_factory=dict)
+
+
+SPEC_TYPES: tuple[type[StepSpec], ...] = (
+    WarmupSpec,
+    OrientSpec,
+    HoldSpec,
+    StepRotateSpec,
+    SpinSpec,
+    RepeatSpec,
+    GroupSpec,
+    NoteSpec,
+)
+"""The step specifications a procedure file may contain (each class' ``kind`` is its key in the file)."""
+_KINDS: tuple[str, ...] = tuple(t.kind for t in SPEC_TYPES)
 
 
 # ---- parsing ---------------------------------------------------------------------------------------
@@ -255,15 +279,15 @@ def _attitude(ctx: _Ctx, d: Mapping[str, Any], path: KeyPath, label: str) -> Att
             label,
             "an attitude needs body-axis directions like {x: East, y: North, z: Up} or angles_deg: [ψ, θ, γ]",
         )
-    words = {w.lower(): w for w in DIRECTION_WORDS}
+    words = {w.lower(): w for w in ENU_DIRECTIONS}
     dirs: dict[str, tuple[int, int, int]] = {}
     for ax in "xyz":
         if ax not in d:
             continue
         v = d[ax]
         if not isinstance(v, str) or v.strip().lower() not in words:
-            raise ctx.err(path + (ax,), label, f"{ax}: {v!r} is not a direction; allowed: {', '.join(DIRECTION_WORDS)}")
-        dirs[ax] = DIRECTION_WORDS[words[v.strip().lower()]]
+            raise ctx.err(path + (ax,), label, f"{ax}: {v!r} is not a direction; allowed: {', '.join(ENU_DIRECTIONS)}")
+        dirs[ax] = ENU_DIRECTIONS[words[v.strip().lower()]]
     if len(dirs) < 2:
         raise ctx.err(path, label, "give the directions of at least two body axes (e.g. x: East, z: Up)")
     given = list(dirs)
@@ -281,7 +305,7 @@ def _attitude(ctx: _Ctx, d: Mapping[str, Any], path: KeyPath, label: str) -> Att
         if p in dirs and q in dirs:
             need = tuple(int(c) for c in np.cross(dirs[p], dirs[q]))
             if ax in dirs and dirs[ax] != need:
-                inv = {v: k for k, v in DIRECTION_WORDS.items()}
+                inv = {v: k for k, v in ENU_DIRECTIONS.items()}
                 raise ctx.err(
                     path + (ax,),
                     label,
@@ -313,19 +337,19 @@ def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
         raise ctx.err(
             path,
             label0,
-            f"each step is one 'kind: {{...}}' entry; kinds allowed: {', '.join(STEP_KINDS)}; got {item!r}",
+            f"each step is one 'kind: {{...}}' entry; kinds allowed: {', '.join(_KINDS)}; got {item!r}",
         )
     kind, body = next(iter(item.items()))
-    if kind not in STEP_KINDS:
-        raise ctx.err(path + (str(kind),), label0, f"unknown step kind {kind!r}; allowed: {', '.join(STEP_KINDS)}")
+    if kind not in _KINDS:
+        raise ctx.err(path + (str(kind),), label0, f"unknown step kind {kind!r}; allowed: {', '.join(_KINDS)}")
     bpath = path + (kind,)
-    if kind == "note":
+    if kind == NoteSpec.kind:
         if isinstance(body, dict):
             _keys(ctx, body, bpath, _leaf_label(prefix, kind, None), ("text",))
             body = body.get("text")
         if not isinstance(body, str) or not body.strip():
             raise ctx.err(bpath, _leaf_label(prefix, kind, None), f"note: expected text, got {body!r}")
-        return NoteSpec(kind, line, _leaf_label(prefix, kind, None), None, text=body.strip())
+        return NoteSpec(line, _leaf_label(prefix, kind, None), None, text=body.strip())
     if body is None:
         body = {}
     if not isinstance(body, dict):
@@ -339,7 +363,7 @@ def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
         )
     label = _leaf_label(prefix, kind, name)
     sett = ("settle_s",)
-    if kind == "warmup":
+    if kind == WarmupSpec.kind:
         _keys(ctx, body, bpath, label, ("name", "duration_s", "at") + sett)
         at = None
         if "at" in body:
@@ -347,20 +371,30 @@ def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
                 raise ctx.err(bpath + ("at",), label, "at: expected an attitude like {x: East, y: North, z: Up}")
             _keys(ctx, body["at"], bpath + ("at",), label, ("x", "y", "z", "angles_deg"))
             at = _attitude(ctx, body["at"], bpath + ("at",), label)
-        dur = _num(ctx, body, bpath, label, "duration_s", positive=True, what="seconds > 0")
-        return WarmupSpec(kind, line, label, name, duration=dur or 0.0, at=at, settle=_settle(ctx, body, bpath, label))
-    if kind == "orient":
+        dur = _num(ctx, body, bpath, label, "duration_s", positive=True, maximum=MAX_SECONDS, what="seconds > 0")
+        return WarmupSpec(line, label, name, duration=dur or 0.0, at=at, settle=_settle(ctx, body, bpath, label))
+    if kind == OrientSpec.kind:
         _keys(ctx, body, bpath, label, ("name", "x", "y", "z", "angles_deg"))
-        return OrientSpec(kind, line, label, name, attitude=_attitude(ctx, body, bpath, label))
-    if kind == "hold":
+        return OrientSpec(line, label, name, attitude=_attitude(ctx, body, bpath, label))
+    if kind == HoldSpec.kind:
         _keys(ctx, body, bpath, label, ("name", "duration_s") + sett)
-        dur = _num(ctx, body, bpath, label, "duration_s", required=False, positive=True, what="seconds > 0")
+        dur = _num(
+            ctx,
+            body,
+            bpath,
+            label,
+            "duration_s",
+            required=False,
+            positive=True,
+            maximum=MAX_SECONDS,
+            what="seconds > 0",
+        )
         if dur is None:
             if ctx.defaults.hold is None:
                 raise ctx.err(bpath, label, "duration_s is required (seconds > 0) unless defaults.hold_s is set")
             dur = ctx.defaults.hold
-        return HoldSpec(kind, line, label, name, duration=dur, settle=_settle(ctx, body, bpath, label))
-    if kind == "step_rotate":
+        return HoldSpec(line, label, name, duration=dur, settle=_settle(ctx, body, bpath, label))
+    if kind == StepRotateSpec.kind:
         _keys(ctx, body, bpath, label, ("name", "axis", "angle_deg", "count", "hold_s") + sett)
         axis = _body_axis(ctx, body, bpath, label)
         ang = _num(ctx, body, bpath, label, "angle_deg", what="degrees, non-zero")
@@ -381,13 +415,14 @@ def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
             maximum=MAX_COUNT,
             what="a whole number >= 1",
         )
-        hold = _num(ctx, body, bpath, label, "hold_s", required=False, minimum=0.0, what="seconds >= 0")
+        hold = _num(
+            ctx, body, bpath, label, "hold_s", required=False, minimum=0.0, maximum=MAX_SECONDS, what="seconds >= 0"
+        )
         if hold is None:
             if ctx.defaults.hold is None:
                 raise ctx.err(bpath, label, "hold_s is required (seconds >= 0) unless defaults.hold_s is set")
             hold = ctx.defaults.hold
         return StepRotateSpec(
-            kind,
             line,
             label,
             name,
@@ -397,10 +432,12 @@ def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
             hold=hold,
             settle=_settle(ctx, body, bpath, label),
         )
-    if kind == "spin":
+    if kind == SpinSpec.kind:
         _keys(ctx, body, bpath, label, ("name", "axis", "rate_dps", "direction", "revolutions", "duration_s") + sett)
         axis = _body_axis(ctx, body, bpath, label)
-        rate = _num(ctx, body, bpath, label, "rate_dps", what="°/s, non-zero")
+        rate = _num(
+            ctx, body, bpath, label, "rate_dps", minimum=-MAX_RATE_DPS, maximum=MAX_RATE_DPS, what="°/s, non-zero"
+        )
         assert rate is not None
         if rate == 0:
             raise ctx.err(bpath + ("rate_dps",), label, "rate_dps: 0 is not allowed; a spin needs a non-zero rate")
@@ -420,13 +457,35 @@ def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
                 )
         r = from_display("rate", rate)
         rates = {None: (r,), "positive": (r,), "negative": (-r,), "both": (r, -r)}[direction]
-        revs = _num(ctx, body, bpath, label, "revolutions", required=False, positive=True, what="a number > 0")
-        dur = _num(ctx, body, bpath, label, "duration_s", required=False, positive=True, what="seconds > 0")
+        revs = _num(
+            ctx,
+            body,
+            bpath,
+            label,
+            "revolutions",
+            required=False,
+            positive=True,
+            maximum=MAX_REVOLUTIONS,
+            what="a number > 0",
+        )
+        dur = _num(
+            ctx,
+            body,
+            bpath,
+            label,
+            "duration_s",
+            required=False,
+            positive=True,
+            maximum=MAX_SECONDS,
+            what="seconds > 0",
+        )
         if (revs is None) == (dur is None):
             raise ctx.err(bpath, label, "give exactly one of revolutions or duration_s")
-        settle = _num(ctx, body, bpath, label, "settle_s", required=False, minimum=0.0, what="seconds >= 0")
-        return SpinSpec(kind, line, label, name, axis=axis, rates=rates, revolutions=revs, duration=dur, settle=settle)
-    if kind == "repeat":
+        settle = _num(
+            ctx, body, bpath, label, "settle_s", required=False, minimum=0.0, maximum=MAX_SECONDS, what="seconds >= 0"
+        )
+        return SpinSpec(line, label, name, axis=axis, rates=rates, revolutions=revs, duration=dur, settle=settle)
+    if kind == RepeatSpec.kind:
         _keys(ctx, body, bpath, label, ("count", "steps"))
         count = _num(
             ctx, body, bpath, label, "count", positive=True, integer=True, maximum=MAX_COUNT, what="a whole number >= 1"
@@ -434,7 +493,7 @@ def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
         if "steps" not in body:
             raise ctx.err(bpath, label, "steps is required (the list of steps to repeat)")
         steps = _parse_steps(ctx, body["steps"], bpath + ("steps",), prefix)
-        return RepeatSpec(kind, line, label, None, count=int(count or 1), steps=steps)
+        return RepeatSpec(line, label, None, count=int(count or 1), steps=steps)
     # group
     _keys(ctx, body, bpath, label, ("name", "steps"))
     if name is None:
@@ -443,11 +502,13 @@ def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
         raise ctx.err(bpath, label, "steps is required (the group's list of steps)")
     gname = f"{prefix}/{name}" if prefix else name
     steps = _parse_steps(ctx, body["steps"], bpath + ("steps",), gname)
-    return GroupSpec(kind, line, label, name, group=gname, steps=steps)
+    return GroupSpec(line, label, name, group=gname, steps=steps)
 
 
 def _settle(ctx: _Ctx, body: Mapping[str, Any], bpath: KeyPath, label: str) -> float | None:
-    return _num(ctx, body, bpath, label, "settle_s", required=False, minimum=0.0, what="seconds >= 0")
+    return _num(
+        ctx, body, bpath, label, "settle_s", required=False, minimum=0.0, maximum=MAX_SECONDS, what="seconds >= 0"
+    )
 
 
 def _parameters(data: Mapping[str, Any], smap: SourceMap, overrides: Mapping[str, float] | None) -> dict[str, float]:
@@ -459,8 +520,8 @@ def _parameters(data: Mapping[str, Any], smap: SourceMap, overrides: Mapping[str
         for k, v in raw.items():
             if not isinstance(k, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", k):
                 raise smap.error(("parameters", str(k)), f"parameter name {k!r} is not allowed; use letters, digits, _")
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or v != v:
-                raise smap.error(("parameters", k), f"expected a number (the default value), got {v!r}")
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise smap.error(("parameters", k), f"expected a finite number (the default value), got {v!r}")
             params[k] = float(v)
     for k, v in (overrides or {}).items():
         if k not in params:
@@ -515,8 +576,8 @@ def parse_procedure(
     for k, v in dd.items():
         if k not in DEFAULT_KEYS:
             raise smap.error(("defaults", str(k)), f"unknown key {k!r}; allowed here: {', '.join(DEFAULT_KEYS)}")
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0 or v == float("inf"):
-            raise smap.error(("defaults", k), f"expected seconds >= 0, got {v!r}")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v <= MAX_SECONDS:
+            raise smap.error(("defaults", k), f"expected seconds in [0, {MAX_SECONDS:g}], got {v!r}")
     defaults = Defaults(
         settle=None if dd.get("settle_s") is None else float(dd["settle_s"]),
         hold=None if dd.get("hold_s") is None else float(dd["hold_s"]),

@@ -1,4 +1,4 @@
-"""Compiled procedure steps: the flat, plain list of motion and acquisition commands the runner executes.
+"""Compiled procedure steps: the flat list of typed motion and acquisition steps the runner executes.
 
 Everything here is SI: angles in rad (gimbal angles (outer ψ, middle θ, inner γ), unwrapped), rates in
 rad/s (gimbal rate, signed), times in s. The navigation frame n is ENU, the body frame b the unit's case
@@ -10,31 +10,25 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
-from analysis.gimbal import body_to_nav
-from analysis.units import DEG
+from analysis.gimbal import body_to_nav, direction_word
+from analysis.units import DEG, format_hms
 from drivers.protocols import AXIS_NAMES, AxisLimits
 
-ACQUISITION_KINDS: tuple[str, ...] = ("warmup", "hold", "spin")
-"""Compiled kinds during which samples count."""
-
-COMPILED_KINDS: tuple[str, ...] = ("warmup", "move", "hold", "spin", "note")
-
-_DIRECTIONS: dict[str, tuple[float, float, float]] = {
-    "East": (1.0, 0.0, 0.0),
-    "West": (-1.0, 0.0, 0.0),
-    "North": (0.0, 1.0, 0.0),
-    "South": (0.0, -1.0, 0.0),
-    "Up": (0.0, 0.0, 1.0),
-    "Down": (0.0, 0.0, -1.0),
-}
+Vec3 = tuple[float, float, float]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Step:
-    """One compiled step.
+    """One compiled step; a concrete step is a :class:`Move`, :class:`Warmup`, :class:`Hold`, :class:`Spin` or
+    :class:`Note`, and knows its bench time, the table commands it sends and whether it acquires.
+
+    Every step carries the same attributes (neutral values where a kind has none: no angles, no axis, zero
+    rate and durations), so the recorder and the observers read any step alike; the runner, the summary, the
+    time estimates, the nominal trajectory and the identification dispatch on the type.
 
     Attributes
     ----------
@@ -42,10 +36,12 @@ class Step:
         Position in the compiled list (0-based).
     name : str
         Unique readable name, e.g. ``"A/orient"``, ``"A/hold"``, ``"A/step-3"``, ``"A/hold-3"``, ``"A/spin+"``.
-    kind : str
-        ``"warmup"`` | ``"move"`` | ``"hold"`` | ``"spin"`` | ``"note"``.
     group : str
         Group path (e.g. ``"A"``; nested groups ``"A/fine"``), ``""`` outside any group.
+    line : int or None
+        Line of the procedure file the step comes from.
+    text : str
+        Note text, or a one-line human description.
     angles : tuple of 3 float or None
         Gimbal angles (outer, middle, inner), rad, unwrapped: the target of a move, the attitude held during
         a warmup/hold (None for a spin or note, and for a warmup at the table's unknown initial attitude).
@@ -61,24 +57,148 @@ class Step:
     body_axis : str or None
         Signed body axis u (``"+x"``, ``"-y"``, ...) such that the spin's angular velocity points along +u,
         or the step's rotation is a positive rotation about u; None otherwise.
-    line : int or None
-        Line of the procedure file the step comes from.
-    text : str
-        Note text, or a one-line human description.
     """
+
+    kind: ClassVar[str] = ""
+    """The step's kind as recorded (``steps/kind`` in the recording) and shown."""
+    acquires: ClassVar[bool] = False
+    """True if samples taken during the step's counted window are data."""
 
     index: int
     name: str
-    kind: str
-    group: str
-    angles: tuple[float, float, float] | None
-    axis: int | None
-    rate: float
-    duration: float
-    settle: float
-    body_axis: str | None
-    line: int | None
-    text: str
+    group: str = ""
+    line: int | None = None
+    text: str = ""
+    angles: Vec3 | None = None
+    axis: int | None = None
+    rate: float = 0.0
+    duration: float = 0.0
+    settle: float = 0.0
+    body_axis: str | None = None
+
+    @property
+    def acquisition_time(self) -> float:
+        """Time during which samples count, s (0 for a step that does not acquire)."""
+        return self.duration if self.acquires else 0.0
+
+    def commanded_positions(self) -> tuple[Vec3, ...]:
+        """Absolute gimbal angles (rad) this step commands the table to."""
+        return () if self.angles is None else (self.angles,)
+
+    def commanded_rates(self) -> tuple[tuple[int, float], ...]:
+        """(gimbal axis, rate rad/s) this step commands."""
+        return ()
+
+    def bench_time(self, limits: Sequence[AxisLimits], current: np.ndarray | None) -> tuple[float, np.ndarray | None]:
+        """Estimated bench time of the step from nominal gimbal angles ``current`` (rad; None: unknown), s,
+        and the nominal angles it leaves the table at. Moves are trapezoidal at the limits; an unknown
+        start counts as no move."""
+        t = 0.0
+        if self.angles is not None:
+            target = np.asarray(self.angles, dtype=float)
+            if current is not None:
+                t += move_time(current, target, limits)
+            current = target
+        return t + self.settle + self.duration, current
+
+    def describe(self, mounting: np.ndarray | None) -> str:
+        """What the step does, in words (the summary's last column)."""
+        return describe_attitude(self.angles, mounting)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Move(Step):
+    """Move to absolute gimbal ``angles`` (an orientation, or one rotation of a step_rotate about ``axis``)."""
+
+    kind: ClassVar[str] = "move"
+    angles: Vec3 = field()  # required (field(): the inherited None default does not apply)
+
+    def describe(self, mounting: np.ndarray | None) -> str:
+        what = f"→ {describe_attitude(self.angles, mounting)}"
+        return what + f"  [{self.text}]" if self.body_axis is not None else what
+
+
+@dataclass(frozen=True, kw_only=True)
+class Warmup(Step):
+    """Warm-up record: settle, then acquire ``duration`` s at ``angles`` (None: wherever the table is)."""
+
+    kind: ClassVar[str] = "warmup"
+    acquires: ClassVar[bool] = True
+
+
+@dataclass(frozen=True, kw_only=True)
+class Hold(Step):
+    """Static acquisition: verify the attitude ``angles``, settle, then acquire ``duration`` s."""
+
+    kind: ClassVar[str] = "hold"
+    acquires: ClassVar[bool] = True
+    angles: Vec3 = field()  # required (field(): the inherited None default does not apply)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Spin(Step):
+    """Constant-rate spin of gimbal ``axis`` at ``rate`` rad/s: ramp up, settle, acquire ``duration`` s, stop."""
+
+    kind: ClassVar[str] = "spin"
+    acquires: ClassVar[bool] = True
+    axis: int = field()  # required
+
+    def commanded_rates(self) -> tuple[tuple[int, float], ...]:
+        return ((self.axis, self.rate),)
+
+    def ramp_time(self, limits: Sequence[AxisLimits]) -> float:
+        """Time to reach (or leave) the rate at the axis' acceleration limit, s."""
+        return abs(self.rate) / limits[self.axis].accel_max
+
+    def bench_time(self, limits: Sequence[AxisLimits], current: np.ndarray | None) -> tuple[float, np.ndarray | None]:
+        """Ramps, settling and acquisition; leaves the gimbal at its nominal end angle (unwrapped)."""
+        lim = limits[self.axis]
+        t = 2.0 * self.ramp_time(limits) + self.settle + self.duration
+        if current is not None:
+            current = current.copy()
+            current[self.axis] += spin_angle(self.rate, self.duration, self.settle, lim.accel_max)
+        return t, current
+
+    def describe(self, mounting: np.ndarray | None) -> str:
+        return (
+            f"spin about body {self.body_axis} at {abs(self.rate) / DEG:g} °/s "
+            f"({AXIS_NAMES[self.axis]} gimbal {self.rate / DEG:+g} °/s)"
+        )
+
+
+@dataclass(frozen=True, kw_only=True)
+class Note(Step):
+    """Free text logged in the recording when reached; no motion, no time."""
+
+    kind: ClassVar[str] = "note"
+
+    def bench_time(self, limits: Sequence[AxisLimits], current: np.ndarray | None) -> tuple[float, np.ndarray | None]:
+        return 0.0, current
+
+    def describe(self, mounting: np.ndarray | None) -> str:
+        return f"note: {self.text}"
+
+
+def limit_problems(steps: Sequence[Step], limits: Sequence[AxisLimits]) -> list[str]:
+    """Every position and rate the steps command, checked with :class:`AxisLimits`; problems (empty: ok)."""
+    problems: list[str] = []
+    for s in steps:
+        for angles in s.commanded_positions():
+            for i, (a, lim) in enumerate(zip(angles, limits, strict=True)):
+                if not lim.allows_position(a):
+                    problems.append(
+                        f"step {s.name!r}: {AXIS_NAMES[i]} gimbal angle {math.degrees(a):.3f}° outside the table's "
+                        f"limits {lim.position_range_text()}"
+                    )
+        for axis, rate in s.commanded_rates():
+            if not 0 <= axis <= 2:
+                problems.append(f"step {s.name!r}: spin without a valid gimbal axis")
+            elif not limits[axis].allows_rate(rate):
+                problems.append(
+                    f"step {s.name!r}: rate {math.degrees(rate):.3f} °/s exceeds the table's "
+                    f"{math.degrees(limits[axis].rate_max):.3f} °/s on the {AXIS_NAMES[axis]} gimbal"
+                )
+    return problems
 
 
 def trapezoid_time(distance: float, rate_max: float, accel_max: float) -> float:
@@ -106,26 +226,12 @@ def spin_angle(rate: float, duration: float, settle: float, accel_max: float) ->
     return math.copysign(ramp, rate) + rate * (settle + duration)
 
 
-def _axis_word(v: np.ndarray) -> str:
-    for word, d in _DIRECTIONS.items():
-        if np.allclose(v, d, atol=1e-6):
-            return word
-    # Not cardinal: name the ENU components, e.g. "(E 0.71, U -0.71)"
-    parts = [f"{lab} {c:+.2f}" for lab, c in zip("ENU", v, strict=True) if abs(c) > 5e-3]
-    return "(" + ", ".join(parts) + ")"
-
-
 def describe_attitude(angles: Sequence[float] | None, mounting: np.ndarray | None = None) -> str:
     """Body axes in words for gimbal angles (rad), e.g. ``"x East, y North, z Up"``; ``"(current)"`` if None."""
     if angles is None:
         return "(current)"
     c = body_to_nav(np.asarray(angles, dtype=float), mounting)
-    return ", ".join(f"{ax} {_axis_word(c[:, i])}" for i, ax in enumerate("xyz"))
-
-
-def _hms(seconds: float) -> str:
-    s = int(round(seconds))
-    return f"{s // 3600:d}:{(s % 3600) // 60:02d}:{s % 60:02d}"
+    return ", ".join(f"{ax} {direction_word(c[:, i])}" for i, ax in enumerate("xyz"))
 
 
 @dataclass(frozen=True)
@@ -174,20 +280,7 @@ class CompiledProcedure:
         for step, start in zip(self.steps, self.start_angles or (None,) * len(self.steps), strict=True):
             if current is None and start is not None:
                 current = np.asarray(start, dtype=float)
-            t = 0.0
-            if step.kind in ("move", "hold", "warmup") and step.angles is not None:
-                target = np.asarray(step.angles, dtype=float)
-                if current is not None:
-                    t += move_time(current, target, limits)
-                current = target
-            if step.kind in ("hold", "warmup"):
-                t += step.settle + step.duration
-            elif step.kind == "spin" and step.axis is not None:
-                lim = limits[step.axis]
-                t += 2.0 * abs(step.rate) / lim.accel_max + step.settle + step.duration
-                if current is not None:
-                    current = current.copy()
-                    current[step.axis] += spin_angle(step.rate, step.duration, step.settle, lim.accel_max)
+            t, current = step.bench_time(limits, current)
             times.append(t)
         return times
 
@@ -197,7 +290,7 @@ class CompiledProcedure:
 
     def acquisition_time(self) -> float:
         """Total time during which samples count, s."""
-        return float(sum(s.duration for s in self.steps if s.kind in ACQUISITION_KINDS))
+        return float(sum(s.acquisition_time for s in self.steps))
 
     def summary(self, limits: Sequence[AxisLimits] | None = None) -> str:
         """A readable table of the steps (attitudes in body-axis words, spins, durations) for the CLI."""
@@ -208,29 +301,17 @@ class CompiledProcedure:
         rows.append(head)
         rows.append("-" * len(head))
         for step, t in zip(self.steps, times, strict=True):
-            if step.kind == "spin":
-                what = (
-                    f"spin about body {step.body_axis} at {abs(step.rate) / DEG:g} °/s "
-                    f"({AXIS_NAMES[step.axis or 0]} gimbal {step.rate / DEG:+g} °/s)"
-                )
-            elif step.kind == "note":
-                what = f"note: {step.text}"
-            elif step.kind == "move":
-                what = f"→ {describe_attitude(step.angles, mounting)}"
-                if step.body_axis is not None:
-                    what += f"  [{step.text}]"
-            else:
-                what = describe_attitude(step.angles, mounting)
             line = "" if step.line is None else str(step.line)
-            acq = f"{step.duration:7.1f}" if step.kind in ACQUISITION_KINDS else " " * 7
+            acq = f"{step.duration:7.1f}" if step.acquires else " " * 7
             est = f"{t:7.1f}" if t == t else " " * 7
+            what = step.describe(mounting)
             rows.append(f"{step.index:>3}  {step.name:<18} {step.kind:<6} {line:>4}  {acq} {est}  {what}")
         rows.append("-" * len(head))
-        n_acq = sum(1 for s in self.steps if s.kind in ACQUISITION_KINDS)
-        n_spin = sum(1 for s in self.steps if s.kind == "spin")
+        n_acq = sum(1 for s in self.steps if s.acquires)
+        n_spin = sum(1 for s in self.steps if isinstance(s, Spin))
         tail = f"{len(self.steps)} steps, {n_acq} acquisitions ({n_spin} spins)"
-        tail += f", acquisition {_hms(self.acquisition_time())}"
+        tail += f", acquisition {format_hms(self.acquisition_time())}"
         if limits is not None:
-            tail += f", estimated duration {_hms(self.estimated_duration(limits))} (h:m:s)"
+            tail += f", estimated duration {format_hms(self.estimated_duration(limits))} (h:m:s)"
         rows.append(tail)
         return "\n".join(rows)

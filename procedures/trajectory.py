@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from drivers.protocols import AxisLimits
 
-from .steps import ACQUISITION_KINDS, CompiledProcedure, Step
+from .steps import CompiledProcedure, Hold, Spin, Step, Warmup
 
 
 @dataclass(frozen=True)
@@ -90,17 +90,16 @@ def nominal_samples(
     starts = compiled.start_angles or (None,) * len(compiled.steps)
     out: list[NominalSamples] = []
     for step, start in zip(compiled.steps, starts, strict=True):
-        if step.kind not in ACQUISITION_KINDS:
+        if not step.acquires:
             continue
         n_real = step.duration * sample_rate
-        if step.kind in ("hold", "warmup"):
+        if isinstance(step, (Hold, Warmup)):
             ang = np.full((1, 3), np.nan) if step.angles is None else np.asarray(step.angles, dtype=float)[None, :]
             out.append(
                 NominalSamples(step, np.array([step.duration / 2]), ang, np.zeros((1, 3)), np.array([float(n_real)]))
             )
             continue
-        # spin
-        assert step.axis is not None
+        assert isinstance(step, Spin), f"no nominal trajectory for a {type(step).__name__} step"
         revs = abs(step.rate) * step.duration / (2 * math.pi)
         m = int(min(max_points_per_step, max(1, math.ceil(revs * points_per_revolution)), max(1, math.floor(n_real))))
         t = (np.arange(m) + 0.5) * (step.duration / m)

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from drivers.protocols import AxisLimits, AxisMode, FaultCode, ImuBlock, TableError, TableState, TableStatus
+from procedures.steps import Hold, Move, Note, Spin, Step, Warmup
 
 
 class FakeClock:
@@ -128,20 +128,28 @@ class FakeUnit:
         pass
 
 
-@dataclass(frozen=True)
-class FakeStep:
-    """Stand-in for procedures.steps.Step."""
+_STEP_TYPES: dict[str, type[Step]] = {t.kind: t for t in (Move, Warmup, Hold, Spin, Note)}
 
-    index: int
-    name: str
-    kind: str
-    group: str = ""
-    angles: tuple[float, float, float] | None = None
-    axis: int | None = None
-    rate: float = 0.0
-    duration: float = 0.0
-    settle: float = 0.0
-    text: str = ""
+
+def FakeStep(  # noqa: N802 - reads like the step constructors it stands for
+    index: int,
+    name: str,
+    kind: str,
+    group: str = "",
+    angles: tuple[float, float, float] | None = None,
+    axis: int | None = None,
+    rate: float = 0.0,
+    duration: float = 0.0,
+    settle: float = 0.0,
+    text: str = "",
+) -> Step:
+    """A compiled step of ``kind`` built directly (without a procedure file), e.g. ``FakeStep(2, "h", "hold", ...)``."""
+    kw: dict = dict(index=index, name=name, group=group, rate=rate, duration=duration, settle=settle, text=text)
+    if angles is not None:
+        kw["angles"] = angles
+    if axis is not None:
+        kw["axis"] = axis
+    return _STEP_TYPES[kind](**kw)
 
 
 def fake_steps() -> list[FakeStep]:

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 
-from core.errors import UsageError
+from analysis.units import format_hms
+from benches.arguments import parse_overrides
+from benches.session import prepare
 from procedures.paths import shipped_procedures
 
 EXAMPLES = """\
@@ -49,25 +50,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def parse_overrides(items: list[str]) -> dict[str, float]:
-    """``["duration_s=60", ...]`` → ``{"duration_s": 60.0}``; :class:`UsageError` on a malformed item."""
-    out: dict[str, float] = {}
-    for item in items:
-        name, sep, value = item.partition("=")
-        try:
-            v = float(value)
-        except ValueError:
-            v = math.nan
-        if not sep or not name.strip() or not math.isfinite(v):
-            raise UsageError(f"--set {item!r}: expected NAME=NUMBER, e.g. --set duration_s=60")
-        out[name.strip()] = v
-    return out
-
-
 def run(args: argparse.Namespace) -> int:
     """Load, compile and check; print the summary; 0 if valid (errors raise → exit 2)."""
-    from benches.session import prepare
-
     prep = prepare(args.bench, args.procedure, parse_overrides(args.set))  # the same step as plan and run
     proc_path, bench_path, config, compiled = prep.procedure_path, prep.bench_path, prep.config, prep.compiled
     limits = config.turntable.limits
@@ -76,9 +60,8 @@ def run(args: argparse.Namespace) -> int:
         if compiled.parameters:
             print("parameters: " + ", ".join(f"{k}={v:g}" for k, v in compiled.parameters.items()))
     est = compiled.estimated_duration(limits)
-    s = int(round(est))
     print(
-        f"OK: {Path(proc_path)} is valid on bench {getattr(config, 'name', bench_path)!s} ({bench_path}); "
-        f"estimated duration {s // 3600}:{(s % 3600) // 60:02d}:{s % 60:02d}"
+        f"OK: {Path(proc_path)} is valid on bench {config.name} ({bench_path}); "
+        f"estimated duration {format_hms(est)}"
     )
     return 0

@@ -8,7 +8,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # pragma: no cover
-    from benches.calibration_result import CalibrationResult
+    pass
+
+from core.errors import UsageError
 
 EXAMPLES = """examples:
   tablebench identify runs/20261121-101500-ten-step                 # writes RUN/calibration.json
@@ -40,15 +42,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def format_result(result: CalibrationResult) -> str:
-    """A readable table of a calibration result (:meth:`CalibrationResult.summary`)."""
-    return result.summary()
-
-
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench identify``."""
     from benches.identify import IdentificationError, identify_run, write_calibration
-    from core.errors import UsageError
 
     try:
         result = identify_run(args.run, method=args.method, noise=args.noise)
@@ -56,6 +52,6 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
     folder = Path(args.run) if Path(args.run).is_dir() else Path(args.run).parent
     out = write_calibration(result, args.out or folder / "calibration.json")
-    print(format_result(result))
+    print(result.summary())
     print(f"calibration: {out}", file=sys.stderr)
     return 0

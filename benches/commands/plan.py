@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import argparse
 
+from benches.arguments import parse_overrides
+from benches.session import prepare
+from core.errors import UsageError
+
 EXAMPLES = """examples:
   tablebench plan                                          # ten-step on the simulated bench
   tablebench plan --procedure ten-step-fast-spin
@@ -30,10 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench plan``."""
-    from benches.commands.check import parse_overrides
-    from benches.identify import IdentificationError, plan_for
-    from benches.session import prepare
-    from core.errors import UsageError
+    from benches.identify import IdentificationError, plan_for  # lazy: see benches/cli.py (--help time)
 
     prep = prepare(args.bench, args.procedure, parse_overrides(args.set))
     try:

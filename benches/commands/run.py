@@ -89,7 +89,7 @@ class _StopSignalsRaise:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench run``."""
-    from benches.commands.check import parse_overrides
+    from benches.arguments import parse_overrides
     from benches.session import (
         SessionError,
         check_seed,

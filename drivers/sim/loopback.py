@@ -18,7 +18,11 @@ from __future__ import annotations
 import logging
 from typing import Any, Literal
 
-from drivers.protocols import LinkError
+from drivers import connect
+from drivers.sim.ascii_controller import AsciiTableServer
+from drivers.sim.modbus_controller import ModbusTableServer
+from drivers.sim.serial_unit import Corruption, SerialUnitServer
+from drivers.sim.world import SimulatedWorld
 
 log = logging.getLogger(__name__)
 
@@ -51,69 +55,58 @@ class Loopback:
 
     def __init__(
         self,
-        world: Any,
+        world: SimulatedWorld,
         *,
         dialect: Dialect = "modbus",
         word_order: Literal["big", "little"] = "big",
         watchdog_s: float | None = None,
-        corruption: Any = None,
+        corruption: Corruption | None = None,
         timeout: float = 2.0,
         unit_id: int = 1,
         unit_frame: Any = None,
         unit_raw: Any = None,
         unit_raw_name: str = "",
     ) -> None:
-        import serial
-
-        from drivers.serial_imu import SerialInertialUnit
-        from drivers.sim.serial_unit import SerialUnitServer
-
         if dialect not in ("modbus", "ascii"):
             raise ValueError(f"loopback dialect must be 'modbus' or 'ascii', got {dialect!r}")
         self.world = world
         self.dialect = dialect
         self._closers: list[Any] = []
         self.table_server: Any = None
-        self.client: Any = None
         try:
             if dialect == "modbus":
-                from pymodbus.client import ModbusTcpClient
-
-                from drivers.modbus_table import ModbusTurntable
-                from drivers.sim.modbus_controller import ModbusTableServer
-
                 self.table_server = ModbusTableServer(world, word_order=word_order, watchdog_s=watchdog_s)
                 self._closers.append(self.table_server.close)
-                self.client = ModbusTcpClient("127.0.0.1", port=self.table_server.port, timeout=timeout, retries=0)
-                self._closers.insert(0, self.client.close)
-                if not self.client.connect():
-                    raise LinkError(
-                        f"loopback: cannot connect to the Modbus simulator on port {self.table_server.port}"
-                    )
-                self.turntable: Any = ModbusTurntable(self.client, unit_id=unit_id, word_order=word_order)
+                table = connect.modbus_table(
+                    "127.0.0.1",
+                    self.table_server.port,
+                    word_order=word_order,
+                    unit_id=unit_id,
+                    timeout=timeout,
+                    retries=0,
+                )
             else:
-                from drivers.ascii_table import AsciiTurntable
-                from drivers.sim.ascii_controller import AsciiTableServer
-
                 self.table_server = AsciiTableServer(world, watchdog_s=watchdog_s)
                 self._closers.append(self.table_server.close)
-                self.client = serial.serial_for_url(self.table_server.url, timeout=timeout)
-                self._closers.insert(0, self.client.close)
-                self.turntable = AsciiTurntable(self.client, timeout=timeout)
+                table = connect.ascii_table(self.table_server.url, timeout=timeout)
+            self._closers.insert(0, table.close)
+            self.client: Any = table.transport
+            self.turntable: Any = table.driver
             self.unit_server = SerialUnitServer(world, corruption=corruption, frame=unit_frame)
             self._closers.append(self.unit_server.close)
-            self.unit_port = serial.serial_for_url(self.unit_server.url, timeout=0.02)
-            self._closers.insert(0, self.unit_port.close)
-            self.unit: Any = SerialInertialUnit(
-                self.unit_port,
+            unit = connect.serial_unit(
+                self.unit_server.url,
                 self.unit_server.frame,
                 world.sample_rate,
-                timeout=timeout,
                 polled=True,
+                timeout=timeout,
                 name="simulated unit",
                 raw_sink=unit_raw,
                 raw_name=unit_raw_name,
             )
+            self._closers.insert(0, unit.close)
+            self.unit_port = unit.transport
+            self.unit: Any = unit.driver
         except BaseException:
             self.close()
             raise
@@ -128,9 +121,6 @@ class Loopback:
 
     def close(self) -> None:
         """Close drivers, clients/ports, then servers (idempotent; never raises)."""
-        for drv in (getattr(self, "turntable", None), getattr(self, "unit", None)):
-            if drv is not None:
-                drv.close()
         closers, self._closers = self._closers, []
         for fn in closers:
             try:

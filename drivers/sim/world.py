@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -46,8 +46,13 @@ from drivers.sim.config import ACCEL_PARAM_NAMES, SimConfig
 from drivers.sim.imu_model import InertialModel, misalignment_matrix
 from drivers.sim.motion import AxisPlan, plan_hold, plan_position, plan_rate, plan_stop
 
-if TYPE_CHECKING:  # pragma: no cover
-    from benches.bench_config import BenchConfig
+
+class SimulatedBench(Protocol):
+    """A loaded bench file as the world needs it (``benches.bench_config.BenchConfig`` is one)."""
+
+    name: str
+    path: object
+    simulation: SimConfig | None
 
 CHUNK = 32768
 """Samples evaluated per vectorised pass (bounds memory for long produce() calls)."""
@@ -121,7 +126,7 @@ class SimulatedWorld:
         self._e2 = _rot_small(2, e2)
 
     @classmethod
-    def from_bench(cls, config: BenchConfig, seed: int | None = None) -> SimulatedWorld:
+    def from_bench(cls, config: SimulatedBench, seed: int | None = None) -> SimulatedWorld:
         """The world of a simulated bench file (``seed`` None: the bench's default seed)."""
         if config.simulation is None:
             raise ValueError(f"bench {config.name!r} ({config.path}) has no simulation section; it is a real bench")
@@ -179,12 +184,9 @@ class SimulatedWorld:
             if a.shape != (3,) or not np.all(np.isfinite(a)):
                 raise TableError(f"position command needs 3 finite angles (rad), got {angles!r}")
             for i, (x, lim) in enumerate(zip(a, self._limits, strict=True)):
-                lo, hi = lim.position_min, lim.position_max
-                if (lo is not None and x < lo) or (hi is not None and x > hi):
+                if not lim.allows_position(x):
                     raise TableError(
-                        f"axis {i} angle {math.degrees(x):.4f}° is outside its limits "
-                        f"[{math.degrees(lo) if lo is not None else -math.inf:.4f}°, "
-                        f"{math.degrees(hi) if hi is not None else math.inf:.4f}°]"
+                        f"axis {i} angle {math.degrees(x):.4f}° is outside its limits {lim.position_range_text()}"
                     )
             t = self._k / self._fs
             tb = self.cfg.table
@@ -221,7 +223,7 @@ class SimulatedWorld:
                 raise TableError(f"axis must be 0 (outer), 1 (middle) or 2 (inner), got {axis!r}")
             rate = float(rate)
             lim = self._limits[axis]
-            if not math.isfinite(rate) or abs(rate) > lim.rate_max * (1 + 1e-12):
+            if not lim.allows_rate(rate):
                 raise TableError(
                     f"rate {math.degrees(rate):.4f} °/s on axis {axis} exceeds its limit "
                     f"{math.degrees(lim.rate_max):.4f} °/s"
@@ -491,12 +493,11 @@ class SimulatedWorld:
     def _limit_hit(self, ang: NDArray[np.float64]) -> tuple[int, int] | None:
         first: tuple[int, int] | None = None
         for i, lim in enumerate(self._limits):
-            if lim.position_min is None and lim.position_max is None:
+            if lim.continuous:
                 continue
             if self._plans[i].mode == AxisMode.POSITION:
                 continue  # commanded targets are inside the limits; a settling overshoot is not a limit hit
-            lo = -math.inf if lim.position_min is None else lim.position_min
-            hi = math.inf if lim.position_max is None else lim.position_max
+            lo, hi = lim.position_bounds()
             bad = np.flatnonzero((ang[:, i] < lo) | (ang[:, i] > hi))
             if bad.size and (first is None or bad[0] < first[0]):
                 first = (int(bad[0]), i)

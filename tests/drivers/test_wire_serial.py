@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import serial
 
+from drivers import connect
 from drivers.imu_counts import frames_to_block
 from drivers.protocols import InertialUnit, LinkError
 from drivers.serial_imu import SerialInertialUnit
@@ -26,10 +27,9 @@ def served():
         world = make_world(seed)
         srv = SerialUnitServer(world, corruption=corruption, stream_factor=stream_factor)
         opened.append(srv.close)
-        port = serial.serial_for_url(srv.url, timeout=0.02)
-        opened.append(port.close)
-        unit = SerialInertialUnit(port, world.scale, world.sample_rate, timeout=timeout, polled=polled)
-        return world, srv, port, unit
+        conn = connect.serial_unit(srv.url, world.scale, world.sample_rate, timeout=timeout, polled=polled)
+        opened.append(conn.close)
+        return world, srv, conn.transport, conn.driver
 
     yield make
     for fn in reversed(opened):

@@ -8,11 +8,10 @@ import time
 
 import numpy as np
 import pytest
-import serial
 from pymodbus.client import ModbusTcpClient
 
+from drivers import connect
 from drivers import modbus_registers as reg
-from drivers.ascii_table import AsciiTurntable
 from drivers.modbus_table import ModbusTurntable
 from drivers.protocols import AxisLimits, AxisMode, FaultCode, LinkError, TableError, TableStatus, Turntable
 from drivers.sim.ascii_controller import AsciiTableServer
@@ -60,20 +59,21 @@ def wire():
             order = dialect.split("-")[1]
             srv = ModbusTableServer(world, word_order=order, watchdog_s=watchdog_s)
             opened.append(srv.close)
-            client = ModbusTcpClient("127.0.0.1", port=srv.port, timeout=0.5, retries=0)
-            assert client.connect()
-            opened.append(client.close)
-            proxy = Counting(client, {"write_registers", "write_register"})
-            table = ModbusTurntable(proxy, word_order=order, limits=limits)
+            conn = connect.modbus_table(
+                "127.0.0.1",
+                srv.port,
+                word_order=order,
+                limits=limits,
+                timeout=0.5,
+                retries=0,
+                wrap=lambda client: Counting(client, {"write_registers", "write_register"}),
+            )
         else:
             srv = AsciiTableServer(world, watchdog_s=watchdog_s)
             opened.append(srv.close)
-            port = serial.serial_for_url(srv.url, timeout=0.5)
-            opened.append(port.close)
-            proxy = Counting(port, {"write"})
-            table = AsciiTurntable(proxy, timeout=0.5, limits=limits)
-        opened.append(table.close)
-        return world, srv, table, proxy
+            conn = connect.ascii_table(srv.url, limits=limits, timeout=0.5, wrap=lambda port: Counting(port, {"write"}))
+        opened.append(conn.close)
+        return world, srv, conn.driver, conn.transport
 
     yield make
     for fn in reversed(opened):

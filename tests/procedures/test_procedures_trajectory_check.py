@@ -61,7 +61,7 @@ def test_nominal_samples_caps_points() -> None:
 @pytest.fixture
 def fake_bench(monkeypatch: pytest.MonkeyPatch) -> dict:
     """Replace the bench loader by a sim-like bench (keeps these tests independent of the bench files)."""
-    import benches.bench_config as bc
+    import benches.session as session
 
     state = {"limits": SIM_LIMITS, "rate": 200.0, "paths": []}
 
@@ -74,7 +74,7 @@ def fake_bench(monkeypatch: pytest.MonkeyPatch) -> dict:
             unit=SimpleNamespace(mounting=np.eye(3), sample_rate=state["rate"]),
         )
 
-    monkeypatch.setattr(bc, "load_bench", load_bench)
+    monkeypatch.setattr(session, "load_bench", load_bench)
     return state
 
 
