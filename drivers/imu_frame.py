@@ -44,11 +44,13 @@ class DecodeStats:
     frames: int = 0
     rejected: int = 0
     garbage_bytes: int = 0
+    bit_frames: int = 0  # built-in-test frames (a ``role: bit`` layout): recognised, neither data nor garbage
 
     def add(self, other: DecodeStats) -> None:
         self.frames += other.frames
         self.rejected += other.rejected
         self.garbage_bytes += other.garbage_bytes
+        self.bit_frames += other.bit_frames
 
 
 @dataclass
@@ -60,14 +62,24 @@ class FrameBatch:
     values : dict[str, ndarray]
         Field name → (n,) values as on the wire (no scaling).
     rows : ndarray (n, length) uint8
-        The frames' bytes.
+        The frames' bytes (single-layout descriptions; empty for a multi-layout one).
+    layout : ndarray (n,) int or None
+        Multi-layout descriptions: the layout index of each data frame in stream order (0 = the primary
+        layout, k = ``desc.alternates[k - 1]``); None for a single-layout description.
+    groups : dict[int, FrameBatch]
+        Multi-layout descriptions: layout index → that layout's frames (stream order), with their values.
+    bit : dict[str, FrameBatch]
+        Built-in-test frames (``role: bit`` layouts) by layout name, with their values and bytes.
     """
 
     values: dict[str, NDArray] = field(default_factory=dict)
     rows: NDArray[np.uint8] = field(default_factory=lambda: np.zeros((0, 0), np.uint8))
+    layout: NDArray[np.intp] | None = None
+    groups: dict[int, FrameBatch] = field(default_factory=dict)
+    bit: dict[str, FrameBatch] = field(default_factory=dict)
 
     def __len__(self) -> int:
-        return int(self.rows.shape[0])
+        return int(self.rows.shape[0]) if self.layout is None else int(self.layout.shape[0])
 
 
 class FrameCodec:
@@ -175,7 +187,21 @@ class FrameDecoder:
         self._carry = np.zeros(0, dtype=np.uint8)
         self._pos = 0  # stream offset of the carry-over's first byte
         self._reject_end = 0  # stream offset where the span of the last counted reject ends
+        self._after_frame = False  # the carry-over starts right after an accepted frame (a trailer may follow)
         self.total = DecodeStats()
+        # multi-layout descriptions ("length by identifier"): every layout's sync, length, codec and role
+        self.layouts: list[tuple[str, FrameDescription]] = [("data", desc), *desc.alternates]
+        self._multi = len(self.layouts) > 1
+        if self._multi:
+            self._codecs = [self.codec] + [FrameCodec(d) for _r, d in desc.alternates]
+            self._syncs = [np.frombuffer(d.sync, np.uint8) for _r, d in self.layouts]
+            self._lens = np.array([d.length for _r, d in self.layouts], dtype=np.int64)
+            self._roles = [r for r, _d in self.layouts]
+            self._is_bit = np.array([r == "bit" for r in self._roles])
+            self._has_bit = bool(self._is_bit.any())
+            self._first = np.zeros(256, dtype=bool)
+            self._first[[int(sy[0]) for sy in self._syncs]] = True
+            self._recent: list[int] = [0]  # layouts with frames in the latest feed (checked first)
 
     @property
     def pending_bytes(self) -> int:
@@ -188,7 +214,10 @@ class FrameDecoder:
         self._carry = np.zeros(0, dtype=np.uint8)
 
     def flush(self) -> DecodeStats:
-        """End of stream: the carried bytes can never complete a frame; count them as garbage."""
+        """End of stream: the carried bytes can never complete a frame; count them as garbage (a multi-layout
+        description first judges the failed candidates held back, so a damaged last frame counts as a reject)."""
+        if self._multi and self._carry.size:
+            return self._feed_multi(self._carry, final=True)[1]
         st = DecodeStats(garbage_bytes=int(self._carry.size))
         self._pos += self._carry.size
         self._carry = np.zeros(0, dtype=np.uint8)
@@ -199,6 +228,8 @@ class FrameDecoder:
         """Decode as many complete frames as ``data`` (plus the carry-over) holds; see the module docstring."""
         new = np.frombuffer(data, dtype=np.uint8) if not isinstance(data, np.ndarray) else data.astype(np.uint8)
         buf = np.concatenate([self._carry, new]) if self._carry.size else new
+        if self._multi:
+            return self._feed_multi(buf)
         n = buf.size
         L = self.codec.length
         stats = DecodeStats()
@@ -235,20 +266,7 @@ class FrameDecoder:
                 self._reject_end = max(self._reject_end, int(bad[-1]) + L + self._pos)
         stats.rejected = int(bad.size)
         stats.frames = int(good.size)
-        trailer_bytes = 0
-        if self._trailer.size and good.size:
-            t = self._trailer.size
-            ends = good + L
-            fits = ends + t <= n
-            e = ends[fits]
-            tr = buf[e] == self._trailer[0]
-            for j in range(1, t if tr.any() else 0):
-                tr &= buf[e + j] == self._trailer[j]
-            nxt = np.append(good[1:], np.iinfo(np.int64).max)[fits]
-            tr &= e + t <= nxt  # the trailer must not overlap the next frame
-            trailer_bytes = int(tr.sum()) * t
-            if tr.size and tr[-1] and int(e[-1]) + t > decided_end:
-                decided_end = int(e[-1]) + t
+        trailer_bytes, decided_end = self._trailers(buf, good, good + L, decided_end)
         garbage = decided_end - good.size * L - trailer_bytes
         stats.garbage_bytes = int(garbage)
         self._carry = buf[decided_end:].copy()
@@ -260,6 +278,192 @@ class FrameDecoder:
         )
         self.total.add(stats)
         return batch, stats
+
+
+    def _trailers(
+        self, buf: NDArray[np.uint8], good: NDArray[np.intp], ends: NDArray[np.intp], decided_end: int
+    ) -> tuple[int, int]:
+        """(trailer bytes after accepted frames, decided end): an optional trailer (STIM300 CR LF) right after a
+        frame is not garbage, also when the frame ended the previous feed (the carry then starts after it)."""
+        t = self._trailer.size
+        if not t:
+            return 0, decided_end
+        big = np.iinfo(np.int64).max
+        nxt = np.append(good[1:], big) if good.size else good  # the start of the frame after each accepted one
+        if self._after_frame:  # a frame ended where the carry-over starts: a virtual end at 0
+            ends = np.concatenate([[0], ends])
+            nxt = np.concatenate([[good[0] if good.size else big], nxt])
+        self._after_frame = bool(ends.size) and int(ends[-1]) == decided_end
+        fits = ends + t <= buf.size
+        e = ends[fits]
+        tr = buf[e] == self._trailer[0]
+        for j in range(1, t if tr.any() else 0):
+            tr &= buf[e + j] == self._trailer[j]
+        tr &= e + t <= nxt[fits]  # the trailer must not overlap the next frame
+        if tr.size and tr[-1] and int(e[-1]) + t > decided_end:
+            decided_end = int(e[-1]) + t
+            self._after_frame = False
+        return int(tr.sum()) * t, decided_end
+
+    def _feed_multi(self, buf: NDArray[np.uint8], final: bool = False) -> tuple[FrameBatch, DecodeStats]:
+        """:meth:`feed` for a multi-layout description: the layout is chosen by the sync/identifier bytes.
+
+        Candidates of every layout are found in one pass (a 256-entry table of the layouts' first sync bytes,
+        then each layout's remaining sync bytes), each layout's candidates are checked with its own checksum
+        in bulk, and accepted frames of all layouts are merged in stream order (earliest first where
+        candidates overlap). Positions below ``n − longest + 1`` are decided; a shorter frame already
+        complete beyond that is decided too, so a stream's last short frame is never held back. A failed
+        candidate beyond the decided region waits (it may be payload of a longer frame not yet complete);
+        ``final`` (end of stream) decides everything.
+        """
+        n = buf.size
+        stats = DecodeStats()
+        lmax = int(self._lens.max())
+        m = n if final else max(n - lmax + 1, 0)
+        nl = len(self._syncs)
+        starts = np.zeros(0, np.intp)
+        pos_l: list[NDArray[np.intp]] = [starts[:0]] * nl
+        ok_l: list[NDArray[np.bool_]] = [np.zeros(0, bool)] * nl
+        rows_l: dict[int, NDArray[np.uint8]] = {}
+
+        checked: list[int] = []
+
+        def check(k: int, pool: NDArray[np.intp] | None) -> None:
+            checked.append(k)
+            sync, L = self._syncs[k], int(self._lens[k])
+            if pool is None:  # the whole buffer
+                c = np.flatnonzero(buf[: max(n - L + 1, 0)] == sync[0])
+            else:
+                c = pool[buf[pool] == sync[0]]
+                c = c[c + L <= n]
+            for j in range(1, sync.size):
+                if not c.size:
+                    break
+                c = c[buf[c + j] == sync[j]]
+            if c.size:
+                rows_l[k] = buf[c[:, None] + np.arange(L)]
+                ok_l[k] = self._codecs[k].checksums_ok(rows_l[k])
+                pos_l[k] = c
+
+        # 1. the layouts the stream used lately (usually one): all their candidates, as a single layout would
+        for k in self._recent:
+            check(k, None)
+        # 2. the other layouts, only where no frame was accepted in 1 (identifier bytes inside accepted frames
+        #    are payload: not checked), and only the layouts whose first sync byte occurs there (garbage)
+        if len(self._recent) == 1:
+            k0 = self._recent[0]
+            acc = pos_l[k0] if ok_l[k0].all() else pos_l[k0][ok_l[k0]]
+            acc_end = acc + self._lens[k0]
+        else:
+            acc = np.concatenate([pos_l[k][ok_l[k]] for k in self._recent])
+            acc_end = np.concatenate([pos_l[k][ok_l[k]] + self._lens[k] for k in self._recent])
+            o = np.argsort(acc, kind="stable")
+            acc, acc_end = acc[o], np.maximum.accumulate(acc_end[o])
+        # the bytes outside accepted frames (gaps: garbage, trailers, a damaged frame, the tail), gathered at once
+        seg_start = np.concatenate([[0], acc_end])
+        seg_len = np.maximum(np.concatenate([acc, [n]]) - seg_start, 0)
+        total = int(seg_len.sum())
+        if total == n:
+            rest = np.flatnonzero(self._first[buf])
+        elif total:
+            offs = np.cumsum(seg_len) - seg_len
+            idx = np.repeat(seg_start - offs, seg_len) + np.arange(total)
+            rest = idx[self._first[buf[idx]]]
+        else:
+            rest = starts
+        if rest.size:
+            present = np.zeros(256, bool)
+            present[buf[rest]] = True
+            for k in range(nl):
+                if k not in self._recent and present[self._syncs[k][0]]:
+                    check(k, rest)
+        ks = [k for k in checked if pos_l[k].size]
+        seen = [k for k in ks if ok_l[k].any()]
+        if seen:
+            self._recent = seen
+        if len(ks) == 1:  # one layout had candidates: already in stream order
+            k = ks[0]
+            pos, ok = pos_l[k], ok_l[k]
+            lay = np.full(pos.size, k, np.intp)
+            within = np.arange(pos.size)
+        else:
+            pos = np.concatenate([pos_l[k] for k in ks]) if ks else starts[:0]
+            lay = np.concatenate([np.full(pos_l[k].size, k, np.intp) for k in ks]) if ks else starts[:0]
+            ok = np.concatenate([ok_l[k] for k in ks]) if ks else np.zeros(0, bool)
+            within = np.concatenate([np.arange(pos_l[k].size) for k in ks]) if ks else starts[:0]
+            order = np.argsort(pos, kind="stable")
+            pos, lay, ok, within = pos[order], lay[order], ok[order], within[order]
+        lens = self._lens[lay]
+        g = np.flatnonzero(ok) if not ok.all() else np.arange(ok.size)
+        if g.size > 1 and (pos[g[1:]] < pos[g[:-1]] + lens[g[:-1]]).any():
+            g = g[_non_overlapping_var(pos[g], lens[g])]
+        good, glen = pos[g], lens[g]
+        gend = good + glen
+        decided_end = max(int(gend[-1]), m) if good.size else m
+        if g.size < ok.size:  # failed candidates
+            b = np.flatnonzero(~ok)
+            bad, blen = pos[b], lens[b]
+            keepb = bad < decided_end  # a failed candidate beyond the decided region is judged again next feed
+            if good.size and bad.size:
+                inside = np.searchsorted(good, bad, side="right") - 1
+                keepb &= ~((inside >= 0) & (bad < gend[np.maximum(inside, 0)]))  # payload of an accepted frame
+            keepb &= bad + self._pos >= self._reject_end
+            bad, blen = bad[keepb], blen[keepb]
+            if bad.size > 1 and (bad[1:] < bad[:-1] + blen[:-1]).any():
+                kb = _non_overlapping_var(bad, blen)
+                bad, blen = bad[kb], blen[kb]
+            if bad.size:
+                self._reject_end = max(self._reject_end, int((bad + blen).max()) + self._pos)
+            stats.rejected = int(bad.size)
+        trailer_bytes, decided_end = self._trailers(buf, good, gend, decided_end)
+        stats.garbage_bytes = int(decided_end - int(glen.sum()) - trailer_bytes)
+        glay, gwithin = lay[g], within[g]
+        if self._has_bit:
+            is_bit = self._is_bit[glay]
+            data = ~is_bit
+            batch = FrameBatch(layout=glay[data])
+            stats.frames, stats.bit_frames = int(data.sum()), int(is_bit.sum())
+        else:
+            batch = FrameBatch(layout=glay)
+            stats.frames = int(glay.size)
+        for k in seen if len(seen) > 1 else seen[:1] if good.size else []:
+            if len(seen) == 1 and good.size == pos_l[k].size:  # every candidate accepted: rows as gathered
+                rows = rows_l[k]
+            else:
+                rows = rows_l[k][gwithin[glay == k]]
+                if not rows.shape[0]:
+                    continue
+            fb = FrameBatch(self._codecs[k].values(rows), rows)
+            if self._roles[k] == "bit":
+                batch.bit[self.layouts[k][1].name] = fb
+            else:
+                batch.groups[k] = fb
+        if len(batch.groups) == 1:  # the usual case: every data frame in one layout (its values as they are)
+            only = next(iter(batch.groups.values()))
+            batch.values, batch.rows = only.values, only.rows
+        elif batch.groups:  # fields every data layout has (counter, gyros…), merged in stream order
+            common = set.intersection(*(set(gb.values) for gb in batch.groups.values()))
+            lay_d = batch.layout
+            for name in sorted(common):
+                out = np.zeros(lay_d.size, dtype=np.result_type(*(gb.values[name] for gb in batch.groups.values())))
+                for k, gb in batch.groups.items():
+                    out[lay_d == k] = gb.values[name]
+                batch.values[name] = out
+        self._carry = buf[decided_end:].copy()
+        self._pos += decided_end
+        self.total.add(stats)
+        return batch, stats
+
+
+def _non_overlapping_var(pos: NDArray[np.intp], lengths: NDArray[np.int64]) -> NDArray[np.intp]:
+    """:func:`_non_overlapping` for frames of different lengths (loops only when some overlap: rare)."""
+    keep: list[int] = []
+    end = -1
+    for i, (p, L) in enumerate(zip(pos.tolist(), lengths.tolist(), strict=True)):
+        if p >= end:
+            keep.append(i)
+            end = p + L
+    return np.asarray(keep, dtype=np.intp)
 
 
 def _non_overlapping(pos: NDArray[np.intp], length: int) -> NDArray[np.intp]:

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -208,6 +208,10 @@ class FrameDescription:
     trailer: bytes = b""
     notes: str = ""
     smap: SourceMap = field(default_factory=lambda: SourceMap("<description>"), repr=False, compare=False)
+    alternates: tuple[tuple[str, FrameDescription], ...] = ()
+    """Multi-layout descriptions ("length by identifier"): the other layouts as (role, description), role
+    ``data`` (decoded into samples like the primary layout, which is this description's own fields) or
+    ``bit`` (built-in-test frames: recognised and counted, kept for the caller, never samples)."""
 
     def field_named(self, name: str) -> FieldDesc:
         for f in self.fields:
@@ -231,17 +235,18 @@ def shipped_frames() -> list[str]:
 
 
 def frame_path(name_or_path: str, base_dir: str | Path | None = None) -> Path:
-    """The description file for a shipped name (``kvh-1750-a``) or a path (``.yaml``, relative to base_dir)."""
+    """The description file for a shipped name (``kvh-1750-a``; also the layouts in ``frames/parts/`` that are
+    only used inside other descriptions, e.g. ``kvh-1750-bit-aa``) or a path (``.yaml``, relative to base_dir)."""
     s = str(name_or_path)
     if s.endswith((".yaml", ".yml")) or "/" in s or "\\" in s:
         p = Path(s).expanduser()
         if not p.is_absolute() and base_dir is not None:
             p = Path(base_dir) / p
         return p
-    p = FRAMES_DIR / f"{s}.yaml"
-    if not p.exists():
-        raise KeyError(s)
-    return p
+    for p in (FRAMES_DIR / f"{s}.yaml", FRAMES_DIR / "parts" / f"{s}.yaml"):
+        if p.exists():
+            return p
+    raise KeyError(s)
 
 
 def load_frame(name_or_path: str, base_dir: str | Path | None = None) -> FrameDescription:
@@ -331,6 +336,8 @@ def parse_description(data: Any, smap: SourceMap) -> FrameDescription:
     if data is None:
         raise ConfigError(smap.file, None, "the frame description is empty; see drivers/frames/README.md")
     d = get_mapping(data, smap, ())
+    if "layouts" in d:
+        return _parse_layouts(d, smap)
     check_keys(
         d,
         smap,
@@ -584,6 +591,103 @@ def parse_description(data: Any, smap: SourceMap) -> FrameDescription:
     )
 
 
+def _parse_layouts(d: dict, smap: SourceMap) -> FrameDescription:
+    """A multi-layout description: ``layouts`` lists descriptions (shipped names or paths relative to this
+    file) selected by their sync/identifier bytes, each with a ``role`` (``data`` or ``bit``). The file's own
+    layout (if it gives ``sync``) is the primary one, else the first ``data`` layout listed."""
+    check_keys(
+        d,
+        smap,
+        (),
+        [
+            "name",
+            "title",
+            "notes",
+            "byte_order",
+            "sync",
+            "length",
+            "options",
+            "fields",
+            "counter",
+            "status",
+            "checksum",
+            "time",
+            "trailer",
+            "layouts",
+        ],
+    )
+    name = get_str(d, smap, (), "name")
+    entries = d.get("layouts")
+    if not isinstance(entries, list) or not entries:
+        raise smap.error(("layouts",), "expected a list of frame names/paths or {frame, role: data|bit}")
+    own = None
+    if "sync" in d:
+        own = parse_description({k: v for k, v in d.items() if k != "layouts"}, smap)
+    elif any(k in d for k in ("length", "fields", "counter", "status", "checksum", "time", "options")):
+        raise smap.error(("layouts",), "a layouts-only description has no own fields; give sync: for its own layout")
+    base = Path(smap.file).parent
+    layouts: list[tuple[str, FrameDescription, KeyPath]] = []
+    for i, e in enumerate(entries):
+        p: KeyPath = ("layouts", i)
+        role = "data"
+        if isinstance(e, dict):
+            check_keys(e, smap, p, ["frame", "role"])
+            ref = get_str(e, smap, p, "frame")
+            role = get_str(e, smap, p, "role", "data", choices=["data", "bit"])
+        elif isinstance(e, str):
+            ref = e
+        else:
+            raise smap.error(p, f"expected a frame name/path or {{frame, role}}, got {e!r}")
+        try:
+            path = frame_path(ref, base)
+        except KeyError:
+            raise smap.error(p, f"unknown frame format {ref!r}; shipped: {', '.join(shipped_frames())}") from None
+        if not path.exists():
+            raise smap.error(p, f"frame description {path} not found")
+        sub_data, sub_smap, _t = load_yaml(path)
+        sub = parse_description(sub_data, sub_smap)
+        if sub.alternates:
+            raise smap.error(p, f"{ref!r} has layouts of its own; list its layouts here instead (no nesting)")
+        layouts.append((role, sub, p))
+    if own is None:
+        first = next((k for k, (r, _d, _p) in enumerate(layouts) if r == "data"), None)
+        if first is None:
+            raise smap.error(("layouts",), "needs at least one layout with role: data")
+        role0, primary, _p0 = layouts.pop(first)
+    else:
+        primary = own
+    seen = {primary.sync: "the primary layout"}
+    options = {o.name: o for o in primary.options}
+    for role, sub, p in layouts:
+        if sub.sync in seen:
+            raise smap.error(p, f"{sub.name} has the same sync/identifier bytes as {seen[sub.sync]}")
+        seen[sub.sync] = sub.name
+        for o in sub.options:
+            if o.name in options and (options[o.name].choices, options[o.name].default) != (o.choices, o.default):
+                raise smap.error(p, f"{sub.name} defines option {o.name!r} differently from another layout")
+            options.setdefault(o.name, o)
+        c, c0 = sub.counter, primary.counter
+        if role == "data" and (c is None) != (c0 is None):
+            raise smap.error(p, f"{sub.name}: every data layout needs a counter, or none")
+        if role == "data" and c is not None and c0 is not None and (c.modulus, c.step, c.tick_hz) != (
+            c0.modulus,
+            c0.step,
+            c0.tick_hz,
+        ):
+            raise smap.error(p, f"{sub.name}: its counter (modulus, step) differs from {primary.name}'s")
+    trailer = _bytes(d, smap, (), "trailer", False) or primary.trailer
+    return replace(
+        primary,
+        name=name,
+        title=str(d.get("title", name)),
+        path=smap.file,
+        options=tuple(options.values()),
+        trailer=trailer,
+        notes=str(d.get("notes", primary.notes)),
+        alternates=tuple((r, sub) for r, sub, _p in layouts),
+    )
+
+
 # ---- compiling for one configuration ---------------------------------------------------------------------
 
 
@@ -622,6 +726,8 @@ class FrameFormat:
     sample_rate: float
     conversions: dict[Any, Conversion]
     counter_step: int
+    alternates: tuple[tuple[str, FrameFormat], ...] = ()
+    """The description's other layouts compiled for the same configuration (role, format)."""
 
     @property
     def name(self) -> str:
@@ -645,6 +751,10 @@ class FrameFormat:
                 f"; {'/'.join(inc)} are increments per sample, converted to rate/specific force by dividing by "
                 f"the sample interval 1/{self.sample_rate:g} s"
             )
+        if self.alternates:
+            nd = sum(r == "data" for r, _f in self.alternates)
+            nb = len(self.alternates) - nd
+            text += f"; also {nd} other data layout(s) and {nb} built-in-test layout(s), chosen by identifier"
         return text
 
 
@@ -730,4 +840,8 @@ def compile_format(
             step = int(c.step or 1)
         if step > c.modulus // 2:
             raise ValueError(f"frame {desc.name}: counter step {step} is too large for modulus {c.modulus}")
-    return FrameFormat(desc, opts, float(sample_rate), conv, step)
+    alternates = tuple(
+        (role, compile_format(sub, {o.name: opts[o.name] for o in sub.options}, sample_rate, where))
+        for role, sub in desc.alternates
+    )
+    return FrameFormat(desc, opts, float(sample_rate), conv, step, alternates)

@@ -18,7 +18,8 @@ the unwrapped sample index divided by the sample rate.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -120,6 +121,16 @@ class SampleConverter:
         self._mux = [f for f in d.fields if f.mux]
         self._has_temp = bool(self._temp_cols) or any(ch == "temperature" for f in self._mux for _, ch, _s, _u in f.mux)
         self._status_masks = [(s, np.uint16(sum(1 << FLAG_BITS[ch] for ch in s.channels))) for s in d.status]
+        # multi-layout description: one converter per data layout (index as in FrameBatch.layout)
+        self._subs: dict[int, SampleConverter] = {}
+        if fmt.alternates:
+            base = FrameFormat(
+                replace(d, alternates=()), fmt.options, fmt.sample_rate, fmt.conversions, fmt.counter_step
+            )
+            self._subs[0] = SampleConverter(base)
+            for k, (role, alt) in enumerate(fmt.alternates, 1):
+                if role == "data":
+                    self._subs[k] = SampleConverter(alt)
 
     def _triad(self, si: NDArray[np.float64], cols: list[int], n: int) -> NDArray[np.float64]:
         if min(cols) >= 0:
@@ -132,16 +143,63 @@ class SampleConverter:
 
     def convert(self, batch: FrameBatch) -> Samples:
         """SI samples of ``batch`` (in stream order, duplicates removed)."""
-        fmt, d = self.fmt, self.fmt.desc
+        if self._subs:
+            return self._convert_multi(batch)
+        d = self.fmt.desc
         n = len(batch)
         vals = batch.values
-        rate = fmt.sample_rate
         if d.counter is not None and n:
             raw_counter = vals[d.counter.field].astype(np.int64)
             chk = self.tracker.update(raw_counter)
         else:
             raw_counter = np.zeros(n, np.int64)
             chk = self.tracker.update_uncounted(n)
+        return self._finish(chk, raw_counter, *self._fields(vals, n))
+
+    def _convert_multi(self, batch: FrameBatch) -> Samples:
+        """A multi-layout batch: each layout's group converted by its own converter, merged in stream order,
+        then one counter check over the merged counter (the counter runs on across layouts)."""
+        lay = batch.layout if batch.layout is not None else np.zeros(0, np.intp)
+        n = int(lay.size)
+        accel, gyro = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
+        temperature = np.full(n, np.nan)
+        status = np.zeros(n, np.uint16)
+        raw_counter = np.zeros(n, np.int64)
+        time_si: NDArray[np.float64] | None = None
+        extras: dict[str, NDArray] = {}
+        if len(batch.groups) == 1:  # the usual case: one layout, no scattering
+            k, group = next(iter(batch.groups.items()))
+            sub = self._subs[k]
+            a, g, t, st, ex, tm = sub._fields(group.values, len(group))
+            c = sub.fmt.desc.counter
+            rc = group.values[c.field].astype(np.int64) if c is not None else np.zeros(n, np.int64)
+            chk = self.tracker.update(rc) if c is not None and n else self.tracker.update_uncounted(n)
+            return self._finish(chk, rc, a, g, t, st, ex, tm)
+        for k, group in batch.groups.items():
+            sub = self._subs[k]
+            sel = lay == k
+            a, g, t, st, ex, tm = sub._fields(group.values, len(group))
+            accel[sel], gyro[sel], temperature[sel], status[sel] = a, g, t, st
+            c = sub.fmt.desc.counter
+            if c is not None:
+                raw_counter[sel] = group.values[c.field]
+            if tm is not None:
+                time_si = np.full(n, np.nan) if time_si is None else time_si
+                time_si[sel] = tm
+            for key, v in ex.items():
+                if key not in extras:
+                    extras[key] = np.full(n, np.nan)
+                extras[key][sel] = v
+        if self.fmt.desc.counter is not None and n:
+            chk = self.tracker.update(raw_counter)
+        else:
+            chk = self.tracker.update_uncounted(n)
+        return self._finish(chk, raw_counter, accel, gyro, temperature, status, extras, time_si)
+
+    def _fields(self, vals: dict[str, NDArray], n: int) -> tuple:
+        """(accel, gyro, temperature, status, extras, time or None) of one layout's frames, SI."""
+        fmt, d = self.fmt, self.fmt.desc
+        rate = fmt.sample_rate
         if self._names and n:
             si = np.column_stack([vals[name] for name in self._names]) * self._factor
             if self._offset is not None:
@@ -189,6 +247,20 @@ class SampleConverter:
         temperature = self._temperature(temps, n)
         if self._has_temp:  # a format without a temperature records NaN (not measured), which is not a fault
             status[~np.isfinite(temperature)] |= _TEMP_FLAG
+        return accel, gyro, temperature, status, extras, time_si
+
+    def _finish(
+        self,
+        chk: Any,
+        raw_counter: NDArray[np.int64],
+        accel: NDArray[np.float64],
+        gyro: NDArray[np.float64],
+        temperature: NDArray[np.float64],
+        status: NDArray[np.uint16],
+        extras: dict[str, NDArray],
+        time_si: NDArray[np.float64] | None,
+    ) -> Samples:
+        rate = self.fmt.sample_rate
         index = chk.index
         if time_si is None:
             time_si = index.astype(np.float64) / rate

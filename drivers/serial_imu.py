@@ -49,6 +49,9 @@ log = logging.getLogger(__name__)
 MAX_BURST = 1_000_000
 """Largest frame count one ``BURST`` request may ask for (longer reads send several requests)."""
 
+MAX_BIT_KEPT = 100
+"""Built-in-test frames kept by the driver (the latest ones) for the caller (:attr:`SerialInertialUnit.bit_frames`)."""
+
 
 def count_format(scale: CountScale, sample_rate: float) -> FrameFormat:
     """The project's own frame ``tablebench-v1`` with a count scale (SI per count)."""
@@ -167,6 +170,9 @@ class SerialInertialUnit:
         self.resets_total = 0
         self.duplicates_total = 0
         self.invalid_total = 0
+        self.bit_total = 0
+        self.bit_frames: list[tuple[str, bytes]] = []
+        """The latest built-in-test frames received (layout name, bytes), at most :data:`MAX_BIT_KEPT`."""
         self._announced = False
         self._closed = False
         try:
@@ -239,6 +245,9 @@ class SerialInertialUnit:
                     idle_since = None
                     batch, st = self.decoder.feed(chunk)
                     stats.add(st)
+                    for bname, bb in batch.bit.items():
+                        self.bit_frames.extend((bname, r.tobytes()) for r in bb.rows)  # rare: a loop is fine
+                    del self.bit_frames[:-MAX_BIT_KEPT]
                     garbage_seen += st.garbage_bytes
                     if not len(batch) and now >= frame_deadline:
                         raise LinkError(
@@ -276,6 +285,7 @@ class SerialInertialUnit:
         self.resets_total += s.resets
         self.duplicates_total += s.duplicates
         self.invalid_total += invalid
+        self.bit_total += stats.bit_frames
         block = ImuBlock(
             counter=(s.index % (1 << 32)).astype(np.uint32),
             time=s.time,
@@ -307,6 +317,8 @@ class SerialInertialUnit:
             parts.append(f"{stats.rejected} frame(s) rejected (bad checksum)")
         if stats.garbage_bytes:
             parts.append(f"{stats.garbage_bytes} byte(s) skipped while resynchronising")
+        if stats.bit_frames:
+            parts.append(f"{stats.bit_frames} built-in-test frame(s) received (kept in bit_frames)")
         if invalid:
             parts.append(f"{invalid} sample(s) flagged invalid by the unit's status")
         if parts:

@@ -12,8 +12,6 @@ import ast
 from collections.abc import Iterator
 from pathlib import Path
 
-import pytest
-
 from tests import REPO_ROOT
 
 PACKAGES = ("core", "analysis", "procedures", "drivers", "benches")

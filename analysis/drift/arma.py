@@ -1,26 +1,28 @@
-"""ARMA(p, q) modelling of a drift residual: moment estimates, least-squares refinement, order selection.
+"""ARMA(p, q) modelling of a drift residual: moment estimates, exact maximum likelihood, order selection.
 
 Specification: ``shared/spec/drift-timeseries.md`` ("ARMA modelling").
 
 Sign convention (Box–Jenkins, as the spec's moment equations and the simulated unit ``drivers.sim``):
 
-    x_t − φ_1 x_{t−1} − … − φ_p x_{t−p} = e_t − θ_1 e_{t−1} − … − θ_q e_{t−q},   e_t ~ N(0, σ²) white,
+    (x_t − μ) − φ_1 (x_{t−1} − μ) − … − φ_p (x_{t−p} − μ) = e_t − θ_1 e_{t−1} − … − θ_q e_{t−q},   e_t ~ N(0, σ²),
 
 so γ_Y(k) = σ²(−θ_k + Σ_{j=1}^{q−k} θ_j θ_{j+k}). statsmodels (and most software) write "+ θ_j e_{t−j}": its
-MA coefficients are the negatives of these. x is a zero-mean scalar series (the input's mean is removed) in
-any unit; σ² is in that unit squared.
+MA coefficients are the negatives of these. x is a scalar series in any unit; μ (its mean) is estimated jointly
+(default) or fixed at zero; σ² is in the unit squared.
 
 - :func:`moment_estimates`: modified Yule–Walker (ρ_k = Σ φ_j ρ_{k−j}, k = q+1..q+p) for the AR part, then the
   MA part and σ² by the classical fixed-point iteration on the autocovariances of Y_t = x_t − Σ φ_j x_{t−j}
   (spectral factorisation when the iteration does not converge).
-- :func:`fit_arma`: exact Gaussian maximum likelihood (default; :mod:`analysis.drift.arma_likelihood`) or
-  conditional least squares (CSS), by Levenberg–Marquardt kept in the stationary/invertible region, started
-  from the moment estimates (CSS) and the CSS solution (ML); standard errors σ² (JᵀJ)⁻¹ of the residual
-  Jacobian.
-- :func:`select_order`: all p, q ≤ 3 with p ≥ q by AIC = n ln σ̂² + 2(p+q+1) or BIC = n ln σ̂² + (p+q+1) ln n.
-  The spec does not say how σ̂² is estimated; by default it is the exact-ML prediction-error variance, for which
-  n ln σ̂² = −2 ln L − n(1 + ln 2π), i.e. the standard AIC/BIC (Akaike 1974; Box, Jenkins, Reinsel & Ljung
-  §6.2.1).
+- :func:`fit_arma`: exact Gaussian maximum likelihood (default; :mod:`analysis.drift.arma_likelihood`, the mean
+  profiled out by generalised least squares) or conditional least squares (CSS), by Levenberg–Marquardt kept in
+  the stationary/invertible region from several starts (CSS solution, Hannan–Rissanen, nested model), with a
+  BFGS fallback when it stalls (:mod:`analysis.drift.arma_optimiser`); convergence is decided by gradient and
+  step criteria and reported; standard errors σ² (JᵀJ)⁻¹ of the residual Jacobian in (φ, θ, μ).
+- :func:`select_order`: all p, q ≤ 3 (p ≥ q only as an option) by BIC = n ln σ̂² + k ln n (the spec's choice)
+  with AIC = n ln σ̂² + 2k reported beside it, k = p + q + 1 (+ 1 for an estimated mean). The spec does not say
+  how σ̂² is estimated; it is the exact-ML prediction-error variance, for which n ln σ̂² = −2 ln L − n(1 + ln 2π),
+  i.e. the standard AIC/BIC up to a constant (Akaike 1974; Box, Jenkins, Reinsel & Ljung §6.2.1).
+- :func:`redundant_root_pairs`: near-cancelling AR/MA root pairs (the spec's parameter-redundancy flag).
 """
 
 from __future__ import annotations
@@ -34,6 +36,17 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 
 from analysis.drift.arma_likelihood import exact_residuals
+from analysis.drift.arma_optimiser import (
+    Convergence,
+    Jacobian,
+    Residuals,
+    admissible,
+    convergence,
+    dot,
+    levenberg_marquardt,
+    normal_equations,
+    quasi_newton,
+)
 from analysis.drift.hypothesis_tests import autocovariance
 from analysis.drift.preprocess import DriftInputError, check_series
 
@@ -57,13 +70,34 @@ class ArmaModel:
     n : int
         Samples used.
     method : str
-        ``"moments"`` or ``"css"``.
+        ``"moments"``, ``"css"`` or ``"ml"``.
     aic, bic : float
-        n ln σ̂² + 2(p+q+1), n ln σ̂² + (p+q+1) ln n.
+        n ln σ̂² + 2k, n ln σ̂² + k ln n, k = p + q + 1 (+ 1 when the mean is estimated).
     criterion : str
         Criterion by which the order was chosen ("aic", "bic" or "given").
     note : str
-        Warnings (e.g. MA iteration fell back to spectral factorisation).
+        Warnings (e.g. MA iteration fell back to spectral factorisation, fit not converged).
+    include_mean : bool
+        True when the mean was estimated (jointly, by the fit's criterion); False when fixed at zero.
+    mean, se_mean : float
+        Estimated mean and its standard error, input unit (0 and NaN when fixed at zero).
+    log_likelihood : float
+        Maximised Gaussian log-likelihood (exact for ML; conditional for CSS, moments: at σ̂²).
+    converged : bool
+        Whether the gradient and step criteria hold at the reported optimum (:mod:`analysis.drift.arma_optimiser`).
+    status : str
+        ``"converged"``; ``"boundary"`` (not converged, the best point within :data:`BOUNDARY_MARGIN` of a unit
+        AR/MA root: the likelihood rises toward the edge of the stationary/invertible region); ``"not converged"``.
+    gradient_norm : float
+        ‖∇ ln L‖ with respect to (φ, θ) at the reported optimum.
+    likelihood_gap : float
+        Log-likelihood a Gauss–Newton step would still gain there (≤ 1e-6 when converged).
+    iterations : int
+        Optimiser iterations used (all starts).
+    optimiser : str
+        ``"levenberg-marquardt"`` or ``"levenberg-marquardt + bfgs from N starts"`` (the fallback was needed).
+    redundant_pairs : list of dict
+        AR/MA root pairs that nearly cancel (:func:`redundant_root_pairs`): parameter redundancy.
     """
 
     p: int
@@ -80,9 +114,25 @@ class ArmaModel:
     bic: float
     criterion: str = "given"
     note: str = ""
+    include_mean: bool = False
+    mean: float = 0.0
+    se_mean: float = math.nan
+    log_likelihood: float = math.nan
+    converged: bool = True
+    status: str = "converged"
+    gradient_norm: float = 0.0
+    likelihood_gap: float = 0.0
+    iterations: int = 0
+    optimiser: str = ""
+    redundant_pairs: list[dict] = field(default_factory=list)
+
+    @property
+    def k(self) -> int:
+        """Number of estimated parameters counted by AIC/BIC: φ, θ, σ² and the mean when estimated."""
+        return self.p + self.q + 1 + int(self.include_mean)
 
     def to_dict(self) -> dict:
-        """JSON-ready dictionary: p, q, phi, theta, sigma2, criterion, then standard errors and criteria."""
+        """JSON-ready dictionary: p, q, phi, theta, sigma2, criterion, then standard errors, criteria, convergence."""
         return {
             "p": self.p,
             "q": self.q,
@@ -90,16 +140,80 @@ class ArmaModel:
             "theta": [float(v) for v in self.theta],
             "sigma2": float(self.sigma2),
             "criterion": self.criterion,
+            "include_mean": self.include_mean,
+            "mean": float(self.mean),
+            "se_mean": float(self.se_mean) if math.isfinite(self.se_mean) else None,
             "se_phi": [float(v) for v in self.se_phi],
             "se_theta": [float(v) for v in self.se_theta],
             "se_sigma2": float(self.se_sigma2),
+            "log_likelihood": float(self.log_likelihood),
             "aic": float(self.aic),
             "bic": float(self.bic),
+            "k": self.k,
             "n": self.n,
             "method": self.method,
-            "sign_convention": "x_t - sum phi_j x_(t-j) = e_t - sum theta_j e_(t-j)",
+            "converged": self.converged,
+            "status": self.status,
+            "gradient_norm": float(self.gradient_norm),
+            "likelihood_gap": float(self.likelihood_gap),
+            "iterations": self.iterations,
+            "optimiser": self.optimiser,
+            "parameter_redundancy": bool(self.redundant_pairs),
+            "redundant_root_pairs": self.redundant_pairs,
+            "sign_convention": "x_t - mean - sum phi_j (x_(t-j) - mean) = e_t - sum theta_j e_(t-j)",
             "note": self.note,
         }
+
+
+BOUNDARY_MARGIN = 1e-4
+"""A fit whose largest |partial autocorrelation| (AR or MA) exceeds 1 − BOUNDARY_MARGIN is on the boundary."""
+
+REDUNDANCY_DISTANCE = 0.1
+"""AR/MA reciprocal roots (poles and zeros, inside the unit circle) closer than this in the complex plane are
+flagged as a near-cancelling pair (parameter redundancy). The spec asks for the flag without a threshold; 0.1
+separates the spurious lines measured on ARMA(1,1) records (pairs 0.005–0.05 apart near the unit circle) from the
+acceptance model's genuine pole and zero (0.9 and ±0.4: 0.5 and 1.3 apart)."""
+
+
+def redundant_root_pairs(
+    phi: NDArray[np.float64], theta: NDArray[np.float64], threshold: float = REDUNDANCY_DISTANCE
+) -> list[dict]:
+    """AR/MA reciprocal-root pairs closer than ``threshold`` (each root used once, closest pairs first).
+
+    Poles are the roots of z^p − Σ φ_j z^{p−j}, zeros those of z^q − Σ θ_j z^{q−j} (both inside the unit circle
+    for a stationary, invertible model); a pole and a zero that coincide cancel, so the model is then
+    over-parametrised. A slow Gauss–Markov drift under strong white noise also gives a close pole–zero pair, so
+    the flag is a prompt to compare with the model without the pair, not a verdict.
+
+    Returns
+    -------
+    list of dict
+        ``{"pole": [re, im], "zero": [re, im], "distance": d}`` per pair.
+    """
+    if phi.size == 0 or theta.size == 0:
+        return []
+    poles = np.roots(np.r_[1.0, -np.asarray(phi, float)])
+    zeros = np.roots(np.r_[1.0, -np.asarray(theta, float)])
+    d = np.abs(poles[:, None] - zeros[None, :])
+    pairs = []
+    used_p: set[int] = set()
+    used_z: set[int] = set()
+    for flat in np.argsort(d, axis=None):
+        i, j = divmod(int(flat), zeros.size)
+        if d[i, j] >= threshold:
+            break
+        if i in used_p or j in used_z:
+            continue
+        used_p.add(i)
+        used_z.add(j)
+        pairs.append(
+            {
+                "pole": [float(poles[i].real), float(poles[i].imag)],
+                "zero": [float(zeros[j].real), float(zeros[j].imag)],
+                "distance": float(d[i, j]),
+            }
+        )
+    return pairs
 
 
 def _criteria(n: int, sigma2: float, k: int) -> tuple[float, float]:
@@ -107,10 +221,11 @@ def _criteria(n: int, sigma2: float, k: int) -> tuple[float, float]:
     return ls + 2.0 * k, ls + k * math.log(n)
 
 
-def _check_orders(x: NDArray[np.float64], p: int, q: int) -> None:
+def _check_orders(x: NDArray[np.float64], p: int, q: int, include_mean: bool = False) -> None:
     if p < 0 or q < 0 or p > 10 or q > 10:
         raise DriftInputError(f"ARMA orders must be 0..10, got p={p}, q={q}")
-    need = max(10 * (p + q + 1), 2 * (p + q) + 20)
+    k = p + q + 1 + int(include_mean)
+    need = max(10 * k, 2 * (p + q) + 20)
     if x.size < need:
         raise DriftInputError(
             f"series of {x.size} samples is too short for ARMA({p},{q}); need at least {need} "
@@ -180,13 +295,14 @@ def moment_estimates(x: ArrayLike, p: int, q: int) -> ArmaModel:
     Parameters
     ----------
     x : array_like
-        Zero-mean scalar series (its mean is removed), any unit.
+        Scalar series (the sample mean is removed and reported as ``mean``), any unit.
     p, q : int
         Orders.
     """
     a = check_series(x)
     _check_orders(a, p, q)
-    a = a - a.mean()
+    centre = float(a.mean())
+    a = a - centre
     n = a.size
     g = autocovariance(a, p + q + 1)
     if p > 0:
@@ -205,62 +321,54 @@ def moment_estimates(x: ArrayLike, p: int, q: int) -> ArmaModel:
     gy = autocovariance(y, q) if q > 0 else np.array([float(np.mean((y - y.mean()) ** 2))])
     c, s2, note = _ma_from_acvf(gy)
     theta = -c
-    aic, bic = _criteria(n, s2, p + q + 1)
+    aic, bic = _criteria(n, s2, p + q + 2)
     nan = np.full
     return ArmaModel(
         p, q, phi, theta, s2, nan(p, np.nan), nan(q, np.nan), s2 * math.sqrt(2.0 / n), n, "moments", aic, bic,
-        note=note,
+        note=note, include_mean=True, mean=centre, log_likelihood=-0.5 * n * (math.log(2.0 * math.pi * s2) + 1.0),
+        optimiser="moments", redundant_pairs=redundant_root_pairs(phi, theta),
     )  # fmt: skip
 
 
 # --- stationary / invertible parametrisation ---------------------------------------------------------------
 
 
-def _pacf_to_poly(r: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Partial autocorrelations (|r| < 1) → AR coefficients of a stationary 1 − Σ φ_j B^j (Monahan 1984)."""
-    phi = np.zeros(0)
-    for k, rk in enumerate(r, start=1):
-        new = np.empty(k)
-        new[: k - 1] = phi - rk * phi[::-1]
-        new[k - 1] = rk
-        phi = new
-    return phi
-
-
-def _poly_to_pacf(phi: NDArray[np.float64]) -> NDArray[np.float64] | None:
-    """Inverse of :func:`_pacf_to_poly`; None when the polynomial is not stationary."""
-    phi = np.array(phi, dtype=float)
-    k = phi.size
-    r = np.zeros(k)
-    while k > 0:
-        rk = phi[k - 1]
-        if abs(rk) >= 1.0:
-            return None
-        r[k - 1] = rk
-        prev = phi[: k - 1]
-        phi = (prev + rk * prev[::-1]) / (1.0 - rk * rk)
-        k -= 1
-    return r
-
-
-def _admissible(phi: NDArray[np.float64], theta: NDArray[np.float64], margin: float = 1e-6) -> bool:
-    """True when 1 − Σ φ_j B^j is stationary and 1 − Σ θ_j B^j invertible (partial autocorrelations < 1)."""
-    for poly in (phi, theta):
-        if poly.size:
-            r = _poly_to_pacf(poly)
-            if r is None or np.max(np.abs(r)) >= 1.0 - margin:
-                return False
-    return True
-
-
 def _shrink_to_admissible(poly: NDArray[np.float64]) -> NDArray[np.float64]:
     """Scale coefficient j by s^j (roots pushed outward) until the polynomial is stationary/invertible."""
     out = poly.copy()
     s = 1.0
-    while out.size and not _admissible(out, np.zeros(0), 1e-3):
+    while out.size and not admissible(out, np.zeros(0), 1e-3):
         s *= 0.95
         out = poly * s ** np.arange(1, poly.size + 1)
     return out
+
+
+def hannan_rissanen(x: NDArray[np.float64], p: int, q: int, long_order: int | None = None) -> NDArray[np.float64]:
+    """Hannan–Rissanen preliminary (φ, θ) of a zero-mean series: an AR(m) by least squares gives innovation
+    estimates ê, then x_t is regressed on x_{t−1..t−p} and ê_{t−1..t−q} (Hannan & Rissanen 1982; Brockwell &
+    Davis §5.1.4). m = ``long_order`` (default ⌈10 log₁₀ n⌉, at least p + q + 1). Used as starts of the likelihood
+    maximisation (a long and a short m reach different modes of a multimodal likelihood); pushed inside the
+    admissible region. No BLAS on tall matrices (see :func:`analysis.drift.arma_optimiser.normal_equations`).
+    """
+    n = x.size
+    m = long_order if long_order is not None else max(p + q + 1, round(10 * math.log10(n)))
+    m = int(min(max(m, 1), n // 4))
+    s = m + max(p, q)
+    if n - s <= 2 * (p + q):
+        return np.zeros(p + q)
+    A, b = normal_equations([x[m - j : n - j] for j in range(1, m + 1)], x[m:])
+    try:
+        a_long = np.linalg.solve(A, b)
+    except np.linalg.LinAlgError:
+        return np.zeros(p + q)
+    ehat = np.r_[np.zeros(m), signal.lfilter(np.r_[1.0, -a_long], [1.0], x)[m:]]
+    cols = [x[s - j : n - j] for j in range(1, p + 1)] + [ehat[s - j : n - j] for j in range(1, q + 1)]
+    A, b = normal_equations(cols, x[s:])
+    try:
+        coef = np.linalg.solve(A, b)
+    except np.linalg.LinAlgError:
+        return np.zeros(p + q)
+    return np.r_[_shrink_to_admissible(coef[:p]), _shrink_to_admissible(-coef[p:])]
 
 
 def css_residuals(
@@ -297,97 +405,42 @@ def _jacobian(
     return cols
 
 
-def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
-    """Σ a_i b_i without BLAS (see :func:`_normal_equations`)."""
-    return float(np.einsum("i,i->", a, b))
+def _css_mean(
+    x: NDArray[np.float64], phi: NDArray[np.float64], theta: NDArray[np.float64], start: int
+) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]:
+    """Conditional-least-squares mean at given coefficients: μ̂, the residuals of x − μ̂ and of a unit mean."""
+    e = css_residuals(x, phi, theta, start)
+    e1 = css_residuals(np.ones_like(x), phi, theta, start)
+    mu = dot(e, e1) / dot(e1, e1)
+    return mu, e - mu * e1, e1
 
 
-def _normal_equations(cols: list[NDArray[np.float64]], e: NDArray[np.float64]) -> tuple[np.ndarray, np.ndarray]:
-    """JᵀJ and Jᵀe for a tall, thin J given as its (≤ 6) contiguous columns, by 1-D dot products.
-
-    numpy's einsum loops avoid OpenBLAS, whose threaded GEMM/DOT is up to 100× slower for n × 6 on a loaded
-    2-core machine (measured); keeping J as separate columns avoids copying it.
-    """
-    k = len(cols)
-    A = np.empty((k, k))
-    for i in range(k):
-        for j in range(i, k):
-            A[i, j] = A[j, i] = _dot(cols[i], cols[j])
-    g = np.array([_dot(c, e) for c in cols])
-    return A, g
-
-
-Residuals = Callable[[NDArray[np.float64]], NDArray[np.float64]]
-Jacobian = Callable[[NDArray[np.float64], NDArray[np.float64]], list[NDArray[np.float64]]]
-
-
-def _levenberg_marquardt(
-    residuals: Residuals, jacobian: Jacobian, params: NDArray[np.float64], p: int, max_iter: int = 60
-) -> tuple[NDArray[np.float64], float, int, bool]:
-    """Minimise Σ e(params)² over params = (φ, θ) by Levenberg–Marquardt, staying stationary/invertible.
-
-    Steps leaving the stationary/invertible region are rejected like cost increases. Converged when the
-    relative cost decrease of an accepted step is below 1e-10 (a parameter error of ~0.01 standard error
-    for n ~ 10⁴) or the step is below 1e-10.
-
-    Returns
-    -------
-    params, cost (Σ e² at params), iterations, converged
-    """
-    e = residuals(params)
-    cost = _dot(e, e)
-    mu = 1e-3
-    for it in range(1, max_iter + 1):
-        A, g = _normal_equations(jacobian(params, e), e)
-        d = np.diag(A).copy()
-        d[d <= 0.0] = 1.0
-        accepted = False
-        for _ in range(30):
-            try:
-                step = np.linalg.solve(A + mu * np.diag(d), -g)
-            except np.linalg.LinAlgError:
-                mu *= 10.0
-                continue
-            new = params + step
-            if _admissible(new[:p], new[p:]):
-                e_new = residuals(new)
-                cost_new = _dot(e_new, e_new)
-                if cost_new <= cost:
-                    accepted = True
-                    break
-            mu *= 10.0
-        if not accepted:
-            return params, cost, it, True  # no decrease possible: at the (boundary) minimum
-        rel = (cost - cost_new) / max(cost, 1e-300)
-        params, e, cost = new, e_new, cost_new
-        mu = max(mu / 10.0, 1e-12)
-        if rel < 1e-10 or float(np.max(np.abs(step))) < 1e-10:
-            return params, cost, it, True
-    return params, cost, max_iter, False
-
-
-def _css_problem(x: NDArray[np.float64], p: int, start: int) -> tuple[Residuals, Jacobian]:
-    """CSS residuals e_t (t ≥ start) and their analytic Jacobian as functions of (φ, θ)."""
+def _css_problem(x: NDArray[np.float64], p: int, start: int, include_mean: bool) -> tuple[Residuals, Jacobian]:
+    """CSS residuals e_t (t ≥ start; mean profiled out when estimated) and their analytic Jacobian in (φ, θ)."""
 
     def residuals(par: NDArray[np.float64]) -> NDArray[np.float64]:
+        if include_mean:
+            return _css_mean(x, par[:p], par[p:], start)[1]
         return css_residuals(x, par[:p], par[p:], start)
 
     def jacobian(par: NDArray[np.float64], e: NDArray[np.float64]) -> list[NDArray[np.float64]]:
-        return _jacobian(x, par[:p], par[p:], start, e)
+        mu = _css_mean(x, par[:p], par[p:], start)[0] if include_mean else 0.0
+        return _jacobian(x - mu, par[:p], par[p:], start, e)
 
     return residuals, jacobian
 
 
-def _ml_problem(x: NDArray[np.float64], p: int) -> tuple[Residuals, Jacobian]:
-    """Exact-likelihood residual vector (:mod:`analysis.drift.arma_likelihood`) and its Jacobian.
+def _ml_problem(x: NDArray[np.float64], p: int, include_mean: bool) -> tuple[Residuals, Jacobian]:
+    """Exact-likelihood residual vector (:mod:`analysis.drift.arma_likelihood`, mean profiled out when estimated)
+    and its Jacobian in (φ, θ).
 
     The Jacobian is by forward differences (backward where the forward point leaves the admissible region),
     step 1e-7 in the coefficients: a relative error of ~1e-7/σ_coefficient ≪ 1. The most probable pre-sample
-    values are re-solved at each point; by the envelope theorem this does not bias the gradient.
+    values (and the mean) are re-solved at each point: the Jacobian of the profiled residuals.
     """
 
     def residuals(par: NDArray[np.float64]) -> NDArray[np.float64]:
-        return exact_residuals(x, par[:p], par[p:]).weighted()
+        return exact_residuals(x, par[:p], par[p:], include_mean).weighted()
 
     def jacobian(par: NDArray[np.float64], e: NDArray[np.float64]) -> list[NDArray[np.float64]]:
         cols = []
@@ -395,7 +448,7 @@ def _ml_problem(x: NDArray[np.float64], p: int) -> tuple[Residuals, Jacobian]:
             bumped = par.copy()
             h = 1e-7
             bumped[i] += h
-            if not _admissible(bumped[:p], bumped[p:], 0.0):
+            if not admissible(bumped[:p], bumped[p:], 0.0):
                 h = -h
                 bumped[i] = par[i] + h
             cols.append((residuals(bumped) - e) / h)
@@ -413,6 +466,42 @@ def _note(*parts: str) -> str:
     return "; ".join(s for s in parts if s)
 
 
+def _check_point(problem: tuple[Residuals, Jacobian], params: NDArray[np.float64]) -> Convergence:
+    residuals, jacobian = problem
+    e = residuals(params)
+    A, g = normal_equations(jacobian(params, e), e)
+    return convergence(A, g, dot(e, e), e.size)
+
+
+def _maximise(
+    problem: tuple[Residuals, Jacobian], starts: list[NDArray[np.float64]], p: int
+) -> tuple[NDArray[np.float64], Convergence, int, str]:
+    """Levenberg–Marquardt from each start, the best kept; if its point fails the convergence criteria,
+    BFGS from three starts (the stalled point, the last given start, zero), each polished by LM, and the best of
+    all kept.
+
+    Returns the parameters, the convergence measures there, the iterations used, the optimiser description.
+    """
+    starts = [s for s in starts if admissible(s[:p], s[p:])]
+    runs = [levenberg_marquardt(*problem, s, p) for s in starts]
+    best = min(runs, key=lambda r: r.cost)
+    iterations = sum(r.iterations for r in runs)
+    conv = _check_point(problem, best.params)
+    optimiser = "levenberg-marquardt"
+    if conv.converged:
+        return best.params, conv, iterations, optimiser
+    # The stalled point, the last given start (the nested model or the short Hannan–Rissanen one) and white noise.
+    fallback_starts = [best.params, starts[-1], np.zeros_like(best.params)]
+    for s in fallback_starts:
+        qn = quasi_newton(problem[0], s, p)
+        polished = levenberg_marquardt(*problem, qn.params, p) if admissible(qn.params[:p], qn.params[p:]) else qn
+        iterations += qn.iterations + polished.iterations
+        runs.append(polished)
+    best = min(runs, key=lambda r: r.cost)
+    optimiser = f"levenberg-marquardt + bfgs from {len(fallback_starts)} starts (levenberg-marquardt stalled)"
+    return best.params, _check_point(problem, best.params), iterations, optimiser
+
+
 def fit_arma(
     x: ArrayLike,
     p: int,
@@ -421,13 +510,14 @@ def fit_arma(
     condition: int | None = None,
     method: str = "ml",
     nested: ArmaModel | None = None,
+    include_mean: bool = True,
 ) -> ArmaModel:
     """Fit ARMA(p, q) with standard errors: exact Gaussian maximum likelihood (default) or conditional least squares.
 
     Parameters
     ----------
     x : array_like
-        Scalar series (mean removed here), any unit.
+        Scalar series, any unit.
     p, q : int
         Orders.
     start : ArmaModel, optional
@@ -440,65 +530,115 @@ def fit_arma(
         the analytic residual Jacobian from ``start``. ``"ml"``: exact likelihood
         (:mod:`analysis.drift.arma_likelihood`), Levenberg–Marquardt on the weighted prediction errors started
         from the CSS solution and, when given, from the ``nested`` model; the higher likelihood is kept.
+        Either way, when the best point fails the gradient/step convergence criteria, BFGS is run from several
+        starts (:func:`analysis.drift.arma_optimiser.quasi_newton`) and the best optimum of all is reported with
+        its convergence measures (``converged``, ``gradient_norm``, ``likelihood_gap``) and a note if it still
+        fails them.
     nested : ArmaModel, optional
         ML only: a fitted model of orders p' ≤ p, q' ≤ q, used (zero-padded) as a second start, so the
         likelihood is never below that of a model it contains — order criteria then compare true maxima.
+    include_mean : bool
+        True (default): x − μ is the ARMA process and μ is estimated jointly (exact ML: generalised least
+        squares profiled at every coefficient value; CSS: least squares on the conditional residuals), counted
+        in AIC/BIC's k. False: the record is taken as already centred, μ = 0.
 
     Returns
     -------
     ArmaModel
-        σ² = mean squared (prediction) residual; standard errors σ²(JᵀJ)⁻¹ from the residual Jacobian; ``aic``
-        and ``bic`` from n ln σ̂² (ML: σ̂²_eff, so n ln σ̂²_eff = −2 ln L − n(1 + ln 2π)); ``n`` = residuals used.
+        σ² = mean squared (prediction) residual; standard errors σ²(JᵀJ)⁻¹ from the residual Jacobian in
+        (φ, θ, μ); ``aic`` and ``bic`` from n ln σ̂² (ML: σ̂²_eff, so n ln σ̂²_eff = −2 ln L − n(1 + ln 2π));
+        ``n`` = residuals used.
     """
     if method not in ("ml", "css"):
         raise DriftInputError(f"ARMA fit method must be 'ml' or 'css', got {method!r}")
     a = check_series(x)
-    _check_orders(a, p, q)
-    a = a - a.mean()
+    _check_orders(a, p, q, include_mean)
+    centre = float(a.mean()) if include_mean else 0.0  # conditioning only: the mean is re-estimated around it
+    ac = a - centre
     if start is None:
-        start = moment_estimates(a, p, q)
+        start = moment_estimates(ac, p, q)
     note = start.note
     s0 = p if condition is None or method == "ml" else max(int(condition), p)
+    k = p + q + 1 + int(include_mean)
+    z = np.zeros(0)
     if p + q == 0:
-        tail = a[s0:]
-        s2 = _dot(tail, tail) / tail.size
-        aic, bic = _criteria(tail.size, s2, 1)
-        z = np.zeros(0)
-        return ArmaModel(0, 0, z, z, s2, z, z, s2 * math.sqrt(2.0 / tail.size), tail.size, method, aic, bic, note=note)
-    scale = math.sqrt(float(np.mean(a * a)))
-    scaled = a / scale
-    css = _css_problem(scaled, p, s0)
-    params, _, it, converged = _levenberg_marquardt(
-        *css, np.r_[_shrink_to_admissible(start.phi), _shrink_to_admissible(start.theta)], p
-    )
+        tail = ac[s0:]
+        mu = float(tail.mean()) if include_mean else 0.0
+        s2 = dot(tail - mu, tail - mu) / tail.size
+        aic, bic = _criteria(tail.size, s2, k)
+        se_mu = math.sqrt(s2 / tail.size) if include_mean else math.nan
+        ll = -0.5 * tail.size * (math.log(2.0 * math.pi * s2) + 1.0)
+        return ArmaModel(
+            0, 0, z, z, s2, z, z, s2 * math.sqrt(2.0 / tail.size), tail.size, method, aic, bic, note=note,
+            include_mean=include_mean, mean=centre + mu, se_mean=se_mu, log_likelihood=ll, optimiser="closed form",
+        )  # fmt: skip
+    scale = math.sqrt(float(np.mean(ac * ac)))
+    scaled = ac / scale
+    x0 = np.r_[_shrink_to_admissible(start.phi), _shrink_to_admissible(start.theta)]
+    css = _css_problem(scaled, p, s0, include_mean)
     if method == "ml":
-        ml = _ml_problem(scaled, p)
-        starts = [params] + ([_pad(nested, p, q)] if nested is not None else [])
-        fits = [_levenberg_marquardt(*ml, s, p) for s in starts if _admissible(s[:p], s[p:])]
-        params, _, it, converged = min(fits, key=lambda fit: fit[1])
-        phi, theta = params[:p], params[p:]
-        ex = exact_residuals(a, phi, theta)
+        css_fit = levenberg_marquardt(*css, x0, p)
+        problem = _ml_problem(scaled, p, include_mean)
+        starts = [css_fit.params, hannan_rissanen(scaled, p, q), hannan_rissanen(scaled, p, q, max(p, q))]
+        starts += [_pad(nested, p, q)] if nested is not None else []
+        params, conv, iterations, optimiser = _maximise(problem, starts, p)
+        iterations += css_fit.iterations
+    else:
+        params, conv, iterations, optimiser = _maximise(css, [x0], p)
+    phi, theta = params[:p], params[p:]
+    if method == "ml":
+        ex = exact_residuals(ac, phi, theta, include_mean)
+        mu = ex.mean
         e = ex.weighted()
         s2, s2_crit = ex.sigma2, ex.sigma2_eff
-        jac = [c * scale for c in ml[1](params, e / scale)]
+        ll = -0.5 * ex.minus_two_log_likelihood()
+        fixed = _ml_problem(scaled - mu / scale, p, False)  # Jacobian at fixed μ: full (φ, θ, μ) information
+        jac = [c * scale for c in fixed[1](params, e / scale)]
+        if include_mean:
+            jac.append(-ex.weight * ex.mean_direction)
         m = ex.n
     else:
-        phi, theta = params[:p], params[p:]
-        e = css_residuals(a, phi, theta, s0)
-        s2 = s2_crit = _dot(e, e) / e.size
-        jac = _jacobian(a, phi, theta, s0, e)
+        if include_mean:
+            mu_s, e, e1 = _css_mean(scaled, phi, theta, s0)
+            mu = mu_s * scale
+            e = e * scale
+        else:
+            mu, e = 0.0, css_residuals(ac, phi, theta, s0)
+        s2 = s2_crit = dot(e, e) / e.size
+        ll = -0.5 * e.size * (math.log(2.0 * math.pi * s2) + 1.0)
+        jac = _jacobian(ac - mu, phi, theta, s0, e)
+        if include_mean:
+            jac.append(-e1)
         m = e.size
-    info, _ = _normal_equations(jac, e)
-    se = np.full(p + q, np.nan)
+    info, _ = normal_equations(jac, e)
+    se = np.full(k - 1, np.nan)
     try:
         cov = s2 * np.linalg.inv(info)
         se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     except np.linalg.LinAlgError:
         note = _note(note, "information matrix singular (over-parametrised model)")
-    if not converged:
-        note = _note(note, f"least squares stopped after {it} iterations without converging")
-    aic, bic = _criteria(m, s2_crit, p + q + 1)
-    return ArmaModel(p, q, phi, theta, s2, se[:p], se[p:], s2 * math.sqrt(2.0 / m), m, method, aic, bic, note=note)
+    status = "converged"
+    if not conv.converged:
+        status = "not converged" if admissible(phi, theta, BOUNDARY_MARGIN) else "boundary"
+        where = (
+            ""
+            if status == "not converged"
+            else " (the likelihood rises toward the stationarity/invertibility boundary: a unit AR or MA root)"
+        )
+        note = _note(
+            note,
+            f"ARMA({p},{q}) {method.upper()} fit did not converge{where}: gradient norm {conv.gradient_norm:.3g}, "
+            f"{conv.gain:.3g} log-likelihood still to gain, step {conv.step_se:.3g} s.e. after {iterations} "
+            "iterations; the best point found is reported",
+        )
+    aic, bic = _criteria(m, s2_crit, k)
+    return ArmaModel(
+        p, q, phi, theta, s2, se[:p], se[p : p + q], s2 * math.sqrt(2.0 / m), m, method, aic, bic, note=note,
+        include_mean=include_mean, mean=centre + mu, se_mean=float(se[-1]) if include_mean else math.nan,
+        log_likelihood=ll, converged=conv.converged, status=status, gradient_norm=conv.gradient_norm,
+        likelihood_gap=conv.gain,
+        iterations=iterations, optimiser=optimiser, redundant_pairs=redundant_root_pairs(phi, theta),
+    )  # fmt: skip
 
 
 @dataclass
@@ -510,7 +650,7 @@ class OrderSelection:
     best : ArmaModel
         Model chosen by ``criterion`` (its ``criterion`` field set).
     table : list of dict
-        One row per (p, q): p, q, sigma2, aic, bic.
+        One row per (p, q): p, q, sigma2, log_likelihood, aic, bic, converged, parameter_redundancy.
     by_aic, by_bic : tuple[int, int]
         Orders minimising each criterion.
     models : dict
@@ -523,10 +663,16 @@ class OrderSelection:
     by_bic: tuple[int, int]
     models: dict = field(default_factory=dict)
 
+    @property
+    def unconverged(self) -> list[ArmaModel]:
+        """Candidate fits whose optimum failed the convergence criteria."""
+        return [m for m in self.models.values() if not m.converged]
 
-def candidate_orders(max_p: int = 3, max_q: int = 3) -> list[tuple[int, int]]:
-    """All (p, q) with p ≤ max_p, q ≤ max_q, p ≥ q."""
-    return [(p, q) for p in range(max_p + 1) for q in range(max_q + 1) if p >= q]
+
+def candidate_orders(max_p: int = 3, max_q: int = 3, p_ge_q: bool = False) -> list[tuple[int, int]]:
+    """All (p, q) with p ≤ max_p, q ≤ max_q (and p ≥ q only when ``p_ge_q``, the published method's rule), in
+    lexicographic order, so every model's nested models come before it."""
+    return [(p, q) for p in range(max_p + 1) for q in range(max_q + 1) if p >= q or not p_ge_q]
 
 
 def select_order(
@@ -536,27 +682,32 @@ def select_order(
     criterion: str = "bic",
     method: str = "ml",
     progress: Callable[[tuple[int, int], int, int], None] | None = None,
+    include_mean: bool = True,
+    p_ge_q: bool = False,
 ) -> OrderSelection:
-    """Fit every ARMA(p, q), p ≤ max_p, q ≤ max_q, p ≥ q, and pick the order minimising AIC or BIC.
+    """Fit every ARMA(p, q), p ≤ max_p, q ≤ max_q, and pick the order minimising BIC (default) or AIC.
 
     Parameters
     ----------
     x : array_like
-        Scalar series (mean removed), any unit.
+        Scalar series, any unit.
     max_p, max_q : int
         Largest orders (spec: 3).
     criterion : {"bic", "aic"}
-        Which criterion chooses ``best``; both choices are returned.
+        Which criterion chooses ``best`` (spec: BIC; AIC over-fits near-cancelling root pairs, see the spec's
+        decision); both choices are returned.
     method : {"ml", "css"}
         ``"ml"`` (default): exact maximum likelihood on the whole record, each model also started from the
         best nested model already fitted, so a larger model's likelihood is never below a model it contains.
         ``"css"``: conditional least squares with every candidate conditioned on the first max_p + max_q
-        samples (same residual samples for all). Exact ML is the default because CSS over-fits under AIC
-        (measured: AIC picks the true ARMA(1,1) in ~50 % of runs with CSS, see ``benchmarks/RESULTS.md``).
-
+        samples (same residual samples for all).
     progress : callable, optional
         Called as ``progress((p, q), k, total)`` after the k-th of ``total`` candidate fits (long records take
         seconds per model).
+    include_mean : bool
+        Estimate the mean jointly (default) or fix it at zero.
+    p_ge_q : bool
+        Only p ≥ q (the published method's rule; off by default so a pure MA(q) is reachable).
 
     Orders too large for the record length are skipped (at least ARMA(0,0) is always fitted).
     """
@@ -567,15 +718,15 @@ def select_order(
     # like (otherwise a higher p silently drops early, transient-affected residuals and looks better).
     common = max_p + max_q
     models: dict[tuple[int, int], ArmaModel] = {}
-    orders = candidate_orders(max_p, max_q)
+    orders = candidate_orders(max_p, max_q, p_ge_q)
     for index, (p, q) in enumerate(orders, start=1):
         try:
-            _check_orders(a, p, q)
+            _check_orders(a, p, q, include_mean)
         except DriftInputError:
             continue
         inner = [m for (pp, qq), m in models.items() if pp <= p and qq <= q]
-        nested = min(inner, key=lambda m: m.aic - 2.0 * (m.p + m.q + 1)) if inner else None
-        models[(p, q)] = fit_arma(a, p, q, condition=common, method=method, nested=nested)
+        nested = max(inner, key=lambda m: m.log_likelihood) if inner else None
+        models[(p, q)] = fit_arma(a, p, q, condition=common, method=method, nested=nested, include_mean=include_mean)
         if progress is not None:
             progress((p, q), index, len(orders))
     if not models:
@@ -584,7 +735,13 @@ def select_order(
     by_bic = min(models, key=lambda k: models[k].bic)
     best = models[by_bic if criterion == "bic" else by_aic]
     best.criterion = criterion
-    table = [{"p": k[0], "q": k[1], "sigma2": m.sigma2, "aic": m.aic, "bic": m.bic} for k, m in models.items()]
+    table = [
+        {
+            "p": k[0], "q": k[1], "sigma2": m.sigma2, "log_likelihood": m.log_likelihood, "aic": m.aic,
+            "bic": m.bic, "converged": m.converged, "parameter_redundancy": bool(m.redundant_pairs),
+        }
+        for k, m in models.items()
+    ]  # fmt: skip
     return OrderSelection(best, table, by_aic, by_bic, models)
 
 

@@ -1,4 +1,5 @@
-"""Exact Gaussian likelihood of a zero-mean ARMA(p, q) series, by regression on the pre-sample values.
+"""Exact Gaussian likelihood of an ARMA(p, q) series (zero mean, or mean profiled out), by regression on the
+pre-sample values.
 
 Specification: ``shared/spec/drift-timeseries.md`` ("ARMA modelling"). The spec is silent on how σ̂² is
 estimated for the order criteria; the standard exact maximum-likelihood form is used (Box, Jenkins, Reinsel &
@@ -24,6 +25,10 @@ p + q + 1 ``scipy.signal.lfilter`` passes and an (p+q)×(p+q) solve.
 The residual vector r = (det M)^{1/(2n)} [e_c + C w*; w*] has ‖r‖² = n σ̂²_eff, so maximising the exact
 likelihood is a nonlinear least-squares problem in r (Box–Jenkins' unconditional least squares with the
 determinant factor), solved by :func:`analysis.drift.arma.fit_arma`.
+
+Mean: when x − μ is the ARMA process, r is linear in x, r(x − μ) = r(x) − μ r(1), and ln det M does not depend on
+μ; the exact maximum over μ at given coefficients is therefore the generalised-least-squares mean
+μ̂ = ⟨r(x), r(1)⟩ / ‖r(1)‖² (``estimate_mean=True``), and the profiled vector r(x) − μ̂ r(1) is the objective.
 """
 
 from __future__ import annotations
@@ -32,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import linalg, signal
+from scipy import signal
 
 
 @dataclass
@@ -47,11 +52,17 @@ class ExactResiduals:
         w*, the whitened most probable pre-sample values (dimensionless).
     log_det : float
         ln det M (= Σ ln f_t of the Kalman prediction-error decomposition).
+    mean : float
+        μ̂, the generalised-least-squares (= exact-ML) mean at these coefficients, unit of x (0 if not estimated).
+    mean_direction : ndarray (n + p + q,) or None
+        r(1), the whitened response to a unit mean: ∂(unweighted residual vector)/∂μ = −r(1).
     """
 
     residuals: NDArray[np.float64]
     presample: NDArray[np.float64]
     log_det: float
+    mean: float = 0.0
+    mean_direction: NDArray[np.float64] | None = None
 
     @property
     def n(self) -> int:
@@ -78,9 +89,14 @@ class ExactResiduals:
         """−2 ln L at σ² = σ̂² (concentrated)."""
         return self.n * (np.log(self.sigma2_eff) + 1.0 + np.log(2.0 * np.pi))
 
+    @property
+    def weight(self) -> float:
+        """(det M)^{1/(2n)}: the factor making the residual vector's sum of squares n σ̂²_eff."""
+        return float(np.exp(self.log_det / (2.0 * self.n)))
+
     def weighted(self) -> NDArray[np.float64]:
         """Residual vector whose sum of squares is n σ̂²_eff (the exact-ML least-squares objective)."""
-        return np.concatenate((self.residuals, self.presample)) * float(np.exp(self.log_det / (2.0 * self.n)))
+        return np.concatenate((self.residuals, self.presample)) * self.weight
 
 
 def presample_covariance(phi: NDArray[np.float64], theta: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -101,7 +117,8 @@ def presample_covariance(phi: NDArray[np.float64], theta: NDArray[np.float64]) -
     if q:
         b[p] = 1.0
         A[np.arange(p + 1, r), np.arange(p, r - 1)] = 1.0
-    cov = linalg.solve_discrete_lyapunov(A, np.outer(b, b))
+    # vec Σ = (I − A⊗A)⁻¹ vec(bbᵀ), r ≤ 20: plain numpy (scipy's wrappers cost more than the solve here).
+    cov = np.linalg.solve(np.eye(r * r) - np.kron(A, A), np.outer(b, b).ravel()).reshape(r, r)
     return 0.5 * (cov + cov.T)
 
 
@@ -114,19 +131,40 @@ def _factor(cov: NDArray[np.float64]) -> NDArray[np.float64]:
         return vecs * np.sqrt(np.clip(w, 0.0, None))
 
 
-def exact_residuals(x: NDArray[np.float64], phi: NDArray[np.float64], theta: NDArray[np.float64]) -> ExactResiduals:
-    """Exact-likelihood residuals of a zero-mean series under a stationary, invertible ARMA(p, q).
+def _response_to_ones(num: NDArray[np.float64], den: NDArray[np.float64], n: int, span: int) -> NDArray[np.float64]:
+    """e_c of a constant unit series: the filter's transient over ``span`` samples, then its DC gain."""
+    head = signal.lfilter(num, den, np.ones(min(n, span)))
+    if span >= n:
+        return head
+    out = np.empty(n)
+    out[:span] = head
+    out[span:] = float(np.sum(num) / np.sum(den))
+    return out
+
+
+def exact_residuals(
+    x: NDArray[np.float64],
+    phi: NDArray[np.float64],
+    theta: NDArray[np.float64],
+    estimate_mean: bool = False,
+) -> ExactResiduals:
+    """Exact-likelihood residuals of a series under a stationary, invertible ARMA(p, q), mean zero or estimated.
 
     Parameters
     ----------
     x : ndarray (n,)
-        Zero-mean scalar series, any unit (not demeaned here).
+        Scalar series, any unit (not demeaned here).
     phi, theta : ndarray
         AR and MA coefficients (Box–Jenkins signs); φ must be stationary (the caller keeps it so).
+    estimate_mean : bool
+        False: x is taken as zero-mean. True: x − μ is the ARMA process and μ is profiled out by generalised
+        least squares at these coefficients, μ̂ = ⟨r(x), r(1)⟩ / ‖r(1)‖² with r(·) the (linear) whitening map
+        below; the determinant term does not depend on μ, so this is the exact joint maximum over μ.
 
     Returns
     -------
     ExactResiduals
+        With ``mean`` = μ̂ (0 when not estimated) and ``mean_direction`` = r(1) (for the mean's standard error).
     """
     phi = np.asarray(phi, dtype=float)
     theta = np.asarray(theta, dtype=float)
@@ -134,27 +172,45 @@ def exact_residuals(x: NDArray[np.float64], phi: NDArray[np.float64], theta: NDA
     n = x.size
     num = np.r_[1.0, -phi]
     den = np.r_[1.0, -theta]
-    e_c = signal.lfilter(num, den, x)
     r = p + q
-    if r == 0:
-        return ExactResiduals(e_c, np.zeros(0), 0.0)
-    # Response of the inverse filter to each unit pre-sample value: initial states from lfiltic, zero input.
-    # It decays like ρᵗ (ρ the largest reciprocal MA root), so only its first `span` samples are non-zero in
-    # double precision (e^{−40} ≈ 4e-18).
-    zi = np.empty((r, max(p, q)))
-    for j in range(r):
-        unit = np.zeros(r)
-        unit[j] = 1.0
-        zi[j] = signal.lfiltic(num, den, unit[p:], unit[:p])
+    # Responses decay like ρᵗ (ρ the largest reciprocal MA root), so only their first `span` samples are non-zero
+    # in double precision (e^{−40} ≈ 4e-18).
     rho = float(np.max(np.abs(np.roots(den)))) if q else 0.0
     span = n if rho >= 1.0 - 1e-12 else min(n, max(p, q) + 1 + int(np.ceil(40.0 / -np.log(max(rho, 1e-300)))))
-    B, _ = signal.lfilter(num, den, np.zeros((r, span)), axis=1, zi=zi)
+    e_c = signal.lfilter(num, den, x)
+    ones = _response_to_ones(num, den, n, span) if estimate_mean else None
+    if r == 0:
+        mean = 0.0
+        if ones is not None:
+            mean = float(np.einsum("i,i->", e_c, ones) / np.einsum("i,i->", ones, ones))
+            e_c = e_c - mean * ones
+        return ExactResiduals(e_c, np.zeros(0), 0.0, mean, ones)
+    # Response of the inverse filter to each unit pre-sample value (zero data): x_{−j} enters e_t as −φ_{t+j}
+    # and e_{−j} as +θ_{t+j} for t + j within the orders, both then through 1/θ(B).
+    V = np.zeros((r, span))
+    for j in range(1, p + 1):
+        V[j - 1, : p - j + 1] = -phi[j - 1 :]
+    for j in range(1, q + 1):
+        V[p + j - 1, : q - j + 1] = theta[j - 1 :]
+    B = signal.lfilter([1.0], den, V, axis=1) if q else V
     C = _factor(presample_covariance(phi, theta)).T @ B  # rows: columns of C = B L
     ctc = np.einsum("in,jn->ij", C, C)
-    cte = np.einsum("in,n->i", C, e_c[:span])
     M = np.eye(r) + ctc
-    chol = linalg.cho_factor(M)
-    w = -linalg.cho_solve(chol, cte)
-    log_det = 2.0 * float(np.sum(np.log(np.diag(chol[0]))))
-    e_c[:span] += w @ C
-    return ExactResiduals(e_c, w, log_det)
+    chol = np.linalg.cholesky(M)
+    log_det = 2.0 * float(np.sum(np.log(np.diag(chol))))
+
+    def whiten(e: NDArray[np.float64]) -> NDArray[np.float64]:
+        """w* = argmin ‖e + C w‖² + ‖w‖²; e is updated in place to e + C w*."""
+        w = -np.linalg.solve(M, np.einsum("in,n->i", C, e[:span]))
+        e[:span] += w @ C
+        return w
+
+    w = whiten(e_c)
+    mean = 0.0
+    if ones is not None:
+        w1 = whiten(ones)
+        mean = float((np.einsum("i,i->", e_c, ones) + w @ w1) / (np.einsum("i,i->", ones, ones) + w1 @ w1))
+        e_c -= mean * ones
+        w = w - mean * w1
+        ones = np.concatenate((ones, w1))
+    return ExactResiduals(e_c, w, log_det, mean, ones)

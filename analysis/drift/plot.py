@@ -1,12 +1,13 @@
-"""PNG plots of a drift analysis: ACF/PACF with bands, Welch PSD, histogram with normal overlay, compensation.
+"""Figures of a drift analysis: ACF/PACF with bands, Welch PSD, histogram with normal overlay, compensation.
 
 Uses matplotlib's object API (no pyplot global state) with the Agg canvas, so it is safe in tests and
-threads. Values are plotted in the channel's SI unit (label given by the caller).
+threads. Values are plotted in the channel's SI unit (label given by the caller). Pure: the figures are
+returned; the command (``benches/commands/drift.py``) writes them as PNG files.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
+import math
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -16,18 +17,17 @@ from scipy import signal, stats
 from analysis.drift.report import ChannelDrift
 
 
-def _save(fig: Figure, path: Path) -> Path:
+def _finish(fig: Figure) -> Figure:
     FigureCanvasAgg(fig)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    return path
+    return fig
 
 
-def plot_channel(result: ChannelDrift, name: str, unit: str, out_dir: Path) -> list[Path]:
-    """Write ``drift_<name>_{acf,psd,hist,compensation}.png`` into ``out_dir``; returns the paths."""
+def plot_channel(result: ChannelDrift, name: str, unit: str) -> dict[str, Figure]:
+    """Figures of one channel, keyed ``acf``, ``psd``, ``hist``, ``compensation`` (Agg canvases attached)."""
     s = result.summary
     rate = float(s["rate_hz"])
-    paths = []
+    figures: dict[str, Figure] = {}
 
     fig = Figure(figsize=(9, 6))
     for i, (vals, band, title) in enumerate(
@@ -44,7 +44,7 @@ def plot_channel(result: ChannelDrift, name: str, unit: str, out_dir: Path) -> l
         ax.axhline(0, color="k", lw=0.5)
         ax.set_title(f"{name}: {title}")
         ax.set_xlabel("lag (samples)")
-    paths.append(_save(fig, out_dir / f"drift_{name}_acf.png"))
+    figures["acf"] = _finish(fig)
 
     fig = Figure(figsize=(9, 4.5))
     ax = fig.add_subplot(1, 1, 1)
@@ -65,7 +65,7 @@ def plot_channel(result: ChannelDrift, name: str, unit: str, out_dir: Path) -> l
     ax.set_ylabel(f"PSD ({unit})²/Hz")
     ax.set_title(f"{name}: power spectral density (dotted: tones for 'tablebench periodic')")
     ax.legend()
-    paths.append(_save(fig, out_dir / f"drift_{name}_psd.png"))
+    figures["psd"] = _finish(fig)
 
     fig = Figure(figsize=(7, 4.5))
     ax = fig.add_subplot(1, 1, 1)
@@ -77,24 +77,32 @@ def plot_channel(result: ChannelDrift, name: str, unit: str, out_dir: Path) -> l
     ax.set_title(f"{name}: histogram; JB = {jb['statistic']:.3g} (threshold {jb['threshold']:.3g}, {jb['verdict']})")
     ax.set_xlabel(unit)
     ax.legend()
-    paths.append(_save(fig, out_dir / f"drift_{name}_hist.png"))
+    figures["hist"] = _finish(fig)
 
     fig = Figure(figsize=(9, 4.5))
     ax = fig.add_subplot(1, 1, 1)
     ns = result.compensated.size
     if ns:
         t = np.arange(ns) / rate
-        ax.plot(t, result.residual[:ns] - result.residual.mean(), lw=0.5, label="before (detrended)")
+        ax.plot(t, result.residual[:ns] - s["model"]["mean"], lw=0.5, label="before (detrended)")
         ax.plot(t, result.compensated, lw=0.5, label="after (minus smoothed ARMA drift)")
         ax.plot(t, result.smoothed_drift, lw=0.8, label="smoothed drift")
         ax.legend()
     else:
         ax.text(0.5, 0.5, "white residual: nothing to compensate", ha="center", transform=ax.transAxes)
-    c = s["compensation"]
-    after = c.get("std_after_filter")
-    after_txt = f", after filter {after:.3g}" if isinstance(after, int | float) and np.isfinite(after) else ""
-    ax.set_title(f"{name}: drift compensation, σ before {c['std_before']:.3g}{after_txt} {unit}")
+    ax.set_title(compensation_title(name, s["compensation"], unit))
     ax.set_xlabel("time (s)")
     ax.set_ylabel(unit)
-    paths.append(_save(fig, out_dir / f"drift_{name}_compensation.png"))
-    return paths
+    figures["compensation"] = _finish(fig)
+    return figures
+
+
+def compensation_title(name: str, comp: dict, unit: str) -> str:
+    """Title of the compensation plot: σ before and, only when it was computed (p > 0), after the Kalman filter."""
+    parts = [f"{name}: drift compensation, σ before {comp['std_before']:.3g} {unit}"]
+    after = comp.get("std_after_filter")
+    if after is not None and math.isfinite(after):
+        parts.append(f"after filter {after:.3g} {unit}")
+    else:
+        parts.append("nothing predictable to remove (white residual)")
+    return ", ".join(parts)

@@ -22,6 +22,10 @@ MAD_TO_SIGMA: float = 1.4826022185056018
 """Scale factor making the median absolute deviation a consistent estimator of σ for Gaussian data."""
 
 
+MAX_MAGNITUDE: float = 1e100
+"""Largest |value| accepted: sums of squares of 10⁸ such values stay far below the float64 overflow (1.8e308)."""
+
+
 class DriftInputError(UserError, ValueError):
     """A series cannot be analysed (NaNs, constant, too short); the message names the fix."""
 
@@ -50,6 +54,11 @@ def check_series(x: ArrayLike, name: str = "series", min_samples: int = 16) -> N
             "remove or interpolate them before drift analysis"
         )
     scale = max(float(np.max(np.abs(a))), np.finfo(float).tiny)
+    if scale > MAX_MAGNITUDE:
+        raise DriftInputError(
+            f"{name}: values up to {scale:.3g} (sample {int(np.argmax(np.abs(a)))}) are too large for the variance "
+            f"and likelihood sums (limit {MAX_MAGNITUDE:.0e}); check the channel's unit or scale factor"
+        )
     if float(np.ptp(a)) <= 1e-13 * scale:
         raise DriftInputError(
             f"{name}: the series is constant ({a[0]:.6g}); drift analysis needs a varying signal "

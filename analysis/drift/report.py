@@ -8,14 +8,18 @@ For every channel (a scalar series in SI: rad/s for gyros, m/s² for acceleromet
 4. periodicity: Welch peak significance, strong tones listed for ``tablebench periodic`` and (by default)
    subtracted by least squares before the ARMA modelling;
 5. normality: Jarque–Bera (with the large-n caveat);
-6. ACF / PACF with bands, ARMA order by AIC/BIC (p, q ≤ 3, p ≥ q) over exact maximum-likelihood fits (CSS on
-   request), moment estimates, standard errors, Ljung–Box on the residuals;
+6. ACF / PACF with bands, ARMA order by BIC (AIC reported beside it; p, q ≤ 3, p ≥ q only on request) over
+   exact maximum-likelihood fits with the mean estimated jointly (or fixed at zero; CSS on request), moment
+   estimates, standard errors, convergence of every fit and parameter-redundancy flags, Ljung–Box on the
+   residuals;
 7. online RLS / extended LS over the record (compared with the batch fit);
 8. compensation: state-space ARMA, steady-state Kalman filter over the record, sliding-window LM smoother
    over the first ``smoother_samples`` samples; standard deviations before and after.
 
 :func:`analyse_drift` returns a JSON-ready dict ``{"channels": {NAME: {"model": …, "tests": …, …}}, …}``;
-:func:`analyse_channel` returns the same per channel plus the arrays used for the plots.
+:func:`analyse_channel` returns the same per channel plus the arrays used for the plots. What could not be
+settled is listed per channel under ``"unsettled"`` (candidate fits that did not converge, with their status and
+gradient norm; a chosen model with a near-cancelling AR/MA root pair).
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from analysis.drift.arma import css_residuals, moment_estimates, select_order
+from analysis.drift.arma import REDUNDANCY_DISTANCE, OrderSelection, css_residuals, moment_estimates, select_order
 from analysis.drift.hypothesis_tests import (
     acf,
     correlation_bands,
@@ -63,8 +67,11 @@ class DriftOptions:
     tone_alpha : family-wise significance of the Welch tone search.
     remove_tones : subtract least-squares sinusoids at the detected tones before the ARMA modelling (the
         tones themselves belong to ``tablebench periodic``).
-    max_p, max_q : largest ARMA orders tried (p ≥ q).
-    criterion : "bic" or "aic".
+    max_p, max_q : largest ARMA orders tried.
+    p_ge_q : only orders with p ≥ q (the published method's rule; off by default so a pure MA(q) is reachable).
+    include_mean : estimate the ARMA mean jointly by maximum likelihood (default; the detrended residual of a
+        correlated record keeps an offset the least-squares mean removal mis-estimates), or fix it at zero.
+    criterion : "bic" (the spec's choice) or "aic".
     fit_method : "ml" (exact maximum likelihood, default) or "css" (conditional least squares, faster on long
         records; the two agree within a fraction of a standard error there, but the order choice can differ).
     nlags : lags of the ACF/PACF and Ljung–Box (None: min(40, n/10) for the plots, 20 for Ljung–Box).
@@ -84,6 +91,8 @@ class DriftOptions:
     remove_tones: bool = True
     max_p: int = 3
     max_q: int = 3
+    p_ge_q: bool = False
+    include_mean: bool = True
     criterion: str = "bic"
     fit_method: str = "ml"
     nlags: int | None = None
@@ -110,6 +119,35 @@ class ChannelDrift:
     acf_band: NDArray[np.float64]
     pacf_band: float
     extra: dict = field(default_factory=dict)
+
+
+def unsettled(sel: OrderSelection) -> list[dict]:
+    """What the ARMA modelling could not settle: each candidate fit that did not converge (status, gradient norm,
+    log-likelihood still to gain), and the chosen model's near-cancelling AR/MA root pairs (parameter
+    redundancy). Empty when everything converged and the chosen model has no such pair."""
+    out = [
+        {
+            "item": f"ARMA({m.p},{m.q}) fit",
+            "issue": m.status,
+            "gradient_norm": m.gradient_norm,
+            "likelihood_gap": m.likelihood_gap,
+            "chosen": m is sel.best,
+            "note": m.note,
+        }
+        for m in sel.unconverged
+    ]
+    if sel.best.redundant_pairs:
+        d = min(pair["distance"] for pair in sel.best.redundant_pairs)
+        out.append(
+            {
+                "item": f"ARMA({sel.best.p},{sel.best.q}) model",
+                "issue": "parameter redundancy",
+                "chosen": True,
+                "note": f"an AR and an MA root nearly cancel (distance {d:.3g} < {REDUNDANCY_DISTANCE}); compare with "
+                f"ARMA({sel.best.p - 1},{sel.best.q - 1}) in the order-selection table",
+            }
+        )
+    return out
 
 
 def analyse_channel(
@@ -178,11 +216,19 @@ def analyse_channel(
 
     say(f"fitting ARMA(p, q), p, q <= {o.max_p}, {o.max_q} ({o.fit_method.upper()})")
     sel = select_order(
-        y, o.max_p, o.max_q, o.criterion, o.fit_method, lambda pq, k, tot: say(f"ARMA{pq} fitted ({k}/{tot})")
+        y,
+        o.max_p,
+        o.max_q,
+        o.criterion,
+        o.fit_method,
+        lambda pq, k, tot: say(f"ARMA{pq} fitted ({k}/{tot})"),
+        include_mean=o.include_mean,
+        p_ge_q=o.p_ge_q,
     )
     model = sel.best
     moments = moment_estimates(y, model.p, model.q)
-    resid = css_residuals(y - y.mean(), model.phi, model.theta)
+    centred = y - model.mean  # the model's mean (0 when fixed at zero)
+    resid = css_residuals(centred, model.phi, model.theta)
     lb = ljung_box_test(resid, None if o.nlags is None else max(o.nlags, model.p + model.q + 5), model.p + model.q)
     tests["ljung_box"] = lb
 
@@ -197,9 +243,9 @@ def analyse_channel(
         say("online RLS/ELS pass")
         n0 = min(max(1000, n // 20), n // 2)
         try:
-            est = OnlineArma(model.p, model.q, o.forgetting).initialise(y[:n0] - y.mean())
+            est = OnlineArma(model.p, model.q, o.forgetting).initialise(centred[:n0])
             t0 = time.perf_counter()
-            est.feed(y[n0:] - y.mean())
+            est.feed(centred[n0:])
             dt = time.perf_counter() - t0
             st = est.state()
             online = {
@@ -216,13 +262,13 @@ def analyse_channel(
 
     s2 = model.sigma2
     rvar = float(o.measurement_var) if o.measurement_var is not None else s2
-    comp: dict = {"measurement_var": rvar, "std_before": float(np.std(y))}
+    comp: dict = {"measurement_var": rvar, "std_before": float(np.std(centred))}
     innov = np.zeros(0)
     compensated = np.zeros(0)
     smoothed = np.zeros(0)
     if model.p > 0:
         ss = arma_state_space(model.phi, model.theta, s2, rvar)
-        yc = y - y.mean()
+        yc = centred
         _, pred = steady_state_filter(ss, yc)
         innov = yc - pred
         comp["std_after_filter"] = float(np.std(innov))
@@ -263,7 +309,14 @@ def analyse_channel(
         },
         "detrend": {"order": det.order, "coefficients": det.coefficients.tolist(), "criteria": det.criteria},
         "model": model_d,
-        "order_selection": {"by_aic": list(sel.by_aic), "by_bic": list(sel.by_bic), "table": sel.table},
+        "order_selection": {
+            "criterion": o.criterion,
+            "by_aic": list(sel.by_aic),
+            "by_bic": list(sel.by_bic),
+            "p_ge_q": o.p_ge_q,
+            "table": sel.table,
+        },
+        "unsettled": unsettled(sel),
         "tests": {k: v.to_dict() for k, v in tests.items()},
         "tones_hz": tones.extra["frequencies"],
         "tones_removed": [

@@ -192,6 +192,8 @@ def run(args: argparse.Namespace) -> int:
         f"frames {stats.frames}, rejected (bad checksum) {stats.rejected}, garbage bytes {stats.garbage_bytes}, "
         f"counter gaps {samples.gaps} frame(s), resets {samples.resets}, duplicates {samples.duplicates} (dropped)"
     )
+    if stats.bit_frames or any(r == "bit" for r, _f in fmt.alternates):
+        print(f"built-in-test frames {stats.bit_frames} (recognised; not samples, not garbage)")
     if n == 0:
         raise UsageError(
             f"{path}: no valid {fmt.name} frame in {size} bytes; check --frame, the baud rate and the unit's output "

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -12,16 +11,18 @@ from collections.abc import Callable
 EXAMPLES = """examples:
   tablebench drift runs/static-noise-001                          # a recording, all six channels
   tablebench drift runs/static-noise-001 --channel gyro_z --out report/
-  tablebench drift data.npy --rate 100 --criterion aic --out report/
-  tablebench drift data.csv --rate 100 --outliers mad --detrend 1
+  tablebench drift data.npy --rate 100 --no-mean --out report/   # the record is already centred
+  tablebench drift data.csv --rate 100 --outliers mad --detrend 1 --p-ge-q
 
 output: per channel, outliers replaced, the trend removed, every test (Daniel and reverse-arrangement on
 sub-series means and mean squares, Jarque-Bera, Welch periodicity, Ljung-Box on the ARMA residuals) with its
-statistic, threshold and verdict, the chosen ARMA(p,q) model with standard errors (Box-Jenkins signs:
-x_t - sum phi_j x_(t-j) = e_t - sum theta_j e_(t-j)), the online RLS/ELS estimate, and the standard deviation
-before/after compensation. With --out DIR: drift.json (SI) and PNGs per channel (ACF/PACF, PSD, histogram,
-compensation). Tones found by the periodicity check are listed for 'tablebench periodic'.
-Methods: shared/spec/drift-timeseries.md, analysis/drift_*.py.
+statistic, threshold and verdict, the ARMA(p,q) model chosen by BIC (AIC's choice shown beside it) with the
+mean estimated by maximum likelihood and standard errors (Box-Jenkins signs:
+x_t - mean - sum phi_j (x_(t-j) - mean) = e_t - sum theta_j e_(t-j)), the online RLS/ELS estimate, and the
+standard deviation before/after compensation. A last line per channel says what could not be settled (a fit that
+did not converge, a near-cancelling AR/MA root pair); drift.json lists it under "unsettled". With --out DIR:
+drift.json (SI) and PNGs per channel (ACF/PACF, PSD, histogram, compensation). Tones found by the periodicity
+check are listed for 'tablebench periodic'. Methods: shared/spec/drift-timeseries.md, analysis/drift/.
 """
 
 
@@ -33,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "drift",
         help="drift modelling of a static record: stationarity/normality/periodicity tests, ARMA, RLS",
         description="Pre-process a static record (outliers, trend), test it (stationarity, periodicity, "
-        "normality), select and estimate an ARMA(p,q) drift model (p, q <= 3, p >= q) with standard errors, "
+        "normality), select (by BIC) and estimate an ARMA(p,q) drift model (p, q <= 3) with standard errors, "
         "check the residuals' whiteness, run the online recursive estimator, and compensate the drift with a "
         "Kalman filter and a sliding-window graph (Levenberg-Marquardt) smoother.",
         epilog=EXAMPLES,
@@ -41,7 +42,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     add_input_arguments(p)
     p.add_argument("--channel", dest="channels", help="same as --channels (one or more comma-separated names)")
-    p.add_argument("--criterion", choices=("bic", "aic"), default="bic", help="ARMA order criterion (default bic)")
+    p.add_argument(
+        "--criterion",
+        choices=("bic", "aic"),
+        default="bic",
+        help="ARMA order criterion (default bic, the spec's; aic over-fits near-cancelling root pairs)",
+    )
+    p.add_argument(
+        "--no-mean",
+        action="store_true",
+        help="fix the ARMA mean at zero (the record is already centred) instead of estimating it jointly",
+    )
+    p.add_argument("--p-ge-q", action="store_true", help="only ARMA orders with p >= q (the published method's rule)")
     p.add_argument(
         "--fit",
         choices=("ml", "css"),
@@ -61,17 +73,6 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--measurement-var", type=float, default=None, help="R of the compensation model, SI unit² (default: σ²)"
     )
     p.set_defaults(func=run)
-
-
-def _clean(obj: object) -> object:
-    """Replace non-finite floats by None (JSON has no NaN/inf)."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {str(k): _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    return obj
 
 
 def _display(unit: str) -> tuple[float, str]:
@@ -105,8 +106,13 @@ def format_report(result: dict, units: dict[str, str]) -> str:
         lines.append("  note: " + ch["tests"]["jarque_bera"]["note"])
         lines.append(
             f"  model ARMA({m['p']},{m['q']}) by {m['criterion'].upper()} "
-            f"(by AIC {tuple(ch['order_selection']['by_aic'])}, by BIC {tuple(ch['order_selection']['by_bic'])})"
+            f"(by AIC {tuple(ch['order_selection']['by_aic'])}, by BIC {tuple(ch['order_selection']['by_bic'])}), "
+            f"{m['method'].upper()} {m['status']}, log-likelihood {m['log_likelihood']:.6g}"
         )
+        if m["include_mean"]:
+            lines.append(f"    mean     = {m['mean'] / scale:.6g} ± {(m['se_mean'] or math.nan) / scale:.3g} {label}")
+        else:
+            lines.append("    mean     = 0 (fixed: --no-mean)")
         for j, (v, s) in enumerate(zip(m["phi"], m["se_phi"], strict=True), start=1):
             lines.append(f"    phi_{j}   = {v: .6f} ± {s:.6f}")
         for j, (v, s) in enumerate(zip(m["theta"], m["se_theta"], strict=True), start=1):
@@ -133,7 +139,23 @@ def format_report(result: dict, units: dict[str, str]) -> str:
                 f"{c['std_after_smoother'] / scale:.4g} {label}"
             )
         lines.append(txt)
+        lines.append("  " + unsettled_line(ch.get("unsettled", [])))
     return "\n".join(lines)
+
+
+def unsettled_line(items: list[dict]) -> str:
+    """One line: what the ARMA modelling of a channel could not settle, or that everything was settled."""
+    if not items:
+        return "settled: every ARMA fit converged; no near-cancelling AR/MA root pair in the chosen model"
+    parts = []
+    for it in items:
+        if it["issue"] == "parameter redundancy":
+            parts.append(f"{it['item']} has a near-cancelling AR/MA root pair (parameter redundancy)")
+        else:
+            chosen = " (the chosen model)" if it.get("chosen") else ""
+            why = " toward a unit root" if it["issue"] == "boundary" else ""
+            parts.append(f"{it['item']}{chosen} not converged{why}, gradient norm {it['gradient_norm']:.3g}")
+    return "NOT settled: " + "; ".join(parts) + " (details in drift.json 'unsettled')"
 
 
 def _progress_printer() -> Callable[[str], None]:
@@ -174,6 +196,8 @@ def run(args: argparse.Namespace) -> int:
         segments=args.segments,
         alpha=args.alpha,
         criterion=args.criterion,
+        include_mean=not args.no_mean,
+        p_ge_q=args.p_ge_q,
         fit_method=args.fit,
         online=not args.no_online,
         forgetting=args.forgetting,
@@ -200,10 +224,14 @@ def run(args: argparse.Namespace) -> int:
     print(format_report(result, data.units))
     if out is not None:
         from analysis.drift.plot import plot_channel
+        from core.jsonio import write_json
 
-        (out / "drift.json").write_text(json.dumps(_clean(result), indent=1, allow_nan=False), encoding="utf-8")
-        written = [out / "drift.json"]
+        # null where a number is not available (e.g. σ after the filter of a white residual, se of a fixed mean)
+        written = [write_json(out / "drift.json", result, nonfinite="null")]
         for name, res in results.items():
-            written += plot_channel(res, name, data.units.get(name, "SI"), out)
+            for kind, fig in plot_channel(res, name, data.units.get(name, "SI")).items():
+                path = out / f"drift_{name}_{kind}.png"
+                fig.savefig(path, dpi=100)
+                written.append(path)
         print("wrote " + ", ".join(str(p) for p in written))
     return 0

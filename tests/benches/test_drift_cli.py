@@ -36,6 +36,11 @@ def test_drift_command_writes_json_and_plots(record: Path, tmp_path: Path, capsy
         assert key in model
     assert (model["p"], model["q"]) == (1, 1) and model["criterion"] == "bic" and model["method"] == "ml"
     assert abs(model["phi"][0] - 0.9) < 3 * model["se_phi"][0] + 1e-9
+    assert model["include_mean"] and model["converged"] and model["status"] == "converged" and model["k"] == 4
+    assert ch["order_selection"]["criterion"] == "bic" and len(ch["order_selection"]["table"]) == 16
+    assert isinstance(ch["unsettled"], list)
+    verdicts = [ln.strip() for ln in text.splitlines() if ln.strip().startswith(("settled:", "NOT settled:"))]
+    assert len(verdicts) == 2, text  # one line per channel: settled or NOT settled
     for name in ("daniel_mean", "reverse_arrangement_mean", "daniel_mean_square", "reverse_arrangement_mean_square",
                  "jarque_bera", "welch_periodicity", "ljung_box"):  # fmt: skip
         t = ch["tests"][name]
@@ -62,7 +67,7 @@ def test_fit_method_and_progress(record: Path, tmp_path: Path, capsys: pytest.Ca
     out = tmp_path / "o3"
     assert main(["drift", str(record), "--rate", "100", "--channel", "gyro_a", "--fit", "css", "--out", str(out)]) == 0
     err = capsys.readouterr().err
-    assert "gyro_a: ARMA(3, 3) fitted (10/10)" in err and "gyro_a: pre-processing" in err
+    assert "gyro_a: ARMA(3, 3) fitted (16/16)" in err and "gyro_a: pre-processing" in err
     assert json.loads((out / "drift.json").read_text())["channels"]["gyro_a"]["model"]["method"] == "css"
     assert main(["drift", str(record), "--rate", "100", "--channel", "gyro_a", "--quiet", "--no-online"]) == 0
     assert capsys.readouterr().err == ""
@@ -94,3 +99,59 @@ def test_analyse_drift_api() -> None:
     assert res["channels"]["g"]["model"]["criterion"] == "aic"
     with pytest.raises(ValueError, match="unknown drift option"):
         analyse_drift({"g": np.arange(300.0)}, 10.0, bogus=1)
+
+
+def test_no_mean_and_p_ge_q(record: Path, tmp_path: Path) -> None:
+    out = tmp_path / "o4"
+    rc = main(["drift", str(record), "--rate", "100", "--channel", "gyro_a", "--no-mean", "--p-ge-q", "--no-online",
+               "--quiet", "--out", str(out)])  # fmt: skip
+    assert rc == 0
+    ch = json.loads((out / "drift.json").read_text())["channels"]["gyro_a"]
+    assert ch["model"]["include_mean"] is False and ch["model"]["mean"] == 0.0 and ch["model"]["se_mean"] is None
+    assert ch["order_selection"]["p_ge_q"] and all(r["p"] >= r["q"] for r in ch["order_selection"]["table"])
+
+
+def test_unsettled_fit_reported_in_json_and_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A fit that does not converge is listed in drift.json ("unsettled") and in one line of the text report."""
+    from analysis.drift import arma_optimiser
+
+    monkeypatch.setattr(arma_optimiser, "GAIN_TOL", 0.0)  # no point can meet the criteria
+    path = tmp_path / "short.npy"
+    np.save(path, simulate_arma([0.9], [0.4], 1.0, 400, np.random.default_rng(72)))
+    out = tmp_path / "o5"
+    rc = main(["drift", str(path), "--rate", "100", "--segments", "20", "--no-online", "--quiet", "--p-ge-q",
+               "--out", str(out)])  # fmt: skip
+    assert rc == 0
+    text = capsys.readouterr().out
+    lines = [ln for ln in text.splitlines() if "NOT settled" in ln]
+    assert len(lines) == 1 and "not converged" in lines[0] and "gradient norm" in lines[0]
+    ch = json.loads((out / "drift.json").read_text())["channels"]["ch0"]
+    issues = {u["item"]: u for u in ch["unsettled"]}
+    assert len(issues) >= 9  # every candidate with p + q > 0
+    assert all(u["issue"] in ("not converged", "boundary", "parameter redundancy") for u in issues.values())
+    assert ch["model"]["converged"] is False and "did not converge" in ch["model"]["note"]
+
+
+def test_white_channel_plot_title_has_no_nan(tmp_path: Path) -> None:
+    """A white residual has no Kalman compensation: the title says so instead of 'after filter nan'."""
+    from analysis.drift.plot import plot_channel
+    from analysis.drift.report import analyse_channel
+
+    res = analyse_channel(np.random.default_rng(3).standard_normal(1000), 50.0, "w")
+    assert res.summary["model"]["p"] == 0
+    figures = plot_channel(res, "w", "m/s^2")
+    assert set(figures) == {"acf", "psd", "hist", "compensation"}
+    titles = [ax.get_title() for fig in figures.values() for ax in fig.axes]
+    assert all("nan" not in t.lower() for t in titles), titles
+    assert "nothing predictable" in figures["compensation"].axes[0].get_title()
+    assert list(tmp_path.iterdir()) == []  # the analysis layer writes no files
+
+
+def test_overflowing_values_are_one_clear_line(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    path = tmp_path / "huge.npy"
+    np.save(path, np.random.default_rng(0).standard_normal(1000) * 1e296)
+    assert main(["drift", str(path), "--rate", "50", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "too large" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1

@@ -231,8 +231,8 @@ def test_round_trip_with_garbage_truncation_resets_and_duplicates(name):
     n = idx.size
     accel, gyro, temp = _si_samples(fmt, n, rng)
     rows = encode_samples(fmt, idx, idx / rate, accel, gyro, temp)
-    sync0 = fmt.desc.sync[0]
-    forbidden = {sync0, 0x0D}  # garbage never starts a candidate frame nor looks like a STIM CR LF trailer
+    # garbage never starts a candidate frame (of any layout) nor looks like a STIM CR LF trailer
+    forbidden = {fmt.desc.sync[0], 0x0D} | {d.sync[0] for _r, d in fmt.desc.alternates}
     allowed = np.array([b for b in range(256) if b not in forbidden], dtype=np.uint8)
     truncated = {40, 120, 400}
     duplicated = {60, 250, 450}

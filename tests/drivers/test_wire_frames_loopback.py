@@ -105,7 +105,8 @@ def test_samples_flagged_invalid_are_never_used(tmp_path):
             steps = f["steps"][()]
             row = steps[[s.decode() if isinstance(s, bytes) else s for s in steps["name"]].index("A/hold-1")]
             a, b = int(row["acq_start"]), int(row["acq_start"]) + 100
-            f["imu/accel"][a:b, 0] += 1.0  # 0.1 g of rubbish on x
+            acc = f["imu/accel"]  # stored as int32 counts of attrs["lsb"] when the samples are quantised
+            acc[a:b, 0] += round(1.0 / acc.attrs["lsb"]) if "lsb" in acc.attrs else 1.0  # 0.1 g of rubbish on x
             if flag:
                 f["imu/status"][a:b] = 1  # accel_x invalid
     xs = {}
