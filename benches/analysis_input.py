@@ -89,8 +89,8 @@ def _check_rate(rate: float | None, source: str) -> float:
     return float(rate)
 
 
-def _finite_columns(data: NDArray[np.float64], names: list[str], source: str) -> None:
-    bad = ~np.isfinite(data)
+def _finite_columns(data: NDArray[np.float64], names: list[str], source: str, allow_gaps: bool = False) -> None:
+    bad = np.isinf(data) if allow_gaps else ~np.isfinite(data)
     if bad.any():
         rows, cols = np.nonzero(bad)
         raise InputError(
@@ -111,7 +111,7 @@ def _select(channels: dict[str, NDArray[np.float64]], wanted: str | None, source
     return names
 
 
-def _load_array(path: Path, rate: float | None, wanted: str | None) -> AnalysisInput:
+def _load_array(path: Path, rate: float | None, wanted: str | None, allow_gaps: bool = False) -> AnalysisInput:
     source = str(path)
     rate_v = _check_rate(rate, source)
     header: list[str] | None = None
@@ -150,13 +150,15 @@ def _load_array(path: Path, rate: float | None, wanted: str | None) -> AnalysisI
             f"{source}: shape {data.shape} looks like channels × samples; save one column per channel (transpose it)"
         )
     names = header if header and len(header) == data.shape[1] else [f"ch{i}" for i in range(data.shape[1])]
-    _finite_columns(data, names, source)
+    _finite_columns(data, names, source, allow_gaps)
     channels = {n: np.ascontiguousarray(data[:, i]) for i, n in enumerate(names)}
     sel = _select(channels, wanted, source)
     return AnalysisInput(source, rate_v, {n: channels[n] for n in sel}, {n: "SI" for n in sel})
 
 
-def _load_recording(path: Path, rate: float | None, wanted: str | None, step: str | None) -> AnalysisInput:
+def _load_recording(
+    path: Path, rate: float | None, wanted: str | None, step: str | None, allow_gaps: bool = False
+) -> AnalysisInput:
     from benches.recording import RecordingError, open_recording
 
     source = str(path)
@@ -201,7 +203,7 @@ def _load_recording(path: Path, rate: float | None, wanted: str | None, step: st
             f"sample {start + int(flagged[0])}; analyse a clean step with --step NAME"
         )
     data = np.stack([channels[s] for s in sel], axis=1) if sel else np.zeros((0, 0))
-    _finite_columns(data, sel, source)
+    _finite_columns(data, sel, source, allow_gaps)
     result = AnalysisInput(source, file_rate, {s: channels[s] for s in sel}, {s: CHANNEL_UNITS[s] for s in sel})
     result.integrity_note = rec.integrity_note
     if not rec.integrity_verified:
@@ -222,8 +224,11 @@ def load_input(
     channels: str | None = None,
     step: str | None = None,
     min_samples: int = 16,
+    allow_gaps: bool = False,
 ) -> AnalysisInput:
-    """Load a recording, ``.npy`` or ``.csv`` into named SI channels; see the module docstring."""
+    """Load a recording, ``.npy`` or ``.csv`` into named SI channels; see the module docstring.
+
+    ``allow_gaps``: NaN samples are kept (the analysis treats them as gaps); ±inf is still refused."""
     p = recording_path(path)
     if not p.exists():
         raise InputError(f"{p}: no such file or run folder")
@@ -231,9 +236,9 @@ def load_input(
     if suffix in (".npy", ".csv", ".txt"):
         if step is not None:
             raise InputError(f"{p}: --step applies only to recordings")
-        result = _load_array(p, rate, channels)
+        result = _load_array(p, rate, channels, allow_gaps)
     elif suffix in (".h5", ".hdf5"):
-        result = _load_recording(p, rate, channels, step)
+        result = _load_recording(p, rate, channels, step, allow_gaps)
     else:
         raise InputError(f"{p}: unknown input type {suffix or '(no extension)'}; give a run folder, .h5, .npy or .csv")
     if not result.channels:

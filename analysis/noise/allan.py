@@ -28,6 +28,12 @@ and a known quadratic, 2m² − 2(m−i)₊² − 2(i+m−N)₊², to the reflec
 stays a zero-mean random walk and rounding stays at the ε·√N level (≈1e-12 relative for 10⁸ samples), even
 for records dominated by a ramp, where a plain cumulative sum loses ε·(T/τ)².
 
+Since issue 16 the whole stability family, its noise identification (lag-1 ACF / B1 / R(n)), Greenhall EDF and
+χ² intervals live in :mod:`analysis.noise.stability` and :mod:`analysis.noise.confidence` (used by
+``analyse_noise`` and ``tablebench noise``); this module remains the fast gap-free path for the four classic
+estimators on frequency data (``stability`` calls it) and the spec's reproduction of the "improved" form. Its
+own intervals below are the older approximation, kept for :func:`improved_total_variance`.
+
 Confidence: equivalent degrees of freedom (EDF) per τ from the noise type identified by the local slope of the
 AVAR curve (white/flicker PM, white/flicker/random-walk FM), using the SP 1065 approximations for the
 overlapping AVAR (non-overlapping: the same with m = 1 on the decimated record, which reproduces the

@@ -282,9 +282,10 @@ def slope_terms(
     return out
 
 
-def _jsonable(a: ArrayLike) -> list[float | None]:
-    """A 1-D array as a JSON list (NaN/inf → None)."""
-    return [float(v) if math.isfinite(v) else None for v in np.asarray(a, dtype=np.float64).ravel()]
+FIT_ESTIMATORS: tuple[str, ...] = ("oadev", "adev", "totdev", "theoh")
+"""Estimators whose expectation is the Allan variance for every IEEE 952 term, so the model above applies
+(TOTDEV through its bias-corrected value, TheoH at its effective τ). The modified and Hadamard families have
+other gains per term (and MVAR's white-PM term is not a power of τ), so the fit refuses them."""
 
 
 def analyse_noise(
@@ -295,39 +296,56 @@ def analyse_noise(
     confidence: float = 0.683,
     terms: tuple[str, ...] = TERMS,
     published_itotvar: bool = False,
+    estimators: tuple[str, ...] = ("adev", "oadev", "mdev", "totdev"),
+    data_type: str = "freq",
+    fit_estimator: str = "oadev",
 ) -> dict:
-    """Allan-family deviations and fitted noise terms of named channels, as the ``noise.json`` structure.
+    """Stability deviations with intervals and fitted noise terms of named channels (the ``noise.json`` data).
 
     Parameters
     ----------
     channels : dict[str, array_like (N,)]
-        Channel name → record (equal lengths), SI: rad/s for gyros, m/s² for accelerometers (body frame, each
-        axis analysed on its own).
+        Channel name → record (equal lengths), SI: rate (rad/s) or specific force (m/s²) for
+        ``data_type="freq"``, angle (rad) or velocity (m/s) for ``"phase"``; body frame, each axis on its own;
+        NaN samples are gaps.
     rate : float
         Sample rate, Hz.
     units : dict[str, str] or str, optional
-        SI unit label per channel ("rad/s", "m/s^2", anything else is treated as a generic unit u); default
-        "SI".
-    taus : {"octave", "log", "all"} or array_like
-        τ grid (:func:`analysis.noise.allan.tau_grid`).
+        SI unit label of the *rate* quantity per channel ("rad/s", "m/s^2"; anything else is generic);
+        default "SI".
+    taus : {"octave", "decade", "all", "log"} or array_like
+        τ grid (:func:`analysis.noise.stability.m_grid`).
     confidence : float
-        Two-sided probability of the confidence intervals.
+        Two-sided probability of the intervals.
     terms : tuple of str
         Terms included in the fit.
     published_itotvar : bool
-        Also report ``itotdev_published``: the published "improved total variance" (a reproduction of the
-        paper, see :func:`analysis.noise.allan.improved_total_variance`; no better than ADEV).
+        Also report ``itotdev_published`` (frequency input without gaps only): the published "improved total
+        variance" reproduced (:func:`analysis.noise.allan.improved_total_variance`; no better than ADEV).
+    estimators : tuple of str
+        Estimators to compute (:data:`analysis.noise.stability.ESTIMATORS`); the fit estimator is added.
+    data_type : {"freq", "phase"}
+        What the records hold.
+    fit_estimator : str
+        Estimator for the NNLS and slope-line term reading, one of :data:`FIT_ESTIMATORS`.
 
     Returns
     -------
     dict
-        ``{"rate_hz", "n_samples", "confidence", "channels": {NAME: {"unit", "tau", "adev", "oadev", "totdev",
-        "mdev", "terms": {TERM: {"value", "sigma", "unit"}}, "terms_display": {...}, "slope_terms": {...},
-        "ci": {EST: {"lo", "hi", "edf"}}, "fit": {"coefficients", "chi2_red", "tau_used"}}}}``; deviations and
-        terms in SI (the data's unit), JSON-safe (undefined values are ``None``).
+        ``{"rate_hz", "n_samples", "data_type", "confidence", "estimators", "channels": {NAME: {"unit",
+        "gaps": {"samples", "runs"}, "deviations": {EST: {"tau", "m", "value", "n_terms", "edf", "lo",
+        "hi", "alpha"[, "value_unbiased"]}}, "tau", "adev", "oadev", …, "terms", "terms_display",
+        "slope_terms", "fit"}}}``: deviations in the rate unit (TDEV, TTOTDEV, MTIE, TIE rms in the phase
+        unit), terms SI and in display units, each term with its standard uncertainty (1σ); undefined values
+        NaN (written as null).
     """
-    from analysis.noise.allan import allan_variances
+    from analysis.noise.stability import stability
 
+    if fit_estimator not in FIT_ESTIMATORS:
+        raise ValueError(
+            f"the noise-term fit needs an estimator whose expectation is the Allan variance "
+            f"({', '.join(FIT_ESTIMATORS)}), got {fit_estimator!r}"
+        )
     if not channels:
         raise ValueError("no channels to analyse")
     names = list(channels)
@@ -342,60 +360,90 @@ def analyse_noise(
         unit_of = {k: units.get(k, "SI") for k in names}
     data = np.stack(arrays, axis=1)
     del arrays
-    res = allan_variances(data, rate, taus, confidence=confidence)
+    ests = tuple(dict.fromkeys((*estimators, fit_estimator)))
+    res = stability(data, rate, ests, taus, data_type, confidence=confidence)
     itot = None
     if published_itotvar:
+        if data_type != "freq" or np.isnan(data).any():
+            raise ValueError("--published-itotvar needs a gap-free frequency (rate) record")
         from analysis.noise.allan import improved_total_variance
 
-        itot = improved_total_variance(data, rate, res.tau).var["itotvar"]
+        itot = improved_total_variance(data, rate, res.estimates[fit_estimator].tau)
     del data
-    record_time = n / rate
+    record_time = (res.n_points - 1) / rate
+    fe = res.estimates[fit_estimator]
     out_channels: dict[str, dict] = {}
-    est_key = {"avar": "adev", "oavar": "oadev", "totvar": "totdev", "mvar": "mdev"}
     for j, name in enumerate(names):
         unit = unit_of[name]
+        fit_dev = fe.unbiased()[:, j]
         try:
-            fit = fit_noise_terms(res.tau, res.var["oavar"][:, j], record_time, res.edf["oavar"][:, j], terms)
+            fit = fit_noise_terms(fe.tau, fit_dev**2, record_time, fe.edf[:, j] if fe.edf is not None else None, terms)
         except ValueError as exc:
             raise ValueError(f"channel {name!r}: {exc} (is the channel constant?)") from None
-        ch: dict = {"unit": unit, "tau": _jsonable(res.tau)}
-        for est, key in est_key.items():
-            ch[key] = _jsonable(np.sqrt(res.var[est][:, j]))
+        ch: dict = {
+            "unit": unit,
+            "gaps": {"samples": int(res.gap_samples[j]), "runs": int(res.gap_runs[j])},
+            "deviations": {},
+        }
+        for est_name, est in res.estimates.items():
+            d = {
+                "tau": est.tau,
+                "m": est.m,
+                "value": est.dev[:, j],
+                "n_terms": est.n_terms[:, j],
+            }
+            if est.edf is not None:
+                d.update(edf=est.edf[:, j], lo=est.lo[:, j], hi=est.hi[:, j], alpha=est.alpha[:, j])
+            if est.bias is not None:
+                d["value_unbiased"] = est.unbiased()[:, j]
+            ch["deviations"][est_name] = d
+        # the classic flat keys (τ grid of the fit estimator) for existing readers
+        ch["tau"] = fe.tau
+        for est_name in ("adev", "oadev", "mdev", "totdev"):
+            if est_name in res.estimates:
+                e = res.estimates[est_name]
+                flat = np.full(fe.m.size, np.nan)
+                hit = np.isin(fe.m, e.m)
+                flat[hit] = e.dev[np.searchsorted(e.m, fe.m[hit]), j]
+                ch[est_name] = flat
         if itot is not None:
-            ch["itotdev_published"] = _jsonable(np.sqrt(itot[:, j]))
-        ch["terms"] = {t: {"value": v, "sigma": s, "unit": term_unit(t, unit)} for t, (v, s) in fit.terms.items()}
+            ch["itotdev_published"] = np.sqrt(itot.var["itotvar"][:, j])
+        ch["terms"] = {
+            t: {"value": v, "sigma": s, "uncertainty": "standard (1σ)", "unit": term_unit(t, unit)}
+            for t, (v, s) in fit.terms.items()
+        }
         disp = {}
         for t, (v, s) in fit.terms.items():
             dv, du = to_display(t, v, unit)
             ds, _ = to_display(t, s, unit)
-            disp[t] = {"value": dv, "sigma": ds, "unit": du}
+            disp[t] = {"value": dv, "sigma": ds, "uncertainty": "standard (1σ)", "unit": du}
         ch["terms_display"] = disp
-        slope = slope_terms(res.tau, np.sqrt(res.var["oavar"][:, j]), res.lo["oavar"][:, j], res.hi["oavar"][:, j])
+        lo = fe.lo[:, j] if fe.lo is not None else None
+        hi = fe.hi[:, j] if fe.hi is not None else None
+        slope = slope_terms(fe.tau, fit_dev, lo, hi)
         ch["slope_terms"] = {
             t: {
                 "value": d["value"],
-                "sigma": d["sigma"] if math.isfinite(float(d["sigma"])) else None,
+                "sigma": d["sigma"],
                 "unit": term_unit(t, unit),
                 "tau": d["tau"],
                 "observed": d["observed"],
             }
             for t, d in slope.items()
         }
-        ch["ci"] = {
-            key: {
-                "lo": _jsonable(res.lo[est][:, j]),
-                "hi": _jsonable(res.hi[est][:, j]),
-                "edf": _jsonable(res.edf[est][:, j]),
-            }
-            for est, key in est_key.items()
-        }
-        ch["noise_type_alpha"] = [int(a) for a in res.alpha[:, j]]
         ch["fit"] = {
-            "estimator": "oadev",
-            "coefficients": _jsonable(fit.coefficients),
+            "estimator": fit_estimator,
+            "coefficients": fit.coefficients,
             "powers": list(POWERS),
             "chi2_red": fit.chi2_red,
-            "tau_used": _jsonable(fit.tau_used),
+            "tau_used": fit.tau_used,
         }
         out_channels[name] = ch
-    return {"rate_hz": float(rate), "n_samples": int(n), "confidence": confidence, "channels": out_channels}
+    return {
+        "rate_hz": float(rate),
+        "n_samples": int(n),
+        "data_type": data_type,
+        "confidence": confidence,
+        "estimators": list(res.estimates),
+        "channels": out_channels,
+    }

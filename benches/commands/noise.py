@@ -1,27 +1,37 @@
-"""``tablebench noise``: Allan/total variance and noise-term fit of a static record."""
+"""``tablebench noise``: the frequency-stability family, confidence intervals and noise-term fit of a static record."""
 
 from __future__ import annotations
 
 import argparse
-import json
 import math
 
 EXAMPLES = """examples:
   tablebench noise runs/static-noise-001                     # a recording (static-noise procedure)
   tablebench noise runs/static-noise-001 --channels gyro_x,gyro_y,gyro_z --out report/
   tablebench noise data.npy --rate 200 --out report/         # one column per channel, SI units
-  tablebench noise data.csv --rate 100 --taus log            # CSV, optional header row of channel names
+  tablebench noise data.csv --rate 100 --taus decade         # CSV, optional header row of channel names
+  tablebench noise run1 --estimators oadev,mdev,htotdev,theoh,mtie --taus 0.1,1,10,100
+  tablebench noise angle.npy --rate 200 --data-type phase    # integrated angle (rad) instead of rate
 
-output: a table of noise terms per channel (fit by weighted non-negative least squares, each with 1σ), and
-with --out DIR: noise.json (SI; deviations in the data's unit) and noise.png (log-log Allan deviation with
-confidence band, fitted terms). Gyro terms are shown in arcsec, °/√h, °/h, °/h/√h, °/h²; accelerometer
-terms in mm/s, µg/√Hz, µg, µg/√s, µg/s. Estimators and EDF: analysis/noise/allan.py.
+estimators: adev oadev mdev tdev hdev ohdev totdev mtotdev ttotdev htotdev theo1 theoh mtie tierms (equal to
+allantools; noise type by lag-1 ACF / B1, EDF by Greenhall's algorithm and the published total-family/Theo1
+fits, χ² intervals: analysis/noise/stability.py, analysis/noise/confidence.py). NaN samples are gaps: terms
+touching them are skipped (the count per τ is in noise.json).
+
+output: a table of noise terms per channel (weighted non-negative least squares on --fit-estimator, each with
+its standard uncertainty 1σ), and with --out DIR: noise.json (per estimator and τ: value, term count, EDF,
+interval, noise type α; SI, deviations in the data's rate unit) and noise.png (every chosen estimator with its
+intervals, fitted terms). Gyro terms are shown in arcsec, deg/√h, deg/h, deg/h/√h, deg/h²; accelerometer
+terms in mm/s, µg/√Hz, µg, µg/√s, µg/s.
 """
 
 MIN_SAMPLES = 64
 """Shortest record accepted: a few octaves of τ with several blocks each."""
 MAX_ALL_TAUS = 200_000
 """Longest record for ``--taus all`` (every m: O(N²) work)."""
+MAX_ALL_TAUS_TOTAL = 5_000
+"""Longest record for ``--taus all`` with MTOTDEV/HTOTDEV/TTOTDEV/Theo1/TheoH (O(N·m) per τ: O(N³) in all)."""
+DEFAULT_ESTIMATORS = "adev,oadev,mdev,totdev"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -30,10 +40,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     p = sub.add_parser(
         "noise",
-        help="Allan / total variance and noise terms (Q, N, B, K, R) of a static record",
-        description="Compute the non-overlapping, overlapping, total and modified Allan deviations of each "
-        "channel of a static record, with χ² confidence intervals, and fit the IEEE 952 / 1293 noise terms "
-        "(quantisation Q, white noise N, bias instability B, random walk K, ramp R).",
+        help="stability family (ADEV … HTOTDEV, Theo1, MTIE) and noise terms (Q, N, B, K, R) of a static record",
+        description="Compute the chosen frequency-stability deviations of each channel of a static record "
+        "(frequency or phase data, NaN gaps skipped), with noise type, EDF and χ² confidence interval per τ, and "
+        "fit the IEEE 952 / 1293 noise terms (quantisation Q, white noise N, bias instability B, random walk K, "
+        "ramp R).",
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -41,8 +52,27 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--taus",
         default="octave",
-        choices=("octave", "log", "all"),
-        help="τ grid: octave (m = 1, 2, 4, …; default), log (10 per decade) or all (small records only)",
+        metavar="GRID|LIST",
+        help="τ grid: octave (m = 1, 2, 4, …; default), decade (1, 2, 4, 10, 20, 40, …), log (10 per decade), "
+        "all (small records only) or a comma-separated list of τ in seconds",
+    )
+    p.add_argument(
+        "--estimators",
+        default=DEFAULT_ESTIMATORS,
+        metavar="LIST",
+        help=f"comma-separated estimators (default {DEFAULT_ESTIMATORS}; see below)",
+    )
+    p.add_argument(
+        "--data-type",
+        default="freq",
+        choices=("freq", "phase"),
+        help="freq: rate / specific force (default); phase: integrated angle / velocity",
+    )
+    p.add_argument(
+        "--fit-estimator",
+        default="oadev",
+        choices=("oadev", "adev", "totdev", "theoh"),
+        help="deviation used for the noise-term fit and slope reading (default oadev)",
     )
     p.add_argument(
         "--confidence",
@@ -84,19 +114,60 @@ def to_display_value(term: str, value_si: float, unit: str) -> float:
     return to_display(term, value_si, unit)[0]
 
 
+def _parse_taus(text: str) -> str | list[float]:
+    """``--taus``: a grid name or a comma-separated list of τ in seconds."""
+    from core.errors import UsageError
+
+    t = text.strip().lower()
+    if t in ("octave", "decade", "log", "all"):
+        return t
+    try:
+        vals = [float(v) for v in t.split(",") if v.strip()]
+    except ValueError:
+        raise UsageError(
+            f"--taus {text!r}: use octave, decade, log, all or a comma-separated list of τ in seconds (e.g. 0.1,1,10)"
+        ) from None
+    if not vals or not all(math.isfinite(v) and v > 0 for v in vals):
+        raise UsageError(f"--taus {text!r}: τ values must be positive seconds")
+    return vals
+
+
+def _parse_estimators(text: str) -> tuple[str, ...]:
+    from analysis.noise.stability import ESTIMATORS
+    from core.errors import UsageError
+
+    names = [e.strip().lower() for e in text.split(",") if e.strip()]
+    if not names:
+        raise UsageError(f"--estimators is empty; choose from {','.join(ESTIMATORS)}")
+    bad = [e for e in names if e not in ESTIMATORS]
+    if bad:
+        raise UsageError(f"--estimators: unknown {', '.join(bad)}; choose from {','.join(ESTIMATORS)}")
+    return tuple(dict.fromkeys(names))
+
+
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench noise``."""
     from analysis.noise.terms import analyse_noise
     from benches.analysis_input import InputError, load_input, output_dir
     from core.errors import UsageError
+    from core.jsonio import write_json
 
     if not 0.0 < args.confidence < 1.0:
         raise UsageError(f"--confidence must be between 0 and 1 (e.g. 0.683 or 0.95), got {args.confidence}")
-    data = load_input(args.input, rate=args.rate, channels=args.channels, step=args.step, min_samples=MIN_SAMPLES)
+    if args.channels is not None and not args.channels.strip(" ,"):
+        raise UsageError("--channels is empty; name the channels (e.g. gyro_x,gyro_y) or omit it for all")
+    taus = _parse_taus(args.taus)
+    estimators = _parse_estimators(args.estimators)
+    data = load_input(
+        args.input, rate=args.rate, channels=args.channels, step=args.step, min_samples=MIN_SAMPLES, allow_gaps=True
+    )
     n = len(next(iter(data.channels.values())))
-    if args.taus == "all" and n > MAX_ALL_TAUS:
+    slow = {"mtotdev", "ttotdev", "htotdev", "theo1", "theoh"} & set(estimators)
+    limit = MAX_ALL_TAUS_TOTAL if slow else MAX_ALL_TAUS
+    if taus == "all" and n > limit:
         raise UsageError(
-            f"--taus all costs O(N²): {n} samples is too many (limit {MAX_ALL_TAUS}); use --taus log or octave"
+            f"--taus all costs O(N²){' · m for ' + ','.join(sorted(slow)) if slow else ''}: {n} samples is too many "
+            f"(limit {limit}); use --taus octave, decade or log"
         )
     out = output_dir(args.out, "noise")
     try:
@@ -104,19 +175,30 @@ def run(args: argparse.Namespace) -> int:
             data.channels,
             data.rate,
             data.units,
-            taus=args.taus,
+            taus=taus,
             confidence=args.confidence,
             published_itotvar=args.published_itotvar,
+            estimators=estimators,
+            data_type=args.data_type,
+            fit_estimator=args.fit_estimator,
         )
     except ValueError as exc:
         raise InputError(f"{data.source}: {exc}") from None
     result["source"] = data.source
     print(f"{data.source}: {len(data.channels)} channel(s), {n} samples at {data.rate:g} Hz ({n / data.rate:.1f} s)")
+    for name, ch in result["channels"].items():
+        g = ch["gaps"]
+        if g["samples"]:
+            print(f"{name}: {g['runs']} gap(s), {g['samples']} NaN sample(s); terms touching them skipped")
+    total_gaps = sum(ch["gaps"]["runs"] for ch in result["channels"].values())
+    if not total_gaps:
+        print("gaps: none")
     print(format_table(result))
     if out is not None:
         from analysis.noise.plot import plot_noise
 
-        (out / "noise.json").write_text(json.dumps(result, indent=1, allow_nan=False), encoding="utf-8")
-        plot_noise(result, out / "noise.png", title=f"Noise analysis: {data.source}")
+        write_json(out / "noise.json", result, nonfinite="null")
+        fig = plot_noise(result, title=f"Noise analysis: {data.source}")
+        fig.savefig(out / "noise.png", dpi=110)
         print(f"wrote {out / 'noise.json'} and {out / 'noise.png'}")
     return 0

@@ -62,7 +62,11 @@ def test_recording_input_uses_si_channels_and_display_units(tmp_path: Path, caps
 @pytest.mark.parametrize(
     ("content", "args", "message"),
     [
-        ("nan", ["--rate", "10"], "non-finite"),
+        ("inf", ["--rate", "10"], "non-finite"),
+        ("ok", ["--rate", "10", "--channels", ""], "--channels is empty"),
+        ("ok", ["--rate", "10", "--estimators", "adev,avar"], "unknown avar"),
+        ("ok", ["--rate", "10", "--taus", "weekly"], "--taus"),
+        ("ok", ["--rate", "10", "--taus", "1,-2"], "positive"),
         ("text", ["--rate", "10"], "non-numeric"),
         ("ok", [], "--rate HZ is required"),
         ("ok", ["--rate", "-5"], "positive"),
@@ -76,8 +80,8 @@ def test_bad_input_is_one_clear_line_exit_2(
 ) -> None:
     f = tmp_path / "d.csv"
     rows = np.random.default_rng(3).normal(size=(500, 2))
-    if content == "nan":
-        rows[17, 1] = np.nan
+    if content == "inf":
+        rows[17, 1] = np.inf
     if content == "short":
         rows = rows[:20]
     if content == "constant":
@@ -99,8 +103,56 @@ def test_all_taus_refused_on_long_records(tmp_path: Path, capsys: pytest.Capture
     assert "O(N²)" in capsys.readouterr().err
 
 
-def test_plot_noise_is_usable_from_the_result_dict(tmp_path: Path) -> None:
+def test_plot_noise_returns_a_figure_of_every_estimator(tmp_path: Path) -> None:
     rng = np.random.default_rng(4)
-    res = analyse_noise({"gyro_x": rng.normal(0, 1e-4, 8192)}, 100.0, {"gyro_x": "rad/s"})
-    p = plot_noise(res, tmp_path / "n.png", title="t")
-    assert p.exists() and p.stat().st_size > 5_000
+    res = analyse_noise(
+        {"gyro_x": rng.normal(0, 1e-4, 8192)}, 100.0, {"gyro_x": "rad/s"}, estimators=("oadev", "hdev", "tdev", "mtie")
+    )
+    fig = plot_noise(res, title="t")
+    labels = {t.get_text() for ax in fig.axes for t in ax.get_legend().get_texts()}
+    assert {"OADEV", "HDEV", "TDEV", "MTIE"} <= labels
+    assert "deviation (deg/h)" in fig.axes[0].get_ylabel()
+    fig.savefig(tmp_path / "n.png")
+    assert (tmp_path / "n.png").stat().st_size > 5_000
+
+
+def test_estimators_taus_and_per_tau_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """--estimators/--taus LIST/--data-type phase; noise.json has value, terms, EDF, interval, α per τ."""
+    rng = np.random.default_rng(5)
+    rate = 50.0
+    rate_rec = rng.normal(0.0, 1e-3, 6000)
+    np.save(tmp_path / "angle.npy", np.cumsum(rate_rec) / rate)
+    rc = main(
+        [
+            "noise", str(tmp_path / "angle.npy"), "--rate", "50", "--data-type", "phase",
+            "--estimators", "oadev,htotdev,theo1,mtie", "--taus", "0.02,0.1,1,4", "--out", str(tmp_path / "o"),
+        ]
+    )
+    assert rc == 0
+    data = json.loads((tmp_path / "o" / "noise.json").read_text())
+    assert data["data_type"] == "phase"
+    dev = data["channels"]["ch0"]["deviations"]
+    assert set(dev) == {"oadev", "htotdev", "theo1", "mtie"}
+    o = dev["oadev"]
+    assert o["tau"] == [0.02, 0.1, 1.0, 4.0]
+    for key in ("value", "n_terms", "edf", "lo", "hi", "alpha"):
+        assert len(o[key]) == 4
+    assert o["n_terms"][0] == 6000 - 2
+    assert all(lo < v < hi for lo, v, hi in zip(o["lo"], o["value"], o["hi"], strict=True))
+    assert o["value"][0] == pytest.approx(1e-3, rel=0.05)  # phase input: the rate's white noise at τ₀
+    assert "lo" not in dev["mtie"]
+    assert "gaps: none" in capsys.readouterr().out
+
+
+def test_gaps_are_reported_and_skipped(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rng = np.random.default_rng(6)
+    y = rng.normal(0.0, 1e-3, 5000)
+    y[[100, 101, 2500]] = np.nan
+    np.save(tmp_path / "g.npy", y)
+    assert main(["noise", str(tmp_path / "g.npy"), "--rate", "10", "--out", str(tmp_path / "o")]) == 0
+    assert "ch0: 2 gap(s), 3 NaN sample(s)" in capsys.readouterr().out
+    data = json.loads((tmp_path / "o" / "noise.json").read_text())
+    ch = data["channels"]["ch0"]
+    assert ch["gaps"] == {"samples": 3, "runs": 2}
+    assert ch["deviations"]["oadev"]["n_terms"][0] == 5001 - 2 - 5  # the five second differences over a gap
+    assert ch["terms"]["N"]["value"] == pytest.approx(1e-3 / math.sqrt(10), rel=0.05)

@@ -1,0 +1,338 @@
+"""Noise identification, equivalent degrees of freedom and χ² confidence intervals of stability estimates.
+
+What Stable32 does (W. Riley, *Handbook of Frequency Stability Analysis*, NIST SP 1065; C. Greenhall and
+W. Riley, "Uncertainty of stability variances based on finite differences", PTTI 2003; W. Riley and
+C. Greenhall, "Power law noise identification using the lag 1 autocorrelation", EFTF 2004), per estimator and τ:
+
+1. Noise type α (S_y ∝ f^α: 2 white PM, 1 flicker PM, 0 white FM, −1 flicker FM, −2 random-walk FM) by the
+   lag-1 autocorrelation of the phase decimated by m (quadratic removed), differenced d times until
+   ρ = r₁/(1 + r₁) < 0.25 or d = d_max (2 for the Allan family, 3 for the Hadamard family);
+   α = 2 − round(2ρ) − 2d. With fewer than 30 decimated points: the B1 ratio (standard variance of the
+   m-averaged frequency over the Allan variance) against Barnes' theoretical B1(N, μ), the phase-noise
+   case split by R(n) = MVAR/AVAR; with too few points even for that, the α of the previous τ.
+2. EDF: Greenhall's combined algorithm (modelling the phase as the first difference of a continuous-time
+   power-law process) for ADEV, OADEV, MDEV, TDEV, HDEV, OHDEV; the published fits for the total family —
+   TOTVAR b·N/m − c (SP 1065 Table 7; Table 5's AVAR formulas for phase noise), MTOT/TTOT b·N/m − c
+   (Table 8), HTOT (N/m)/(b₀ + b₁ m/N) (Howe et al. 2000, HDEV's EDF below m = 16), and Theo1 (Howe &
+   Peppler 2003, at the effective factor 0.75 m).
+3. χ² interval of the deviation: σ √(EDF/χ²_{1−p/2}) … σ √(EDF/χ²_{p/2}).
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import special, stats
+
+ONE_SIGMA = math.erf(1.0 / math.sqrt(2.0))
+"""Two-sided probability of ±1σ, 0.6827 (Stable32's "0.683")."""
+
+_D_ORDER = {"adev": 2, "oadev": 2, "mdev": 2, "tdev": 2, "hdev": 3, "ohdev": 3, "totdev": 2, "mtotdev": 2,
+            "ttotdev": 2, "htotdev": 3, "theo1": 2, "theoh": 2}
+"""Differencing order d of each estimator (noise identification's d_max)."""
+
+# ------------------------------------------------------------------------------------ noise identification
+
+
+def _lag1(z: NDArray[np.float64]) -> float:
+    """Lag-1 autocorrelation as Stable32 computes it: Σ z̃_i z̃_{i+1} / Σ z̃_i² · (n − 1)/n, z̃ = z − mean."""
+    z = z - z.mean()
+    den = float(z @ z)
+    return float(z[:-1] @ z[1:]) / den * (z.size - 1) / z.size if den > 0 else 0.0
+
+
+def lag1_alpha(x_phase: NDArray[np.float64], m: int, dmax: int = 2) -> int | None:
+    """α by the lag-1 autocorrelation method on the phase decimated by m (Riley & Greenhall 2004, as in
+    Stable32: no trend removal — remove drift before the analysis); None below 30 decimated points."""
+    z = np.asarray(x_phase[::m], dtype=np.float64)
+    if z.size < 30:
+        return None
+    d = 0
+    while True:
+        r1 = _lag1(z)
+        rho = r1 / (1.0 + r1)
+        if rho < 0.25 or d >= dmax:
+            return int(-round(2.0 * rho) - 2 * d + 2)
+        z = np.diff(z)
+        d += 1
+
+
+def _b1_theory(n: float, mu: int) -> float:
+    """Barnes' expected B1(N, r = 1) for phase-noise exponent μ."""
+    if mu == 2:
+        return n * (n + 1.0) / 6.0
+    if mu == 1:
+        return n / 2.0
+    if mu == 0:
+        return n * math.log(n) / (2.0 * (n - 1.0) * math.log(2.0))
+    if mu == -1:
+        return 1.0
+    return (n * n - 1.0) / (1.5 * n * (n - 1.0))
+
+
+_MU_TO_ALPHA = {2: -3, 1: -2, 0: -1, -1: 0, -2: 1}
+
+
+def b1_alpha(x_phase: NDArray[np.float64], m: int, ts: float, n_terms: int, use_rn: bool) -> int | None:
+    """α from the B1 ratio (standard variance of the m-averaged frequency over the non-overlapping AVAR),
+    classified against B1(N = the estimator's term count, μ) as Stable32 does; phase noise (μ = −2) is split
+    into white/flicker PM by R(n) = MVAR/AVAR for the modified and total estimators, flicker PM otherwise.
+    None when fewer than two averages or two terms exist."""
+    y = np.diff(x_phase) / ts
+    k = y.size // m
+    if k < 2 or n_terms < 2:
+        return None
+    ya = y[: k * m].reshape(k, m).mean(axis=1)
+    svar = float(np.var(ya, ddof=1))
+    d = x_phase[2 * m :: m] - 2.0 * x_phase[m:-m:m] + x_phase[: -2 * m : m]
+    nd = min(d.size, (x_phase.size - 1) // m - 1)
+    d = d[:nd] if nd > 0 else d
+    if d.size == 0:
+        return None
+    avar = float(np.mean(d * d)) / (2.0 * (m * ts) ** 2)
+    if avar <= 0:
+        return None
+    b1 = svar / avar
+    n = float(n_terms)
+    mu = -2
+    for hi_mu in (2, 1, 0, -1):
+        th_hi, th_lo = _b1_theory(n, hi_mu), _b1_theory(n, hi_mu - 1)
+        bound = 0.5 * (th_hi + th_lo) if hi_mu == 2 else math.sqrt(th_hi * th_lo)
+        if b1 > bound:
+            mu = hi_mu
+            break
+    if mu != -2 or not use_rn:
+        return _MU_TO_ALPHA[mu]
+    dd = x_phase[2 * m :] - 2.0 * x_phase[m:-m] + x_phase[: -2 * m]
+    cs = np.concatenate([[0.0], np.cumsum(dd)])
+    s = cs[m:] - cs[:-m]
+    mvar = float(np.mean(s * s)) / (2.0 * m * m * (m * ts) ** 2)
+    rn = mvar / avar
+    r_fpm = 3.37 / (1.04 + 3.0 * math.log(math.pi * m))
+    return 1 if rn > math.sqrt(r_fpm / m) else 2
+
+
+# --------------------------------------------------------------------------------------- Greenhall EDF
+
+
+def _sw(t: float, alpha: int) -> float:
+    t = abs(t)
+    if alpha == 2:
+        return -t
+    if alpha == 1:
+        return t * t * math.log(t) if t else 0.0
+    if alpha == 0:
+        return t**3
+    if alpha == -1:
+        return -(t**4) * math.log(t) if t else 0.0
+    if alpha == -2:
+        return -(t**5)
+    if alpha == -3:
+        return t**6 * math.log(t) if t else 0.0
+    if alpha == -4:
+        return t**7
+    raise ValueError(f"noise type α = {alpha} outside −4 … 2")
+
+
+def _sx(t: float, f: float, alpha: int) -> float:
+    if math.isinf(f):
+        return _sw(t, alpha + 2)
+    return f * f * (2.0 * _sw(t, alpha) - _sw(t - 1.0 / f, alpha) - _sw(t + 1.0 / f, alpha))
+
+
+_BINOM = {1: (2, -1), 2: (6, -4, 1), 3: (20, -15, 6, -1)}
+
+
+def _sz(t: float, f: float, alpha: int, d: int) -> float:
+    c = _BINOM[d]
+    s = c[0] * _sx(t, f, alpha)
+    for k in range(1, d + 1):
+        s += c[k] * (_sx(t - k, f, alpha) + _sx(t + k, f, alpha))
+    return s
+
+
+def _basic_sum(j_: float, m_: float, s_: float, f: float, alpha: int, d: int) -> float:
+    tot = _sz(0.0, f, alpha, d) ** 2 + (1.0 - j_ / m_) * _sz(j_ / s_, f, alpha, d) ** 2
+    for j in range(1, int(j_)):
+        tot += 2.0 * (1.0 - j / m_) * _sz(j / s_, f, alpha, d) ** 2
+    return tot
+
+
+_T1 = {2: {1: (2 / 3, 1 / 3), 2: (7 / 9, 1 / 2), 3: (22 / 25, 2 / 3)},
+       1: {1: (0.840, 0.345), 2: (0.997, 0.616), 3: (1.141, 0.843)},
+       0: {1: (1.079, 0.368), 2: (1.033, 0.607), 3: (1.184, 0.848)},
+       -1: {2: (1.048, 0.534), 3: (1.180, 0.816)},
+       -2: {2: (1.302, 0.535), 3: (1.175, 0.777)},
+       -3: {3: (1.194, 0.703)},
+       -4: {3: (1.489, 0.702)}}
+_T2 = {2: {1: (3 / 2, 1 / 2), 2: (35 / 18, 1.0), 3: (231 / 100, 3 / 2)},
+       1: {1: (78.6, 25.2), 2: (790.0, 410.0), 3: (9950.0, 6520.0)},
+       0: {1: (2 / 3, 1 / 6), 2: (2 / 3, 1 / 3), 3: (7 / 9, 1 / 2)},
+       -1: {2: (0.852, 0.375), 3: (0.997, 0.617)},
+       -2: {2: (1.079, 0.368), 3: (1.033, 0.607)},
+       -3: {3: (1.053, 0.553)},
+       -4: {3: (1.302, 0.535)}}
+_T3 = {1: (6.0, 4.0), 2: (15.23, 12.0), 3: (47.8, 40.0)}
+_JMAX = 100
+
+
+@lru_cache(maxsize=4096)
+def edf_greenhall(alpha: int, d: int, m: int, n: int, overlapping: bool, modified: bool) -> float:
+    """Greenhall & Riley (2003) combined EDF of a d-th difference variance at averaging factor m on n phase points.
+
+    d = 2: (O)AVAR / MVAR (TVAR); d = 3: (O)HVAR. ``overlapping``: stride 1 instead of m; ``modified``: the
+    modified (m-averaged) form. Requires α + 2d > 1.
+    """
+    if alpha + 2 * d <= 1:
+        raise ValueError(f"a d = {d} variance cannot resolve noise type α = {alpha}")
+    f = 1 if modified else m
+    s = m if overlapping else 1
+    length = m // f + m * d
+    if n < length:
+        return float("nan")
+    mm = 1 + math.floor(s * (n - length) / m)
+    jj = min(mm, (d + 1) * s)
+    r = mm / s
+    if f == 1:  # modified variances (and unmodified at m = 1)
+        if jj <= _JMAX:
+            inv = _basic_sum(jj, mm, s, 1, alpha, d) / (mm * _sz(0.0, 1, alpha, d) ** 2)
+        elif r > d + 1:
+            a0, a1 = _T1[alpha][d]
+            inv = (a0 - a1 / r) / r
+        else:
+            mp = _JMAX / r
+            inv = _basic_sum(_JMAX, _JMAX, mp, 1, alpha, d) / (_JMAX * _sz(0.0, 1, alpha, d) ** 2)
+    elif alpha <= 0:
+        if jj <= _JMAX:
+            fp = m if m * (d + 1) <= _JMAX else math.inf
+            inv = _basic_sum(jj, mm, s, fp, alpha, d) / (mm * _sz(0.0, fp, alpha, d) ** 2)
+        elif r > d + 1:
+            a0, a1 = _T2[alpha][d]
+            inv = (a0 - a1 / r) / r
+        else:
+            mp = _JMAX / r
+            inv = _basic_sum(_JMAX, _JMAX, mp, math.inf, alpha, d) / (_JMAX * _sz(0.0, math.inf, alpha, d) ** 2)
+    elif alpha == 1:
+        if jj <= _JMAX:
+            inv = _basic_sum(jj, mm, s, m, 1, d) / (mm * _sz(0.0, m, 1, d) ** 2)
+        elif r > d + 1:
+            a0, a1 = _T2[1][d]
+            b0, b1 = _T3[d]
+            inv = (a0 - a1 / r) / (r * (b0 + b1 * math.log(m)) ** 2)
+        else:
+            mp = _JMAX / r
+            b0, b1 = _T3[d]
+            inv = _basic_sum(_JMAX, _JMAX, mp, mp, 1, d) / (_JMAX * (b0 + b1 * math.log(m)) ** 2)
+    else:  # white PM, unmodified
+        k = math.ceil(r)
+        if k <= d:
+            acc = sum((1.0 - kk / r) * special.binom(2 * d, d - kk) ** 2 for kk in range(1, k))
+            inv = (1.0 + 2.0 * acc / special.binom(2 * d, d) ** 2) / mm
+        else:
+            a0, a1 = _T2[2][d]
+            inv = (a0 - a1 / r) / mm
+    return 1.0 / inv
+
+
+# ------------------------------------------------------------------------------- published EDF fits
+
+
+def edf_avar_simple(n: int, m: int, alpha: int) -> float:
+    """SP 1065 Table 5 approximations for the overlapping AVAR (n phase points)."""
+    nn, mm = float(n), float(m)
+    if alpha >= 2:
+        return (nn + 1) * (nn - 2 * mm) / (2 * (nn - mm))
+    if alpha == 1:
+        return math.exp(math.sqrt(math.log((nn - 1) / (2 * mm)) * math.log((2 * mm + 1) * (nn - 1) / 4)))
+    if alpha == 0:
+        return (3 * (nn - 1) / (2 * mm) - 2 * (nn - 2) / nn) * 4 * mm * mm / (4 * mm * mm + 5)
+    if alpha == -1:
+        return 2 * (nn - 2) / (2.3 * nn - 4.9) if m == 1 else 5 * nn * nn / (4 * mm * (nn + 3 * mm))
+    return (nn - 2) / (mm * (nn - 3) ** 2) * ((nn - 1) ** 2 - 3 * mm * (nn - 1) + 4 * mm * mm)
+
+
+_TOT = {0: (1.50, 0.0), -1: (1.17, 0.22), -2: (0.93, 0.36)}
+_MTOT = {2: (1.90, 2.10), 1: (1.20, 1.40), 0: (1.10, 1.20), -1: (0.85, 0.50), -2: (0.75, 0.31)}
+_HTOT = {0: (0.559, 1.004), -1: (0.868, 1.140), -2: (0.938, 1.696), -3: (2.554, 0.974), -4: (3.149, 1.276)}
+"""HTOTVAR EDF = (N/m)/(b₀ + b₁ m/N) for white, flicker, random-walk, flicker-walk, random-run FM (Howe et al.
+2000, Table 1). Stable32's Sr87 intervals confirm this row order (allantoolkit's table labels the same rows
+α = 2 … −2)."""
+
+
+def edf_theo1(n: int, m: int, alpha: int) -> float:
+    """Theo1 EDF (Howe & Peppler 2003) on n phase points at averaging factor m (effective t = 0.75 m)."""
+    nn = float(n)
+    t = 0.75 * m
+    if alpha >= 2:
+        return 0.86 * (nn + 1) * (nn - 4 * t / 3) / (nn - t) * t / (t + 1.14)
+    if alpha == 1:
+        return (4.798 * nn**2 - 6.374 * nn * t + 12.387 * t) / (math.sqrt(t + 36.6) * (nn - t)) * t / (t + 0.3)
+    if alpha == 0:
+        return ((4.1 * nn + 0.8) / t - (3.1 * nn + 6.5) / nn) * t**1.5 / (t**1.5 + 5.2)
+    if alpha == -1:
+        return (2 * nn**2 - 1.3 * nn * t - 3.5 * t) / (nn * t) * t**3 / (t**3 + 2.3)
+    a = 4.4 * nn
+    return (a - 2) / (2.9 * t) * ((a - 1) ** 2 - 8.6 * t * (a - 1) + 11.4 * t * t) / (a - 3) ** 2
+
+
+def edf(estimator: str, alpha: int, m: int, n: int) -> float:
+    """EDF of ``estimator`` at averaging factor m on n phase points for noise type α (NaN: none defined)."""
+    a = int(alpha)
+    if estimator == "adev":
+        return edf_greenhall(max(a, -2), 2, m, n, False, False)
+    if estimator == "oadev":
+        return edf_greenhall(max(a, -2), 2, m, n, True, False)
+    if estimator in ("mdev", "tdev"):
+        return edf_greenhall(max(a, -2), 2, m, n, True, True)
+    if estimator == "hdev":
+        return edf_greenhall(max(a, -4), 3, m, n, False, False)
+    if estimator == "ohdev":
+        return edf_greenhall(max(a, -4), 3, m, n, True, False)
+    if estimator == "totdev":
+        if a in _TOT:
+            b, c = _TOT[a]
+            return b * n / m - c
+        return edf_avar_simple(n, m, a)
+    if estimator in ("mtotdev", "ttotdev"):
+        b, c = _MTOT[max(-2, min(2, a))]
+        return b * n / m - c
+    if estimator == "htotdev":
+        if m < 16 or a > 0:  # short τ, and phase noise (no published HTOT fit): the OHDEV EDF
+            return edf_greenhall(max(a, -4), 3, m, n, True, False)
+        b0, b1 = _HTOT[max(-4, a)]
+        return (n / m) / (b0 + b1 * m / n)
+    if estimator == "theo1":
+        return edf_theo1(n, m, max(-2, min(2, a)))
+    return float("nan")
+
+
+_TOT_BIAS = {0: 0.0, -1: 1.0 / (3.0 * math.log(2.0)), -2: 0.75}
+_HTOT_BIAS = {0: -0.005, -1: -0.149, -2: -0.229}
+
+
+def bias_factor(estimator: str, alpha: NDArray, m: NDArray, tau: NDArray, record_time: float) -> NDArray:
+    """Variance bias B (E[estimate] = B·σ²) of TOTVAR (1 − a·τ/T: a = 0, 1/(3 ln 2), 3/4 for white, flicker,
+    random-walk FM; Howe 1999) and HTOTVAR (1 + a: a = −0.005, −0.149, −0.229, m ≥ 2; Howe et al. 2000);
+    1 for phase noise. Shape of ``alpha`` (M, C)."""
+    a = np.asarray(alpha)
+    out = np.ones(a.shape)
+    for al, coef in (_TOT_BIAS if estimator == "totdev" else _HTOT_BIAS).items():
+        if estimator == "totdev":
+            val = 1.0 - coef * (np.asarray(tau, dtype=np.float64)[:, None] / record_time)
+        else:
+            val = np.where(np.asarray(m)[:, None] >= 2, 1.0 + coef, 1.0)
+        out = np.where(a == al, val, out)
+    return out
+
+
+def chi2_interval(dev: NDArray, edf_: NDArray, confidence: float) -> tuple[NDArray, NDArray]:
+    """Two-sided χ² interval (lo, hi) of a deviation with ``edf_`` degrees of freedom (NaN where EDF ≤ 0)."""
+    e = np.where(np.isfinite(edf_) & (edf_ > 0), edf_, np.nan)
+    p = 0.5 * (1.0 - confidence)
+    with np.errstate(invalid="ignore"):
+        lo = dev * np.sqrt(e / stats.chi2.ppf(1.0 - p, e))
+        hi = dev * np.sqrt(e / stats.chi2.ppf(p, e))
+    return lo, hi

@@ -1,0 +1,92 @@
+"""Stable32's printed results on the Sr87 phase record (tests/data/noise/sr87/README.md): values, term counts,
+noise types and confidence bounds of the stability family (analysis/noise/stability.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from analysis.noise import confidence as ci
+from analysis.noise.stability import stability
+from tests import REPO_ROOT
+
+DATA = REPO_ROOT / "tests" / "data" / "noise" / "sr87"
+TAU0 = 2.5
+WITH_CI = ("adev", "oadev", "mdev", "tdev", "hdev", "ohdev", "totdev", "mtotdev", "ttotdev", "htotdev")
+NO_CI = ("mtie", "tierms")
+
+
+def _table(name: str) -> np.ndarray:
+    rows = []
+    for line in (DATA / f"{name}.txt").read_text(encoding="utf-8").splitlines():
+        f = line.split()
+        if f and f[0].isdigit():
+            rows.append([float(v) for v in f])
+    return np.array(rows)
+
+
+@pytest.fixture(scope="module")
+def result():
+    x = np.loadtxt(DATA / "phase_data.txt", comments="#")
+    assert x.size == 1253
+    return stability(x, 1.0 / TAU0, (*WITH_CI, *NO_CI, "theo1"), "decade", "phase")
+
+
+@pytest.mark.parametrize("name", WITH_CI + NO_CI)
+def test_values_and_term_counts_to_print_precision(result, name: str) -> None:
+    """Deviations to Stable32's 5 printed digits (TOTDEV/HTOTDEV with Stable32's bias correction for the
+    identified noise), term counts exactly (MTIE: Stable32 prints the record length instead)."""
+    ref = _table(name)
+    est = result.estimates[name]
+    m = ref[:, 0].astype(int)
+    j = np.searchsorted(est.m, m)
+    assert np.array_equal(est.m[j], m)
+    value_col = 3 if name in NO_CI else 5
+    ours = est.unbiased()[j, 0] if name in ("totdev", "htotdev") else est.dev[j, 0]
+    same_alpha = np.ones(m.size, dtype=bool) if name in NO_CI else est.alpha[j, 0] == ref[:, 3]
+    np.testing.assert_allclose(ours[same_alpha], ref[same_alpha, value_col], rtol=1e-4)
+    if name != "mtie":
+        np.testing.assert_array_equal(est.n_terms[j, 0], ref[:, 2].astype(int))
+
+
+@pytest.mark.parametrize("name", WITH_CI)
+def test_noise_type_where_the_lag1_method_applies(result, name: str) -> None:
+    """α equals Stable32's at every τ with ≥ 30 decimated points (lag-1 ACF); the B1/R(n) fallback beyond."""
+    ref = _table(name)
+    est = result.estimates[name]
+    m = ref[:, 0].astype(int)
+    j = np.searchsorted(est.m, m)
+    lag1 = np.ceil(1253 / m) >= 30
+    np.testing.assert_array_equal(est.alpha[j, 0][lag1], ref[lag1, 3].astype(int))
+    agree = np.mean(est.alpha[j, 0] == ref[:, 3])
+    assert agree >= 0.75, f"{name}: α agrees with Stable32 at only {agree:.0%} of τ"
+
+
+@pytest.mark.parametrize("name", ("adev", "oadev", "mdev", "tdev", "hdev", "ohdev", "totdev", "htotdev"))
+def test_interval_bounds_within_2_percent(result, name: str) -> None:
+    """Greenhall EDF (Allan/Hadamard family), the TOTVAR and HTOTVAR fits: bounds within 2 % wherever α agrees
+    (HTOTDEV: FM noise at m ≥ 16, where the published fit applies)."""
+    ref = _table(name)
+    est = result.estimates[name]
+    m = ref[:, 0].astype(int)
+    j = np.searchsorted(est.m, m)
+    same = est.alpha[j, 0] == ref[:, 3]
+    if name == "htotdev":
+        same &= (m >= 16) & (ref[:, 3] <= 0)
+    assert same.sum() >= (3 if name == "htotdev" else 0.75 * m.size)
+    np.testing.assert_allclose(est.lo[j, 0][same], ref[same, 4], rtol=0.02)
+    np.testing.assert_allclose(est.hi[j, 0][same], ref[same, 6], rtol=0.02)
+
+
+def test_theo1_edf_reproduces_stable32_interval_widths(result) -> None:
+    """Theo1 (Stable32 run with fixed α = −1): the Howe–Peppler EDF gives Stable32's relative bounds within 2 %.
+
+    Stable32's printed Thêo1 values are this estimator (= allantools.theo1) times a constant √1.349 on this
+    record — a normalisation we could not trace in its documentation, so values are compared with allantools
+    (test_stability.py) and only the interval widths here."""
+    ref = _table("theo1")
+    for af, _tau, _n, alpha, lo, val, hi in ref:
+        e = ci.edf("theo1", int(alpha), int(af), 1253)
+        lo_r, hi_r = ci.chi2_interval(np.array(1.0), np.array(e), 0.683)
+        assert float(lo_r) == pytest.approx(lo / val, rel=0.02)
+        assert float(hi_r) == pytest.approx(hi / val, rel=0.02)
