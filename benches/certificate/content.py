@@ -7,14 +7,12 @@ value with its expanded uncertainty. Built by :mod:`benches.certificate.build`.
 from __future__ import annotations
 
 import hashlib
-import json
 import math
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-import numpy as np
-
 from core.errors import UserError
+from core.jsonio import dumps
 
 FORMAT = "tablebench-certificate"
 FORMAT_VERSION = 1
@@ -185,21 +183,8 @@ class Certificate:
         return d
 
     def to_json(self) -> str:
-        """Deterministic JSON text of :meth:`to_dict`."""
-        return json.dumps(_json_safe(self.to_dict()), indent=2, ensure_ascii=False, allow_nan=False) + "\n"
-
-
-def _json_safe(obj: Any) -> Any:
-    """Copy of ``obj`` with numpy scalars as Python numbers and non-finite floats as None (strict JSON)."""
-    if isinstance(obj, dict):
-        return {str(k): _json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_json_safe(v) for v in obj]
-    if isinstance(obj, np.generic):
-        obj = obj.item()
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
+        """Deterministic JSON text of :meth:`to_dict` (non-finite numbers as null: "not available")."""
+        return dumps(self.to_dict(), nonfinite="null", indent=2)
 
 
 # ---- helpers -------------------------------------------------------------------------------------------------
