@@ -1476,3 +1476,24 @@ __all__ = [
     "recording_file",
     "salvage",
 ]
+
+
+def write_decoded_samples(
+    path: str | Path, names: Sequence[str], table: NDArray[np.float64], attrs: dict[str, Any]
+) -> Path:
+    """Write decoded unit samples (``tablebench decode --out OUT.h5``): one dataset per column under
+    ``/samples`` (float64, Fletcher-32, shuffle + gzip) and the decode summary as root attributes. This is not
+    a recording (no steps, no table stream); the recording reader refuses it with a clear message."""
+    p = Path(path)
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        with h5py.File(p, "w") as f:
+            f.attrs["format"] = "tablebench-decoded-samples"
+            for k, v in attrs.items():
+                f.attrs[k] = _plain(v) if not isinstance(v, str) else v
+            g = f.create_group("samples")
+            for j, name in enumerate(names):
+                g.create_dataset(name, data=np.ascontiguousarray(table[:, j]), **storage_filters("gzip"))
+    except OSError as exc:
+        raise RecordingError(f"{p}: cannot write the decoded samples ({exc})") from None
+    return p

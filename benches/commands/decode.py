@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from benches.arguments import bounded
+from benches.recording import write_decoded_samples
 from core.errors import UsageError
 
 EXAMPLES = """examples:
@@ -66,7 +67,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         help="sample rate, Hz (default: the bench's, else 1000)",
     )
-    p.add_argument("--out", default=None, metavar="OUT.npy|OUT.csv", help="write the samples here")
+    p.add_argument("--out", default=None, metavar="OUT.npy|OUT.csv|OUT.h5", help="write the samples here")
     p.set_defaults(func=run)
 
 
@@ -185,8 +186,8 @@ def run(args: argparse.Namespace) -> int:
     path = Path(args.capture)
     if not path.is_file():
         raise UsageError(f"{path}: no such capture file")
-    if args.out is not None and Path(args.out).suffix.lower() not in (".npy", ".csv"):
-        raise UsageError(f"--out {args.out}: give a .npy or .csv file name")
+    if args.out is not None and Path(args.out).suffix.lower() not in (".npy", ".csv", ".h5"):
+        raise UsageError(f"--out {args.out}: give a .npy, .csv or .h5 file name")
     size = path.stat().st_size
     if size == 0:
         raise UsageError(f"{path}: the capture is empty")
@@ -215,6 +216,19 @@ def run(args: argparse.Namespace) -> int:
             out.parent.mkdir(parents=True, exist_ok=True)
             if out.suffix.lower() == ".npy":
                 np.save(out, table)
+            elif out.suffix.lower() == ".h5":
+                summary = {
+                    "frame_format": fmt.name,
+                    "capture": str(path),
+                    "frames": stats.frames,
+                    "rejected": stats.rejected,
+                    "garbage_bytes": stats.garbage_bytes,
+                    "gaps": samples.gaps,
+                    "resets": samples.resets,
+                    "duplicates": samples.duplicates,
+                    "bit_frames": stats.bit_frames,
+                }
+                write_decoded_samples(out, names, table, summary)
             else:
                 np.savetxt(out, table, delimiter=",", header=",".join(names), comments="", fmt="%.17g")
         except OSError as exc:

@@ -153,6 +153,20 @@ def test_decode_command_summary_and_outputs(tmp_path):
     assert np.allclose(table[:, header.index("accel_z")], G0, atol=2.0**-19 * G0)
     rc, out, _ = _cli("decode", "--frame", "stim300-0x93", str(cap), "--out", str(tmp_path / "s.npy"))
     assert rc == 0 and np.load(tmp_path / "s.npy").shape == table.shape
+    rc, out, err = _cli("decode", "--frame", "stim300-0x93", str(cap), "--out", str(tmp_path / "s.h5"))
+    assert rc == 0, err
+    import h5py
+
+    with h5py.File(tmp_path / "s.h5", "r") as f:  # the test reads the file independently of the project's reader
+        assert f.attrs["frame_format"] == "stim300-0x93" and int(f.attrs["duplicates"]) == 1
+        assert int(f.attrs["gaps"]) == 50 and int(f.attrs["frames"]) == 351
+        for j, name in enumerate(header):
+            ds = f["samples"][name]
+            assert ds.fletcher32 and np.array_equal(ds[()], table[:, j], equal_nan=True)
+    from benches.recording import RecordingError, open_recording
+
+    with pytest.raises(RecordingError):
+        open_recording(tmp_path / "s.h5")  # decoded samples are not a recording: a clear error, not a traceback
 
 
 @pytest.mark.parametrize(
@@ -164,7 +178,7 @@ def test_decode_command_summary_and_outputs(tmp_path):
         (["--frame", "stim300-0x93", "--option", "bogus", "CAP"], ["NAME=VALUE"]),
         (["--frame", "stim300-0x93", "--rate", "300", "CAP"], ["2000 Hz"]),
         (["--frame", "stim300-0x93", "MISSING"], ["no such capture"]),
-        (["--frame", "stim300-0x93", "CAP", "--out", "x.txt"], [".npy or .csv"]),
+        (["--frame", "stim300-0x93", "CAP", "--out", "x.txt"], [".npy, .csv or .h5"]),
         (["CAP"], ["--frame"]),
     ],
 )
