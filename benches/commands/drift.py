@@ -97,14 +97,15 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _display(unit: str) -> tuple[float, str]:
-    """Scale and label to show a channel's σ: °/h for rad/s, µg for m/s², SI otherwise."""
-    from analysis.units import DEG_PER_HOUR, UG
+    """Scale and label to show a channel's σ in the project's display units (analysis.units.DISPLAY_UNITS):
+    gyro error quantities in deg/h, accelerometer ones in µg, SI otherwise."""
+    from analysis.units import DISPLAY_UNITS
 
-    if unit == "rad/s":
-        return DEG_PER_HOUR, "°/h"
-    if unit == "m/s^2":
-        return UG, "µg"
-    return 1.0, unit
+    kind = {"rad/s": "gyro_bias", "m/s^2": "acceleration"}.get(unit)
+    if kind is None:
+        return 1.0, unit
+    label, one = DISPLAY_UNITS[kind]
+    return one, label
 
 
 def format_report(result: dict, units: dict[str, str]) -> str:

@@ -23,7 +23,7 @@ the detection limit, a dropped peak) is listed in periodic.json ("unsettled") an
 """
 
 # channel unit label (as analysis_input reports it) → (display-unit kind of analysis.units, or None for SI)
-_DISPLAY_KIND = {"rad/s": "rate", "m/s^2": "acceleration"}
+_DISPLAY_KIND = {"rad/s": "gyro_bias", "m/s^2": "acceleration"}  # error amplitudes: deg/h and µg, as everywhere
 
 # analysis parameter named by a PeriodicInputError → the option that sets it
 _OPTION = {"calibrate_seconds": "--calibrate-seconds", "n_terms": "--terms", "false_alarm": "--false-alarm"}
