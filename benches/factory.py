@@ -208,6 +208,19 @@ def acl_turntable(transport: Any, tt: Any) -> Any:
     )
 
 
+def _acutrol_connection(resource: str, tt: Any) -> connect.Connection[Any]:
+    """Open the VISA ``resource`` and the ACL driver on it, with the bench's turntable settings and tolerances."""
+    return connect.acutrol_table(
+        resource,
+        tuple(tt.limits),  # type: ignore[arg-type]
+        settings=tt.acl,
+        position_tolerance=tt.position_tolerance,
+        settle_time=tt.in_position_time,
+        rate_tolerance=tt.rate_tolerance,
+        timeout=DEFAULT_TIMEOUT_S,
+    )
+
+
 def _hardware_table(config: BenchConfig) -> connect.Connection[Any]:
     """Open the real turntable (its Connection, with ``.where`` describing it)."""
     tt = config.turntable
@@ -224,15 +237,7 @@ def _hardware_table(config: BenchConfig) -> connect.Connection[Any]:
         )
         conn.where = f"Modbus TCP {host}:{port}"
     elif tt.driver == "acutrol":
-        conn = connect.acutrol_table(
-            tt.resource,
-            tuple(tt.limits),  # type: ignore[arg-type]
-            settings=tt.acl,
-            position_tolerance=tt.position_tolerance,
-            settle_time=tt.in_position_time,
-            rate_tolerance=tt.rate_tolerance,
-            timeout=DEFAULT_TIMEOUT_S,
-        )
+        conn = _acutrol_connection(tt.resource, tt)
         conn.where = f"ACUTROL (ACL) at {tt.resource}"
     else:
         raise _bad(config, f"turntable.driver {tt.driver!r} needs a simulation section; real: acutrol, modbus-tcp")
@@ -283,15 +288,7 @@ def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str)
 
             srv = AclTableServer(world, tt.acl)
             closers.append(srv.close)
-            conn = connect.acutrol_table(
-                srv.resource,
-                tuple(tt.limits),  # type: ignore[arg-type]
-                settings=tt.acl,
-                position_tolerance=tt.position_tolerance,
-                settle_time=tt.in_position_time,
-                rate_tolerance=tt.rate_tolerance,
-                timeout=DEFAULT_TIMEOUT_S,
-            )
+            conn = _acutrol_connection(srv.resource, tt)
             closers.insert(0, conn.close)
             table, what = conn.driver, f"simulated ACUTROL over pyvisa-py {srv.resource}"
         else:

@@ -99,6 +99,13 @@ Bits 0–2 accel x/y/z, 3–5 gyro x/y/z, 6 temperature, 7 a unit-level problem;
 _POW2 = re.compile(r"^\s*2\s*(\^|\*\*)\s*([-+]?\d+)\s*$")
 
 
+DESCRIPTION_KEYS: tuple[str, ...] = (
+    "name", "title", "notes", "byte_order", "sync", "length", "options", "fields", "counter", "status",
+    "checksum", "time", "trailer",
+)  # fmt: skip
+"""Top-level keys of a single-layout frame description (a multi-layout one adds ``layouts``)."""
+
+
 def parse_number(v: Any) -> float | None:
     """A finite number, or a power of two written ``2^-14`` / ``2**-14``; None if neither."""
     if isinstance(v, bool):
@@ -342,21 +349,7 @@ def parse_description(data: Any, smap: SourceMap) -> FrameDescription:
         d,
         smap,
         (),
-        [
-            "name",
-            "title",
-            "notes",
-            "byte_order",
-            "sync",
-            "length",
-            "options",
-            "fields",
-            "counter",
-            "status",
-            "checksum",
-            "time",
-            "trailer",
-        ],
+        DESCRIPTION_KEYS,
     )
     name = get_str(d, smap, (), "name")
     order = get_str(d, smap, (), "byte_order", "big", choices=["big", "little"])
@@ -599,22 +592,7 @@ def _parse_layouts(d: dict, smap: SourceMap) -> FrameDescription:
         d,
         smap,
         (),
-        [
-            "name",
-            "title",
-            "notes",
-            "byte_order",
-            "sync",
-            "length",
-            "options",
-            "fields",
-            "counter",
-            "status",
-            "checksum",
-            "time",
-            "trailer",
-            "layouts",
-        ],
+        [*DESCRIPTION_KEYS, "layouts"],
     )
     name = get_str(d, smap, (), "name")
     entries = d.get("layouts")

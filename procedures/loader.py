@@ -206,6 +206,13 @@ class _Ctx:
         return ConfigError(self.smap.file, self.smap.line(path), f"step {label!r}: {message}")
 
 
+def _optional_duration(ctx: _Ctx, body: Mapping[str, Any], bpath: KeyPath, label: str) -> float | None:
+    """The step's optional ``duration_s`` (seconds > 0, at most MAX_SECONDS), or None when absent."""
+    return _num(
+        ctx, body, bpath, label, "duration_s", required=False, positive=True, maximum=MAX_SECONDS, what="seconds > 0"
+    )
+
+
 def _num(
     ctx: _Ctx,
     d: Mapping[str, Any],
@@ -378,17 +385,7 @@ def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
         return OrientSpec(line, label, name, attitude=_attitude(ctx, body, bpath, label))
     if kind == HoldSpec.kind:
         _keys(ctx, body, bpath, label, ("name", "duration_s") + sett)
-        dur = _num(
-            ctx,
-            body,
-            bpath,
-            label,
-            "duration_s",
-            required=False,
-            positive=True,
-            maximum=MAX_SECONDS,
-            what="seconds > 0",
-        )
+        dur = _optional_duration(ctx, body, bpath, label)
         if dur is None:
             if ctx.defaults.hold is None:
                 raise ctx.err(bpath, label, "duration_s is required (seconds > 0) unless defaults.hold_s is set")
@@ -468,17 +465,7 @@ def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
             maximum=MAX_REVOLUTIONS,
             what="a number > 0",
         )
-        dur = _num(
-            ctx,
-            body,
-            bpath,
-            label,
-            "duration_s",
-            required=False,
-            positive=True,
-            maximum=MAX_SECONDS,
-            what="seconds > 0",
-        )
+        dur = _optional_duration(ctx, body, bpath, label)
         if (revs is None) == (dur is None):
             raise ctx.err(bpath, label, "give exactly one of revolutions or duration_s")
         settle = _num(
