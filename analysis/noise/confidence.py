@@ -13,7 +13,7 @@ C. Greenhall, "Power law noise identification using the lag 1 autocorrelation", 
 2. EDF: Greenhall's combined algorithm (modelling the phase as the first difference of a continuous-time
    power-law process) for ADEV, OADEV, MDEV, TDEV, HDEV, OHDEV; the published fits for the total family —
    TOTVAR b·N/m − c (SP 1065 Table 7; Table 5's AVAR formulas for phase noise), MTOT/TTOT b·N/m − c
-   (Table 8), HTOT (N/m)/(b₀ + b₁ m/N) (Howe et al. 2000, HDEV's EDF below m = 16), and Theo1 (Howe &
+   (Howe's revised coefficients as in Stable32, the MVAR EDF for m ≤ 8), HTOT (N/m)/(b₀ + b₁ m/N) (Howe et al. 2000, HDEV's EDF below m = 16), and Theo1 (Howe &
    Peppler 2003, at the effective factor 0.75 m).
 3. χ² interval of the deviation: σ √(EDF/χ²_{1−p/2}) … σ √(EDF/χ²_{p/2}).
 """
@@ -255,11 +255,17 @@ def edf_avar_simple(n: int, m: int, alpha: int) -> float:
 
 
 _TOT = {0: (1.50, 0.0), -1: (1.17, 0.22), -2: (0.93, 0.36)}
-_MTOT = {2: (1.90, 2.10), 1: (1.20, 1.40), 0: (1.10, 1.20), -1: (0.85, 0.50), -2: (0.75, 0.31)}
-_HTOT = {0: (0.559, 1.004), -1: (0.868, 1.140), -2: (0.938, 1.696), -3: (2.554, 0.974), -4: (3.149, 1.276)}
+_MTOT = {2: (2.16, 2.28), 1: (1.73, 2.99), 0: (1.33, 1.89), -1: (0.92, 0.76), -2: (0.79, 0.37)}
+"""MTOTVAR (and TTOTVAR) EDF = b·N/m − c for m > 8 (N phase points): D. Howe's revised coefficients of 2000-05-20
+as Stable32 uses them (W. Riley's edf test program, k2hrt/edf ``edf4.c`` ``ModTotvarEDF``, which keeps the older
+SP 1065 Table 8 values 1.90/2.10 … 0.75/0.31 as comments); for m ≤ 8 Stable32 switches to the MVAR EDF. With these
+the Sr87 MTOTDEV/TTOTDEV bounds agree with Stable32's within 2 % (Table 8's were 6–37 % narrower)."""
+_MTOT_MVAR_BELOW = 8
+"""Largest m at which the MTOT/TTOT EDF is the MVAR EDF (Stable32)."""
+_HTOT = {0: (0.559, 1.004), -1: (0.868, 1.140), -2: (0.938, 1.696), -3: (0.974, 2.554), -4: (1.276, 3.149)}
 """HTOTVAR EDF = (N/m)/(b₀ + b₁ m/N) for white, flicker, random-walk, flicker-walk, random-run FM (Howe et al.
-2000, Table 1). Stable32's Sr87 intervals confirm this row order (allantoolkit's table labels the same rows
-α = 2 … −2)."""
+2000, Table 1; the same rows as Stable32's ``HadTotvarEDF``, k2hrt/edf ``edf4.c``). Stable32's Sr87 intervals
+confirm this row order (allantoolkit's table labels the same rows α = 2 … −2)."""
 
 
 def edf_theo1(n: int, m: int, alpha: int) -> float:
@@ -297,6 +303,8 @@ def edf(estimator: str, alpha: int, m: int, n: int) -> float:
             return b * n / m - c
         return edf_avar_simple(n, m, a)
     if estimator in ("mtotdev", "ttotdev"):
+        if m <= _MTOT_MVAR_BELOW:
+            return edf_greenhall(max(a, -2), 2, m, n, True, True)
         b, c = _MTOT[max(-2, min(2, a))]
         return b * n / m - c
     if estimator == "htotdev":

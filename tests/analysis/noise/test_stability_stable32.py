@@ -62,10 +62,11 @@ def test_noise_type_where_the_lag1_method_applies(result, name: str) -> None:
     assert agree >= 0.75, f"{name}: α agrees with Stable32 at only {agree:.0%} of τ"
 
 
-@pytest.mark.parametrize("name", ("adev", "oadev", "mdev", "tdev", "hdev", "ohdev", "totdev", "htotdev"))
+@pytest.mark.parametrize("name", WITH_CI)
 def test_interval_bounds_within_2_percent(result, name: str) -> None:
-    """Greenhall EDF (Allan/Hadamard family), the TOTVAR and HTOTVAR fits: bounds within 2 % wherever α agrees
-    (HTOTDEV: FM noise at m ≥ 16, where the published fit applies)."""
+    """Greenhall EDF (Allan/Hadamard family), the TOTVAR, MTOT/TTOT (Howe's revised coefficients, MVAR EDF for
+    m ≤ 8) and HTOTVAR fits: bounds within 2 % wherever α agrees (HTOTDEV: FM noise at m ≥ 16, where the
+    published fit applies)."""
     ref = _table(name)
     est = result.estimates[name]
     m = ref[:, 0].astype(int)
