@@ -31,7 +31,7 @@ ONE_SIGMA = math.erf(1.0 / math.sqrt(2.0))
 """Two-sided probability of ±1σ, 0.6827 (Stable32's "0.683")."""
 
 _D_ORDER = {"adev": 2, "oadev": 2, "mdev": 2, "tdev": 2, "hdev": 3, "ohdev": 3, "totdev": 2, "mtotdev": 2,
-            "ttotdev": 2, "htotdev": 3, "theo1": 2, "theoh": 2}
+            "ttotdev": 2, "htotdev": 3, "theo1": 2, "theoh": 2, "theobr": 2}
 """Differencing order d of each estimator (noise identification's d_max)."""
 
 # ------------------------------------------------------------------------------------ noise identification
@@ -298,6 +298,8 @@ def edf(estimator: str, alpha: int, m: int, n: int) -> float:
     if estimator == "ohdev":
         return edf_greenhall(max(a, -4), 3, m, n, True, False)
     if estimator == "totdev":
+        if m == 1:  # no reflected term at m = 1: TOTVAR is OAVAR there (the b·N/m fit doubles its EDF)
+            return edf_greenhall(max(a, -2), 2, 1, n, True, False)
         if a in _TOT:
             b, c = _TOT[a]
             return b * n / m - c
