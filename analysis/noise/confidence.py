@@ -12,9 +12,10 @@ C. Greenhall, "Power law noise identification using the lag 1 autocorrelation", 
    case split by R(n) = MVAR/AVAR; with too few points even for that, the α of the previous τ.
 2. EDF: Greenhall's combined algorithm (modelling the phase as the first difference of a continuous-time
    power-law process) for ADEV, OADEV, MDEV, TDEV, HDEV, OHDEV; the published fits for the total family —
-   TOTVAR b·N/m − c (SP 1065 Table 7; Table 5's AVAR formulas for phase noise), MTOT/TTOT b·N/m − c
-   (Howe's revised coefficients as in Stable32, the MVAR EDF for m ≤ 8), HTOT (N/m)/(b₀ + b₁ m/N) (Howe et al. 2000, HDEV's EDF below m = 16), and Theo1 (Howe &
-   Peppler 2003, at the effective factor 0.75 m).
+   TOTVAR b·N/m − c (SP 1065 Table 7; Table 5's AVAR formulas for phase noise; OAVAR's at m = 1, where
+   TOTVAR has no reflected term), MTOT/TTOT b·N/m − c (Howe's revised coefficients as in Stable32, the MVAR
+   EDF for m ≤ 8), HTOT (N/m)/(b₀ + b₁ m/N) (Howe et al. 2000, HDEV's EDF below m = 16), and Theo1 / TheoBR
+   (Howe & Peppler 2003, at the effective factor 0.75 m; beyond the lag-1 range Theo1 keeps the last lag-1 α).
 3. χ² interval of the deviation: σ √(EDF/χ²_{1−p/2}) … σ √(EDF/χ²_{p/2}).
 """
 
