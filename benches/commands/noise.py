@@ -13,10 +13,10 @@ EXAMPLES = """examples:
   tablebench noise run1 --estimators oadev,mdev,htotdev,theoh,mtie --taus 0.1,1,10,100
   tablebench noise angle.npy --rate 200 --data-type phase    # integrated angle (rad) instead of rate
 
-estimators: adev oadev mdev tdev hdev ohdev totdev mtotdev ttotdev htotdev theo1 theobr theoh mtie tierms (equal
-to allantools; theobr/theoh as Stable32; noise type by lag-1 ACF / B1, EDF by Greenhall's algorithm and the published total-family/Theo1
-fits, χ² intervals: analysis/noise/stability.py, analysis/noise/confidence.py). NaN samples are gaps: terms
-touching them are skipped (the count per τ is in noise.json).
+estimators: adev oadev mdev tdev hdev ohdev totdev mtotdev ttotdev htotdev theo1 theobr theoh mtie tierms
+(equal to allantools; theobr/theoh as Stable32; noise type by lag-1 ACF / B1, EDF by Greenhall's algorithm and
+the published total-family/Theo1 fits, χ² intervals: analysis/noise/stability.py, analysis/noise/confidence.py).
+NaN samples are gaps: terms touching them are skipped (the count per τ is in noise.json).
 
 output: a table of noise terms per channel (weighted non-negative least squares on --fit-estimator, each with
 its standard uncertainty 1σ), and with --out DIR: noise.json (per estimator and τ: value, term count, EDF,
