@@ -20,9 +20,9 @@ mtotdev    modified total: per 3m-point subsequence, linear trend (half means)  
 ttotdev    τ/√3 · mtotdev                                                         as mtotdev
 htotdev    Hadamard total: as mtotdev on the frequency (m = 1: ohdev)             N_f − 3m + 1
 theo1      Theo1 (SP 1065 eq. 30), even m, reported at τ = m τ₀ like allantools     (N − m) m/2
-           (Stable32 plots it at the effective τ = 0.75 m τ₀)
+           (Stable32's printed "Thêo1" is theobr, at the effective τ = 0.75 m τ₀)
 theoh      TheoH: overlapping ADEV for τ < k, TheoBR (at 0.75 m τ₀ ≥ k) beyond, k   —
-           the largest τ ≤ 20 % of the record (NIST SP 1065 §5.2.14; Stable32)
+           the largest τ ≤ 20 % of the record (NIST SP 1065; Stable32)
 theobr     bias-removed Theo1: Theo1 · mean(AVAR(9+3i)/Theo1(12+4i)), i = 0 … n,   (N − m) m/2
            n = ⌊N/6⌋ − 3 (Stable32's Run; Taylor & Howe 2010 use ⌊0.1N/3⌋ − 3),
            at τ = 0.75 m τ₀
@@ -1031,7 +1031,8 @@ def theobr_ratio_count(n_points: int) -> int:
 
 def _theobr_factor(rec: _Record, cache: dict) -> NDArray[np.float64]:
     """TheoBR's bias factor per channel: the mean of OAVAR(m = 9+3i) / Theo1(m = 12+4i) (equal τ, since Theo1's
-    effective τ is 0.75 m τ₀) over i = 0 … n (NIST SP 1065 §5.2.13; Howe & Tasset 2004); NaN when too short."""
+    effective τ is 0.75 m τ₀) over i = 0 … n (NIST SP 1065; Howe, Taylor & Tasset, "TheoH bias-removal method",
+    2006); NaN when too short."""
     if "theobr_kf" in cache:
         return cache["theobr_kf"]
     c = rec.x.shape[0]
@@ -1072,7 +1073,7 @@ def _theobr(rec: _Record, grid: NDArray[np.int64], cache: dict) -> Estimate:
 
 
 def _theoh(rec: _Record, grid: NDArray[np.int64], done: dict, cache: dict, split: float) -> Estimate:
-    """TheoH (NIST SP 1065 §5.2.14, Howe, Taylor & Tasset 2006): the overlapping ADEV for m < k/τ₀ and TheoBR at
+    """TheoH (NIST SP 1065; Howe, Taylor & Tasset 2006): the overlapping ADEV for m < k/τ₀ and TheoBR at
     its effective τ = 0.75 m τ₀ ≥ k (even m), k the largest τ ≤ ``split`` · T (T = (N − 1) τ₀)."""
     t_rec = (rec.n - 1) * rec.ts
     m_split = max(1, int(math.floor(split * t_rec / rec.ts)))
