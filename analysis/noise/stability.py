@@ -1063,7 +1063,7 @@ def _theobr(rec: _Record, grid: NDArray[np.int64], cache: dict) -> Estimate:
 
     Its intervals use the Theo1 EDF, as Stable32 and W. Riley's TheoBR.cpp do. That ignores the scatter of kf,
     which is set by the long-τ AVAR: simulated (N = 1024, 200 records) TheoBR's actual EDF is about 20 (white FM)
-    and 11–28 (random-walk FM) at every m, so the 68 % intervals cover 10–45 % at m ≤ 256 (Theo1's own: 64–71 %).
+    and 11–28 (random-walk FM) at every m, so the 68 % intervals cover 10–58 % (Theo1's own: 62–71 %).
     TheoH uses TheoBR only at τ ≥ 0.2 T, where the Theo1 EDF (8–19) is about twice the actual one."""
     kf = _theobr_factor(rec, cache)
     ms = grid[(grid % 2 == 0) & (grid <= _MAX_M["theobr"](rec.n))]
