@@ -11,7 +11,6 @@ from __future__ import annotations
 import logging
 import select
 import socket
-import threading
 from typing import Any
 
 from drivers.acutrol.settings import AclSettings
@@ -41,13 +40,7 @@ class AclTableServer(SingleClientServer):
         self.controller = AclController(world, settings)
         self.settings = self.controller.settings
         self._terminator = b"\r\n" if self.settings.reply_profile == "tcp" else b"\n"
-        self._listener = socket.create_server(("127.0.0.1", port))
-        self._listener.setblocking(False)
-        self.port: int = self._listener.getsockname()[1]
-        self._stop = threading.Event()
-        self._client: socket.socket | None = None
-        self._client_lock = threading.Lock()
-        self._thread = threading.Thread(target=self._serve, name=f"sim-acutrol:{self.port}", daemon=True)
+        self._listen(port, "sim-acutrol")
         self._thread.start()
 
     @property

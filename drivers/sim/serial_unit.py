@@ -26,7 +26,6 @@ from __future__ import annotations
 import logging
 import select
 import socket
-import threading
 import time
 from dataclasses import dataclass
 
@@ -175,14 +174,8 @@ class SerialUnitServer(SingleClientServer):
         self._corrupter = _Corrupter(self.corruption) if self.corruption else None
         self.initial_stream_factor = float(stream_factor)
         self.chunk_s = float(chunk_s)
-        self._listener = socket.create_server(("127.0.0.1", port))
-        self._listener.setblocking(False)
-        self.port: int = self._listener.getsockname()[1]
-        self._stop = threading.Event()
-        self._client: socket.socket | None = None
-        self._client_lock = threading.Lock()
         self.frames_sent = 0
-        self._thread = threading.Thread(target=self._serve, name=f"sim-imu-serial:{self.port}", daemon=True)
+        self._listen(port, "sim-imu-serial")
         self._thread.start()
         log.info("simulated unit serving on 127.0.0.1:%d", self.port)
 
