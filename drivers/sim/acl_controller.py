@@ -338,10 +338,7 @@ class AclController:
                     if not -self._fs / 2 <= nv <= self._fs / 2:
                         raise AclError(f"parameter out of range: position {nv:g} outside ±{self._fs / 2:g}")
                     lim = self._limits[i]
-                    if not self._continuous(i) and (
-                        (lim.position_min is not None and nv * DEG < lim.position_min - 1e-12)
-                        or (lim.position_max is not None and nv * DEG > lim.position_max + 1e-12)
-                    ):
+                    if not self._continuous(i) and not lim.allows_position(nv * DEG):
                         raise AclError(f"parameter out of range: position {nv:g}° beyond the limits of axis {a[0]}")
                     pos[i] = nv
                     changed.add(i)
@@ -349,7 +346,7 @@ class AclController:
                 self._nargs(c, 2)
                 v = _number(a[1])
                 for i in self._axes(a[0], True):
-                    if abs(v) * DEG > self._limits[i].rate_max * (1 + 1e-12):
+                    if not self._limits[i].allows_rate(v * DEG):
                         raise AclError(f"parameter out of range: rate {v:g} °/s beyond the rate limit of axis {a[0]}")
                     rate[i] = v
                     changed.add(i)
