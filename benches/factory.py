@@ -38,9 +38,13 @@ from typing import Any
 
 from core.yaml_source import ConfigError
 from drivers import connect
+from drivers.acutrol import AclTurntable
 from drivers.protocols import InertialUnit, Turntable
+from drivers.sim.acl_controller import AclController
+from drivers.sim.acl_server import AclTableServer
 from drivers.sim.inprocess import SimInertialUnit, SimTurntable
 from drivers.sim.loopback import Loopback
+from drivers.sim.modbus_controller import ModbusTableServer
 from drivers.sim.world import SimulatedWorld
 
 from .bench_config import BenchConfig, unit_frame_format
@@ -126,6 +130,15 @@ def open_bench(
     LinkError
         A device did not answer.
     """
+    transport = _transport(config, transport)
+    if transport == "hardware":
+        return _open_hardware(config, run_folder)
+    return _open_simulated(config, seed, transport, run_folder)
+
+
+def _transport(config: BenchConfig, transport: str | None) -> str:
+    """The transport to open ``config`` with: ``transport`` checked against the bench, or the bench's default
+    (a simulated bench's ``simulation.transport``, "hardware" for a real one)."""
     if transport is not None and transport not in TRANSPORTS:
         raise _bad(config, f"transport {transport!r} is not one of {', '.join(TRANSPORTS)}")
     sim = getattr(config, "simulation", None)
@@ -133,13 +146,12 @@ def open_bench(
         transport = transport or getattr(sim, "transport", "in-process")
         if transport == "hardware":
             raise _bad(config, "this is a simulated bench; transport must be 'in-process' or 'loopback'")
-        return _open_simulated(config, seed, transport, run_folder)
-    transport = transport or "hardware"
-    if transport != "hardware":
+        return transport
+    if transport not in (None, "hardware"):
         raise _bad(
             config, f"bench {config.name!r} is a real bench (no simulation section): transport must be 'hardware'"
         )
-    return _open_hardware(config, run_folder)
+    return "hardware"
 
 
 def _open_simulated(config: BenchConfig, seed: int | None, transport: str, run_folder: Any = None) -> Bench:
@@ -149,8 +161,6 @@ def _open_simulated(config: BenchConfig, seed: int | None, transport: str, run_f
     if transport == "in-process":
         unit = SimInertialUnit(world)
         if acl:
-            from drivers.sim.acl_controller import AclController
-
             table: Any = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
             what = "simulated ACUTROL (ACL, in-memory)"
         else:
@@ -196,8 +206,6 @@ def _open_simulated(config: BenchConfig, seed: int | None, transport: str, run_f
 
 def acl_turntable(transport: Any, tt: Any) -> Any:
     """The ACL driver for a bench's turntable section on an open transport (settings and tolerances from the bench)."""
-    from drivers.acutrol import AclTurntable
-
     return AclTurntable(
         transport,
         tuple(tt.limits),  # type: ignore[arg-type]
@@ -251,18 +259,9 @@ def open_table(config: BenchConfig, *, seed: int | None = None, transport: str |
     over the real wire); the caller advances bench time with ``world.produce``. Real benches: the turntable
     link only. Nothing of the unit is opened.
     """
-    if transport is not None and transport not in TRANSPORTS:
-        raise _bad(config, f"transport {transport!r} is not one of {', '.join(TRANSPORTS)}")
-    sim = getattr(config, "simulation", None)
-    if sim is not None:
-        transport = transport or getattr(sim, "transport", "in-process")
-        if transport == "hardware":
-            raise _bad(config, "this is a simulated bench; transport must be 'in-process' or 'loopback'")
+    transport = _transport(config, transport)
+    if transport != "hardware":
         return _open_simulated_table(config, seed, transport)
-    if transport not in (None, "hardware"):
-        raise _bad(
-            config, f"bench {config.name!r} is a real bench (no simulation section): transport must be 'hardware'"
-        )
     conn = _hardware_table(config)
     return Bench(conn.driver, None, None, "hardware", f"{config.name}: table {conn.where}", [conn.close])  # type: ignore[arg-type,attr-defined]
 
@@ -276,24 +275,18 @@ def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str)
     try:
         if transport == "in-process":
             if acl:
-                from drivers.sim.acl_controller import AclController
-
                 table: Any = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
                 what = "simulated ACUTROL (ACL, in-memory)"
             else:
                 table, what = SimTurntable(world), "simulated table, in-process driver"
             closers.append(table.close)
         elif acl:
-            from drivers.sim.acl_server import AclTableServer
-
             srv = AclTableServer(world, tt.acl)
             closers.append(srv.close)
             conn = _acutrol_connection(srv.resource, tt)
             closers.insert(0, conn.close)
             table, what = conn.driver, f"simulated ACUTROL over pyvisa-py {srv.resource}"
         else:
-            from drivers.sim.modbus_controller import ModbusTableServer
-
             wd = getattr(tt, "watchdog", None)
             msrv = ModbusTableServer(
                 world,

@@ -10,12 +10,15 @@ from __future__ import annotations
 
 import datetime as _dt
 import hashlib
+import json
 import shutil
 import sys
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
+
+import numpy as np
 
 from core.errors import UserError
 from core.provenance import software_version
@@ -151,7 +154,7 @@ def execute(
     "counts+gzip" (the default: quantised counts + shuffle + gzip-1), "float+gzip", "counts+lzf", or "plain"
     (float64, uncompressed: the format-1 storage), all with Fletcher-32 and per-step SHA-256.
     """
-    from benches.factory import open_bench
+    from benches.factory import open_bench  # lazy: scipy, pymodbus (--help time)
 
     stream = stream or sys.stderr
     config = prep.config
@@ -309,9 +312,7 @@ def identify_and_certify(
     done : list, optional
         Appended with each finished item as it finishes (so an interruption can say what is left).
     """
-    import numpy as np
-
-    from benches.identify import IdentificationError, identify_run
+    from benches.identify import IdentificationError, identify_run  # lazy: filterpy, scipy (--help time)
 
     done = [] if done is None else done
     if "identification" in todo:
@@ -329,7 +330,7 @@ def identify_and_certify(
         say(result.summary())
         say(f"calibration: {path}", err=False)
     if "certificate" in todo:
-        from benches.certificate import issue_certificate
+        from benches.certificate import issue_certificate  # lazy: fpdf, matplotlib, filterpy (--help time)
 
         pdf, js, verdict = issue_certificate(folder)
         done.append("certificate")
@@ -341,8 +342,6 @@ def identify_and_certify(
 
 def verdict_explanation(certificate_json: Path, verdict: str) -> list[str]:
     """Plain words for the run's closing lines: why the certificate says what it says, and what to do."""
-    import json
-
     if verdict != "INCONCLUSIVE":
         return []
     try:

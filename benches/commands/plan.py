@@ -34,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench plan``."""
-    from benches.identify import IdentificationError, plan_for  # lazy: see benches/cli.py (--help time)
+    from benches.identify import IdentificationError, plan_for  # lazy: filterpy, scipy (--help time)
 
     prep = prepare(args.bench, args.procedure, parse_overrides(args.set))
     try:

@@ -18,7 +18,12 @@ from collections.abc import Callable
 from typing import Any, TextIO
 
 from analysis.units import DEG
+from benches.bench_config import load_bench
+from benches.session import check_seed
 from core.errors import UsageError
+from drivers.protocols import LinkError, TableError, TableStatus
+from procedures.paths import default_bench_path, resolve_bench
+from procedures.steps import move_time
 
 EXAMPLES = """examples:
   tablebench table status                                  # the simulated bench's table
@@ -90,10 +95,9 @@ def parse_demand(action: str, values: list[str], limits: Any) -> tuple[Any, ...]
     if action == "move":
         deg = _numbers(values, 3, "move OUTER MIDDLE INNER")
         for name, x, lim in zip(AXES, deg, limits, strict=True):
-            lo, hi = lim.position_min, lim.position_max
-            if (lo is not None and x * DEG < lo - 1e-12) or (hi is not None and x * DEG > hi + 1e-12):
+            if not lim.allows_position(x * DEG):
                 raise UsageError(
-                    f"move: {name} {x:g}° is outside the bench limits [{lo / DEG:g}°, {hi / DEG:g}°]; nothing was sent"
+                    f"move: {name} {x:g}° is outside the bench limits {lim.position_range_text()}; nothing was sent"
                 )
         return (tuple(x * DEG for x in deg),)
     if action == "spin":
@@ -104,7 +108,7 @@ def parse_demand(action: str, values: list[str], limits: Any) -> tuple[Any, ...]
             raise UsageError(f"spin: axis {values[0]!r} is not one of outer, middle, inner")
         ax = AXES.index(name)
         (rate,) = _numbers(values[1:], 1, "spin RATE")
-        if abs(rate) * DEG > limits[ax].rate_max * (1 + 1e-12):
+        if not limits[ax].allows_rate(rate * DEG):
             raise UsageError(
                 f"spin: {rate:g} °/s exceeds the {name} axis limit {limits[ax].rate_max / DEG:g} °/s; nothing was sent"
             )
@@ -115,8 +119,6 @@ def parse_demand(action: str, values: list[str], limits: Any) -> tuple[Any, ...]
 
 
 def _describe_state(s: Any) -> str:
-    from drivers.protocols import TableStatus
-
     flags = [f.name for f in TableStatus if f and f.name and s.status & f and f != TableStatus.REMOTE]
     ang = ", ".join(f"{n} {math.degrees(a):.4f}°" for n, a in zip(AXES, s.angles, strict=True))
     rat = ", ".join(f"{math.degrees(r):.4f}" for r in s.rates)
@@ -125,8 +127,6 @@ def _describe_state(s: Any) -> str:
 
 
 def _wait(table: Any, done: Callable[[Any], bool], timeout: float, pause: Callable[[float], None], what: str) -> Any:
-    from drivers.protocols import TableError, TableStatus
-
     waited = 0.0
     s = table.read_state()
     while not done(s):
@@ -152,9 +152,6 @@ def execute(
     stop_hint: str = "tablebench table stop",
 ) -> int:
     """Run one action on an open table bench; returns the exit code (faults / lost links raise)."""
-    from drivers.protocols import TableStatus
-    from procedures.steps import move_time
-
     table = bench.turntable
     if pause is None:
         world = bench.world
@@ -265,17 +262,12 @@ def _safe_stop(table: Any) -> str:
 
 def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
     """Execute ``tablebench table``."""
-    from benches import factory
-    from benches.bench_config import load_bench
-    from drivers.protocols import LinkError, TableError
-    from procedures.paths import default_bench_path, resolve_bench
+    from benches import factory  # lazy: scipy, pymodbus (--help time)
 
     out = out or sys.stdout
     if args.timeout is not None and not (math.isfinite(args.timeout) and 0 < args.timeout <= 86400):
         raise UsageError(f"--timeout {args.timeout!r}: give seconds in (0, 86400]")
     if args.seed is not None:
-        from benches.session import check_seed
-
         check_seed(args.seed)
     bench_path = resolve_bench(args.bench) if args.bench else default_bench_path()
     config = load_bench(bench_path)
