@@ -55,7 +55,7 @@ from drivers.imu_frame_desc import (
     load_frame,
     shipped_frames,
 )
-from drivers.modbus_map import load_modbus_map
+from drivers.modbus_map import ModbusMap, load_modbus_map
 from drivers.protocols import AXIS_NAMES, AxisLimits
 from drivers.serial_imu import count_format
 from drivers.sim.acl_controller import SIM_TIME_VARIABLE
@@ -140,7 +140,7 @@ class TurntableSpec:
     float_word_order: str | None = None  # Modbus: overrides the map's word order when given
     rate_accuracy: float = 0.0
     """Rate accuracy bound of the table (relative, ±; bench key ``rate_accuracy_ppm``); 0: not stated."""
-    modbus_map: Any = None  # drivers.modbus_map.ModbusMap (Modbus tables; None: the shipped map)
+    modbus_map: ModbusMap | None = None  # Modbus tables; None: the shipped map
     resource: str | None = None  # VISA resource string (driver acutrol)
     acl: AclSettings | None = None  # ACL open points (driver acutrol, or a simulated ACUTROL)
     rate_tolerance: float = 0.01 * DEG  # rad/s: at-rate / at-rest window of host-decided settling

@@ -32,9 +32,10 @@ the serial driver decodes it on hardware and on loopback, where the simulated un
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 from core.yaml_source import ConfigError
 from drivers import connect
@@ -46,8 +47,9 @@ from drivers.sim.inprocess import SimInertialUnit, SimTurntable
 from drivers.sim.loopback import Loopback
 from drivers.sim.modbus_controller import ModbusTableServer
 from drivers.sim.world import SimulatedWorld
+from drivers.transport import MessageTransport
 
-from .bench_config import BenchConfig, unit_frame_format
+from .bench_config import BenchConfig, TurntableSpec, unit_frame_format
 
 log = logging.getLogger(__name__)
 
@@ -65,7 +67,7 @@ class Bench:
     world: SimulatedWorld | None
     transport: str
     description: str
-    _closers: list[Any] = field(default_factory=list, repr=False)
+    _closers: list[Callable[[], None]] = field(default_factory=list, repr=False)
 
     def describe(self) -> str:
         """One line for logs and recordings."""
@@ -94,7 +96,9 @@ def _bad(config: BenchConfig, message: str) -> ConfigError:
 RAW_FILE = "unit-raw.bin"
 
 
-def _raw_sink(config: BenchConfig, run_folder: Any, closers: list[Any]) -> tuple[Any, str]:
+def _raw_sink(
+    config: BenchConfig, run_folder: str | Path | None, closers: list[Callable[[], None]]
+) -> tuple[BinaryIO | None, str]:
     """The open raw-stream file when the bench keeps it (``unit.keep_raw``) and a run folder is given."""
     if run_folder is None or not getattr(config.unit, "keep_raw", False):
         return None, ""
@@ -109,7 +113,11 @@ def _raw_sink(config: BenchConfig, run_folder: Any, closers: list[Any]) -> tuple
 
 
 def open_bench(
-    config: BenchConfig, *, seed: int | None = None, transport: str | None = None, run_folder: Any = None
+    config: BenchConfig,
+    *,
+    seed: int | None = None,
+    transport: str | None = None,
+    run_folder: str | Path | None = None,
 ) -> Bench:
     """Open the bench described by ``config`` (a ``benches.bench_config.BenchConfig``).
 
@@ -154,14 +162,16 @@ def _transport(config: BenchConfig, transport: str | None) -> str:
     return "hardware"
 
 
-def _open_simulated(config: BenchConfig, seed: int | None, transport: str, run_folder: Any = None) -> Bench:
+def _open_simulated(
+    config: BenchConfig, seed: int | None, transport: str, run_folder: str | Path | None = None
+) -> Bench:
     world = SimulatedWorld.from_bench(config, seed)
     tt = config.turntable
     acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
     if transport == "in-process":
         unit = SimInertialUnit(world)
         if acl:
-            table: Any = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
+            table: Turntable = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
             what = "simulated ACUTROL (ACL, in-memory)"
         else:
             table, what = SimTurntable(world), "in-process drivers"
@@ -175,7 +185,7 @@ def _open_simulated(config: BenchConfig, seed: int | None, transport: str, run_f
             [table.close, unit.close],
         )
     wd = getattr(tt, "watchdog", None)
-    closers: list[Any] = []
+    closers: list[Callable[[], None]] = []
     raw, raw_name = _raw_sink(config, run_folder, closers)
     try:
         lb = Loopback(
@@ -204,7 +214,7 @@ def _open_simulated(config: BenchConfig, seed: int | None, transport: str, run_f
     )
 
 
-def acl_turntable(transport: Any, tt: Any) -> Any:
+def acl_turntable(transport: MessageTransport, tt: TurntableSpec) -> AclTurntable:
     """The ACL driver for a bench's turntable section on an open transport (settings and tolerances from the bench)."""
     return AclTurntable(
         transport,
@@ -216,7 +226,7 @@ def acl_turntable(transport: Any, tt: Any) -> Any:
     )
 
 
-def _acutrol_connection(resource: str, tt: Any) -> connect.Connection[Any]:
+def _acutrol_connection(resource: str, tt: TurntableSpec) -> connect.Connection[AclTurntable]:
     """Open the VISA ``resource`` and the ACL driver on it, with the bench's turntable settings and tolerances."""
     return connect.acutrol_table(
         resource,
@@ -270,12 +280,12 @@ def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str)
     world = SimulatedWorld.from_bench(config, seed)
     tt = config.turntable
     acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
-    closers: list[Any] = []
+    closers: list[Callable[[], None]] = []
     ok = False
     try:
         if transport == "in-process":
             if acl:
-                table: Any = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
+                table: Turntable = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
                 what = "simulated ACUTROL (ACL, in-memory)"
             else:
                 table, what = SimTurntable(world), "simulated table, in-process driver"
@@ -329,9 +339,9 @@ def _host_port(config: BenchConfig, address: str | None, default_port: int) -> t
     return host, p
 
 
-def _open_hardware(config: BenchConfig, run_folder: Any = None) -> Bench:
+def _open_hardware(config: BenchConfig, run_folder: str | Path | None = None) -> Bench:
     opened: list[connect.Connection[Any]] = []
-    closers: list[Any] = []  # the raw-stream file, closed after the drivers
+    closers: list[Callable[[], None]] = []  # the raw-stream file, closed after the drivers
     bench_ok = False
     try:
         opened.append(_hardware_table(config))

@@ -16,7 +16,7 @@ import sys
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, TextIO
 
 import numpy as np
 
@@ -28,10 +28,13 @@ from procedures.loader import load_procedure
 from procedures.paths import default_bench_path, resolve_bench, resolve_procedure
 from procedures.steps import CompiledProcedure
 
-from .bench_config import load_bench
+from .bench_config import BenchConfig, load_bench
 from .progress import ProgressDisplay
 from .recording import Hdf5Recorder, RecordingError, open_recording
 from .runner import Runner, RunResult, SampleObserver
+
+if TYPE_CHECKING:
+    from .identify import LiveIdentifier  # lazy at run time: filterpy, scipy (--help time)
 
 DEFAULT_PROCEDURE = "ten-step"
 
@@ -46,8 +49,8 @@ class Prepared:
 
     bench_path: Path
     procedure_path: Path
-    config: object  # benches.bench_config.BenchConfig
-    compiled: object  # procedures.steps.CompiledProcedure
+    config: BenchConfig
+    compiled: CompiledProcedure
     estimated_s: float
     overrides: dict[str, float]
 
@@ -293,7 +296,7 @@ def identify_and_certify(
     folder: Path,
     todo: list[str],
     *,
-    live: Any | None = None,
+    live: LiveIdentifier | None = None,
     say: Callable[..., None] = print,
     done: list[str] | None = None,
 ) -> list[str]:

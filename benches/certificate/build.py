@@ -26,6 +26,7 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -40,7 +41,7 @@ from analysis.identification.decision import (
     overall_verdict,
 )
 from analysis.units import ARCSEC, display_unit, kelvin_to_celsius, to_display
-from benches.bench_config import load_bench_text
+from benches.bench_config import BenchConfig, load_bench_text
 from benches.calibration_result import CalibrationFormatError, CalibrationResult
 from benches.certificate_register import CertificateRegister, RegisterError, free_paths, write_new
 from benches.recording import RecordingError, open_recording
@@ -62,7 +63,9 @@ from .pdf import render_pdf
 from .plots import plot_convergence, plot_coverage, plot_residuals
 
 
-def _procedure_step_count(procedure_text: Any, overrides: dict[str, float], bench_text: str) -> int | None:
+def _procedure_step_count(
+    procedure_text: str | Callable[[], str] | None, overrides: dict[str, float], bench_text: str
+) -> int | None:
     """Number of steps of the recorded procedure (with its overrides), compiled for the recorded bench; None
     when the recording carries no procedure text that compiles (another tool's recording)."""
     try:
@@ -76,7 +79,7 @@ def _procedure_step_count(procedure_text: Any, overrides: dict[str, float], benc
         return None
 
 
-def _load_bench_config(text: str) -> Any:
+def _load_bench_config(text: str) -> BenchConfig:
     """The recorded bench text through ``benches.bench_config`` (ConfigError names the recording's copy)."""
     return load_bench_text(text, "recording.h5:/bench_yaml")
 

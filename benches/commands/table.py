@@ -14,16 +14,19 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable
-from typing import Any, TextIO
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any, TextIO
 
 from analysis.units import DEG
 from benches.bench_config import load_bench
 from benches.session import check_seed
 from core.errors import UsageError
-from drivers.protocols import LinkError, TableError, TableStatus
+from drivers.protocols import AxisLimits, LinkError, TableError, TableState, TableStatus, Turntable
 from procedures.paths import default_bench_path, resolve_bench
 from procedures.steps import move_time
+
+if TYPE_CHECKING:
+    from benches.factory import Bench  # lazy at run time: scipy, pymodbus (--help time)
 
 EXAMPLES = """examples:
   tablebench table status                                  # the simulated bench's table
@@ -90,7 +93,7 @@ def _numbers(values: list[str], n: int, what: str) -> list[float]:
     return out
 
 
-def parse_demand(action: str, values: list[str], limits: Any) -> tuple[Any, ...]:
+def parse_demand(action: str, values: list[str], limits: Sequence[AxisLimits]) -> tuple[Any, ...]:
     """The demand of ``move``/``spin`` in SI, checked against the bench limits (UsageError: nothing is sent)."""
     if action == "move":
         deg = _numbers(values, 3, "move OUTER MIDDLE INNER")
@@ -118,7 +121,7 @@ def parse_demand(action: str, values: list[str], limits: Any) -> tuple[Any, ...]
     return ()
 
 
-def _describe_state(s: Any) -> str:
+def _describe_state(s: TableState) -> str:
     flags = [f.name for f in TableStatus if f and f.name and s.status & f and f != TableStatus.REMOTE]
     ang = ", ".join(f"{n} {math.degrees(a):.4f}°" for n, a in zip(AXES, s.angles, strict=True))
     rat = ", ".join(f"{math.degrees(r):.4f}" for r in s.rates)
@@ -126,7 +129,9 @@ def _describe_state(s: Any) -> str:
     return f"angles {ang}; rates [{rat}] °/s; modes {modes}; status {' '.join(flags) or 'idle'}"
 
 
-def _wait(table: Any, done: Callable[[Any], bool], timeout: float, pause: Callable[[float], None], what: str) -> Any:
+def _wait(
+    table: Turntable, done: Callable[[TableState], bool], timeout: float, pause: Callable[[float], None], what: str
+) -> TableState:
     waited = 0.0
     s = table.read_state()
     while not done(s):
@@ -142,7 +147,7 @@ def _wait(table: Any, done: Callable[[Any], bool], timeout: float, pause: Callab
 
 
 def execute(
-    bench: Any,
+    bench: Bench,
     action: str,
     demand: tuple[Any, ...],
     *,
@@ -252,7 +257,7 @@ class _Signals:
             signal.signal(sig, old)
 
 
-def _safe_stop(table: Any) -> str:
+def _safe_stop(table: Turntable) -> str:
     try:
         table.stop()
         return "axes commanded Off"

@@ -39,11 +39,14 @@ import math
 import re
 import threading
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING
 
 from analysis.units import DEG
 from drivers.acutrol.settings import AclSettings
-from drivers.protocols import FaultCode, LinkError, TableError
+from drivers.protocols import FaultCode, LinkError, TableError, TableState
+
+if TYPE_CHECKING:
+    from drivers.sim.world import SimulatedWorld  # type only: the world imports scipy (tablebench --help)
 
 log = logging.getLogger(__name__)
 
@@ -209,7 +212,7 @@ class AclController:
         How this unit answers (reply profile, mode reply, precision, axis numbers, full scale, time variable).
     """
 
-    def __init__(self, world: Any, settings: AclSettings | None = None) -> None:
+    def __init__(self, world: SimulatedWorld, settings: AclSettings | None = None) -> None:
         self.world = world
         self.settings = settings or AclSettings()
         self._lock = threading.RLock()
@@ -258,7 +261,7 @@ class AclController:
         lim = self._limits[i]
         return lim.position_min is None and lim.position_max is None
 
-    def _sync_fault(self, state: Any) -> None:
+    def _sync_fault(self, state: TableState) -> None:
         code = FaultCode(state.fault_code)
         if code != FaultCode.NONE and not self.fault:
             self.fault = code.name
@@ -397,7 +400,7 @@ class AclController:
         self._apply(changed, old_mode, state)
         return replies
 
-    def _apply(self, changed: set[int], old_mode: list[str], state: Any) -> None:
+    def _apply(self, changed: set[int], old_mode: list[str], state: TableState) -> None:
         w = self.world
         if not changed:
             return
@@ -422,7 +425,7 @@ class AclController:
             self.errors.append(f'-200,"execution error: {exc}"')
             self.esr |= 1 << 4
 
-    def _query(self, c: Command, state: Any, mode: list[str]) -> str:
+    def _query(self, c: Command, state: TableState, mode: list[str]) -> str:
         p, a = c.path, c.args
         d = self._fmt
         if p[0] == "READ":

@@ -11,11 +11,14 @@ from __future__ import annotations
 import logging
 import select
 import socket
-from typing import Any
+from typing import TYPE_CHECKING
 
 from drivers.acutrol.settings import AclSettings
 from drivers.sim.acl_controller import AclController
 from drivers.sim.tcp_server import SingleClientServer
+
+if TYPE_CHECKING:
+    from drivers.sim.world import SimulatedWorld
 
 log = logging.getLogger(__name__)
 
@@ -36,7 +39,7 @@ class AclTableServer(SingleClientServer):
 
     name = "simulated ACUTROL"
 
-    def __init__(self, world: Any, settings: AclSettings | None = None, port: int = 0) -> None:
+    def __init__(self, world: SimulatedWorld, settings: AclSettings | None = None, port: int = 0) -> None:
         self.controller = AclController(world, settings)
         self.settings = self.controller.settings
         self._terminator = b"\r\n" if self.settings.reply_profile == "tcp" else b"\n"

@@ -31,11 +31,14 @@ import logging
 import math
 import threading
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from drivers.modbus_map import ModbusMap, map_with_word_order
 from drivers.modbus_table import check_position, check_rate
 from drivers.protocols import AxisMode, FaultCode, TableError, TableStatus
+
+if TYPE_CHECKING:
+    from drivers.sim.world import SimulatedWorld
 
 log = logging.getLogger(__name__)
 
@@ -60,7 +63,7 @@ class ModbusTableServer:
 
     def __init__(
         self,
-        world: Any,
+        world: SimulatedWorld,
         port: int = 0,
         *,
         word_order: str | None = None,

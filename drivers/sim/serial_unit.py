@@ -28,6 +28,7 @@ import select
 import socket
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -37,6 +38,9 @@ from drivers.imu_frame_desc import DEFAULT_FRAME, FrameFormat, load_frame
 from drivers.imu_frame_samples import encode_samples
 from drivers.serial_imu import MAX_BURST, count_format
 from drivers.sim.tcp_server import SingleClientServer
+
+if TYPE_CHECKING:
+    from drivers.sim.world import SimulatedWorld
 
 log = logging.getLogger(__name__)
 
@@ -159,7 +163,7 @@ class SerialUnitServer(SingleClientServer):
 
     def __init__(
         self,
-        world: object,
+        world: SimulatedWorld,
         port: int = 0,
         *,
         corruption: Corruption | None = None,
@@ -168,7 +172,7 @@ class SerialUnitServer(SingleClientServer):
         frame: FrameFormat | None = None,
     ) -> None:
         self.world = world
-        self.frame = frame if frame is not None else count_format(world.scale, world.sample_rate)  # type: ignore[attr-defined]
+        self.frame = frame if frame is not None else count_format(world.scale, world.sample_rate)
         self._codec = FrameCodec(self.frame.desc)
         self.corruption = corruption if corruption is not None and corruption.active else None
         self._corrupter = _Corrupter(self.corruption) if self.corruption else None
