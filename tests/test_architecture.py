@@ -282,3 +282,17 @@ def test_every_lazy_import_keeps_a_heavy_library_out_of_help() -> None:
     lazy = _lazy_targets()
     assert "benches.identify" in lazy  # the check below has something to check
     assert {m: sorted(_heavy_on_import(m)) for m in sorted(lazy) if not _heavy_on_import(m)} == {}
+
+
+def test_no_test_skips() -> None:
+    """A missing module, dependency or shipped file fails the suite instead of silently skipping its tests."""
+    skip = re.compile(r"importorskip|pytest\.skip\(|mark\.skip")
+    here = Path(__file__).resolve()
+    bad = [
+        f"{path.relative_to(REPO_ROOT)}:{i}"
+        for path in sorted((REPO_ROOT / "tests").rglob("*.py"))
+        if path.resolve() != here
+        for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+        if skip.search(line)
+    ]
+    assert bad == [], "tests that skip: " + ", ".join(bad)
