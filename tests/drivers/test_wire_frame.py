@@ -28,8 +28,14 @@ from drivers.imu_frame_desc import (
     shipped_frames,
 )
 from drivers.imu_frame_samples import SampleConverter, encode_samples
-from drivers.serial_imu import concat_samples
-from tests.drivers.spec_frames import KVH_BUILT, KVH_MANUAL, STIM_93, crc_mpeg2_bitwise
+from tests.drivers.frame_support import (
+    KVH_BUILT,
+    KVH_MANUAL,
+    STIM_93,
+    check_damage_counts,
+    crc_mpeg2_bitwise,
+    decode_in_random_chunks,
+)
 
 
 def _decode(name: str, data: bytes, options: dict | None = None, rate: float = 1000.0):
@@ -248,25 +254,8 @@ def test_round_trip_with_garbage_truncation_resets_and_duplicates(name):
         if i in duplicated:
             pieces.append(rows[i].tobytes())
     data = b"".join(pieces)
-    dec = FrameDecoder(fmt.desc)
-    conv = SampleConverter(fmt)
-    parts = []
-    pos = 0
-    while pos < len(data):  # random chunking, including chunks shorter than a frame
-        k = int(rng.integers(1, 3 * L))
-        batch, _ = dec.feed(data[pos : pos + k])
-        pos += k
-        if len(batch):
-            parts.append(conv.convert(batch))
-    dec.flush()
-    s = concat_samples(parts)
-    lost = truncated | flipped
-    kept = np.array([i for i in range(n) if i not in lost])
-    assert dec.total.frames == kept.size + len(duplicated)
-    assert dec.total.rejected == len(lost)
-    assert dec.total.garbage_bytes == garbage_total
-    assert (s.gaps, s.resets, s.duplicates) == (len(lost), 1, len(duplicated))
-    assert len(s) == kept.size
+    dec, s, _ = decode_in_random_chunks(fmt, data, rng, 3 * L)
+    kept = check_damage_counts(dec, s, n, truncated | flipped, duplicated, garbage_total)
     absent = sum(1 << FLAG_BITS[ch] for ch in FLAG_BITS if ch not in {c.channel for c in fmt.conversions.values()})
     absent &= 0x3F  # recorded channels the format does not carry are flagged (and NaN)
     s.status &= np.uint16(~absent & 0xFFFF)

@@ -20,8 +20,14 @@ from core.yaml_source import ConfigError, load_yaml_text
 from drivers.imu_frame import FrameDecoder
 from drivers.imu_frame_desc import FLAG_BITS, compile_format, load_frame, parse_description
 from drivers.imu_frame_samples import SampleConverter, encode_samples
-from drivers.serial_imu import concat_samples
-from tests.drivers.spec_frames import KVH_BUILT, KVH_MANUAL, STIM_93, crc_mpeg2_bitwise
+from tests.drivers.frame_support import (
+    KVH_BUILT,
+    KVH_MANUAL,
+    STIM_93,
+    check_damage_counts,
+    crc_mpeg2_bitwise,
+    decode_in_random_chunks,
+)
 
 
 def _bit_frame(header: bytes, payload: bytes) -> bytes:
@@ -129,26 +135,9 @@ def test_mixed_identifier_stream_round_trip_exact_counts():
         if i in duplicated:
             pieces.append(fr)
     data = b"".join(pieces)
-    dec = FrameDecoder(fmt.desc)
-    conv = SampleConverter(fmt)
-    parts, layouts = [], []
-    pos = 0
-    while pos < len(data):  # random chunking, including chunks shorter than the shortest datagram
-        k = int(rng.integers(1, 150))
-        batch, _ = dec.feed(data[pos : pos + k])
-        pos += k
-        if len(batch):
-            layouts.append(batch.layout)
-            parts.append(conv.convert(batch))
-    dec.flush()
-    s = concat_samples(parts)
+    dec, s, layouts = decode_in_random_chunks(fmt, data, rng, 150)  # some chunks shorter than any datagram
     lost = truncated | flipped
-    kept = np.array([i for i in range(n) if i not in lost])
-    assert dec.total.frames == kept.size + len(duplicated)
-    assert dec.total.rejected == len(lost)
-    assert dec.total.garbage_bytes == garbage
-    assert (s.gaps, s.resets, s.duplicates) == (len(lost), 1, len(duplicated))
-    assert len(s) == kept.size
+    kept = check_damage_counts(dec, s, n, lost, duplicated, garbage)
     # each frame decoded with its own layout: the identifier sequence comes back, duplicates included
     sent = [int(which[i]) for i in range(n) if i not in lost for _ in range(2 if i in duplicated else 1)]
     order = [d.sync[0] for _r, d in [("data", fmt.desc), *fmt.desc.alternates]]
