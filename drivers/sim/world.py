@@ -210,7 +210,8 @@ class SimulatedWorld:
 
     def command_axis_position(self, axis: int, angle: float) -> None:
         """Move one gimbal ``axis`` (0 outer, 1 middle, 2 inner) to the absolute angle ``angle`` (rad); the other
-        axes keep their motion (a controller frame that demands one axis, e.g. an ACL way-point).
+        axes keep their motion (a controller frame that demands one axis, e.g. an ACL way-point). Like every
+        motion command it re-positions the table: a new realised attitude error is drawn (if realised).
 
         Raises
         ------
@@ -243,6 +244,7 @@ class SimulatedWorld:
                 tolerance=tb.position_tolerance,
                 in_position_time=tb.in_position_time,
             )
+            self._new_attitude_error()
             self._feed()
 
     def command_rate(self, axis: int, rate: float) -> None:
