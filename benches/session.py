@@ -9,7 +9,6 @@ table's limits.
 from __future__ import annotations
 
 import datetime as _dt
-import hashlib
 import json
 import shutil
 import sys
@@ -21,7 +20,7 @@ from typing import TYPE_CHECKING, TextIO
 import numpy as np
 
 from core.errors import UserError
-from core.provenance import software_version
+from core.provenance import software_version, text_sha256
 from core.yaml_source import ConfigError
 from procedures.compiler import compile_procedure
 from procedures.loader import load_procedure
@@ -134,10 +133,6 @@ def unfinished_work(folder: Path) -> list[str]:
     return todo
 
 
-def _sha256(text: str) -> str:
-    return hashlib.sha256(text.encode("utf-8")).hexdigest()
-
-
 def execute(
     prep: Prepared,
     folder: Path,
@@ -204,7 +199,7 @@ def execute(
                 "procedure_file": str(prep.procedure_path),
                 "procedure_sha256": compiled.sha256,
                 "procedure_overrides": dict(prep.overrides),
-                "bench_sha256": _sha256(config.text),
+                "bench_sha256": text_sha256(config.text),
                 "sample_rate_hz": float(config.unit.sample_rate),
                 "simulated": world is not None,
                 "transport": bench.transport,

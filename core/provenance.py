@@ -1,4 +1,4 @@
-"""Provenance helpers: file digests and the installed software version."""
+"""Provenance helpers: file and text digests and the installed software version."""
 
 from __future__ import annotations
 
@@ -13,6 +13,11 @@ def file_sha256(path: str | Path) -> str:
         for chunk in iter(lambda: fh.read(1 << 20), b""):
             h.update(chunk)
     return h.hexdigest()
+
+
+def text_sha256(text: str) -> str:
+    """SHA-256 hex digest of a text's UTF-8 bytes (a bench or procedure file as recorded)."""
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
 def software_version() -> str:
