@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 
@@ -22,10 +23,6 @@ def text_sha256(text: str) -> str:
 
 def software_version() -> str:
     """The installed tablebench version (``0.0.0+source`` when running from a source tree not installed)."""
-    try:
-        from importlib.metadata import PackageNotFoundError, version
-    except ImportError:  # pragma: no cover
-        return "0.0.0+source"
     try:
         return version("tablebench")
     except PackageNotFoundError:
