@@ -117,12 +117,6 @@ def new_run_folder(out: str | Path | None, procedure_name: str) -> Path:
     return folder
 
 
-def check_seed(seed: int | None) -> None:
-    """A simulator seed must be an integer in [0, 2**64); SessionError otherwise (before anything is created)."""
-    if seed is not None and not 0 <= seed < 2**64:
-        raise SessionError(f"--seed {seed}: must be an integer from 0 to 2**64 - 1 (18446744073709551615)")
-
-
 def unfinished_work(folder: Path) -> list[str]:
     """What a run with a complete recording has not done yet: "identification" and/or "certificate"."""
     todo = []
@@ -277,7 +271,6 @@ def recording_status(path: Path) -> dict[str, object]:
 __all__ = [
     "Prepared",
     "SessionError",
-    "check_seed",
     "unfinished_work",
     "copy_inputs",
     "execute",

@@ -9,12 +9,11 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from benches.arguments import parse_overrides
+from benches.arguments import check_seed, parse_overrides
 from benches.progress import ProgressDisplay
 from benches.session import (
     Prepared,
     SessionError,
-    check_seed,
     copy_inputs,
     execute,
     identify_and_certify,
@@ -109,10 +108,7 @@ def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench run``."""
     from benches.identify import IdentificationError, LiveIdentifier, plan_for  # lazy: filterpy, scipy (--help time)
 
-    try:
-        check_seed(args.seed)
-    except SessionError as exc:
-        raise UsageError(str(exc)) from None
+    check_seed(args.seed)
     if args.resume is not None:
         folder = Path(args.resume)
         if folder.is_file():

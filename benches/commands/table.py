@@ -18,8 +18,8 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, TextIO
 
 from analysis.units import DEG
+from benches.arguments import check_seed
 from benches.bench_config import load_bench
-from benches.session import check_seed
 from core.errors import UsageError
 from drivers.protocols import AxisLimits, LinkError, TableError, TableState, TableStatus, Turntable
 from procedures.paths import default_bench_path, resolve_bench
@@ -272,8 +272,7 @@ def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
     out = out or sys.stdout
     if args.timeout is not None and not (math.isfinite(args.timeout) and 0 < args.timeout <= 86400):
         raise UsageError(f"--timeout {args.timeout!r}: give seconds in (0, 86400]")
-    if args.seed is not None:
-        check_seed(args.seed)
+    check_seed(args.seed)
     bench_path = resolve_bench(args.bench) if args.bench else default_bench_path()
     config = load_bench(bench_path)
     demand = parse_demand(args.action, list(args.values), config.turntable.limits)

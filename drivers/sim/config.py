@@ -41,6 +41,10 @@ def _good_table_limits() -> tuple[AxisLimits, AxisLimits, AxisLimits]:
     return (lim, lim, lim)
 
 
+MAX_SEED = 2**63 - 1
+"""Largest simulator seed: the range of the bench file's ``simulation.seed`` and of ``--seed``."""
+
+
 @dataclass(frozen=True)
 class AccelTruth:
     """True accelerometer-triad errors (accelerometer-calibration.md), SI, body frame.
