@@ -214,29 +214,24 @@ def _open_simulated(
     )
 
 
+def _acl_options(tt: TurntableSpec) -> dict[str, Any]:
+    """The ACL driver's settings and tolerances from a bench's turntable section."""
+    return {
+        "settings": tt.acl,
+        "position_tolerance": tt.position_tolerance,
+        "settle_time": tt.in_position_time,
+        "rate_tolerance": tt.rate_tolerance,
+    }
+
+
 def acl_turntable(transport: MessageTransport, tt: TurntableSpec) -> AclTurntable:
     """The ACL driver for a bench's turntable section on an open transport (settings and tolerances from the bench)."""
-    return AclTurntable(
-        transport,
-        tuple(tt.limits),  # type: ignore[arg-type]
-        settings=tt.acl,
-        position_tolerance=tt.position_tolerance,
-        settle_time=tt.in_position_time,
-        rate_tolerance=tt.rate_tolerance,
-    )
+    return AclTurntable(transport, tuple(tt.limits), **_acl_options(tt))  # type: ignore[arg-type]
 
 
 def _acutrol_connection(resource: str, tt: TurntableSpec) -> connect.Connection[AclTurntable]:
     """Open the VISA ``resource`` and the ACL driver on it, with the bench's turntable settings and tolerances."""
-    return connect.acutrol_table(
-        resource,
-        tuple(tt.limits),  # type: ignore[arg-type]
-        settings=tt.acl,
-        position_tolerance=tt.position_tolerance,
-        settle_time=tt.in_position_time,
-        rate_tolerance=tt.rate_tolerance,
-        timeout=DEFAULT_TIMEOUT_S,
-    )
+    return connect.acutrol_table(resource, tuple(tt.limits), timeout=DEFAULT_TIMEOUT_S, **_acl_options(tt))  # type: ignore[arg-type]
 
 
 def _hardware_table(config: BenchConfig) -> connect.Connection[Any]:
