@@ -54,3 +54,32 @@ def bounded(low: float, high: float, *, integer: bool = False, low_open: bool = 
 
     parse.__name__ = "integer" if integer else "number"
     return parse
+
+
+def add_bench_argument(p: argparse.ArgumentParser) -> None:
+    """``--bench FILE`` (check, plan, run, table): a bench file or a shipped bench's name."""
+    p.add_argument(
+        "--bench",
+        metavar="FILE",
+        default=None,
+        help="bench YAML file or shipped name (default: benches/sim.yaml here, else the shipped sim bench)",
+    )
+
+
+def add_procedure_arguments(p: argparse.ArgumentParser, *, positional: bool = False) -> None:
+    """The procedure (``--procedure FILE``, or the positional ``FILE`` of ``check``) and its ``--set`` overrides
+    (parsed by :func:`parse_overrides`), for check, plan and run."""
+    if positional:
+        p.add_argument("procedure", metavar="FILE", help="procedure YAML file, or a shipped name like ten-step")
+    else:
+        p.add_argument(
+            "--procedure", metavar="FILE", default=None, help="procedure YAML file or shipped name (default: ten-step)"
+        )
+    p.add_argument(
+        "--set",
+        metavar="NAME=VALUE",
+        action="append",
+        default=[],
+        help="override a procedure parameter (from its parameters: block), e.g. --set duration_s=60; repeatable",
+    )
+

@@ -9,7 +9,7 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from benches.arguments import check_seed, parse_overrides
+from benches.arguments import add_bench_argument, add_procedure_arguments, check_seed, parse_overrides
 from benches.progress import ProgressDisplay
 from benches.session import (
     Prepared,
@@ -51,8 +51,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("--bench", default=None, help="bench file (default: the shipped simulated bench benches/sim.yaml)")
-    p.add_argument("--procedure", default=None, help="procedure file or shipped name (default: ten-step)")
+    add_bench_argument(p)
+    add_procedure_arguments(p)
     p.add_argument("--out", default=None, metavar="DIR", help="run folder (default: runs/<UTC time>-<procedure>)")
     p.add_argument("--seed", type=int, default=None, help="simulator seed (simulated benches; default from the bench)")
     p.add_argument("--resume", default=None, metavar="RUN", help="continue an interrupted run folder")
@@ -61,13 +61,6 @@ def register(sub: argparse._SubParsersAction) -> None:
         choices=("in-process", "loopback"),
         default=None,
         help="simulated benches: in-process (no bytes), or the real drivers over real wires on loopback",
-    )
-    p.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="NAME=VALUE",
-        help="override a procedure parameter (its parameters: block), e.g. --set duration_s=600; repeatable",
     )
     p.add_argument("--no-identify", action="store_true", help="only record (no plan, no identification)")
     p.add_argument("--no-certificate", action="store_true", help="do not issue a certificate at the end")

@@ -18,7 +18,7 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, TextIO
 
 from analysis.units import DEG
-from benches.arguments import check_seed
+from benches.arguments import add_bench_argument, check_seed
 from benches.bench_config import load_bench
 from core.errors import UsageError
 from drivers.protocols import AxisLimits, LinkError, TableError, TableState, TableStatus, Turntable
@@ -64,7 +64,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("--bench", default=None, help="bench file (default: the shipped simulated bench benches/sim.yaml)")
+    add_bench_argument(p)
     p.add_argument(
         "--transport",
         choices=("in-process", "loopback"),
