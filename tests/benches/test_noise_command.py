@@ -73,6 +73,9 @@ def test_recording_input_uses_si_channels_and_display_units(tmp_path: Path, caps
         ("short", ["--rate", "10"], "at least 64"),
         ("ok", ["--rate", "10", "--confidence", "1.5"], "--confidence"),
         ("constant", ["--rate", "10"], "channel 'gy'"),
+        ("ok", ["--rate", "10", "--fit-estimator", "mdev"], "--fit-estimator mdev: its noise terms have no fixed"),
+        ("ok", ["--rate", "10", "--fit-estimator", "theo1"], "--fit-estimator theo1: it is biased"),
+        ("ok", ["--rate", "10", "--fit-estimator", "avar"], "--fit-estimator avar: unknown estimator"),
     ],
 )
 def test_bad_input_is_one_clear_line_exit_2(
