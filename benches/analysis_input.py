@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from benches.recording import RecordingError, open_recording, recording_file
 from core.errors import UserError
 
 RECORDING_CHANNELS: tuple[str, ...] = ("accel_x", "accel_y", "accel_z", "gyro_x", "gyro_y", "gyro_z")
@@ -159,7 +160,6 @@ def _load_array(path: Path, rate: float | None, wanted: str | None, allow_gaps: 
 def _load_recording(
     path: Path, rate: float | None, wanted: str | None, step: str | None, allow_gaps: bool = False
 ) -> AnalysisInput:
-    from benches.recording import RecordingError, open_recording
 
     source = str(path)
     try:
@@ -213,8 +213,6 @@ def _load_recording(
 
 def recording_path(path: str | Path) -> Path:
     """The ``recording.h5`` of a run folder, or the path itself if it is a file."""
-    from benches.recording import recording_file
-
     return recording_file(path)
 
 

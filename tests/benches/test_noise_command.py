@@ -6,6 +6,7 @@ import json
 import math
 from pathlib import Path
 
+import h5py
 import numpy as np
 import pytest
 
@@ -15,7 +16,6 @@ from benches.cli import main
 
 
 def _write_recording(path: Path, accel: np.ndarray, gyro: np.ndarray, rate: float) -> None:
-    h5py = pytest.importorskip("h5py")
     with h5py.File(path, "w") as fh:
         fh.attrs["format"] = "tablebench-recording"
         fh.attrs["sample_rate_hz"] = rate

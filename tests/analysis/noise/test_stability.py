@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
+import allantools
 import numpy as np
 import pytest
 
 from analysis.noise.stability import ESTIMATORS, m_grid, stability
-
-allantools = pytest.importorskip("allantools")
 
 _ALL = tuple(e for e in ESTIMATORS if e not in ("theoh", "theobr"))  # not in allantools (tested below)
 
