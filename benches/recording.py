@@ -28,7 +28,9 @@ import hashlib
 import json
 import math
 import zlib
+from collections import deque
 from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -38,6 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from core.errors import UserError
+from core.provenance import text_sha256
 from drivers.protocols import ImuBlock, TableState
 
 FORMAT = "tablebench-recording"
@@ -388,9 +391,6 @@ class _ChunkWriter:
     """
 
     def __init__(self, f: h5py.File, names: Sequence[str], chunk: int, quanta: dict[str, float]) -> None:
-        from collections import deque
-        from concurrent.futures import ThreadPoolExecutor
-
         self.chunk = chunk
         self.names = tuple(names)
         self.quanta = dict(quanta)
@@ -1267,7 +1267,7 @@ class Recording:
 
     def _check_text(self, name: str, text: str, sha: str) -> None:
         if self.header.format_version >= 2 and len(sha) == 64:
-            if hashlib.sha256(text.encode("utf-8")).hexdigest() != sha:
+            if text_sha256(text) != sha:
                 raise RecordingDamaged(
                     f"{self.path}: dataset /{name}: the text does not match its SHA-256 in the header; {self._fix()}"
                 )
