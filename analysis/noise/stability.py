@@ -471,6 +471,11 @@ def _reflected_sumsq(
     return total, np.full(c, count, dtype=np.int64)
 
 
+def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+    """Σ a_i b_i of two 1-D arrays without BLAS (its thread start-up costs more than the sum on a busy machine)."""
+    return float(np.einsum("i,i->", a, b))
+
+
 def _fast_len(n: int) -> int:
     """A fast real FFT length ≥ n."""
     return int(sfft.next_fast_len(max(int(n), 2), real=True))
@@ -522,8 +527,8 @@ def _detrend_quadratic(s: NDArray[np.float64]) -> tuple[NDArray[np.float64], flo
         t = (np.arange(a, b, dtype=np.float64) - c) / n
         q = t * t - mt2
         blk = s[a:b]
-        proj += (blk.sum(), float(blk @ t), float(blk @ q))
-        norm += (b - a, float(t @ t), float(q @ q))
+        proj += (blk.sum(), _dot(blk, t), _dot(blk, q))
+        norm += (b - a, _dot(t, t), _dot(q, q))
     coef = np.where(norm > 0, proj / np.where(norm > 0, norm, 1.0), 0.0)
     out = np.empty(n)
     for a in range(0, n, step):
@@ -544,7 +549,7 @@ def _seg_products(h: NDArray[np.float64], wa: NDArray, wb: NDArray, fb: float, w
     hf = sfft.rfft(buf, nf, overwrite_x=True)
     p = hf * hf
     out = sfft.irfft(p, nf, overwrite_x=True)
-    tot = fc * float(out[: 2 * n - 1] @ wc[: 2 * n - 1])
+    tot = fc * _dot(out[: 2 * n - 1], wc[: 2 * n - 1])
     del out
     pv = p.view(np.float64)
     hv = hf.view(np.float64)
@@ -554,7 +559,7 @@ def _seg_products(h: NDArray[np.float64], wa: NDArray, wb: NDArray, fb: float, w
     pv[0::2] += pv[1::2]
     pv[1::2] = 0.0
     out = sfft.irfft(p, nf, overwrite_x=True)
-    tot += float(out[:n] @ wa[:n])
+    tot += _dot(out[:n], wa[:n])
     del out, p, pv
     buf[n:] = 0.0
     np.multiply(np.arange(n, dtype=np.float64), h, out=buf[:n])
@@ -565,7 +570,7 @@ def _seg_products(h: NDArray[np.float64], wa: NDArray, wb: NDArray, fb: float, w
     del hf, hv
     out = sfft.irfft(p, nf, overwrite_x=True)
     del p
-    tot += fb * float(out[:n] @ wb[:n])
+    tot += fb * _dot(out[:n], wb[:n])
     return tot
 
 
@@ -656,7 +661,7 @@ def _mtot_fft(
     wa *= 2.0
     wa[0] *= 0.5
     wa += wr * np.arange(L, 0, -1, dtype=np.float64)
-    T1 += 2.0 * float(Rd @ wa)
+    T1 += 2.0 * _dot(Rd, wa)
     del wa, wr, RC, sig, rc_hi, rc_lo
     rho = _kernel_rho(m)
     # detrend terms: β the half-mean slope, q = Qk; Σ_{i<M} (βᵀX_i)(vᵀX_i) = Σ_d c_βv(d) R_|d| − partial windows
@@ -666,11 +671,11 @@ def _mtot_fft(
     r0 = abs(float(Rd[0]))
 
     def full(c: NDArray) -> tuple[float, float]:  # Σ_d c(d) R_|d| for c over d = −(L−1) … L−1, and Σ|c| R_0
-        return float(c[L - 1] * Rd[0] + (c[L:] + c[L - 2 :: -1]) @ Rd[1:]), r0 * float(np.abs(c).sum())
+        return float(c[L - 1] * Rd[0] + _dot(c[L:] + c[L - 2 :: -1], Rd[1:])), r0 * float(np.abs(c).sum())
 
     lv = np.arange(L, dtype=np.float64)
     q = _q_apply(rho, lv)
-    kqk = float(lv @ q)
+    kqk = _dot(lv, q)
     del lv
     beta = np.zeros(L)
     beta[:h1] = -1.0 / (h1 * D)
@@ -681,10 +686,10 @@ def _mtot_fft(
     for seg, lo, hi in ((h, -(L - 1), 0), (g, 0, L - 1)):  # partial windows over the head and the tail
         sb = _beta_corr(seg, lo, hi, L, h1, D)
         sq = _seg_corr(seg, q, lo, hi)
-        s_bu -= float(sb @ sq)
-        sc_bu += float(np.abs(sb) @ np.abs(sq))
+        s_bu -= _dot(sb, sq)
+        sc_bu += _dot(np.abs(sb), np.abs(sq))
         del sq
-        bb = float(sb @ sb)
+        bb = _dot(sb, sb)
         s_bb -= bb
         sc_bb += bb
         del sb
@@ -696,7 +701,7 @@ def _mtot_fft(
         beta_s = ((k[h2:] ** 2).mean() - (k[:h1] ** 2).mean()) / D
         r1 = k * k - beta_s * k
         qr1 = _q_apply(rho, r1)
-        square = M * a * a * float(r1 @ qr1)
+        square = M * a * a * _dot(r1, qr1)
         del r1
         win = np.empty(L)  # Σ_{i<M} s[i + k]
         win[0] = s[:M].sum()
@@ -704,7 +709,7 @@ def _mtot_fft(
         win[1:] += win[0]
         bsum = (win[h2:].sum() - win[:h1].sum()) / (h1 * D)
         win -= bsum * k  # Σ_i z_i
-        cross = 2.0 * a * float(win @ qr1)
+        cross = 2.0 * a * _dot(win, qr1)
         E += cross + square
         scale += 8.0 * (abs(cross) + abs(square))
     err = 1.1e-16 * scale / abs(E) if E != 0.0 else math.inf
@@ -856,7 +861,7 @@ def _window_sums(f, count: int, top: int, sq: bool) -> NDArray[np.float64]:
     w = np.empty(top + 1)
     head = f[:top]
     tail = f[count : count + top]
-    w[0] = float(f[:count] @ f[:count]) if sq else float(f[:count].sum())
+    w[0] = _dot(f[:count], f[:count]) if sq else float(f[:count].sum())
     np.cumsum(tail * tail - head * head if sq else tail - head, out=w[1:])
     w[1:] += w[0]
     return w
@@ -881,8 +886,8 @@ def _theo1_fft(x: NDArray[np.float64], m: int, r: NDArray[np.float64], a: float)
     w = 1.0 / (h - dl)
     wsum = float(w.sum())
     w2 = _window_sums(x, count, m, True)
-    t3 = float(w @ (w2[h - dl] + w2[h + dl]))
-    t1 = wsum * (w2[0] + w2[m] + 2.0 * float(x[:count] @ x[m : m + count]))
+    t3 = _dot(w, w2[h - dl] + w2[h + dl])
+    t1 = wsum * (w2[0] + w2[m] + 2.0 * _dot(x[:count], x[m : m + count]))
     # Σ_c A_c (k∗x)_c, (k∗x)_c = Σ_{j<m−1} kern_j x_{c+1+j}
     kl = m - 1
     kern = np.zeros(kl)
@@ -899,10 +904,10 @@ def _theo1_fft(x: NDArray[np.float64], m: int, r: NDArray[np.float64], a: float)
         f *= kf
         kc = sfft.irfft(f, nf, overwrite_x=True)[kl - 1 : kl - 1 + c1 - c0]
         del f
-        t2 += float((x[c0:c1] + x[c0 + m : c1 + m]) @ kc)
+        t2 += _dot(x[c0:c1] + x[c0 + m : c1 + m], kc)
         del kc
     t2 *= 2.0
-    s4 = float(r[2 * dl] @ w)
+    s4 = _dot(r[2 * dl], w)
     gz = 2 * m + 2
     g = np.zeros(4 * m + 5)
     g[gz + 2 * dl] = w
@@ -916,7 +921,7 @@ def _theo1_fft(x: NDArray[np.float64], m: int, r: NDArray[np.float64], a: float)
         qd = 2.0 * (h * h - dl * dl.astype(np.float64))
         s1 = _window_sums(x, count, m, False)
         esum = s1[0] + s1[m] - s1[h - dl] - s1[h + dl]
-        cross = 2.0 * a * float(esum @ (w * qd))
+        cross = 2.0 * a * _dot(esum, w * qd)
         square = count * a * a * float(np.sum(w * qd * qd))
         v += cross + square
         scale += 8.0 * (abs(cross) + abs(square))
