@@ -776,13 +776,52 @@ def _total_sumsq(
     c, n_s = s.shape
     count = n_s - 3 * m + 1
     if ok is None and m >= _FFT_MIN_M and count > 0:
+        pre = cache.get(("pre", key, m))
         e = np.zeros(c)
         for ch in range(c):
-            sd, r, a = _series_cache(s, ch, cache, key)
-            v, err = _mtot_fft(sd, m, r, a)
+            if pre is not None:
+                v, err = pre[ch], 0.0 if np.isfinite(pre[ch]) else math.inf
+            else:
+                sd, r, a = _series_cache(s, ch, cache, key)
+                v, err = _mtot_fft(sd, m, r, a)
             e[ch] = v if err < _FFT_MAX_ERR else _reflected_sumsq(s[ch : ch + 1], m, None)[0][0]
         return e, np.full(c, count, dtype=np.int64)
     return _reflected_sumsq(s, m, ok)
+
+
+def _prepass(rec: _Record, name: str, ms: NDArray[np.int64], cache: dict) -> None:
+    """Gap-free records: the O(N log N) forms of one estimator for every m of its grid, channel by channel, so
+    that only one channel's detrended series and autocorrelation are alive at a time (memory a few × one
+    channel instead of × all channels). Stored as ``cache[("pre", key, m)]`` (NaN: rounding estimate too
+    large, the direct sum is used)."""
+    if rec.has_gaps or rec.channels == 1:
+        return
+    if name in ("mtotdev", "ttotdev"):
+        key, fn, src = "R_phase", _mtot_fft, rec.x
+        todo = [int(m) for m in ms if m >= _FFT_MIN_M and rec.n - 3 * m + 1 > 0]
+    elif name == "htotdev":
+        if "freq" not in cache:
+            cache["freq"] = rec.frequency()
+        key, fn, src = "R_freq", _mtot_fft, cache["freq"][0]
+        todo = [int(m) for m in ms if m >= _FFT_MIN_M and src.shape[1] - 3 * m + 1 > 0]
+    elif name == "theo1":
+        key, fn, src = "R_theo", _theo1_fft, rec.x
+        todo = [int(m) for m in ms if m >= 64 and m % 2 == 0 and rec.n - m > 0]
+    else:
+        return
+    todo = [m for m in todo if ("pre", key, m) not in cache]
+    if not todo:
+        return
+    vals = {m: np.full(rec.channels, np.nan) for m in todo}
+    for ch in range(rec.channels):
+        sd, r, a = _series_cache(src, ch, cache, key)
+        for m in todo:
+            v, err = fn(sd, m, r, a)
+            if err < _FFT_MAX_ERR:
+                vals[m][ch] = v
+        del cache[(key, ch)], sd, r
+    for m in todo:
+        cache[("pre", key, m)] = vals[m]
 
 
 def _theo1_sumsq(
@@ -936,9 +975,13 @@ def _theo1_total(rec: _Record, m: int, cache: dict) -> tuple[NDArray[np.float64]
     if not rec.has_gaps and m >= 64 and m % 2 == 0 and n - m > 0:
         c = rec.channels
         out = np.zeros(c)
+        pre = cache.get(("pre", "R_theo", m))
         for ch in range(c):
-            xd, r, a = _series_cache(rec.x, ch, cache, "R_theo")
-            v, err = _theo1_fft(xd, m, r, a)
+            if pre is not None:
+                v, err = pre[ch], 0.0 if np.isfinite(pre[ch]) else math.inf
+            else:
+                xd, r, a = _series_cache(rec.x, ch, cache, "R_theo")
+                v, err = _theo1_fft(xd, m, r, a)
             out[ch] = v if err < _FFT_MAX_ERR else _theo1_sumsq(rec.x[ch : ch + 1], m, None)[0][0]
         return out, np.full(c, (n - m) * (m // 2), dtype=np.int64)
     return _theo1_sumsq(rec.x, m, rec.span_ok(0, n - m, m) if n - m > 0 else None)
@@ -1102,7 +1145,13 @@ def stability(
             from analysis.noise.allan import allan_variances
 
             ms = grid[grid <= max(_MAX_M[e](rec.n) for e in want)]
-            classic = allan_variances(rec.freq_raw.T, rate, ms / rate, max_m=int(ms.max()) if ms.size else 1)
+            top = int(ms.max()) if ms.size else 1
+            # channel by channel: the pass's phase and moving sums then cost two single-channel arrays
+            parts = [allan_variances(rec.freq_raw[ch], rate, ms / rate, max_m=top) for ch in range(c)]
+            classic = parts[0]
+            if c > 1:
+                classic.var = {k: np.concatenate([p.var[k] for p in parts], axis=1) for k in classic.var}
+            del parts
     key = {"adev": "avar", "oadev": "oavar", "mdev": "mvar", "totdev": "totvar"}
     for name in estimators:
         if name == "theoh":
@@ -1110,6 +1159,7 @@ def stability(
         ms = grid[grid <= _MAX_M[name](rec.n)]
         if name == "theo1":
             ms = ms[ms % 2 == 0]
+        _prepass(rec, name, ms, cache)
         dev = np.full((ms.size, c), np.nan)
         nt = np.zeros((ms.size, c), dtype=np.int64)
         for j, m in enumerate(ms):
