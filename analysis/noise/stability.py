@@ -547,6 +547,7 @@ def _seg_products(h: NDArray[np.float64], wa: NDArray, wb: NDArray, fb: float, w
     buf = np.zeros(nf)
     buf[:n] = h
     hf = sfft.rfft(buf, nf, overwrite_x=True)
+    del buf
     p = hf * hf
     out = sfft.irfft(p, nf, overwrite_x=True)
     tot = fc * _dot(out[: 2 * n - 1], wc[: 2 * n - 1])
@@ -561,7 +562,7 @@ def _seg_products(h: NDArray[np.float64], wa: NDArray, wb: NDArray, fb: float, w
     out = sfft.irfft(p, nf, overwrite_x=True)
     tot += _dot(out[:n], wa[:n])
     del out, p, pv
-    buf[n:] = 0.0
+    buf = np.zeros(nf)
     np.multiply(np.arange(n, dtype=np.float64), h, out=buf[:n])
     p = sfft.rfft(buf, nf, overwrite_x=True)
     del buf
