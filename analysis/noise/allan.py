@@ -18,9 +18,11 @@ One pass per τ over the phase, in cache-sized chunks, vectorised over the chann
 d_i = x_{i+2m} − 2x_{i+m} + x_i serve the overlapping AVAR, the central part of the total variance (whose
 remaining O(m) reflected edge terms are evaluated separately from slices) and the modified AVAR — on an
 octave grid from moving sums of the phase, doubled in place from one τ to the next (one add per sample per
-τ), otherwise from a running sum of d over each chunk; the non-overlapping AVAR is the strided subset. Cost
-O(N) per τ; memory two float64 arrays of N+1 per channel (phase and moving sums) plus O(chunk) temporaries,
-i.e. about twice the record (measured in benchmarks/bench_noise.py).
+τ), otherwise from a running sum of d over each chunk; the non-overlapping AVAR is the strided subset. The
+chunk temporaries are two preallocated buffers (no allocation per chunk) and the plain sums Σd, Σs telescope to
+O(m) end sums, so a pass is two differences and one product-sum per estimator. Cost O(N) per τ; memory two
+float64 arrays of N+1 per channel (phase and moving sums) plus O(chunk) temporaries, i.e. about twice the
+record (measured in benchmarks/bench_noise.py).
 
 Precision: before integration the least-squares line (mean and rate ramp) is removed from each channel and
 its contribution is added back analytically (a ramp r adds exactly r τ² to every central second difference,

@@ -29,19 +29,22 @@ tierms     rms of x_{i+m} − x_i                                               
 Frequency input is integrated to phase as allantools does (mean removed, x_0 = 0, x_j = x_{j−1} + y_j τ₀);
 phase input for ``htotdev`` is differenced to frequency.
 
-Speed. Every estimator costs O(N) or O(N log N) per τ, all channels at once. ADEV/OADEV/HDEV/OHDEV/TIE rms:
-chunked differences; MDEV/TDEV: a cumulative sum of the second differences; MTIE: an O(N) running max/min
-filter; the classic ADEV/OADEV/MDEV/TOTDEV of gap-free frequency records go through
-:func:`analysis.noise.allan.allan_variances` (one chunked pass per τ, analytic ramp handling).
-MTOTDEV/TTOTDEV/HTOTDEV: the even reflection makes each subsequence's 6m terms one period of a circular
-filter, i.e. a quadratic form zᵀQz with Q Toeplitz + Hankel; summed over subsequences it reduces to the
-record's autocorrelation and FFT correlations of the 3m − 1 end samples (:func:`_reflected_sumsq_fft`,
-O(N log N) per τ). Theo1: FFT convolutions plus two anti-diagonal triangle sums by divide and conquer
-(:func:`_theo1_sumsq_fft`, O(N log N + m log² m)). Both closed forms expand squares into products, so they are
-used only where their rounding estimate is below 1e-9 of the variance (and for m ≥ 8 / 64); otherwise, and
-with gaps, the exact direct sums (O(N·m) per τ, vectorised) are used. Memory: the classic path about twice the
-record; the FFT forms hold a few complex spectra of twice the record length (measured in
-benchmarks/bench_noise.py).
+Speed. Every estimator costs O(N) or O(N log N) per τ. ADEV/OADEV/HDEV/OHDEV/TIE rms: chunked differences;
+MDEV/TDEV: a cumulative sum of the second differences; MTIE: an O(N) running max/min filter; the classic
+ADEV/OADEV/MDEV/TOTDEV of gap-free frequency records go through :func:`analysis.noise.allan.allan_variances`
+(channel by channel, one chunked pass per τ in preallocated buffers, plain sums by telescoping, analytic ramp
+handling). MTOTDEV/TTOTDEV/HTOTDEV: the even reflection makes each subsequence's 6m terms one period of a
+circular filter, i.e. a quadratic form zᵀQz with Q Toeplitz + Hankel; summed over subsequences it reduces to the
+record's autocorrelation (one FFT per channel and record, :func:`_autocorr`) and FFT correlations of the 3m − 1
+end samples (:func:`_mtot_fft`: O(N) once plus O(m log m) per τ). Theo1: window sums, one lagged product, a
+blocked FFT correlation and two anti-diagonal triangle sums by divide and conquer (:func:`_theo1_fft`,
+O(N log m + m log² m) per τ). Both closed forms expand squares into products, so they are used only where their
+rounding estimate is below 1e-9 of the variance (and for m ≥ 8 / 64); otherwise, and with gaps, the exact
+direct sums (O(N·m) per τ, vectorised, in chunks) are used. Several channels: the closed forms run channel by
+channel over the whole τ grid (:func:`_prepass`), so one channel's series and autocorrelation are alive at a
+time. Memory (benchmarks/bench_noise.py, RESULTS.md): the classic path about 2.5× the record; the total family
+about 4× over most of the grid and ≈ 10× at the largest τ (window 3m ≈ 0.6–0.8 N: end-segment FFTs as long as
+the record); a gap-free phase input and a gap-free frequency input for HTOTDEV are used without copies.
 
 Gaps. NaN samples are gaps. A term is skipped when it touches a gap: for phase input (allantools'
 gap-robust ``gradev`` convention) the phase points a point-estimator uses (ADEV, OADEV, HDEV, OHDEV, TIE rms)
