@@ -436,18 +436,18 @@ def _reflected_sumsq(
     count = n_s - L + 1
     if count <= 0:
         return np.zeros(c), np.zeros(c, dtype=np.int64)
-    mean = s.mean(axis=1, keepdims=True)
     h1 = L // 2
     h2 = L - h1
     D = (0.5 * (L - 1) + 1) if L % 2 else 0.5 * L
     qL = 0.5 * L * (L - 1)
     reps = _reflected_reps(m)
     total = np.zeros(c)
-    step = max(_CHUNK // max(1, c), 1024)
+    step = max(_CHUNK // 8 // max(1, c), 1024)  # short chunks: partial sums stay small (rounding ∝ chunk^1.5)
     for a in range(0, count, step):
         k = min(count, a + step) - a
         P = np.zeros((c, k + L))
-        np.cumsum(s[:, a : a + k + L - 1] - mean, axis=1, out=P[:, 1:])
+        seg = s[:, a : a + k + L - 1]
+        np.cumsum(seg - seg.mean(axis=1, keepdims=True), axis=1, out=P[:, 1:])  # local offset: small partial sums
         P0 = P[:, :k]
         b = ((P[:, L : L + k] - P[:, h2 : h2 + k]) - (P[:, h1 : h1 + k] - P0)) / (h1 * D)
         ztot = P[:, L : L + k] - P0
@@ -769,6 +769,38 @@ def _series_cache(s: NDArray[np.float64], ch: int, cache: dict, key: str) -> tup
     return cache[ck]
 
 
+_BLOCK_MIN = 1 << 16
+"""Fewest windows per block of :func:`_blocked_sum`."""
+
+
+def _blocked_sum(s: NDArray[np.float64], m: int, kind: str) -> float:
+    """The closed form evaluated block by block: windows i ∈ [b₀, b₁) use only s[b₀ : b₁ + span], so their sum
+    is the closed form of that segment (its own quadratic removed, its own autocorrelation). A short segment's
+    autocorrelation is small next to the record's (a random-walk phase: R₀ ∝ length²), which keeps the
+    expansion's rounding below :data:`_FFT_MAX_ERR` where the record-wide form is not; a block still above it
+    is summed directly. O(N log B) per τ for blocks of B ≈ max(2¹⁶, 16·span) windows."""
+    if kind == "mtot":
+        span, count, fn = 3 * m - 1, s.size - 3 * m + 1, _mtot_fft
+    else:
+        span, count, fn = m, s.size - m, _theo1_fft
+    block = max(_BLOCK_MIN, 16 * span)
+    total = 0.0
+    for b0 in range(0, count, block):
+        b1 = min(count, b0 + block)
+        seg = s[b0 : b1 + span]
+        sd, a = _detrend_quadratic(seg)
+        r = _autocorr(sd, min(seg.size - 1, span + 1))
+        v, err = fn(sd, m, r, a)
+        del sd, r
+        if err >= _FFT_MAX_ERR:
+            if kind == "mtot":
+                v = float(_reflected_sumsq(seg[None, :], m, None)[0][0])
+            else:
+                v = float(_theo1_sumsq(seg[None, :], m, None)[0][0])
+        total += v
+    return total
+
+
 def _total_sumsq(
     s: NDArray[np.float64], m: int, ok: NDArray[np.bool_] | None, cache: dict, key: str
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -788,7 +820,7 @@ def _total_sumsq(
             else:
                 sd, r, a = _series_cache(s, ch, cache, key)
                 v, err = _mtot_fft(sd, m, r, a)
-            e[ch] = v if err < _FFT_MAX_ERR else _reflected_sumsq(s[ch : ch + 1], m, None)[0][0]
+            e[ch] = v if err < _FFT_MAX_ERR else _blocked_sum(s[ch], m, "mtot")
         return e, np.full(c, count, dtype=np.int64)
     return _reflected_sumsq(s, m, ok)
 
@@ -819,11 +851,16 @@ def _prepass(rec: _Record, name: str, ms: NDArray[np.int64], cache: dict) -> Non
     vals = {m: np.full(rec.channels, np.nan) for m in todo}
     for ch in range(rec.channels):
         sd, r, a = _series_cache(src, ch, cache, key)
+        bad = []
         for m in todo:
             v, err = fn(sd, m, r, a)
             if err < _FFT_MAX_ERR:
                 vals[m][ch] = v
+            else:
+                bad.append(m)
         del cache[(key, ch)], sd, r
+        for m in bad:  # record-wide rounding too large: block by block (see _blocked_sum)
+            vals[m][ch] = _blocked_sum(src[ch], m, "theo1" if fn is _theo1_fft else "mtot")
     for m in todo:
         cache[("pre", key, m)] = vals[m]
 
@@ -986,7 +1023,7 @@ def _theo1_total(rec: _Record, m: int, cache: dict) -> tuple[NDArray[np.float64]
             else:
                 xd, r, a = _series_cache(rec.x, ch, cache, "R_theo")
                 v, err = _theo1_fft(xd, m, r, a)
-            out[ch] = v if err < _FFT_MAX_ERR else _theo1_sumsq(rec.x[ch : ch + 1], m, None)[0][0]
+            out[ch] = v if err < _FFT_MAX_ERR else _blocked_sum(rec.x[ch], m, "theo1")
         return out, np.full(c, (n - m) * (m // 2), dtype=np.int64)
     return _theo1_sumsq(rec.x, m, rec.span_ok(0, n - m, m) if n - m > 0 else None)
 
