@@ -988,8 +988,8 @@ def _theo1_fft(x: NDArray[np.float64], m: int, r: NDArray[np.float64], a: float)
         del kc
     t2 *= 2.0
     s4 = _dot(r[2 * dl], w)
-    gz = 2 * m + 2
-    g = np.zeros(4 * m + 5)
+    gz = m  # _tri reads g at gz + (v − u), |v − u| ≤ m − 2
+    g = np.zeros(2 * m + 1)
     g[gz + 2 * dl] = w
     head = x[None, : m - 1]
     tail = x[None, ::-1][:, : m - 1]
