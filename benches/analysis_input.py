@@ -19,15 +19,12 @@ import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
+from benches.recording import Recording, RecordingError, open_recording, recording_file
 from core.errors import UserError
-
-if TYPE_CHECKING:
-    from benches.recording import Recording
 
 READ_CHUNK_ROWS = 1 << 18
 """Rows per chunk when a recording step is read into the analysis arrays."""
@@ -165,7 +162,6 @@ def _load_array(path: Path, rate: float | None, wanted: str | None, allow_gaps: 
 def _load_recording(
     path: Path, rate: float | None, wanted: str | None, step: str | None, allow_gaps: bool = False
 ) -> AnalysisInput:
-    from benches.recording import RecordingError, open_recording
 
     source = str(path)
     try:
@@ -197,8 +193,6 @@ def _read_channels(rec: Recording, start: int, stop: int, sel: list[str], source
     """The selected channels of rows [start, stop) read chunk by chunk (``Recording.iter_samples``) straight
     into one (C, N) float64 array: no whole-step temporaries, no per-channel copies, no stacking. The unit's
     status flags and non-finite values are checked per chunk."""
-    from benches.recording import RecordingError
-
     fields = tuple(f for f in ("accel", "gyro") if any(s.startswith(f) for s in sel))
     if "status" in rec.sample_fields:
         fields += ("status",)
@@ -239,8 +233,6 @@ def _read_channels(rec: Recording, start: int, stop: int, sel: list[str], source
 
 def recording_path(path: str | Path) -> Path:
     """The ``recording.h5`` of a run folder, or the path itself if it is a file."""
-    from benches.recording import recording_file
-
     return recording_file(path)
 
 

@@ -10,9 +10,7 @@ import argparse
 import math
 
 from core.errors import UsageError
-
-MAX_SEED = 2**63 - 1
-"""Largest simulator seed (the bench file's ``simulation.seed`` has the same range)."""
+from drivers.sim.config import MAX_SEED
 
 
 def parse_overrides(items: list[str]) -> dict[str, float]:
@@ -30,15 +28,11 @@ def parse_overrides(items: list[str]) -> dict[str, float]:
     return out
 
 
-def seed(text: str) -> int:
-    """argparse ``type=`` for ``--seed``: a whole number in [0, 2⁶³ − 1]."""
-    try:
-        value = int(text, 10)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number in [0, {MAX_SEED}], got {text!r}") from None
-    if not 0 <= value <= MAX_SEED:
-        raise argparse.ArgumentTypeError(f"{text} is out of range; allowed 0 … {MAX_SEED} (2**63 - 1)")
-    return value
+def check_seed(value: int | None) -> None:
+    """``--seed`` (run, table; parsed as an int): None or a whole number in [0, 2⁶³ − 1], the range of the bench
+    file's ``simulation.seed``; UsageError naming the option otherwise (one line, before anything is created)."""
+    if value is not None and not 0 <= value <= MAX_SEED:
+        raise UsageError(f"--seed {value}: must be a whole number from 0 to 2**63 - 1 ({MAX_SEED})")
 
 
 def bounded(low: float, high: float, *, integer: bool = False, low_open: bool = False):
@@ -60,3 +54,32 @@ def bounded(low: float, high: float, *, integer: bool = False, low_open: bool = 
 
     parse.__name__ = "integer" if integer else "number"
     return parse
+
+
+def add_bench_argument(p: argparse.ArgumentParser) -> None:
+    """``--bench FILE`` (check, plan, run, table): a bench file or a shipped bench's name."""
+    p.add_argument(
+        "--bench",
+        metavar="FILE",
+        default=None,
+        help="bench YAML file or shipped name (default: benches/sim.yaml here, else the shipped sim bench)",
+    )
+
+
+def add_procedure_arguments(p: argparse.ArgumentParser, *, positional: bool = False) -> None:
+    """The procedure (``--procedure FILE``, or the positional ``FILE`` of ``check``) and its ``--set`` overrides
+    (parsed by :func:`parse_overrides`), for check, plan and run."""
+    if positional:
+        p.add_argument("procedure", metavar="FILE", help="procedure YAML file, or a shipped name like ten-step")
+    else:
+        p.add_argument(
+            "--procedure", metavar="FILE", default=None, help="procedure YAML file or shipped name (default: ten-step)"
+        )
+    p.add_argument(
+        "--set",
+        metavar="NAME=VALUE",
+        action="append",
+        default=[],
+        help="override a procedure parameter (from its parameters: block), e.g. --set duration_s=60; repeatable",
+    )
+

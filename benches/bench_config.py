@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from analysis.earth import normal_gravity
+from analysis.identification.budget import default_g_uncertainty
 from analysis.units import (
     ARCSEC,
     DEG,
@@ -54,7 +55,10 @@ from drivers.imu_frame_desc import (
     load_frame,
     shipped_frames,
 )
+from drivers.modbus_map import ModbusMap, load_modbus_map
 from drivers.protocols import AXIS_NAMES, AxisLimits
+from drivers.serial_imu import count_format
+from drivers.sim.acl_controller import SIM_TIME_VARIABLE
 from drivers.sim.bench_section import parse_simulation
 from drivers.sim.config import (
     ACCEL_PARAM_NAMES,
@@ -102,8 +106,6 @@ class Site:
     def g_uncertainty(self) -> float:
         """Standard uncertainty of :attr:`g`, m/s²: the bench's ``g_uncertainty_mgal`` if given, else 0.1 mGal
         for a measured g and 30 mGal (a typical free-air anomaly) for WGS-84 normal gravity."""
-        from analysis.identification.budget import default_g_uncertainty
-
         if self.g_uncertainty_given is not None:
             return self.g_uncertainty_given
         return default_g_uncertainty(self.g_measured is not None)
@@ -138,7 +140,7 @@ class TurntableSpec:
     float_word_order: str | None = None  # Modbus: overrides the map's word order when given
     rate_accuracy: float = 0.0
     """Rate accuracy bound of the table (relative, ±; bench key ``rate_accuracy_ppm``); 0: not stated."""
-    modbus_map: Any = None  # drivers.modbus_map.ModbusMap (Modbus tables; None: the shipped map)
+    modbus_map: ModbusMap | None = None  # Modbus tables; None: the shipped map
     resource: str | None = None  # VISA resource string (driver acutrol)
     acl: AclSettings | None = None  # ACL open points (driver acutrol, or a simulated ACUTROL)
     rate_tolerance: float = 0.01 * DEG  # rad/s: at-rate / at-rest window of host-decided settling
@@ -272,8 +274,6 @@ SIM_CONTROLLERS = ["acutrol", "modbus"]
 
 def _acl(d: dict | None, smap: SourceMap, p: KeyPath, resource: str | None, simulated: bool) -> AclSettings:
     """The ``turntable.acl`` section: the open points of the ACUTROL command language (spec defaults)."""
-    from drivers.sim.acl_controller import SIM_TIME_VARIABLE
-
     d = d or {}
     check_keys(
         d,
@@ -367,7 +367,6 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
     if d.get("modbus_map") is not None:
         if acl_speaker:
             raise smap.error(p + ("modbus_map",), "is only for a Modbus table (driver 'modbus-tcp' or a simulated one)")
-        from drivers.modbus_map import load_modbus_map
 
         map_path = Path(get_str(d, smap, p, "modbus_map"))
         if not map_path.is_absolute():
@@ -578,8 +577,6 @@ def unit_frame_format(unit: UnitSpec) -> FrameFormat:
         The description named by a recorded bench cannot be found any more.
     """
     if unit.frame == DEFAULT_FRAME:
-        from drivers.serial_imu import count_format
-
         return count_format(unit.scale, unit.sample_rate)
     desc = unit.frame_desc if unit.frame_desc is not None else load_frame(unit.frame)
     return compile_format(desc, unit.frame_options, unit.sample_rate)

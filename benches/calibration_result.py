@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from analysis.identification.model import PARAM_KINDS, PARAM_NAMES
+from analysis.units import DISPLAY_UNITS
 from core.errors import UserError
 from core.jsonio import write_json
 
@@ -107,8 +108,6 @@ class CalibrationResult:
 
     def summary(self) -> str:
         """A readable table (display units; u = the identification's combined standard uncertainty, k = 1)."""
-        from analysis.units import DISPLAY_UNITS
-
         result = self
         lines = [f"{'param':8s} {'value':>12s} {'u (k=1)':>10s} {'unit':7s} {'err/u':>7s}  note"]
         truth = result.extra.get("truth") or {}
@@ -136,8 +135,6 @@ class CalibrationResult:
     # ---- (de)serialisation -------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         """calibration.json content (format version :data:`FORMAT_VERSION`)."""
-        from analysis.units import DISPLAY_UNITS
-
         si_units = {"bias": "m/s^2", "scale": "1", "misalignment": "rad", "quadratic": "s^2/m", "size_effect": "m"}
         params = {}
         for n in PARAM_NAMES:

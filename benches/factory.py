@@ -32,18 +32,24 @@ the serial driver decodes it on hardware and on loopback, where the simulated un
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 from core.yaml_source import ConfigError
 from drivers import connect
+from drivers.acutrol import AclTurntable
 from drivers.protocols import InertialUnit, Turntable
+from drivers.sim.acl_controller import AclController
+from drivers.sim.acl_server import AclTableServer
 from drivers.sim.inprocess import SimInertialUnit, SimTurntable
 from drivers.sim.loopback import Loopback
+from drivers.sim.modbus_controller import ModbusTableServer
 from drivers.sim.world import SimulatedWorld
+from drivers.transport import MessageTransport
 
-from .bench_config import BenchConfig, unit_frame_format
+from .bench_config import BenchConfig, TurntableSpec, unit_frame_format
 
 log = logging.getLogger(__name__)
 
@@ -61,7 +67,7 @@ class Bench:
     world: SimulatedWorld | None
     transport: str
     description: str
-    _closers: list[Any] = field(default_factory=list, repr=False)
+    _closers: list[Callable[[], None]] = field(default_factory=list, repr=False)
 
     def describe(self) -> str:
         """One line for logs and recordings."""
@@ -90,7 +96,9 @@ def _bad(config: BenchConfig, message: str) -> ConfigError:
 RAW_FILE = "unit-raw.bin"
 
 
-def _raw_sink(config: BenchConfig, run_folder: Any, closers: list[Any]) -> tuple[Any, str]:
+def _raw_sink(
+    config: BenchConfig, run_folder: str | Path | None, closers: list[Callable[[], None]]
+) -> tuple[BinaryIO | None, str]:
     """The open raw-stream file when the bench keeps it (``unit.keep_raw``) and a run folder is given."""
     if run_folder is None or not getattr(config.unit, "keep_raw", False):
         return None, ""
@@ -105,7 +113,11 @@ def _raw_sink(config: BenchConfig, run_folder: Any, closers: list[Any]) -> tuple
 
 
 def open_bench(
-    config: BenchConfig, *, seed: int | None = None, transport: str | None = None, run_folder: Any = None
+    config: BenchConfig,
+    *,
+    seed: int | None = None,
+    transport: str | None = None,
+    run_folder: str | Path | None = None,
 ) -> Bench:
     """Open the bench described by ``config`` (a ``benches.bench_config.BenchConfig``).
 
@@ -126,6 +138,15 @@ def open_bench(
     LinkError
         A device did not answer.
     """
+    transport = _transport(config, transport)
+    if transport == "hardware":
+        return _open_hardware(config, run_folder)
+    return _open_simulated(config, seed, transport, run_folder)
+
+
+def _transport(config: BenchConfig, transport: str | None) -> str:
+    """The transport to open ``config`` with: ``transport`` checked against the bench, or the bench's default
+    (a simulated bench's ``simulation.transport``, "hardware" for a real one)."""
     if transport is not None and transport not in TRANSPORTS:
         raise _bad(config, f"transport {transport!r} is not one of {', '.join(TRANSPORTS)}")
     sim = getattr(config, "simulation", None)
@@ -133,25 +154,24 @@ def open_bench(
         transport = transport or getattr(sim, "transport", "in-process")
         if transport == "hardware":
             raise _bad(config, "this is a simulated bench; transport must be 'in-process' or 'loopback'")
-        return _open_simulated(config, seed, transport, run_folder)
-    transport = transport or "hardware"
-    if transport != "hardware":
+        return transport
+    if transport not in (None, "hardware"):
         raise _bad(
             config, f"bench {config.name!r} is a real bench (no simulation section): transport must be 'hardware'"
         )
-    return _open_hardware(config, run_folder)
+    return "hardware"
 
 
-def _open_simulated(config: BenchConfig, seed: int | None, transport: str, run_folder: Any = None) -> Bench:
+def _open_simulated(
+    config: BenchConfig, seed: int | None, transport: str, run_folder: str | Path | None = None
+) -> Bench:
     world = SimulatedWorld.from_bench(config, seed)
     tt = config.turntable
     acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
     if transport == "in-process":
         unit = SimInertialUnit(world)
         if acl:
-            from drivers.sim.acl_controller import AclController
-
-            table: Any = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
+            table: Turntable = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
             what = "simulated ACUTROL (ACL, in-memory)"
         else:
             table, what = SimTurntable(world), "in-process drivers"
@@ -165,7 +185,7 @@ def _open_simulated(config: BenchConfig, seed: int | None, transport: str, run_f
             [table.close, unit.close],
         )
     wd = getattr(tt, "watchdog", None)
-    closers: list[Any] = []
+    closers: list[Callable[[], None]] = []
     raw, raw_name = _raw_sink(config, run_folder, closers)
     try:
         lb = Loopback(
@@ -194,31 +214,24 @@ def _open_simulated(config: BenchConfig, seed: int | None, transport: str, run_f
     )
 
 
-def acl_turntable(transport: Any, tt: Any) -> Any:
+def _acl_options(tt: TurntableSpec) -> dict[str, Any]:
+    """The ACL driver's settings and tolerances from a bench's turntable section."""
+    return {
+        "settings": tt.acl,
+        "position_tolerance": tt.position_tolerance,
+        "settle_time": tt.in_position_time,
+        "rate_tolerance": tt.rate_tolerance,
+    }
+
+
+def acl_turntable(transport: MessageTransport, tt: TurntableSpec) -> AclTurntable:
     """The ACL driver for a bench's turntable section on an open transport (settings and tolerances from the bench)."""
-    from drivers.acutrol import AclTurntable
-
-    return AclTurntable(
-        transport,
-        tuple(tt.limits),  # type: ignore[arg-type]
-        settings=tt.acl,
-        position_tolerance=tt.position_tolerance,
-        settle_time=tt.in_position_time,
-        rate_tolerance=tt.rate_tolerance,
-    )
+    return AclTurntable(transport, tuple(tt.limits), **_acl_options(tt))  # type: ignore[arg-type]
 
 
-def _acutrol_connection(resource: str, tt: Any) -> connect.Connection[Any]:
+def _acutrol_connection(resource: str, tt: TurntableSpec) -> connect.Connection[AclTurntable]:
     """Open the VISA ``resource`` and the ACL driver on it, with the bench's turntable settings and tolerances."""
-    return connect.acutrol_table(
-        resource,
-        tuple(tt.limits),  # type: ignore[arg-type]
-        settings=tt.acl,
-        position_tolerance=tt.position_tolerance,
-        settle_time=tt.in_position_time,
-        rate_tolerance=tt.rate_tolerance,
-        timeout=DEFAULT_TIMEOUT_S,
-    )
+    return connect.acutrol_table(resource, tuple(tt.limits), timeout=DEFAULT_TIMEOUT_S, **_acl_options(tt))  # type: ignore[arg-type]
 
 
 def _hardware_table(config: BenchConfig) -> connect.Connection[Any]:
@@ -251,18 +264,9 @@ def open_table(config: BenchConfig, *, seed: int | None = None, transport: str |
     over the real wire); the caller advances bench time with ``world.produce``. Real benches: the turntable
     link only. Nothing of the unit is opened.
     """
-    if transport is not None and transport not in TRANSPORTS:
-        raise _bad(config, f"transport {transport!r} is not one of {', '.join(TRANSPORTS)}")
-    sim = getattr(config, "simulation", None)
-    if sim is not None:
-        transport = transport or getattr(sim, "transport", "in-process")
-        if transport == "hardware":
-            raise _bad(config, "this is a simulated bench; transport must be 'in-process' or 'loopback'")
+    transport = _transport(config, transport)
+    if transport != "hardware":
         return _open_simulated_table(config, seed, transport)
-    if transport not in (None, "hardware"):
-        raise _bad(
-            config, f"bench {config.name!r} is a real bench (no simulation section): transport must be 'hardware'"
-        )
     conn = _hardware_table(config)
     return Bench(conn.driver, None, None, "hardware", f"{config.name}: table {conn.where}", [conn.close])  # type: ignore[arg-type,attr-defined]
 
@@ -271,29 +275,23 @@ def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str)
     world = SimulatedWorld.from_bench(config, seed)
     tt = config.turntable
     acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
-    closers: list[Any] = []
+    closers: list[Callable[[], None]] = []
     ok = False
     try:
         if transport == "in-process":
             if acl:
-                from drivers.sim.acl_controller import AclController
-
-                table: Any = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
+                table: Turntable = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
                 what = "simulated ACUTROL (ACL, in-memory)"
             else:
                 table, what = SimTurntable(world), "simulated table, in-process driver"
             closers.append(table.close)
         elif acl:
-            from drivers.sim.acl_server import AclTableServer
-
             srv = AclTableServer(world, tt.acl)
             closers.append(srv.close)
             conn = _acutrol_connection(srv.resource, tt)
             closers.insert(0, conn.close)
             table, what = conn.driver, f"simulated ACUTROL over pyvisa-py {srv.resource}"
         else:
-            from drivers.sim.modbus_controller import ModbusTableServer
-
             wd = getattr(tt, "watchdog", None)
             msrv = ModbusTableServer(
                 world,
@@ -336,9 +334,9 @@ def _host_port(config: BenchConfig, address: str | None, default_port: int) -> t
     return host, p
 
 
-def _open_hardware(config: BenchConfig, run_folder: Any = None) -> Bench:
+def _open_hardware(config: BenchConfig, run_folder: str | Path | None = None) -> Bench:
     opened: list[connect.Connection[Any]] = []
-    closers: list[Any] = []  # the raw-stream file, closed after the drivers
+    closers: list[Callable[[], None]] = []  # the raw-stream file, closed after the drivers
     bench_ok = False
     try:
         opened.append(_hardware_table(config))

@@ -32,12 +32,13 @@ from analysis.units import DISPLAY_UNITS
 from core.errors import UserError
 from core.provenance import file_sha256
 from drivers.protocols import ImuBlock, TableState
-from procedures.steps import Hold, Spin, Step, Warmup
+from procedures.steps import CompiledProcedure, Hold, Spin, Step, Warmup
 from procedures.trajectory import nominal_samples
 
-from .bench_config import load_bench_text
+from .bench_config import BenchConfig, load_bench_text
 from .calibration_result import CalibrationResult
-from .recording import RecordingError, open_recording
+from .progress import ProgressDisplay
+from .recording import RecordingError, StepRecord, open_recording
 from .reference import reference_at, reference_for_samples
 
 MODEL_TEXT = (
@@ -57,7 +58,7 @@ class IdentificationError(UserError, RuntimeError):
 # ---- bench → prior and noise ------------------------------------------------------------------------------------
 
 
-def prior_covariance(config: Any) -> NDArray[np.float64]:
+def prior_covariance(config: BenchConfig) -> NDArray[np.float64]:
     """P0 = diag(σ²) from the bench's ``unit.prior`` (datasheet 1σ per parameter, SI)."""
     prior = config.unit.prior
     missing = [n for n in PARAM_NAMES if n not in prior]
@@ -68,12 +69,12 @@ def prior_covariance(config: Any) -> NDArray[np.float64]:
     return np.diag([float(prior[n]) ** 2 for n in PARAM_NAMES])
 
 
-def configured_noise_variance(config: Any) -> NDArray[np.float64]:
+def configured_noise_variance(config: BenchConfig) -> NDArray[np.float64]:
     """Per-sample white-noise variance per axis, (m/s²)²: VRW density² × sample rate (bench file)."""
     return np.asarray(config.unit.noise.vrw, dtype=float) ** 2 * float(config.unit.sample_rate)
 
 
-def unit_latency(config: Any) -> float:
+def unit_latency(config: BenchConfig) -> float:
     """The unit's output latency (group delay of its anti-alias filter), s, from the bench file (0 if absent).
 
     The sample stamped t measures the specific force of about t − latency, so the table reference is
@@ -82,7 +83,7 @@ def unit_latency(config: Any) -> float:
     return float(getattr(config.unit, "latency", 0.0) or 0.0)
 
 
-def bias_stability(config: Any) -> NDArray[np.float64]:
+def bias_stability(config: BenchConfig) -> NDArray[np.float64]:
     """Bias instability per axis, m/s² (the per-step unmodelled DC offset of the error budget)."""
     return np.asarray(config.unit.noise.bias_instability, dtype=float)
 
@@ -106,7 +107,7 @@ def offset_covariance(windows: list[tuple[float, float]], b: NDArray[np.float64]
 
 
 def _plan_steps_and_windows(
-    compiled: Any, config: Any, sample_rate: float | None = None
+    compiled: CompiledProcedure, config: BenchConfig, sample_rate: float | None = None
 ) -> list[tuple[PlanStep, tuple[float, float]]]:
     rate = float(sample_rate or config.unit.sample_rate)
     limits = config.turntable.limits
@@ -128,7 +129,7 @@ def _plan_steps_and_windows(
     return out
 
 
-def plan_for(compiled: Any, config: Any) -> IdentificationPlan:
+def plan_for(compiled: CompiledProcedure, config: BenchConfig) -> IdentificationPlan:
     """Predicted 1σ of every parameter for a procedure on a bench, before any motion.
 
     White noise from the bench's VRW, prior from its datasheet bounds, and the bias instability as
@@ -173,8 +174,8 @@ class LiveIdentifier:
 
     def __init__(
         self,
-        config: Any,
-        progress: Any | None = None,
+        config: BenchConfig,
+        progress: ProgressDisplay | None = None,
         show: tuple[str, ...] = ("b_z", "S_z", "r_x"),
         update_seconds: float = 2.0,
     ) -> None:
@@ -193,7 +194,7 @@ class LiveIdentifier:
         self._step: str | None = None
         self._acq_t0 = 0.0
 
-    def on_block(self, step: Any, block: ImuBlock, table: TableState, counts: bool) -> None:
+    def on_block(self, step: Step, block: ImuBlock, table: TableState, counts: bool) -> None:
         """Buffer the block if it is inside a hold/spin acquisition window; fuse when enough is buffered."""
         self._readings.append(table)
         if not counts or not isinstance(step, IDENTIFIED_STEPS) or len(block) == 0:
@@ -211,7 +212,7 @@ class LiveIdentifier:
         if self._n >= self._flush_n:
             self.flush()
 
-    def on_step_end(self, step: Any, record: Any) -> None:
+    def on_step_end(self, step: Step, record: StepRecord) -> None:
         """Fuse what is buffered for the step."""
         self.flush()
 
@@ -268,7 +269,7 @@ class RecordedRun:
 
     path: Path
     attrs: dict[str, Any]
-    config: Any
+    config: BenchConfig
     windows: list[StepWindow]
     warmup_accel: NDArray[np.float64] | None
     truth: dict[str, float] | None

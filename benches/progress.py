@@ -46,7 +46,7 @@ class ProgressDisplay:
         self._extra = ""
         self._bar = None
         if self.live:
-            from tqdm import tqdm
+            from tqdm import tqdm  # lazy: tqdm (--help time)
 
             self._bar = tqdm(
                 total=1000, file=self.stream, bar_format="{l_bar}{bar}| {postfix}", dynamic_ncols=True, leave=True

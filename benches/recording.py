@@ -28,7 +28,9 @@ import hashlib
 import json
 import math
 import zlib
-from collections.abc import Iterator, Sequence
+from collections import deque
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -38,6 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from core.errors import UserError
+from core.provenance import text_sha256
 from drivers.protocols import ImuBlock, TableState
 
 FORMAT = "tablebench-recording"
@@ -375,49 +378,89 @@ def _encode_chunk(chunk: NDArray[Any]) -> bytes:
 
 
 class _ChunkWriter:
-    """Writes the /imu datasets as whole encoded chunks; the encoding (shuffle, deflate, Fletcher-32 — the
-    filters the file declares, so any HDF5 reader decodes them) runs in a worker thread, because zlib
-    releases the GIL and h5py does not: compression then overlaps the run instead of slowing it.
+    """The /imu writing pipeline of the compressed storage: everything but the HDF5 calls runs in one worker
+    thread, in submission order, so the runner's thread never waits for it (zlib and numpy release the GIL;
+    h5py does not, so chunk writes stay on the calling thread).
 
-    Rows of the last, partly filled chunk are kept (``tail``) and that chunk is re-encoded when rows follow.
-    Chunks are written in submission order; :meth:`drain` with ``wait`` writes everything (step boundary).
+    Per batch of rows (:meth:`submit`) the worker hashes the rows into the step's SHA-256, quantises the
+    count datasets (exceptions kept), and encodes whole chunks through the pipeline the file declares
+    (shuffle → deflate → Fletcher-32, so any HDF5 reader decodes them). Rows of the last, partly filled chunk
+    are kept (``tail``) and that chunk is re-encoded when rows follow. :meth:`after` queues an action (a
+    step row) that runs once everything submitted before it is on disk; :meth:`drain` writes results in
+    order: those ready, or all of them with ``wait``.
     """
 
-    def __init__(self, f: h5py.File, names: Sequence[str], chunk: int) -> None:
-        from collections import deque
-        from concurrent.futures import ThreadPoolExecutor
-
+    def __init__(self, f: h5py.File, names: Sequence[str], chunk: int, quanta: dict[str, float]) -> None:
         self.chunk = chunk
+        self.names = tuple(names)
+        self.quanta = dict(quanta)
         self.ds = {n: f["imu"][n] for n in names}
+        self.exc_ds = {n: f["imu/exceptions"][n] for n in self.quanta}
+        self.dtypes = {n: d.dtype for n, d in self.ds.items()}
+        self.shapes = {n: d.shape[1:] for n, d in self.ds.items()}
         self.rows = {n: int(d.shape[0]) for n, d in self.ds.items()}
         self.tail = {n: d[self.rows[n] - self.rows[n] % chunk : self.rows[n]] for n, d in self.ds.items()}
         self.pending: Any = deque()
         self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="recording-encoder")
 
-    def append(self, name: str, data: NDArray[Any]) -> None:
-        """Queue rows of dataset ``name`` (stored dtype) for encoding."""
-        d = self.ds[name]
-        tail = self.tail[name]
-        new = np.asarray(data, dtype=d.dtype)
-        rows = np.concatenate([tail, new]) if len(tail) else new
-        r0 = self.rows[name] - len(tail)
-        for off in range(0, len(rows), self.chunk):
-            part = rows[off : off + self.chunk]
-            buf = np.zeros((self.chunk, *d.shape[1:]), dtype=d.dtype)
-            buf[: len(part)] = part
-            self.pending.append((self.pool.submit(_encode_chunk, buf), name, r0 + off, r0 + off + len(part)))
-        left = len(rows) % self.chunk
-        self.tail[name] = rows[len(rows) - left :] if left else rows[:0]
-        self.rows[name] += len(new)
+    def submit(self, cols: dict[str, NDArray[Any]], row0: int, hasher: _StepHasher) -> None:
+        """Queue rows ``row0 …`` of every dataset (recorded values) for hashing, quantising and encoding."""
+        self.pending.append((self.pool.submit(self._encode, cols, row0, hasher), None))
+
+    def after(self, action: Callable[[], None]) -> None:
+        """Run ``action`` (on the draining thread) once everything submitted so far is written."""
+        self.pending.append((None, action))
+
+    def _encode(
+        self, cols: dict[str, NDArray[Any]], row0: int, hasher: _StepHasher
+    ) -> tuple[list[tuple[str, int, int, bytes]], dict[str, NDArray[Any]]]:
+        """Worker thread: the encoded chunks (dataset, first row, end row, bytes) and the count exceptions."""
+        out: list[tuple[str, int, int, bytes]] = []
+        excs: dict[str, NDArray[Any]] = {}
+        for name in self.names:
+            data = cols[name]
+            hasher.update("imu", name, data)
+            if name in self.quanta:
+                data, exc = _quantise(data, self.quanta[name], self.dtypes[name])
+                if exc.size:
+                    exc["row"] += row0
+                    excs[name] = exc
+            new = np.asarray(data, dtype=self.dtypes[name])
+            tail = self.tail[name]
+            rows = np.concatenate([tail, new]) if len(tail) else new
+            r0 = self.rows[name] - len(tail)
+            for off in range(0, len(rows), self.chunk):
+                part = rows[off : off + self.chunk]
+                if len(part) < self.chunk:
+                    buf = np.zeros((self.chunk, *self.shapes[name]), dtype=self.dtypes[name])
+                    buf[: len(part)] = part
+                    part_bytes = _encode_chunk(buf)
+                else:
+                    part_bytes = _encode_chunk(part)
+                out.append((name, r0 + off, r0 + off + min(self.chunk, len(rows) - off), part_bytes))
+            left = len(rows) % self.chunk
+            self.tail[name] = rows[len(rows) - left :] if left else rows[:0]
+            self.rows[name] += len(new)
+        return out, excs
 
     def drain(self, wait: bool) -> None:
-        """Write the encoded chunks (in order): those ready, or all of them with ``wait``."""
-        while self.pending and (wait or self.pending[0][0].done()):
-            fut, name, r0, r1 = self.pending.popleft()
-            d = self.ds[name]
-            if d.shape[0] < r1:
-                d.resize(r1, axis=0)
-            d.id.write_direct_chunk((r0,) + (0,) * (d.ndim - 1), fut.result(), 0)
+        """Write the encoded chunks and run the queued actions (in order): those ready, or all with ``wait``."""
+        while self.pending and (wait or self.pending[0][0] is None or self.pending[0][0].done()):
+            fut, action = self.pending.popleft()
+            if fut is None:
+                action()
+                continue
+            chunks, excs = fut.result()
+            for name, r0, r1, data in chunks:
+                d = self.ds[name]
+                if d.shape[0] < r1:
+                    d.resize(r1, axis=0)
+                d.id.write_direct_chunk((r0,) + (0,) * (d.ndim - 1), data, 0)
+            for name, exc in excs.items():
+                e = self.exc_ds[name]
+                n0 = e.shape[0]
+                e.resize(n0 + exc.shape[0], axis=0)
+                e[n0:] = exc
 
     def close(self) -> None:
         """Write everything pending and stop the worker."""
@@ -545,7 +588,7 @@ class Hdf5Recorder:
 
     def _start_chunk_writer(self) -> None:
         if self._filters.get("compression") == "gzip":
-            self._chunks = _ChunkWriter(self._file, IMU_FIELDS, IMU_CHUNK)
+            self._chunks = _ChunkWriter(self._file, IMU_FIELDS, IMU_CHUNK, self._quanta)
 
     def _counts_dataset(self, imu: h5py.Group, name: str, lsb: float) -> None:
         self._dataset(imu, name, _COUNT_DTYPE[name], _WIDTH.get(name), IMU_CHUNK)
@@ -675,6 +718,9 @@ class Hdf5Recorder:
         self._buffered += len(block)
         if self._buffered >= self.checkpoint_samples:
             self.checkpoint(full=False)
+        elif self._chunks is not None and self._chunks.pending:
+            with self._writing():
+                self._chunks.drain(wait=False)  # chunks (and step rows) the encoder has finished
 
     def add_table(self, state: TableState) -> None:
         """Buffer one table reading (hashed and written at the next step-boundary checkpoint)."""
@@ -689,10 +735,14 @@ class Hdf5Recorder:
         d.resize(n0 + data.shape[0], axis=0)
         d[n0:] = data
 
-    def checkpoint(self, full: bool = True) -> None:
-        """Write buffered samples, table readings and events, then flush the file (RecordingError if it fails)."""
+    def checkpoint(self, full: bool = True, wait: bool = True) -> None:
+        """Write buffered samples, table readings and events, then flush the file (RecordingError if it fails).
+
+        With the compressed storage, samples are encoded by a worker thread; ``wait`` False does not wait
+        for it (the chunks are written by a later checkpoint, :meth:`add_samples` or :meth:`close`).
+        """
         with self._writing():
-            self._checkpoint(full)
+            self._checkpoint(full, wait)
 
     @contextlib.contextmanager
     def _writing(self) -> Iterator[None]:
@@ -707,7 +757,7 @@ class Hdf5Recorder:
                 "The completed steps are kept; free space and resume the run"
             ) from None
 
-    def _checkpoint(self, full: bool = True) -> None:
+    def _checkpoint(self, full: bool = True, wait: bool = True) -> None:
         """Write buffered samples, table readings and events, then flush the file.
 
         ``full=False`` (the periodic checkpoint inside a long step) writes only whole chunks of samples, so a
@@ -720,7 +770,9 @@ class Hdf5Recorder:
             k = n if full else ((self._written + n) // IMU_CHUNK) * IMU_CHUNK - self._written
             if self._deferred:
                 self._materialise(cols)
-            if k > 0:
+            if k > 0 and self._chunks is not None:
+                self._chunks.submit({name: cols[name][:k] for name in IMU_FIELDS}, self._written, self._hasher)
+            elif k > 0:
                 for name in IMU_FIELDS:
                     data = cols[name][:k]
                     self._hasher.update("imu", name, data)
@@ -730,17 +782,15 @@ class Hdf5Recorder:
                             exc["row"] += self._written
                             self._append(f["imu/exceptions"][name], exc)
                         data = c
-                    if self._chunks is not None:
-                        self._chunks.append(name, data)
-                    else:
-                        self._append(f["imu"][name], data)
+                    self._append(f["imu"][name], data)
+            if k > 0:
                 self._written += k
                 self._buf_imu.clear()
                 self._buffered = n - k
                 if k < n:
                     self._buf_imu.append(ImuBlock(**{name: cols[name][k:] for name in IMU_FIELDS}))
         if self._chunks is not None:
-            self._chunks.drain(wait=full)
+            self._chunks.drain(wait=full and wait)
         if not full:
             f.flush()
             return
@@ -770,34 +820,47 @@ class Hdf5Recorder:
         f.flush()
 
     def end_step(self, record: StepRecord) -> None:
-        """Append a step row with the SHA-256 of the step's rows, then checkpoint (the step boundary flush)."""
-        self.checkpoint()
-        digest = self._hasher.hexdigest()
-        row = np.array(
-            [
-                (
-                    record.index,
-                    _clip_utf8(record.name, _NAME_LEN),
-                    _clip_utf8(record.kind, _KIND_LEN),
-                    _clip_utf8(record.group, _GROUP_LEN),
-                    record.start_sample,
-                    record.acq_start,
-                    record.acq_end,
-                    record.end_sample,
-                    _clip_utf8(record.status, _STATUS_LEN),
-                    record.axis,
-                    record.rate,
-                    record.angles,
-                    self._table_step_start,
-                    self._table_written,
-                    digest.encode(),
-                )
-            ],
-            dtype=STEP_DTYPE,
-        )
-        with self._writing():
+        """Append a step row with the SHA-256 of the step's rows (the step boundary checkpoint).
+
+        The row is written (and the file flushed) only once every row of the step is on disk: at once with
+        the uncompressed storages; with the compressed one, as soon as the encoder has finished the step's
+        chunks (the runner does not wait for it; :meth:`set_status` and :meth:`close` do).
+        """
+        self.checkpoint(wait=False)
+        hasher, table_start, table_end = self._hasher, self._table_step_start, self._table_written
+
+        def write_row() -> None:
+            row = np.array(
+                [
+                    (
+                        record.index,
+                        _clip_utf8(record.name, _NAME_LEN),
+                        _clip_utf8(record.kind, _KIND_LEN),
+                        _clip_utf8(record.group, _GROUP_LEN),
+                        record.start_sample,
+                        record.acq_start,
+                        record.acq_end,
+                        record.end_sample,
+                        _clip_utf8(record.status, _STATUS_LEN),
+                        record.axis,
+                        record.rate,
+                        record.angles,
+                        table_start,
+                        table_end,
+                        hasher.hexdigest().encode(),
+                    )
+                ],
+                dtype=STEP_DTYPE,
+            )
             self._append(self._file["steps"], row)
             self._file.flush()
+
+        with self._writing():
+            if self._chunks is not None:
+                self._chunks.after(write_row)
+                self._chunks.drain(wait=False)
+            else:
+                write_row()
         self._hasher = _StepHasher()
         self._table_step_start = self._table_written
 
@@ -820,7 +883,8 @@ class Hdf5Recorder:
         finally:
             try:
                 if self._chunks is not None:
-                    self._chunks.close()
+                    with self._writing():
+                        self._chunks.close()
             finally:
                 self._file.close()
                 self._closed = True
@@ -1203,7 +1267,7 @@ class Recording:
 
     def _check_text(self, name: str, text: str, sha: str) -> None:
         if self.header.format_version >= 2 and len(sha) == 64:
-            if hashlib.sha256(text.encode("utf-8")).hexdigest() != sha:
+            if text_sha256(text) != sha:
                 raise RecordingDamaged(
                     f"{self.path}: dataset /{name}: the text does not match its SHA-256 in the header; {self._fix()}"
                 )

@@ -9,26 +9,31 @@ table's limits.
 from __future__ import annotations
 
 import datetime as _dt
-import hashlib
+import json
 import shutil
 import sys
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, TextIO
+
+import numpy as np
 
 from core.errors import UserError
-from core.provenance import software_version
+from core.provenance import software_version, text_sha256
 from core.yaml_source import ConfigError
 from procedures.compiler import compile_procedure
 from procedures.loader import load_procedure
 from procedures.paths import default_bench_path, resolve_bench, resolve_procedure
 from procedures.steps import CompiledProcedure
 
-from .bench_config import load_bench
+from .bench_config import BenchConfig, load_bench
 from .progress import ProgressDisplay
 from .recording import Hdf5Recorder, RecordingError, open_recording
 from .runner import Runner, RunResult, SampleObserver
+
+if TYPE_CHECKING:
+    from .identify import LiveIdentifier  # lazy at run time: filterpy, scipy (--help time)
 
 DEFAULT_PROCEDURE = "ten-step"
 
@@ -43,8 +48,8 @@ class Prepared:
 
     bench_path: Path
     procedure_path: Path
-    config: object  # benches.bench_config.BenchConfig
-    compiled: object  # procedures.steps.CompiledProcedure
+    config: BenchConfig
+    compiled: CompiledProcedure
     estimated_s: float
     overrides: dict[str, float]
 
@@ -112,12 +117,6 @@ def new_run_folder(out: str | Path | None, procedure_name: str) -> Path:
     return folder
 
 
-def check_seed(seed: int | None) -> None:
-    """A simulator seed must be an integer in [0, 2**64); SessionError otherwise (before anything is created)."""
-    if seed is not None and not 0 <= seed < 2**64:
-        raise SessionError(f"--seed {seed}: must be an integer from 0 to 2**64 - 1 (18446744073709551615)")
-
-
 def unfinished_work(folder: Path) -> list[str]:
     """What a run with a complete recording has not done yet: "identification" and/or "certificate"."""
     todo = []
@@ -126,10 +125,6 @@ def unfinished_work(folder: Path) -> list[str]:
     if not any(folder.glob("certificate*.pdf")):
         todo.append("certificate")
     return todo
-
-
-def _sha256(text: str) -> str:
-    return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
 def execute(
@@ -151,7 +146,7 @@ def execute(
     "counts+gzip" (the default: quantised counts + shuffle + gzip-1), "float+gzip", "counts+lzf", or "plain"
     (float64, uncompressed: the format-1 storage), all with Fletcher-32 and per-step SHA-256.
     """
-    from benches.factory import open_bench
+    from benches.factory import open_bench  # lazy: scipy, pymodbus (--help time)
 
     stream = stream or sys.stderr
     config = prep.config
@@ -198,7 +193,7 @@ def execute(
                 "procedure_file": str(prep.procedure_path),
                 "procedure_sha256": compiled.sha256,
                 "procedure_overrides": dict(prep.overrides),
-                "bench_sha256": _sha256(config.text),
+                "bench_sha256": text_sha256(config.text),
                 "sample_rate_hz": float(config.unit.sample_rate),
                 "simulated": world is not None,
                 "transport": bench.transport,
@@ -276,7 +271,6 @@ def recording_status(path: Path) -> dict[str, object]:
 __all__ = [
     "Prepared",
     "SessionError",
-    "check_seed",
     "unfinished_work",
     "copy_inputs",
     "execute",
@@ -290,7 +284,7 @@ def identify_and_certify(
     folder: Path,
     todo: list[str],
     *,
-    live: Any | None = None,
+    live: LiveIdentifier | None = None,
     say: Callable[..., None] = print,
     done: list[str] | None = None,
 ) -> list[str]:
@@ -309,9 +303,7 @@ def identify_and_certify(
     done : list, optional
         Appended with each finished item as it finishes (so an interruption can say what is left).
     """
-    import numpy as np
-
-    from benches.identify import IdentificationError, identify_run
+    from benches.identify import IdentificationError, identify_run  # lazy: filterpy, scipy (--help time)
 
     done = [] if done is None else done
     if "identification" in todo:
@@ -329,7 +321,7 @@ def identify_and_certify(
         say(result.summary())
         say(f"calibration: {path}", err=False)
     if "certificate" in todo:
-        from benches.certificate import issue_certificate
+        from benches.certificate import issue_certificate  # lazy: fpdf, matplotlib, filterpy (--help time)
 
         pdf, js, verdict = issue_certificate(folder)
         done.append("certificate")
@@ -341,8 +333,6 @@ def identify_and_certify(
 
 def verdict_explanation(certificate_json: Path, verdict: str) -> list[str]:
     """Plain words for the run's closing lines: why the certificate says what it says, and what to do."""
-    import json
-
     if verdict != "INCONCLUSIVE":
         return []
     try:

@@ -1,8 +1,9 @@
-"""Provenance helpers: file digests and the installed software version."""
+"""Provenance helpers: file and text digests and the installed software version."""
 
 from __future__ import annotations
 
 import hashlib
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 
@@ -15,12 +16,13 @@ def file_sha256(path: str | Path) -> str:
     return h.hexdigest()
 
 
+def text_sha256(text: str) -> str:
+    """SHA-256 hex digest of a text's UTF-8 bytes (a bench or procedure file as recorded)."""
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
 def software_version() -> str:
     """The installed tablebench version (``0.0.0+source`` when running from a source tree not installed)."""
-    try:
-        from importlib.metadata import PackageNotFoundError, version
-    except ImportError:  # pragma: no cover
-        return "0.0.0+source"
     try:
         return version("tablebench")
     except PackageNotFoundError:

@@ -19,12 +19,11 @@ the unwrapped sample index divided by the sample rate.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.imu_counts import CounterTracker
+from drivers.imu_counts import CounterCheck, CounterTracker
 from drivers.imu_frame import FrameBatch, FrameCodec
 from drivers.imu_frame_desc import FLAG_BITS, RECORDED, TYPES, Conversion, FrameFormat
 
@@ -251,7 +250,7 @@ class SampleConverter:
 
     def _finish(
         self,
-        chk: Any,
+        chk: CounterCheck,
         raw_counter: NDArray[np.int64],
         accel: NDArray[np.float64],
         gyro: NDArray[np.float64],

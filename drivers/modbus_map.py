@@ -31,6 +31,7 @@ Keys (see the shipped file for a complete example):
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import struct
 from collections.abc import Sequence
@@ -187,6 +188,17 @@ def _table(
             raise smap.error(p + (n,), f"value {v} is also used by {seen[v]}")
         seen[v] = n
     return out
+
+
+def map_with_word_order(register_map: ModbusMap | None, word_order: str | None) -> ModbusMap:
+    """The register map a client or a server uses: ``register_map`` (None: the shipped one), with its float word
+    order replaced by ``word_order`` when that is given ("big" or "little"; ValueError otherwise)."""
+    m = register_map or load_modbus_map()
+    if word_order is None:
+        return m
+    if word_order not in ("big", "little"):
+        raise ValueError(f"float word order must be 'big' or 'little', got {word_order!r}")
+    return dataclasses.replace(m, word_order=word_order)
 
 
 def load_modbus_map(path: str | Path = DEFAULT_MAP) -> ModbusMap:

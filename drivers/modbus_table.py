@@ -12,7 +12,6 @@ Frames and units: gimbal angles (outer ψ, middle θ, inner γ), rad, rates rad/
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 from typing import Any
@@ -20,7 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.modbus_map import ModbusMap, load_modbus_map
+from drivers.modbus_map import ModbusMap, map_with_word_order
 from drivers.protocols import (
     AXIS_NAMES,
     AxisLimits,
@@ -91,11 +90,7 @@ class ModbusTurntable:
         limits: tuple[AxisLimits, AxisLimits, AxisLimits] | None = None,
         register_map: ModbusMap | None = None,
     ) -> None:
-        m = register_map or load_modbus_map()
-        if word_order is not None:
-            if word_order not in ("big", "little"):
-                raise ValueError(f"float word order must be 'big' or 'little', got {word_order!r}")
-            m = dataclasses.replace(m, word_order=word_order)
+        m = map_with_word_order(register_map, word_order)
         self.map = m
         self.client = client
         self.unit_id = int(unit_id)

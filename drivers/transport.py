@@ -16,9 +16,12 @@ One message = one string without its terminator; :meth:`read` returns one reply 
 
 from __future__ import annotations
 
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 from drivers.protocols import LinkError
+
+if TYPE_CHECKING:
+    from pyvisa.resources import MessageBasedResource  # pyvisa itself is imported when a link is opened
 
 
 @runtime_checkable
@@ -53,7 +56,7 @@ class VisaTransport:
         The resource string, for messages.
     """
 
-    def __init__(self, resource: Any, name: str = "") -> None:
+    def __init__(self, resource: MessageBasedResource, name: str = "") -> None:
         self.resource = resource
         self.name = name or str(getattr(resource, "resource_name", "VISA resource"))
 
@@ -98,7 +101,7 @@ class VisaTransport:
         return self.read()
 
 
-def open_visa(resource: str, timeout: float) -> Any:
+def open_visa(resource: str, timeout: float) -> MessageBasedResource:
     """Open a VISA resource with the pure-Python pyvisa-py backend (``ResourceManager("@py")``).
 
     Called by ``benches/factory.py`` and the loopback harness, never by a driver.

@@ -9,7 +9,6 @@ allowed. Attitudes are not resolved here (that needs the bench's mounting and li
 
 from __future__ import annotations
 
-import hashlib
 import math
 import re
 from collections.abc import Mapping
@@ -21,6 +20,7 @@ import numpy as np
 
 from analysis.gimbal import ENU_DIRECTIONS
 from analysis.units import from_display
+from core.provenance import text_sha256
 from core.yaml_source import ConfigError, KeyPath, SourceMap, load_yaml, load_yaml_text
 
 BODY_AXES: tuple[str, ...] = ("x", "y", "z", "+x", "+y", "+z", "-x", "-y", "-z")
@@ -581,7 +581,7 @@ def parse_procedure(
         defaults=defaults,
         steps=steps,
         text=text,
-        sha256=hashlib.sha256(text.encode("utf-8")).hexdigest(),
+        sha256=text_sha256(text),
         path=None if path is None else str(path),
         parameters=params,
     )

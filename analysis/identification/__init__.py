@@ -1,1 +1,2 @@
-"""Identification of the accelerometer-triad error model: the model, Kalman and batch estimators, bias drift, plan."""
+"""Identification of the accelerometer-triad error model: the model, the Kalman and batch estimators, the bias
+drift between steps, the pre-run plan, the uncertainty budget and the decision rule."""

@@ -12,9 +12,11 @@ C. Greenhall, "Power law noise identification using the lag 1 autocorrelation", 
    case split by R(n) = MVAR/AVAR; with too few points even for that, the α of the previous τ.
 2. EDF: Greenhall's combined algorithm (modelling the phase as the first difference of a continuous-time
    power-law process) for ADEV, OADEV, MDEV, TDEV, HDEV, OHDEV; the published fits for the total family —
-   TOTVAR b·N/m − c (SP 1065 Table 7; Table 5's AVAR formulas for phase noise), MTOT/TTOT b·N/m − c
-   (Table 8), HTOT (N/m)/(b₀ + b₁ m/N) (Howe et al. 2000, HDEV's EDF below m = 16), and Theo1 (Howe &
-   Peppler 2003, at the effective factor 0.75 m).
+   TOTVAR b·N/m − c (SP 1065 Table 7), at most OAVAR's EDF scaled by the term count (OAVAR's at m = 1,
+   where TOTVAR has no reflected term); for white PM the exact EDF of the reflected estimator, for flicker PM
+   Table 5's AVAR formula; MTOT/TTOT b·N/m − c (Howe's revised coefficients as in Stable32, the MVAR
+   EDF for m ≤ 8), HTOT (N/m)/(b₀ + b₁ m/N) (Howe et al. 2000, HDEV's EDF below m = 16), and Theo1 / TheoBR
+   (Howe & Peppler 2003, at the effective factor 0.75 m; beyond the lag-1 range Theo1 keeps the last lag-1 α).
 3. χ² interval of the deviation: σ √(EDF/χ²_{1−p/2}) … σ √(EDF/χ²_{p/2}).
 """
 
@@ -31,7 +33,7 @@ ONE_SIGMA = math.erf(1.0 / math.sqrt(2.0))
 """Two-sided probability of ±1σ, 0.6827 (Stable32's "0.683")."""
 
 _D_ORDER = {"adev": 2, "oadev": 2, "mdev": 2, "tdev": 2, "hdev": 3, "ohdev": 3, "totdev": 2, "mtotdev": 2,
-            "ttotdev": 2, "htotdev": 3, "theo1": 2, "theoh": 2}
+            "ttotdev": 2, "htotdev": 3, "theo1": 2, "theoh": 2, "theobr": 2}
 """Differencing order d of each estimator (noise identification's d_max)."""
 
 # ------------------------------------------------------------------------------------ noise identification
@@ -255,11 +257,17 @@ def edf_avar_simple(n: int, m: int, alpha: int) -> float:
 
 
 _TOT = {0: (1.50, 0.0), -1: (1.17, 0.22), -2: (0.93, 0.36)}
-_MTOT = {2: (1.90, 2.10), 1: (1.20, 1.40), 0: (1.10, 1.20), -1: (0.85, 0.50), -2: (0.75, 0.31)}
-_HTOT = {0: (0.559, 1.004), -1: (0.868, 1.140), -2: (0.938, 1.696), -3: (2.554, 0.974), -4: (3.149, 1.276)}
+_MTOT = {2: (2.16, 2.28), 1: (1.73, 2.99), 0: (1.33, 1.89), -1: (0.92, 0.76), -2: (0.79, 0.37)}
+"""MTOTVAR (and TTOTVAR) EDF = b·N/m − c for m > 8 (N phase points): D. Howe's revised coefficients of 2000-05-20
+as Stable32 uses them (W. Riley's edf test program, k2hrt/edf ``edf4.c`` ``ModTotvarEDF``, which keeps the older
+SP 1065 Table 8 values 1.90/2.10 … 0.75/0.31 as comments); for m ≤ 8 Stable32 switches to the MVAR EDF. With these
+the Sr87 MTOTDEV/TTOTDEV bounds agree with Stable32's within 2 % (Table 8's were 6–37 % narrower)."""
+_MTOT_MVAR_BELOW = 8
+"""Largest m at which the MTOT/TTOT EDF is the MVAR EDF (Stable32)."""
+_HTOT = {0: (0.559, 1.004), -1: (0.868, 1.140), -2: (0.938, 1.696), -3: (0.974, 2.554), -4: (1.276, 3.149)}
 """HTOTVAR EDF = (N/m)/(b₀ + b₁ m/N) for white, flicker, random-walk, flicker-walk, random-run FM (Howe et al.
-2000, Table 1). Stable32's Sr87 intervals confirm this row order (allantoolkit's table labels the same rows
-α = 2 … −2)."""
+2000, Table 1; the same rows as Stable32's ``HadTotvarEDF``, k2hrt/edf ``edf4.c``). Stable32's Sr87 intervals
+confirm this row order (allantoolkit's table labels the same rows α = 2 … −2)."""
 
 
 def edf_theo1(n: int, m: int, alpha: int) -> float:
@@ -278,6 +286,38 @@ def edf_theo1(n: int, m: int, alpha: int) -> float:
     return (a - 2) / (2.9 * t) * ((a - 1) ** 2 - 8.6 * t * (a - 1) + 11.4 * t * t) / (a - 3) ** 2
 
 
+_WPM_EXACT_MAX_N = 1 << 21
+"""Longest record for which :func:`edf_totvar_wpm` builds the coefficient matrix (O(N), ~3 s at this length);
+beyond, SP 1065 Table 5's AVAR EDF (optimistic at large m)."""
+
+
+@lru_cache(maxsize=4096)
+def edf_totvar_wpm(n: int, m: int) -> float:
+    """EDF of TOTVAR for white PM on n phase points: 2 E[S]²/Var[S] = (tr B)²/‖B‖²_F exactly, S = Σ v_i² the sum
+    of the N − 2 (reflected) second differences v = A x, B = AᵀA, x i.i.d. Gaussian — the definition the χ²
+    approximation uses (Greenhall's algorithm computes the same for the Allan/Hadamard family). No published
+    TOTVAR fit covers phase noise (Stable32 uses the AVAR EDF); the inverted reflection makes the 2(m − 1) end
+    terms share 2x₁ and 2x_N, so the EDF falls far below the AVAR's at large m (N = 1024, m = 128: 84 vs 439;
+    measured over 400 simulated records: 68)."""
+    from scipy import sparse
+
+    if n > _WPM_EXACT_MAX_N:
+        return edf_avar_simple(n, m, 2)
+    i = np.arange(1, n - 1)
+    r = np.arange(i.size)
+    lo, hi = i - m, i + m
+    left, right = lo < 0, hi > n - 1
+    rows = [r[~left], r[left], r[left], r, r[~right], r[right], r[right]]
+    cols = [lo[~left], np.zeros(left.sum(), dtype=np.int64), -lo[left], i, hi[~right],
+            np.full(right.sum(), n - 1), 2 * (n - 1) - hi[right]]
+    vals = [np.ones((~left).sum()), np.full(left.sum(), 2.0), np.full(left.sum(), -1.0), np.full(i.size, -2.0),
+            np.ones((~right).sum()), np.full(right.sum(), 2.0), np.full(right.sum(), -1.0)]
+    a = sparse.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(i.size, n))
+    b = (a.T @ a).tocsr()
+    tr = float(b.diagonal().sum())
+    return tr * tr / float(b.multiply(b).sum())
+
+
 def edf(estimator: str, alpha: int, m: int, n: int) -> float:
     """EDF of ``estimator`` at averaging factor m on n phase points for noise type α (NaN: none defined)."""
     a = int(alpha)
@@ -292,11 +332,18 @@ def edf(estimator: str, alpha: int, m: int, n: int) -> float:
     if estimator == "ohdev":
         return edf_greenhall(max(a, -4), 3, m, n, True, False)
     if estimator == "totdev":
-        if a in _TOT:
-            b, c = _TOT[a]
-            return b * n / m - c
-        return edf_avar_simple(n, m, a)
+        if a >= 2:
+            return edf_totvar_wpm(n, m)
+        if a not in _TOT:
+            return edf_avar_simple(n, m, a)
+        # the fit b·N/m − c is Howe's large-T/τ form; TOTVAR is OAVAR's N − 2m terms plus 2(m − 1) reflected
+        # ones (none at m = 1, where the fit doubles the EDF): not more than OAVAR's EDF scaled by the term count
+        b, c = _TOT[a]
+        oavar = edf_greenhall(a, 2, m, n, True, False) * (n - 2.0) / (n - 2.0 * m)
+        return min(b * n / m - c, oavar)
     if estimator in ("mtotdev", "ttotdev"):
+        if m <= _MTOT_MVAR_BELOW:
+            return edf_greenhall(max(a, -2), 2, m, n, True, True)
         b, c = _MTOT[max(-2, min(2, a))]
         return b * n / m - c
     if estimator == "htotdev":

@@ -35,7 +35,38 @@ TERMS: tuple[str, ...] = ("Q", "N", "B", "K", "R")
 POWERS: tuple[int, ...] = (-2, -1, 0, 1, 2)
 """Power of τ of each term's Allan-variance contribution."""
 GAINS: tuple[float, ...] = (3.0, 1.0, 2.0 * math.log(2.0) / math.pi, 1.0 / 3.0, 0.5)
-"""C_n = GAINS[n] · term²."""
+"""C_n = GAINS[n] · term² for the Allan variance (IEEE 952)."""
+HADAMARD_GAINS: tuple[float, ...] = (
+    3.0 * 10.0 / 9.0,
+    1.0,
+    (8.0 * math.log(2.0) - 3.0 * math.log(3.0)) / (2.0 * math.pi),
+    1.0 / 6.0,
+    0.0,
+)
+"""C_n = HADAMARD_GAINS[n] · term² for the Hadamard variance: its response ∫ S_y(f) (8/3) sin⁶(πfτ)/(πfτ)² df
+against the Allan variance's 2 sin⁴(πfτ)/(πfτ)² is 10/9 for white PM (same cutoff), 1 for white FM,
+(8 ln 2 − 3 ln 3)/(4 ln 2) = 0.811 for flicker FM, 1/2 for random-walk FM and 0 for a rate ramp (the Hadamard
+variance does not see linear frequency drift, so R cannot be fitted from it)."""
+
+FIT_GAINS: dict[str, tuple[float, ...]] = {
+    "adev": GAINS,
+    "oadev": GAINS,
+    "totdev": GAINS,
+    "theoh": GAINS,
+    "hdev": HADAMARD_GAINS,
+    "ohdev": HADAMARD_GAINS,
+    "htotdev": HADAMARD_GAINS,
+}
+"""Estimators the noise-term fit accepts, with the gains of their expectation for each IEEE 952 term.
+
+Allan model: ADEV, OADEV, TOTDEV (its value divided by the total-variance bias of the identified noise, as
+Stable32 prints it), TheoH (the Allan variance below 20 % of the record, TheoBR beyond). Hadamard model: HDEV,
+OHDEV, HTOTDEV (bias-corrected); no rate-ramp term. Refused: MDEV/TDEV/MTOTDEV/TTOTDEV (the modified variances'
+gains depend on m and their white-PM term goes as τ⁻³, not τ⁻²), Theo1 (biased against the Allan variance
+except for white FM), TheoBR over all τ (one bias factor for the whole run, taken from the long-τ Allan
+variance: with white noise at short τ and random walk at long τ it inflates the short-τ part by the random walk's
+bias, 1.7× in N on a test record; TheoH uses it only at long τ), MTIE and TIE rms (not variances of the
+power-law model)."""
 SLOPES: dict[str, float] = {"Q": -1.0, "N": -0.5, "B": 0.0, "K": 0.5, "R": 1.0}
 """Log-log slope of the Allan *deviation* of each term."""
 B_FLOOR: float = math.sqrt(2.0 * math.log(2.0) / math.pi)
@@ -87,7 +118,9 @@ def term_contributions(tau: ArrayLike, coefficients: ArrayLike) -> dict[str, NDA
     return {TERMS[i]: np.sqrt(max(float(coefficients[i]), 0.0) * t ** POWERS[i]) for i in range(5)}
 
 
-def coefficients_to_terms(c: ArrayLike, cov: ArrayLike) -> dict[str, tuple[float, float]]:
+def coefficients_to_terms(
+    c: ArrayLike, cov: ArrayLike, gains: tuple[float, ...] = GAINS
+) -> dict[str, tuple[float, float]]:
     """Terms (value, 1σ) from C_n and their covariance.
 
     Term = √(C/g); σ_term = σ_C/(2√(gC)). When C = 0 (at the non-negativity bound) the value is 0 and the
@@ -97,7 +130,10 @@ def coefficients_to_terms(c: ArrayLike, cov: ArrayLike) -> dict[str, tuple[float
     sig = np.sqrt(np.clip(np.diag(np.asarray(cov, dtype=np.float64)), 0.0, None))
     out: dict[str, tuple[float, float]] = {}
     for i, name in enumerate(TERMS):
-        g = GAINS[i]
+        g = gains[i]
+        if g == 0.0:
+            out[name] = (float("nan"), float("nan"))
+            continue
         val = math.sqrt(max(c[i], 0.0) / g)
         s = sig[i] / (2.0 * math.sqrt(g * c[i])) if c[i] > 0 else math.sqrt(sig[i] / g)
         out[name] = (val, float(s))
@@ -137,6 +173,7 @@ def fit_noise_terms(
     edf: ArrayLike | None = None,
     terms: tuple[str, ...] = TERMS,
     iterations: int = 4,
+    gains: tuple[float, ...] = GAINS,
 ) -> NoiseFit:
     """Fit σ²(τ) = Σ C_n τ^n by weighted non-negative least squares.
 
@@ -160,6 +197,9 @@ def fit_noise_terms(
         Terms to include (others fixed at 0).
     iterations : int
         Reweighting passes.
+    gains : tuple of float
+        C_n = gains[n]·term² of the fitted variance (:data:`GAINS` Allan, :data:`HADAMARD_GAINS`); a term with
+        gain 0 is left out of the fit and reported NaN.
 
     Returns
     -------
@@ -172,7 +212,7 @@ def fit_noise_terms(
     t, v = t[ok], v[ok]
     if t.size < 2:
         raise ValueError("fewer than two usable Allan-variance points; record too short for a noise-term fit")
-    cols = [i for i, name in enumerate(TERMS) if name in terms]
+    cols = [i for i, name in enumerate(TERMS) if name in terms and gains[i] > 0.0]
     a_full = np.stack([t**p for p in POWERS], axis=1)
     a = a_full[:, cols]
     ref = v.copy()
@@ -204,7 +244,7 @@ def fit_noise_terms(
     meat = (aws * (w**2 * sig2)[:, None]).T @ aws
     cov_s = bread @ meat @ bread / np.outer(scale, scale)
     cov[np.ix_(cols, cols)] = cov_s
-    terms_out = coefficients_to_terms(coef, cov)
+    terms_out = coefficients_to_terms(coef, cov, gains)
     # Allan variances at neighbouring τ are correlated, which the sandwich ignores: a term is not known better
     # than from the single most informative point, where its share f_j of σ²_j and the EDF give
     # δterm/term = 1/(f_j √(2 EDF_j)). The larger of the two is reported.
@@ -223,6 +263,7 @@ def slope_terms(
     dev: ArrayLike,
     lo: ArrayLike | None = None,
     hi: ArrayLike | None = None,
+    gains: tuple[float, ...] = GAINS,
 ) -> dict[str, dict[str, float | bool]]:
     """The classic slope-line reading of an Allan-deviation curve.
 
@@ -241,6 +282,9 @@ def slope_terms(
         Averaging times (s) and Allan deviations (u).
     lo, hi : array_like (M,), optional
         Confidence bounds of ``dev``; the reading's σ is half their spread, scaled to the reading.
+    gains : tuple of float
+        Gains of the deviation's variance per term (:data:`GAINS` for Allan deviations: the readings above;
+        in general term = σ τ^(−n/2)/√gain); terms with gain 0 are not read.
 
     Returns
     -------
@@ -261,16 +305,16 @@ def slope_terms(
     if np.count_nonzero(good) >= 2:
         t, d, rel, local = t[good], d[good], rel[good], local[good]
     factor = {
-        "Q": lambda tt: tt / math.sqrt(3.0),
-        "N": np.sqrt,
-        "B": lambda tt: np.full_like(tt, 1.0 / B_FLOOR),
-        "K": lambda tt: np.sqrt(3.0 / tt),
-        "R": lambda tt: math.sqrt(2.0) / tt,
+        name: (lambda tt, p=POWERS[i], g=gains[i]: tt ** (-p / 2.0) / math.sqrt(g))
+        for i, name in enumerate(TERMS)
+        if gains[i] > 0.0
     }
     out: dict[str, dict[str, float | bool]] = {}
     if t.size == 0:
         return out
     for name, slope in SLOPES.items():
+        if name not in factor:
+            continue
         vals = d * factor[name](t)
         j = int(np.argmin(vals))
         out[name] = {
@@ -282,10 +326,8 @@ def slope_terms(
     return out
 
 
-FIT_ESTIMATORS: tuple[str, ...] = ("oadev", "adev", "totdev", "theoh")
-"""Estimators whose expectation is the Allan variance for every IEEE 952 term, so the model above applies
-(TOTDEV through its bias-corrected value, TheoH at its effective τ). The modified and Hadamard families have
-other gains per term (and MVAR's white-PM term is not a power of τ), so the fit refuses them."""
+FIT_ESTIMATORS: tuple[str, ...] = tuple(FIT_GAINS)
+"""Estimators accepted by the noise-term fit (see :data:`FIT_GAINS`)."""
 
 
 def _rows(arrays: list[NDArray[np.float64]]) -> NDArray[np.float64]:
@@ -359,9 +401,10 @@ def analyse_noise(
 
     if fit_estimator not in FIT_ESTIMATORS:
         raise ValueError(
-            f"the noise-term fit needs an estimator whose expectation is the Allan variance "
+            f"the noise-term fit needs an estimator with a fixed gain per noise term "
             f"({', '.join(FIT_ESTIMATORS)}), got {fit_estimator!r}"
         )
+    gains = FIT_GAINS[fit_estimator]
     if not channels:
         raise ValueError("no channels to analyse")
     names = list(channels)
@@ -393,7 +436,9 @@ def analyse_noise(
         unit = unit_of[name]
         fit_dev = fe.unbiased()[:, j]
         try:
-            fit = fit_noise_terms(fe.tau, fit_dev**2, record_time, fe.edf[:, j] if fe.edf is not None else None, terms)
+            fit = fit_noise_terms(
+                fe.tau, fit_dev**2, record_time, fe.edf[:, j] if fe.edf is not None else None, terms, gains=gains
+            )
         except ValueError as exc:
             raise ValueError(f"channel {name!r}: {exc} (is the channel constant?)") from None
         ch: dict = {
@@ -436,7 +481,7 @@ def analyse_noise(
         ch["terms_display"] = disp
         lo = fe.lo[:, j] if fe.lo is not None else None
         hi = fe.hi[:, j] if fe.hi is not None else None
-        slope = slope_terms(fe.tau, fit_dev, lo, hi)
+        slope = slope_terms(fe.tau, fit_dev, lo, hi, gains=gains)
         ch["slope_terms"] = {
             t: {
                 "value": d["value"],
@@ -449,6 +494,7 @@ def analyse_noise(
         }
         ch["fit"] = {
             "estimator": fit_estimator,
+            "model": "hadamard" if gains is HADAMARD_GAINS else "allan",
             "coefficients": fit.coefficients,
             "powers": list(POWERS),
             "chi2_red": fit.chi2_red,

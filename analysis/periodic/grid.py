@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from analysis.periodic.linear import design_matrix, fit_fixed_frequencies
-from analysis.periodic.model import FitReport, PeriodicInputError, crb_frequency_sigma
+from analysis.periodic.model import FitReport, PeriodicInputError, crb_frequency_sigma, refinement_start
 
 __all__ = ["refine_frequencies"]
 
@@ -92,18 +92,11 @@ def refine_frequencies(
     """
     if not 6 <= m_parts <= 30:
         raise PeriodicInputError(f"the number of grid parts M must be between 6 and 30, got {m_parts}")
-    v = np.asarray(x, dtype=np.float64)
-    n = v.size
-    t = np.arange(n) / rate_hz
-    freqs = np.array(frequencies_hz, dtype=np.float64)
-    k = freqs.size
-    duration = n / rate_hz
-    half = np.full(k, 1.0 / duration) if halfwidths_hz is None else np.array(halfwidths_hz, dtype=np.float64)
-    report = FitReport(method="grid", final_step_hz=[0.0] * k, edge_limited=[False] * k)
+    v, freqs, half, report = refinement_start(x, rate_hz, frequencies_hz, halfwidths_hz, "grid")
+    n, k = v.size, freqs.size
     if k == 0:
-        report.converged = True
-        report.message = "no tone"
         return freqs, report
+    t = np.arange(n) / rate_hz
     rms_scale = float(np.std(v)) or 1.0
     nyq = rate_hz / 2.0
     for sweep in range(max_sweeps):

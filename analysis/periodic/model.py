@@ -13,6 +13,7 @@ published grid search) and :mod:`~analysis.periodic.identify` (the whole identif
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -161,6 +162,24 @@ class FitReport:
     edge_limited: list[bool] = field(default_factory=list)
     final_step_hz: list[float] = field(default_factory=list)
     message: str = ""
+
+
+def refinement_start(
+    x: ArrayLike, rate_hz: float, frequencies_hz: Sequence[float], halfwidths_hz: Sequence[float] | None, method: str
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], FitReport]:
+    """What both frequency refinements (``"lm"``, ``"grid"``) start from: the samples as float64, the coarse
+    frequencies (Hz), the half-widths of their search intervals D_i (Hz; default 1/T) and an empty report
+    (already converged, "no tone", when there is no frequency to refine)."""
+    v = np.asarray(x, dtype=np.float64)
+    freqs = np.array(frequencies_hz, dtype=np.float64)
+    k = freqs.size
+    duration = v.size / rate_hz
+    half = np.full(k, 1.0 / duration) if halfwidths_hz is None else np.array(halfwidths_hz, dtype=np.float64)
+    report = FitReport(method=method, final_step_hz=[0.0] * k, edge_limited=[False] * k)
+    if k == 0:
+        report.converged = True
+        report.message = "no tone"
+    return v, freqs, half, report
 
 
 @dataclass

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from analysis.periodic.linear import design_matrix, solve_lsq
-from analysis.periodic.model import FitReport
+from analysis.periodic.model import FitReport, refinement_start
 
 __all__ = ["refine_lm"]
 
@@ -82,16 +82,9 @@ def refine_lm(
     report : FitReport
         ``method="lm"``.
     """
-    v = np.asarray(x, dtype=np.float64)
-    n = v.size
-    f0 = np.array(frequencies_hz, dtype=np.float64)
-    k = f0.size
-    duration = n / rate_hz
-    half = np.full(k, 1.0 / duration) if halfwidths_hz is None else np.asarray(halfwidths_hz, dtype=np.float64)
-    report = FitReport(method="lm", final_step_hz=[0.0] * k, edge_limited=[False] * k)
+    v, f0, half, report = refinement_start(x, rate_hz, frequencies_hz, halfwidths_hz, "lm")
+    n, k = v.size, f0.size
     if k == 0:
-        report.converged = True
-        report.message = "no tone"
         return f0, report
     t = np.arange(n) / rate_hz
     coef = solve_lsq(design_matrix(t, f0), v)

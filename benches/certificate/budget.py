@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from analysis.gimbal import body_to_nav
 from analysis.identification.bias_drift import flicker_components, window_mean_covariance
 from analysis.identification.budget import (
     BudgetComponent,
@@ -25,6 +26,8 @@ from analysis.identification.budget import (
 )
 from analysis.identification.model import PARAM_KINDS, PARAM_NAMES
 from benches.calibration_result import CalibrationResult
+from benches.identify import acquisition_span
+from benches.reference import reference_for_samples
 
 if TYPE_CHECKING:  # pragma: no cover
     from benches.recording import Recording
@@ -68,10 +71,6 @@ def step_geometry(
     max_points : int
         Reference points per step (evenly spaced sample centres).
     """
-    from analysis.gimbal import body_to_nav
-    from benches.identify import acquisition_span
-    from benches.reference import reference_for_samples
-
     wanted = set(names) if names is not None else None
     table = f.table()
     tt, ta, tr = table.time, table.angles, table.rates

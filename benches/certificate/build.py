@@ -26,6 +26,7 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -40,10 +41,16 @@ from analysis.identification.decision import (
     overall_verdict,
 )
 from analysis.units import ARCSEC, display_unit, kelvin_to_celsius, to_display
+from benches.bench_config import BenchConfig, load_bench_text
 from benches.calibration_result import CalibrationFormatError, CalibrationResult
+from benches.certificate_register import CertificateRegister, RegisterError, free_paths, write_new
+from benches.recording import RecordingError, open_recording
+from core.errors import UserError
 from core.provenance import file_sha256, software_version
+from procedures.compiler import compile_procedure
+from procedures.loader import load_procedure_text
 
-from .budget import PARAM_KINDS, PARAM_NAMES, UncertaintyBudget, budget_for_run, default_g_uncertainty
+from .budget import PARAM_KINDS, PARAM_NAMES, UncertaintyBudget, budget_for_run, default_g_uncertainty, step_geometry
 from .content import (
     ANALYSES,
     BenchInfo,
@@ -52,15 +59,15 @@ from .content import (
     ParameterResult,
     format_with_uncertainty,
 )
+from .pdf import render_pdf
+from .plots import plot_convergence, plot_coverage, plot_residuals
 
 
-def _procedure_step_count(procedure_text: Any, overrides: dict[str, float], bench_text: str) -> int | None:
+def _procedure_step_count(
+    procedure_text: str | Callable[[], str] | None, overrides: dict[str, float], bench_text: str
+) -> int | None:
     """Number of steps of the recorded procedure (with its overrides), compiled for the recorded bench; None
     when the recording carries no procedure text that compiles (another tool's recording)."""
-    from core.errors import UserError as _UserError
-    from procedures.compiler import compile_procedure
-    from procedures.loader import load_procedure_text
-
     try:
         text = procedure_text() if callable(procedure_text) else str(procedure_text or "")
         if not text.strip() or not bench_text.strip():
@@ -68,14 +75,12 @@ def _procedure_step_count(procedure_text: Any, overrides: dict[str, float], benc
         cfg = _load_bench_config(bench_text)
         proc = load_procedure_text(text, "recording.h5:/procedure_yaml", overrides or None)
         return len(compile_procedure(proc, limits=cfg.turntable.limits, mounting=cfg.unit.mounting).steps)
-    except (_UserError, ValueError):
+    except (UserError, ValueError):
         return None
 
 
-def _load_bench_config(text: str) -> Any:
+def _load_bench_config(text: str) -> BenchConfig:
     """The recorded bench text through ``benches.bench_config`` (ConfigError names the recording's copy)."""
-    from benches.bench_config import load_bench_text
-
     return load_bench_text(text, "recording.h5:/bench_yaml")
 
 
@@ -263,10 +268,6 @@ def build_certificate(
     CertificateError
         Missing/mismatched inputs, or an incomplete recording without ``allow_incomplete``.
     """
-    from benches.recording import RecordingError, open_recording
-
-    from .budget import step_geometry
-
     given = Path(run_dir)
     run = given.parent if given.is_file() else given
     rec_path = given if given.is_file() else run / "recording.h5"
@@ -509,8 +510,6 @@ def build_certificate(
         analysis_plots=analysis_plots,
     )
     if with_plots:
-        from .plots import plot_convergence, plot_coverage, plot_residuals
-
         cert.plots["residuals"] = plot_residuals(per_step, noise_var)
         if len((cal.get("history") or {}).get("time") or []) >= 2:  # a single update has nothing to converge
             cert.plots["convergence"] = plot_convergence(
@@ -563,10 +562,6 @@ def issue_certificate(
     (pdf_path, json_path, verdict)
         verdict: "PASS", "FAIL", "INCONCLUSIVE", "INCOMPLETE" or "NO LIMITS".
     """
-    from benches.certificate_register import CertificateRegister, RegisterError, free_paths, write_new
-
-    from .pdf import render_pdf
-
     given = Path(run_dir)
     run = given.parent if given.is_file() else given
     cert = build_certificate(given, issue_date=issue_date, allow_incomplete=allow_incomplete)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import io
 import math
 from collections.abc import Mapping, Sequence
+from contextlib import AbstractContextManager
 from typing import Any
 
 import matplotlib
@@ -51,7 +52,8 @@ def _render(fig: Figure) -> bytes:
     return buf.getvalue()
 
 
-def _context() -> Any:
+def _context() -> AbstractContextManager[None]:
+    """The certificate's matplotlib settings (from the defaults, so a user's matplotlibrc cannot change a figure)."""
     base = dict(matplotlib.rcParamsDefault)
     base.pop("backend", None)
     base.update(_RC)

@@ -5,6 +5,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+from benches.recording import RecordingError
+from core.errors import UsageError
+
 EXAMPLES = """examples:
   tablebench certificate runs/20261122-101500-ten-step
   tablebench certificate RUN --out cert.pdf --json cert.json --issue-date 2026-11-22
@@ -41,9 +44,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench certificate``."""
-    from benches.certificate import CertificateError, issue_certificate
-    from benches.recording import RecordingError
-    from core.errors import UsageError
+    from benches.certificate import (  # lazy: fpdf, matplotlib, filterpy (--help time)
+        CertificateError,
+        issue_certificate,
+    )
 
     if args.out is not None and not str(args.out).lower().endswith(".pdf"):
         raise UsageError(f"--out {args.out}: give a .pdf file name")

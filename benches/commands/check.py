@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from analysis.units import format_hms
-from benches.arguments import parse_overrides
+from benches.arguments import add_bench_argument, add_procedure_arguments, parse_overrides
 from benches.session import prepare
 from procedures.paths import shipped_procedures
 
@@ -32,20 +32,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("procedure", metavar="FILE", help="procedure YAML file, or a shipped name like ten-step")
-    p.add_argument(
-        "--bench",
-        metavar="FILE",
-        default=None,
-        help="bench YAML file or shipped name (default: benches/sim.yaml here, else the shipped sim bench)",
-    )
-    p.add_argument(
-        "--set",
-        metavar="NAME=VALUE",
-        action="append",
-        default=[],
-        help="override a procedure parameter (from its parameters: block), e.g. --set duration_s=60; repeatable",
-    )
+    add_procedure_arguments(p, positional=True)
+    add_bench_argument(p)
     p.add_argument("--quiet", action="store_true", help="print only the one-line verdict")
     p.set_defaults(func=run)
 

@@ -8,6 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
+from analysis.identification.model import correct
+from benches.analysis_input import InputError, recording_path
+from benches.calibration_result import CalibrationResult
+from core.errors import OutputError, UsageError
+
 EXAMPLES = """examples:
   tablebench correct runs/RUN/calibration.json raw.npy --out corrected.npy
         # raw.npy: (n, 3) specific force in m/s² (body frame), or (n, 6) with the gyro rates (rad/s) used
@@ -37,15 +42,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def load_calibration_vector(path: str | Path) -> tuple[np.ndarray, list[str]]:
     """The 18-parameter vector of a calibration.json (not-identified parameters zeroed) and their names."""
-    from benches.calibration_result import CalibrationResult
-
     return CalibrationResult.load(path).compensation_vector()
 
 
 def _save(path: str | Path, array: np.ndarray) -> None:
     """``np.save`` with an unwritable path as one :class:`core.errors.OutputError` naming it."""
-    from core.errors import OutputError
-
     try:
         np.save(path, array)
     except OSError as exc:
@@ -54,15 +55,11 @@ def _save(path: str | Path, array: np.ndarray) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench correct``."""
-    from analysis.identification.model import correct
-    from benches.analysis_input import InputError, recording_path
-    from core.errors import UsageError
-
     x, skipped = load_calibration_vector(args.calibration)
     src = recording_path(args.input)
     times = None
     if src.suffix.lower() in (".h5", ".hdf5"):
-        from benches.identify import IdentificationError, load_run
+        from benches.identify import IdentificationError, load_run  # lazy: filterpy, scipy (--help time)
 
         try:
             rr = load_run(src)

@@ -14,8 +14,13 @@ from pathlib import Path
 import numpy as np
 
 from benches.arguments import bounded
+from benches.bench_config import load_bench, unit_frame_format
 from benches.recording import write_decoded_samples
 from core.errors import UsageError
+from drivers.imu_frame import DecodeStats, FrameDecoder
+from drivers.imu_frame_desc import FrameFormat, compile_format, load_frame, shipped_frames
+from drivers.imu_frame_samples import SampleConverter, Samples
+from drivers.serial_imu import concat_samples
 
 EXAMPLES = """examples:
   tablebench decode --frame kvh-1750-a capture.bin --out samples.csv
@@ -71,14 +76,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _format(args: argparse.Namespace):  # noqa: ANN202 - returns FrameFormat
-    from drivers.imu_frame_desc import compile_format, load_frame
+def _format(args: argparse.Namespace) -> FrameFormat:
 
     options: dict[str, str] = {}
     frame, rate = args.frame, args.rate
     if args.unit_config is not None:
-        from benches.bench_config import load_bench, unit_frame_format
-
         bench = load_bench(args.unit_config)
         if frame is None and not args.option and rate is None:
             return unit_frame_format(bench.unit)
@@ -109,9 +111,6 @@ def _format(args: argparse.Namespace):  # noqa: ANN202 - returns FrameFormat
 
 def detect_formats(data: bytes) -> list[tuple[int, str]]:
     """(frames with a valid checksum, name) of every shipped format in ``data``, most frames first."""
-    from drivers.imu_frame import FrameDecoder
-    from drivers.imu_frame_desc import load_frame, shipped_frames
-
     found = []
     for name in shipped_frames():
         dec = FrameDecoder(load_frame(name))
@@ -140,12 +139,8 @@ def _detect(path: Path) -> str:
     return found[0][1]
 
 
-def decode_file(path: Path, fmt):  # noqa: ANN001, ANN201 - (Samples, DecodeStats)
+def decode_file(path: Path, fmt: FrameFormat) -> tuple[Samples, DecodeStats]:
     """Decode a whole capture file in chunks; returns (samples, decode statistics)."""
-    from drivers.imu_frame import DecodeStats, FrameDecoder
-    from drivers.imu_frame_samples import SampleConverter
-    from drivers.serial_imu import concat_samples
-
     dec = FrameDecoder(fmt.desc)
     conv = SampleConverter(fmt)
     parts = []
@@ -166,7 +161,7 @@ def decode_file(path: Path, fmt):  # noqa: ANN001, ANN201 - (Samples, DecodeStat
     return concat_samples(parts), stats
 
 
-def columns(samples) -> tuple[list[str], np.ndarray]:  # noqa: ANN001
+def columns(samples: Samples) -> tuple[list[str], np.ndarray]:
     """Column names and the (n, k) float64 table of decoded samples."""
     names = ["time", "index", "counter", "accel_x", "accel_y", "accel_z", "gyro_x", "gyro_y", "gyro_z"]
     names += ["temperature", "status"]
@@ -237,6 +232,6 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def conv_text(fmt) -> str:  # noqa: ANN001
+def conv_text(fmt: FrameFormat) -> str:
     """The format line of the summary."""
     return fmt.describe()

@@ -8,7 +8,12 @@ import sys
 import time
 from collections.abc import Callable
 
+from analysis.drift.preprocess import DriftInputError
+from analysis.units import DISPLAY_UNITS
+from benches.analysis_input import InputError, add_input_arguments, load_input, output_dir
 from benches.arguments import bounded
+from core.errors import UsageError
+from core.jsonio import write_json
 
 EXAMPLES = """examples:
   tablebench drift runs/static-noise-001                          # a recording, all six channels
@@ -30,8 +35,6 @@ check are listed for 'tablebench periodic'. Methods: shared/spec/drift-timeserie
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``drift`` subcommand."""
-    from benches.analysis_input import add_input_arguments
-
     p = sub.add_parser(
         "drift",
         help="drift modelling of a static record: stationarity/normality/periodicity tests, ARMA, RLS",
@@ -99,8 +102,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _display(unit: str) -> tuple[float, str]:
     """Scale and label to show a channel's σ in the project's display units (analysis.units.DISPLAY_UNITS):
     gyro error quantities in deg/h, accelerometer ones in µg, SI otherwise."""
-    from analysis.units import DISPLAY_UNITS
-
     kind = {"rad/s": "gyro_bias", "m/s^2": "acceleration"}.get(unit)
     if kind is None:
         return 1.0, unit
@@ -192,10 +193,7 @@ def _progress_printer() -> Callable[[str], None]:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench drift``."""
-    from analysis.drift.preprocess import DriftInputError
-    from analysis.drift.report import MIN_SAMPLES, DriftOptions, analyse_channel
-    from benches.analysis_input import InputError, load_input, output_dir
-    from core.errors import UsageError
+    from analysis.drift.report import MIN_SAMPLES, DriftOptions, analyse_channel  # lazy: scipy (--help time)
 
     if not 0.0 < args.alpha < 0.5:
         raise UsageError(f"--alpha must be between 0 and 0.5 (e.g. 0.05), got {args.alpha}")
@@ -245,8 +243,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"{data.source}: {len(data.channels)} channel(s) at {data.rate:g} Hz")
     print(format_report(result, data.units))
     if out is not None:
-        from analysis.drift.plot import plot_channel
-        from core.jsonio import write_json
+        from analysis.drift.plot import plot_channel  # lazy: matplotlib, scipy (--help time)
 
         # null where a number is not available (e.g. σ after the filter of a white residual, se of a fixed mean)
         written = [write_json(out / "drift.json", result, nonfinite="null")]

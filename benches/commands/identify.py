@@ -44,7 +44,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench identify``."""
-    from benches.identify import IdentificationError, identify_run, write_calibration
+    from benches.identify import (  # lazy: filterpy, scipy (--help time)
+        IdentificationError,
+        identify_run,
+        write_calibration,
+    )
 
     try:
         result = identify_run(args.run, method=args.method, noise=args.noise)

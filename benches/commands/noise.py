@@ -13,10 +13,10 @@ EXAMPLES = """examples:
   tablebench noise run1 --estimators oadev,mdev,htotdev,theoh,mtie --taus 0.1,1,10,100
   tablebench noise angle.npy --rate 200 --data-type phase    # integrated angle (rad) instead of rate
 
-estimators: adev oadev mdev tdev hdev ohdev totdev mtotdev ttotdev htotdev theo1 theoh mtie tierms (equal to
-allantools; noise type by lag-1 ACF / B1, EDF by Greenhall's algorithm and the published total-family/Theo1
-fits, χ² intervals: analysis/noise/stability.py, analysis/noise/confidence.py). NaN samples are gaps: terms
-touching them are skipped (the count per τ is in noise.json).
+estimators: adev oadev mdev tdev hdev ohdev totdev mtotdev ttotdev htotdev theo1 theobr theoh mtie tierms
+(equal to allantools; theobr/theoh as Stable32; noise type by lag-1 ACF / B1, EDF by Greenhall's algorithm and
+the published total-family/Theo1 fits, χ² intervals: analysis/noise/stability.py, analysis/noise/confidence.py).
+NaN samples are gaps: terms touching them are skipped (the count per τ is in noise.json).
 
 output: a table of noise terms per channel (weighted non-negative least squares on --fit-estimator, each with
 its standard uncertainty 1σ), and with --out DIR: noise.json (per estimator and τ: value, term count, EDF,
@@ -71,8 +71,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--fit-estimator",
         default="oadev",
-        choices=("oadev", "adev", "totdev", "theoh"),
-        help="deviation used for the noise-term fit and slope reading (default oadev)",
+        metavar="NAME",
+        help="deviation used for the noise-term fit and slope reading (default oadev): adev, oadev, totdev, "
+        "theoh (Allan model) or hdev, ohdev, htotdev (Hadamard model, no rate-ramp term)",
     )
     p.add_argument(
         "--confidence",
@@ -145,6 +146,29 @@ def _parse_estimators(text: str) -> tuple[str, ...]:
     return tuple(dict.fromkeys(names))
 
 
+def _parse_fit_estimator(text: str) -> str:
+    """``--fit-estimator``: one of :data:`analysis.noise.terms.FIT_ESTIMATORS`, else a UsageError saying why."""
+    from analysis.noise.stability import ESTIMATORS
+    from analysis.noise.terms import FIT_ESTIMATORS
+    from core.errors import UsageError
+
+    name = text.strip().lower()
+    if name in FIT_ESTIMATORS:
+        return name
+    why = (
+        "its noise terms have no fixed gain (modified variances: m-dependent, white PM as τ^-3)"
+        if name in ("mdev", "tdev", "mtotdev", "ttotdev")
+        else "it is biased against the Allan variance except for white FM (use theoh)"
+        if name == "theo1"
+        else "its one bias factor, taken at long τ, mis-scales short τ with mixed noise (use theoh)"
+        if name == "theobr"
+        else "it is not a variance of the power-law noise model"
+        if name in ESTIMATORS
+        else "unknown estimator"
+    )
+    raise UsageError(f"--fit-estimator {text}: {why}; choose from {','.join(FIT_ESTIMATORS)}")
+
+
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench noise``."""
     from analysis.noise.terms import analyse_noise
@@ -158,11 +182,12 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--channels is empty; name the channels (e.g. gyro_x,gyro_y) or omit it for all")
     taus = _parse_taus(args.taus)
     estimators = _parse_estimators(args.estimators)
+    fit_estimator = _parse_fit_estimator(args.fit_estimator)
     data = load_input(
         args.input, rate=args.rate, channels=args.channels, step=args.step, min_samples=MIN_SAMPLES, allow_gaps=True
     )
     n = len(next(iter(data.channels.values())))
-    slow = {"mtotdev", "ttotdev", "htotdev", "theo1", "theoh"} & set(estimators)
+    slow = {"mtotdev", "ttotdev", "htotdev", "theo1", "theobr", "theoh"} & set(estimators)
     limit = MAX_ALL_TAUS_TOTAL if slow else MAX_ALL_TAUS
     if taus == "all" and n > limit:
         raise UsageError(
@@ -180,7 +205,7 @@ def run(args: argparse.Namespace) -> int:
             published_itotvar=args.published_itotvar,
             estimators=estimators,
             data_type=args.data_type,
-            fit_estimator=args.fit_estimator,
+            fit_estimator=fit_estimator,
         )
     except ValueError as exc:
         raise InputError(f"{data.source}: {exc}") from None

@@ -6,6 +6,12 @@ import argparse
 import io
 import math
 
+from analysis import units
+from analysis.periodic.model import PeriodicInputError
+from benches.analysis_input import add_input_arguments, load_input, output_dir
+from core.errors import UsageError
+from core.jsonio import write_json, write_text_atomic
+
 EXAMPLES = """examples:
   tablebench periodic runs/2026-11-21T10-00-00 --channels gyro_x,gyro_y,gyro_z
   tablebench periodic gyro.npy --rate 1000 --calibrate-seconds 8 --out results/
@@ -31,8 +37,6 @@ _OPTION = {"calibrate_seconds": "--calibrate-seconds", "n_terms": "--terms", "fa
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``periodic`` subcommand."""
-    from benches.analysis_input import add_input_arguments
-
     p = sub.add_parser(
         "periodic",
         help="identify and compensate periodic error terms",
@@ -72,8 +76,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _display(unit: str) -> tuple[str, float]:
-    from analysis import units
-
     kind = _DISPLAY_KIND.get(unit)
     if kind is None:
         return unit, 1.0
@@ -82,11 +84,7 @@ def _display(unit: str) -> tuple[str, float]:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench periodic``."""
-    from analysis.periodic.model import PeriodicInputError
-    from analysis.periodic.report import analyse_channel
-    from benches.analysis_input import load_input, output_dir
-    from core.errors import UsageError
-    from core.jsonio import write_json, write_text_atomic
+    from analysis.periodic.report import analyse_channel  # lazy: scipy (--help time)
 
     if args.terms is not None and not 0 <= args.terms <= 30:
         raise UsageError(f"--terms must be between 0 and 30, got {args.terms}")
@@ -131,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
         )
     )
     if out is not None:
-        from analysis.periodic.plot import plot_channel
+        from analysis.periodic.plot import plot_channel  # lazy: matplotlib, scipy (--help time)
 
         path = write_json(out / "periodic.json", result)
         pngs = []

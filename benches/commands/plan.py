@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from benches.arguments import parse_overrides
+from benches.arguments import add_bench_argument, add_procedure_arguments, parse_overrides
 from benches.session import prepare
 from core.errors import UsageError
 
@@ -26,15 +26,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("--bench", default=None, help="bench file (default: the simulated bench)")
-    p.add_argument("--procedure", default=None, help="procedure file or shipped name (default: ten-step)")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="procedure parameter override")
+    add_bench_argument(p)
+    add_procedure_arguments(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench plan``."""
-    from benches.identify import IdentificationError, plan_for  # lazy: see benches/cli.py (--help time)
+    from benches.identify import IdentificationError, plan_for  # lazy: filterpy, scipy (--help time)
 
     prep = prepare(args.bench, args.procedure, parse_overrides(args.set))
     try:

@@ -3,8 +3,30 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+from benches.arguments import add_bench_argument, add_procedure_arguments, check_seed, parse_overrides
+from benches.progress import ProgressDisplay
+from benches.session import (
+    Prepared,
+    SessionError,
+    copy_inputs,
+    execute,
+    identify_and_certify,
+    new_run_folder,
+    prepare,
+    recorded_overrides,
+    recording_status,
+    unfinished_work,
+)
+from core.errors import UsageError
+
+if TYPE_CHECKING:
+    from benches.identify import LiveIdentifier
 
 EXAMPLES = """examples:
   tablebench run                                   # ten-step procedure on the simulated bench
@@ -29,8 +51,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("--bench", default=None, help="bench file (default: the shipped simulated bench benches/sim.yaml)")
-    p.add_argument("--procedure", default=None, help="procedure file or shipped name (default: ten-step)")
+    add_bench_argument(p)
+    add_procedure_arguments(p)
     p.add_argument("--out", default=None, metavar="DIR", help="run folder (default: runs/<UTC time>-<procedure>)")
     p.add_argument("--seed", type=int, default=None, help="simulator seed (simulated benches; default from the bench)")
     p.add_argument("--resume", default=None, metavar="RUN", help="continue an interrupted run folder")
@@ -39,13 +61,6 @@ def register(sub: argparse._SubParsersAction) -> None:
         choices=("in-process", "loopback"),
         default=None,
         help="simulated benches: in-process (no bytes), or the real drivers over real wires on loopback",
-    )
-    p.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="NAME=VALUE",
-        help="override a procedure parameter (its parameters: block), e.g. --set duration_s=600; repeatable",
     )
     p.add_argument("--no-identify", action="store_true", help="only record (no plan, no identification)")
     p.add_argument("--no-certificate", action="store_true", help="do not issue a certificate at the end")
@@ -65,9 +80,6 @@ class _StopSignalsRaise:
     """While identifying and certifying: SIGTERM/SIGHUP end the work like Ctrl-C (KeyboardInterrupt)."""
 
     def __enter__(self) -> _StopSignalsRaise:
-        import signal
-        import threading
-
         self._old: dict = {}
         if threading.current_thread() is threading.main_thread():
             for name in ("SIGTERM", "SIGHUP"):
@@ -81,32 +93,15 @@ class _StopSignalsRaise:
         raise KeyboardInterrupt
 
     def __exit__(self, *exc: object) -> None:
-        import signal
-
         for sig, old in self._old.items():
             signal.signal(sig, old)
 
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench run``."""
-    from benches.arguments import parse_overrides
-    from benches.session import (
-        SessionError,
-        check_seed,
-        copy_inputs,
-        execute,
-        new_run_folder,
-        prepare,
-        recorded_overrides,
-        recording_status,
-        unfinished_work,
-    )
-    from core.errors import UsageError
+    from benches.identify import IdentificationError, LiveIdentifier, plan_for  # lazy: filterpy, scipy (--help time)
 
-    try:
-        check_seed(args.seed)
-    except SessionError as exc:
-        raise UsageError(str(exc)) from None
+    check_seed(args.seed)
     if args.resume is not None:
         folder = Path(args.resume)
         if folder.is_file():
@@ -137,8 +132,6 @@ def run(args: argparse.Namespace) -> int:
         prep = prepare(folder / "bench.yaml", folder / "procedure.yaml", recorded_overrides(folder))
     else:
         prep = prepare(args.bench, args.procedure, parse_overrides(args.set))
-    from benches.identify import IdentificationError, LiveIdentifier, plan_for
-
     _say(f"bench: {prep.config.name} ({prep.bench_path})")
     ov = ", ".join(f"{k}={v:g}" for k, v in sorted(prep.overrides.items()))
     _say(
@@ -157,7 +150,7 @@ def run(args: argparse.Namespace) -> int:
             _say("pre-run plan (predicted 1σ):")
             _say(plan.table())
 
-    def observers(progress):
+    def observers(progress: ProgressDisplay) -> list[LiveIdentifier]:
         if not identify:
             return []
         live.append(LiveIdentifier(prep.config, progress))
@@ -191,11 +184,11 @@ def run(args: argparse.Namespace) -> int:
     return _finish(args, folder, prep, live, todo)
 
 
-def _finish(args: argparse.Namespace, folder: Path, prep, live: list, todo: list[str]) -> int:
+def _finish(
+    args: argparse.Namespace, folder: Path, prep: Prepared, live: list[LiveIdentifier], todo: list[str]
+) -> int:
     """Identify and certify a run whose recording is complete (:func:`benches.session.identify_and_certify`);
     an interruption says what is left to do."""
-    from benches.session import identify_and_certify
-
     if args.no_certificate:
         todo = [t for t in todo if t != "certificate"]
     done: list[str] = []

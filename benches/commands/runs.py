@@ -7,6 +7,10 @@ import shutil
 import sys
 from pathlib import Path
 
+from benches.recording import RecordingError, recording_file, salvage
+from benches.session import recording_status
+from core.errors import UsageError
+
 EXAMPLES = """examples:
   tablebench runs                 # recordings under ./runs
   tablebench runs /data/lab1      # recordings under another folder
@@ -35,9 +39,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _salvage(args: argparse.Namespace) -> int:
-    from benches.recording import RecordingError, recording_file, salvage
-    from core.errors import UsageError
-
     src = Path(args.salvage)
     folder = src.parent if src.is_file() else src
     if not recording_file(folder).exists():
@@ -65,9 +66,6 @@ def _salvage(args: argparse.Namespace) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench runs``."""
-    from benches.session import recording_status
-    from core.errors import UsageError
-
     if args.salvage is not None:
         return _salvage(args)
     if args.out is not None:

@@ -14,11 +14,19 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable
-from typing import Any, TextIO
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any, TextIO
 
 from analysis.units import DEG
+from benches.arguments import add_bench_argument, check_seed
+from benches.bench_config import load_bench
 from core.errors import UsageError
+from drivers.protocols import AxisLimits, LinkError, TableError, TableState, TableStatus, Turntable
+from procedures.paths import default_bench_path, resolve_bench
+from procedures.steps import move_time
+
+if TYPE_CHECKING:
+    from benches.factory import Bench  # lazy at run time: scipy, pymodbus (--help time)
 
 EXAMPLES = """examples:
   tablebench table status                                  # the simulated bench's table
@@ -56,7 +64,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("--bench", default=None, help="bench file (default: the shipped simulated bench benches/sim.yaml)")
+    add_bench_argument(p)
     p.add_argument(
         "--transport",
         choices=("in-process", "loopback"),
@@ -85,15 +93,14 @@ def _numbers(values: list[str], n: int, what: str) -> list[float]:
     return out
 
 
-def parse_demand(action: str, values: list[str], limits: Any) -> tuple[Any, ...]:
+def parse_demand(action: str, values: list[str], limits: Sequence[AxisLimits]) -> tuple[Any, ...]:
     """The demand of ``move``/``spin`` in SI, checked against the bench limits (UsageError: nothing is sent)."""
     if action == "move":
         deg = _numbers(values, 3, "move OUTER MIDDLE INNER")
         for name, x, lim in zip(AXES, deg, limits, strict=True):
-            lo, hi = lim.position_min, lim.position_max
-            if (lo is not None and x * DEG < lo - 1e-12) or (hi is not None and x * DEG > hi + 1e-12):
+            if not lim.allows_position(x * DEG):
                 raise UsageError(
-                    f"move: {name} {x:g}° is outside the bench limits [{lo / DEG:g}°, {hi / DEG:g}°]; nothing was sent"
+                    f"move: {name} {x:g}° is outside the bench limits {lim.position_range_text()}; nothing was sent"
                 )
         return (tuple(x * DEG for x in deg),)
     if action == "spin":
@@ -104,7 +111,7 @@ def parse_demand(action: str, values: list[str], limits: Any) -> tuple[Any, ...]
             raise UsageError(f"spin: axis {values[0]!r} is not one of outer, middle, inner")
         ax = AXES.index(name)
         (rate,) = _numbers(values[1:], 1, "spin RATE")
-        if abs(rate) * DEG > limits[ax].rate_max * (1 + 1e-12):
+        if not limits[ax].allows_rate(rate * DEG):
             raise UsageError(
                 f"spin: {rate:g} °/s exceeds the {name} axis limit {limits[ax].rate_max / DEG:g} °/s; nothing was sent"
             )
@@ -114,9 +121,7 @@ def parse_demand(action: str, values: list[str], limits: Any) -> tuple[Any, ...]
     return ()
 
 
-def _describe_state(s: Any) -> str:
-    from drivers.protocols import TableStatus
-
+def _describe_state(s: TableState) -> str:
     flags = [f.name for f in TableStatus if f and f.name and s.status & f and f != TableStatus.REMOTE]
     ang = ", ".join(f"{n} {math.degrees(a):.4f}°" for n, a in zip(AXES, s.angles, strict=True))
     rat = ", ".join(f"{math.degrees(r):.4f}" for r in s.rates)
@@ -124,9 +129,9 @@ def _describe_state(s: Any) -> str:
     return f"angles {ang}; rates [{rat}] °/s; modes {modes}; status {' '.join(flags) or 'idle'}"
 
 
-def _wait(table: Any, done: Callable[[Any], bool], timeout: float, pause: Callable[[float], None], what: str) -> Any:
-    from drivers.protocols import TableError, TableStatus
-
+def _wait(
+    table: Turntable, done: Callable[[TableState], bool], timeout: float, pause: Callable[[float], None], what: str
+) -> TableState:
     waited = 0.0
     s = table.read_state()
     while not done(s):
@@ -142,7 +147,7 @@ def _wait(table: Any, done: Callable[[Any], bool], timeout: float, pause: Callab
 
 
 def execute(
-    bench: Any,
+    bench: Bench,
     action: str,
     demand: tuple[Any, ...],
     *,
@@ -152,9 +157,6 @@ def execute(
     stop_hint: str = "tablebench table stop",
 ) -> int:
     """Run one action on an open table bench; returns the exit code (faults / lost links raise)."""
-    from drivers.protocols import TableStatus
-    from procedures.steps import move_time
-
     table = bench.turntable
     if pause is None:
         world = bench.world
@@ -255,7 +257,7 @@ class _Signals:
             signal.signal(sig, old)
 
 
-def _safe_stop(table: Any) -> str:
+def _safe_stop(table: Turntable) -> str:
     try:
         table.stop()
         return "axes commanded Off"
@@ -265,18 +267,12 @@ def _safe_stop(table: Any) -> str:
 
 def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
     """Execute ``tablebench table``."""
-    from benches import factory
-    from benches.bench_config import load_bench
-    from drivers.protocols import LinkError, TableError
-    from procedures.paths import default_bench_path, resolve_bench
+    from benches import factory  # lazy: scipy, pymodbus (--help time)
 
     out = out or sys.stdout
     if args.timeout is not None and not (math.isfinite(args.timeout) and 0 < args.timeout <= 86400):
         raise UsageError(f"--timeout {args.timeout!r}: give seconds in (0, 86400]")
-    if args.seed is not None:
-        from benches.session import check_seed
-
-        check_seed(args.seed)
+    check_seed(args.seed)
     bench_path = resolve_bench(args.bench) if args.bench else default_bench_path()
     config = load_bench(bench_path)
     demand = parse_demand(args.action, list(args.values), config.turntable.limits)

@@ -10,4 +10,5 @@
   and on loopback TCP (pyvisa-py TCPIP SOCKET).
 - :mod:`drivers.sim.modbus_controller` — the simulated Modbus table (any register map).
 - :mod:`drivers.sim.serial_unit` — the unit's serial frames on loopback; :mod:`drivers.sim.loopback` wires them.
+- :mod:`drivers.sim.tcp_server` — the lifecycle shared by the single-client loopback servers.
 """

@@ -39,11 +39,14 @@ import math
 import re
 import threading
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING
 
 from analysis.units import DEG
 from drivers.acutrol.settings import AclSettings
-from drivers.protocols import FaultCode, LinkError, TableError
+from drivers.protocols import FaultCode, LinkError, TableError, TableState
+
+if TYPE_CHECKING:
+    from drivers.sim.world import SimulatedWorld  # type only: the world imports scipy (tablebench --help)
 
 log = logging.getLogger(__name__)
 
@@ -209,7 +212,7 @@ class AclController:
         How this unit answers (reply profile, mode reply, precision, axis numbers, full scale, time variable).
     """
 
-    def __init__(self, world: Any, settings: AclSettings | None = None) -> None:
+    def __init__(self, world: SimulatedWorld, settings: AclSettings | None = None) -> None:
         self.world = world
         self.settings = settings or AclSettings()
         self._lock = threading.RLock()
@@ -258,7 +261,7 @@ class AclController:
         lim = self._limits[i]
         return lim.position_min is None and lim.position_max is None
 
-    def _sync_fault(self, state: Any) -> None:
+    def _sync_fault(self, state: TableState) -> None:
         code = FaultCode(state.fault_code)
         if code != FaultCode.NONE and not self.fault:
             self.fault = code.name
@@ -338,10 +341,7 @@ class AclController:
                     if not -self._fs / 2 <= nv <= self._fs / 2:
                         raise AclError(f"parameter out of range: position {nv:g} outside ±{self._fs / 2:g}")
                     lim = self._limits[i]
-                    if not self._continuous(i) and (
-                        (lim.position_min is not None and nv * DEG < lim.position_min - 1e-12)
-                        or (lim.position_max is not None and nv * DEG > lim.position_max + 1e-12)
-                    ):
+                    if not self._continuous(i) and not lim.allows_position(nv * DEG):
                         raise AclError(f"parameter out of range: position {nv:g}° beyond the limits of axis {a[0]}")
                     pos[i] = nv
                     changed.add(i)
@@ -349,7 +349,7 @@ class AclController:
                 self._nargs(c, 2)
                 v = _number(a[1])
                 for i in self._axes(a[0], True):
-                    if abs(v) * DEG > self._limits[i].rate_max * (1 + 1e-12):
+                    if not self._limits[i].allows_rate(v * DEG):
                         raise AclError(f"parameter out of range: rate {v:g} °/s beyond the rate limit of axis {a[0]}")
                     rate[i] = v
                     changed.add(i)
@@ -400,7 +400,7 @@ class AclController:
         self._apply(changed, old_mode, state)
         return replies
 
-    def _apply(self, changed: set[int], old_mode: list[str], state: Any) -> None:
+    def _apply(self, changed: set[int], old_mode: list[str], state: TableState) -> None:
         w = self.world
         if not changed:
             return
@@ -425,7 +425,7 @@ class AclController:
             self.errors.append(f'-200,"execution error: {exc}"')
             self.esr |= 1 << 4
 
-    def _query(self, c: Command, state: Any, mode: list[str]) -> str:
+    def _query(self, c: Command, state: TableState, mode: list[str]) -> str:
         p, a = c.path, c.args
         d = self._fmt
         if p[0] == "READ":

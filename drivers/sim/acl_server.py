@@ -11,12 +11,14 @@ from __future__ import annotations
 import logging
 import select
 import socket
-import threading
-from typing import Any
+from typing import TYPE_CHECKING
 
 from drivers.acutrol.settings import AclSettings
 from drivers.sim.acl_controller import AclController
 from drivers.sim.tcp_server import SingleClientServer
+
+if TYPE_CHECKING:
+    from drivers.sim.world import SimulatedWorld
 
 log = logging.getLogger(__name__)
 
@@ -37,17 +39,11 @@ class AclTableServer(SingleClientServer):
 
     name = "simulated ACUTROL"
 
-    def __init__(self, world: Any, settings: AclSettings | None = None, port: int = 0) -> None:
+    def __init__(self, world: SimulatedWorld, settings: AclSettings | None = None, port: int = 0) -> None:
         self.controller = AclController(world, settings)
         self.settings = self.controller.settings
         self._terminator = b"\r\n" if self.settings.reply_profile == "tcp" else b"\n"
-        self._listener = socket.create_server(("127.0.0.1", port))
-        self._listener.setblocking(False)
-        self.port: int = self._listener.getsockname()[1]
-        self._stop = threading.Event()
-        self._client: socket.socket | None = None
-        self._client_lock = threading.Lock()
-        self._thread = threading.Thread(target=self._serve, name=f"sim-acutrol:{self.port}", daemon=True)
+        self._listen(port, "sim-acutrol")
         self._thread.start()
 
     @property

@@ -43,6 +43,7 @@ from drivers.imu_counts import CountScale
 from drivers.protocols import AxisLimits, FaultCode
 from drivers.sim.config import (
     CHANNELS,
+    MAX_SEED,
     AccelTruth,
     ArmaDrift,
     BudgetInputs,
@@ -323,7 +324,7 @@ def parse_simulation(d: dict, smap: SourceMap, site: Site, table: Table, unit: U
         drop_probability=get_number(d, smap, p, "drop_probability", 0.0, minimum=0, maximum=0.5),
         table=tm,
         faults=tuple(faults),
-        seed=_int(d, smap, p, "seed", 0, 0, 2**63 - 1),
+        seed=_int(d, smap, p, "seed", 0, 0, MAX_SEED),
         transport=get_str(d, smap, p, "transport", "in-process", choices=["in-process", "loopback"]),
         budget_inputs=_budget_inputs(d, smap, p, site, table),
     )

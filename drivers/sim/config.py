@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 from analysis.earth import normal_gravity
 from analysis.identification.model import PARAM_NAMES
-from analysis.units import ARCSEC, DEG, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, UG
+from analysis.units import ARCSEC, DEG, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MM, PPM, UG, UG_PER_G2
 from drivers.imu_counts import CountScale
 from drivers.protocols import AxisLimits, FaultCode
 
@@ -39,6 +39,10 @@ _Z3: Mat3 = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
 def _good_table_limits() -> tuple[AxisLimits, AxisLimits, AxisLimits]:
     lim = AxisLimits(rate_max=300.0 * DEG, accel_max=100.0 * DEG)
     return (lim, lim, lim)
+
+
+MAX_SEED = 2**63 - 1
+"""Largest simulator seed: the range of the bench file's ``simulation.seed`` and of ``--seed``."""
 
 
 @dataclass(frozen=True)
@@ -279,8 +283,6 @@ class SimConfig:
 
 def example_navigation_grade() -> SimConfig:
     """A navigation-grade quartz accelerometer triad + tactical gyro triad on a good table (tests, demos)."""
-    from analysis.units import MM, PPM, UG_PER_G2
-
     return SimConfig(
         accel=AccelTruth(
             bias=(100 * UG, -80 * UG, 120 * UG),

@@ -19,13 +19,19 @@ runs the same driver against the same controller without the wire, so the two ar
 from __future__ import annotations
 
 import logging
-from typing import Any, Literal
+from collections.abc import Callable
+from typing import Any, BinaryIO, Literal
 
 from drivers import connect
+from drivers.acutrol import AclSettings, AclTurntable
+from drivers.imu_frame_desc import FrameFormat
+from drivers.modbus_map import ModbusMap
+from drivers.protocols import InertialUnit, Turntable
 from drivers.sim.acl_server import AclTableServer
 from drivers.sim.modbus_controller import ModbusTableServer
 from drivers.sim.serial_unit import Corruption, SerialUnitServer
 from drivers.sim.world import SimulatedWorld
+from drivers.transport import MessageTransport, VisaTransport, open_visa
 
 log = logging.getLogger(__name__)
 
@@ -67,24 +73,24 @@ class Loopback:
         world: SimulatedWorld,
         *,
         dialect: Dialect = "modbus",
-        make_acl_table: Any = None,
-        acl: Any = None,
+        make_acl_table: Callable[[MessageTransport], AclTurntable] | None = None,
+        acl: AclSettings | None = None,
         word_order: Literal["big", "little"] | None = None,
-        register_map: Any = None,
+        register_map: ModbusMap | None = None,
         watchdog_s: float | None = None,
         corruption: Corruption | None = None,
         timeout: float = 2.0,
         unit_id: int = 1,
-        unit_frame: Any = None,
-        unit_raw: Any = None,
+        unit_frame: FrameFormat | None = None,
+        unit_raw: BinaryIO | None = None,
         unit_raw_name: str = "",
     ) -> None:
         if dialect not in ("acutrol", "modbus"):
             raise ValueError(f"loopback dialect must be 'acutrol' or 'modbus', got {dialect!r}")
         self.world = world
         self.dialect = dialect
-        self._closers: list[Any] = []
-        self.table_server: Any = None
+        self._closers: list[Callable[[], None]] = []
+        self.table_server: ModbusTableServer | AclTableServer | None = None
         try:
             if dialect == "modbus":
                 self.table_server = ModbusTableServer(
@@ -101,8 +107,6 @@ class Loopback:
                     retries=0,
                 )
             else:
-                from drivers.transport import VisaTransport, open_visa
-
                 self.table_server = AclTableServer(world, acl)
                 self._closers.append(self.table_server.close)
                 res = open_visa(self.table_server.resource, timeout)
@@ -119,7 +123,7 @@ class Loopback:
                 table = connect.Connection(driver, transport, [driver.close, res.close])
             self._closers.insert(0, table.close)
             self.client: Any = table.transport
-            self.turntable: Any = table.driver
+            self.turntable: Turntable = table.driver
             self.unit_server = SerialUnitServer(world, corruption=corruption, frame=unit_frame)
             self._closers.append(self.unit_server.close)
             unit = connect.serial_unit(
@@ -134,7 +138,7 @@ class Loopback:
             )
             self._closers.insert(0, unit.close)
             self.unit_port = unit.transport
-            self.unit: Any = unit.driver
+            self.unit: InertialUnit = unit.driver
         except BaseException:
             self.close()
             raise

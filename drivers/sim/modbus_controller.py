@@ -31,11 +31,14 @@ import logging
 import math
 import threading
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from drivers.modbus_map import ModbusMap, load_modbus_map
+from drivers.modbus_map import ModbusMap, map_with_word_order
 from drivers.modbus_table import check_position, check_rate
 from drivers.protocols import AxisMode, FaultCode, TableError, TableStatus
+
+if TYPE_CHECKING:
+    from drivers.sim.world import SimulatedWorld
 
 log = logging.getLogger(__name__)
 
@@ -60,7 +63,7 @@ class ModbusTableServer:
 
     def __init__(
         self,
-        world: Any,
+        world: SimulatedWorld,
         port: int = 0,
         *,
         word_order: str | None = None,
@@ -68,13 +71,7 @@ class ModbusTableServer:
         host: str = "127.0.0.1",
         register_map: ModbusMap | None = None,
     ) -> None:
-        import dataclasses
-
-        m = register_map or load_modbus_map()
-        if word_order is not None:
-            if word_order not in ("big", "little"):
-                raise ValueError(f"float word order must be 'big' or 'little', got {word_order!r}")
-            m = dataclasses.replace(m, word_order=word_order)
+        m = map_with_word_order(register_map, word_order)
         self.map = m
         self.world = world
         self.word_order = m.word_order

@@ -26,9 +26,9 @@ from __future__ import annotations
 import logging
 import select
 import socket
-import threading
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -38,6 +38,9 @@ from drivers.imu_frame_desc import DEFAULT_FRAME, FrameFormat, load_frame
 from drivers.imu_frame_samples import encode_samples
 from drivers.serial_imu import MAX_BURST, count_format
 from drivers.sim.tcp_server import SingleClientServer
+
+if TYPE_CHECKING:
+    from drivers.sim.world import SimulatedWorld
 
 log = logging.getLogger(__name__)
 
@@ -160,7 +163,7 @@ class SerialUnitServer(SingleClientServer):
 
     def __init__(
         self,
-        world: object,
+        world: SimulatedWorld,
         port: int = 0,
         *,
         corruption: Corruption | None = None,
@@ -169,20 +172,14 @@ class SerialUnitServer(SingleClientServer):
         frame: FrameFormat | None = None,
     ) -> None:
         self.world = world
-        self.frame = frame if frame is not None else count_format(world.scale, world.sample_rate)  # type: ignore[attr-defined]
+        self.frame = frame if frame is not None else count_format(world.scale, world.sample_rate)
         self._codec = FrameCodec(self.frame.desc)
         self.corruption = corruption if corruption is not None and corruption.active else None
         self._corrupter = _Corrupter(self.corruption) if self.corruption else None
         self.initial_stream_factor = float(stream_factor)
         self.chunk_s = float(chunk_s)
-        self._listener = socket.create_server(("127.0.0.1", port))
-        self._listener.setblocking(False)
-        self.port: int = self._listener.getsockname()[1]
-        self._stop = threading.Event()
-        self._client: socket.socket | None = None
-        self._client_lock = threading.Lock()
         self.frames_sent = 0
-        self._thread = threading.Thread(target=self._serve, name=f"sim-imu-serial:{self.port}", daemon=True)
+        self._listen(port, "sim-imu-serial")
         self._thread.start()
         log.info("simulated unit serving on 127.0.0.1:%d", self.port)
 

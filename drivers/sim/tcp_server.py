@@ -14,8 +14,7 @@ log = logging.getLogger(__name__)
 class SingleClientServer:
     """Mixin: a listening socket served by one thread for one client at a time.
 
-    Subclasses set ``_listener`` (socket), ``_thread`` (threading.Thread), ``_stop`` (threading.Event),
-    ``_client`` (socket or None) and ``_client_lock`` (threading.Lock) in their constructor.
+    Subclasses call :meth:`_listen` in their constructor, then start ``_thread`` once they are set up.
     """
 
     _listener: socket.socket
@@ -24,7 +23,19 @@ class SingleClientServer:
     _client: socket.socket | None
     _client_lock: threading.Lock
 
+    port: int
     name: str = "simulated device"
+
+    def _listen(self, port: int, thread_name: str) -> None:
+        """Listen on 127.0.0.1:``port`` (0: ephemeral; the bound one is :attr:`port`) and prepare the serving
+        thread ``thread_name:PORT`` (not started)."""
+        self._listener = socket.create_server(("127.0.0.1", port))
+        self._listener.setblocking(False)
+        self.port = self._listener.getsockname()[1]
+        self._stop = threading.Event()
+        self._client = None
+        self._client_lock = threading.Lock()
+        self._thread = threading.Thread(target=self._serve, name=f"{thread_name}:{self.port}", daemon=True)
 
     def _handle(self, conn: socket.socket) -> None:
         """Serve one connected client until it goes away or the server stops (subclasses)."""

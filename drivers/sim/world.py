@@ -169,6 +169,25 @@ class SimulatedWorld:
         if self._fault != FaultCode.NONE:
             raise TableError(f"table fault {self._fault.name} is latched; clear_fault() before commanding motion")
 
+    def _plan_position(self, axis: int, target: float) -> None:
+        """Re-plan gimbal ``axis`` from its state now to a position move to ``target`` (rad; limits checked)."""
+        t = self._k / self._fs
+        tb = self.cfg.table
+        p0, v0 = self._plans[axis].state(t)
+        self._plans[axis] = plan_position(
+            t,
+            p0,
+            v0,
+            target,
+            self._limits[axis],
+            slew_fraction=tb.slew_fraction,
+            overshoot=tb.overshoot,
+            settle_frequency_hz=tb.settle_frequency_hz,
+            settle_time_constant=tb.settle_time_constant,
+            tolerance=tb.position_tolerance,
+            in_position_time=tb.in_position_time,
+        )
+
     def command_position(self, angles: ArrayLike) -> None:
         """Move to absolute gimbal angles (outer, middle, inner), rad.
 
@@ -188,29 +207,15 @@ class SimulatedWorld:
                     raise TableError(
                         f"axis {i} angle {math.degrees(x):.4f}° is outside its limits {lim.position_range_text()}"
                     )
-            t = self._k / self._fs
-            tb = self.cfg.table
             for i in range(3):
-                p0, v0 = self._plans[i].state(t)
-                self._plans[i] = plan_position(
-                    t,
-                    p0,
-                    v0,
-                    float(a[i]),
-                    self._limits[i],
-                    slew_fraction=tb.slew_fraction,
-                    overshoot=tb.overshoot,
-                    settle_frequency_hz=tb.settle_frequency_hz,
-                    settle_time_constant=tb.settle_time_constant,
-                    tolerance=tb.position_tolerance,
-                    in_position_time=tb.in_position_time,
-                )
+                self._plan_position(i, float(a[i]))
             self._new_attitude_error()
             self._feed()
 
     def command_axis_position(self, axis: int, angle: float) -> None:
         """Move one gimbal ``axis`` (0 outer, 1 middle, 2 inner) to the absolute angle ``angle`` (rad); the other
-        axes keep their motion (a controller frame that demands one axis, e.g. an ACL way-point).
+        axes keep their motion (a controller frame that demands one axis, e.g. an ACL way-point). Like every
+        motion command it re-positions the table: a new realised attitude error is drawn (if realised).
 
         Raises
         ------
@@ -224,25 +229,12 @@ class SimulatedWorld:
                 raise TableError(f"axis must be 0 (outer), 1 (middle) or 2 (inner), got {axis!r}")
             x = float(angle)
             lim = self._limits[axis]
-            lo, hi = lim.position_min, lim.position_max
-            if not math.isfinite(x) or (lo is not None and x < lo) or (hi is not None and x > hi):
-                raise TableError(f"axis {axis} angle {math.degrees(x):.4f}° is outside its limits")
-            t = self._k / self._fs
-            tb = self.cfg.table
-            p0, v0 = self._plans[axis].state(t)
-            self._plans[axis] = plan_position(
-                t,
-                p0,
-                v0,
-                x,
-                lim,
-                slew_fraction=tb.slew_fraction,
-                overshoot=tb.overshoot,
-                settle_frequency_hz=tb.settle_frequency_hz,
-                settle_time_constant=tb.settle_time_constant,
-                tolerance=tb.position_tolerance,
-                in_position_time=tb.in_position_time,
-            )
+            if not math.isfinite(x) or not lim.allows_position(x):
+                raise TableError(
+                    f"axis {axis} angle {math.degrees(x):.4f}° is outside its limits {lim.position_range_text()}"
+                )
+            self._plan_position(axis, x)
+            self._new_attitude_error()
             self._feed()
 
     def command_rate(self, axis: int, rate: float) -> None:

@@ -13,7 +13,7 @@ from analysis.units import ARCSEC, DEG, DEG_PER_HOUR, MM, PPM, UG
 from benches.bench_config import load_bench, load_bench_text
 from core.yaml_source import ConfigError
 from drivers.sim.world import SimulatedWorld
-from tests import REPO_ROOT
+from tests import REPO_ROOT, line_of
 
 BENCHES = REPO_ROOT / "benches"
 SIM = (BENCHES / "sim.yaml").read_text(encoding="utf-8")
@@ -73,10 +73,6 @@ def test_prior_group_and_single_override_and_sci_notation() -> None:
     assert b.unit.prior["b_x"] == pytest.approx(300 * UG) and b.unit.prior["b_z"] == pytest.approx(500 * UG)
 
 
-def _line_of(text: str, needle: str) -> int:
-    return next(i for i, line in enumerate(text.splitlines(), 1) if needle in line)
-
-
 @pytest.mark.parametrize(
     ("old", "new", "needle", "words"),
     [
@@ -126,7 +122,7 @@ def test_bad_values_name_file_line_and_fix(old: str, new: str, needle: str, word
     with pytest.raises(ConfigError) as exc:
         load_bench_text(text, "benches/bad.yaml")
     msg = str(exc.value)
-    assert msg.startswith(f"benches/bad.yaml:{_line_of(text, needle)}:"), msg
+    assert msg.startswith(f"benches/bad.yaml:{line_of(text, needle)}:"), msg
     for w in words:
         assert w in msg, msg
 

@@ -15,8 +15,9 @@ from benches.certificate import build_certificate
 from benches.recording import open_recording
 from procedures.compiler import compile_procedure
 from procedures.loader import load_procedure_text
-from tests.benches.test_run_interrupt import CLI, SHORT, _start, _wait_for_step
-from tests.simbench import bench_variant
+from tests.simbench import CLI, bench_variant, short_ten_step, start_cli, wait_for_step
+
+SHORT = short_ten_step(hold_s=3, warmup_s=5)
 
 
 def _compiled_steps(bench, text: str) -> int:
@@ -37,9 +38,9 @@ def test_certificate_step_counts_match_an_interrupted_then_resumed_run(tmp_path)
     n_total = _compiled_steps(bench, SHORT)
     assert n_total > 40  # a procedure with many steps
     out = tmp_path / "run"
-    p = _start(["run", "--bench", str(bench), "--procedure", str(proc), "--seed", "5", "--plain", "--no-identify",
+    p = start_cli(["run", "--bench", str(bench), "--procedure", str(proc), "--seed", "5", "--plain", "--no-identify",
                 "--out", str(out)], tmp_path)  # fmt: skip
-    _wait_for_step(p, "C/hold-2")
+    wait_for_step(p, "C/hold-2")
     os.kill(p.pid, signal.SIGINT)
     _, err = p.communicate(timeout=120)
     assert p.returncode == 130, err[-2000:]

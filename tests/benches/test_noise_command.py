@@ -6,6 +6,7 @@ import json
 import math
 from pathlib import Path
 
+import h5py
 import numpy as np
 import pytest
 
@@ -15,7 +16,6 @@ from benches.cli import main
 
 
 def _write_recording(path: Path, accel: np.ndarray, gyro: np.ndarray, rate: float) -> None:
-    h5py = pytest.importorskip("h5py")
     with h5py.File(path, "w") as fh:
         fh.attrs["format"] = "tablebench-recording"
         fh.attrs["sample_rate_hz"] = rate
@@ -73,6 +73,9 @@ def test_recording_input_uses_si_channels_and_display_units(tmp_path: Path, caps
         ("short", ["--rate", "10"], "at least 64"),
         ("ok", ["--rate", "10", "--confidence", "1.5"], "--confidence"),
         ("constant", ["--rate", "10"], "channel 'gy'"),
+        ("ok", ["--rate", "10", "--fit-estimator", "mdev"], "--fit-estimator mdev: its noise terms have no fixed"),
+        ("ok", ["--rate", "10", "--fit-estimator", "theo1"], "--fit-estimator theo1: it is biased"),
+        ("ok", ["--rate", "10", "--fit-estimator", "avar"], "--fit-estimator avar: unknown estimator"),
     ],
 )
 def test_bad_input_is_one_clear_line_exit_2(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import h5py
 import numpy as np
 import pytest
 
@@ -63,7 +64,6 @@ def test_terms_override_and_calibration_length(npy: Path, tmp_path: Path) -> Non
 
 
 def test_recording_input(tmp_path: Path) -> None:
-    h5py = pytest.importorskip("h5py")
     n = 12_000
     gyro = np.zeros((n, 3))
     gyro[:, 2] = gyro_record(n, seed=4)

@@ -14,18 +14,9 @@ import pytest
 
 from benches.cli import main
 from benches.recording import RecordingError, open_recording
-from tests import REPO_ROOT
-from tests.simbench import bench_variant
+from tests.simbench import bench_variant, short_ten_step
 
-SHORT = (
-    (REPO_ROOT / "procedures" / "ten-step.yaml")
-    .read_text(encoding="utf-8")
-    .replace("settle_s: 5", "settle_s: 1")
-    .replace("hold_s: 60", "hold_s: 2")
-    .replace("spin_settle_s: 10", "spin_settle_s: 1")
-    .replace("duration_s: 900", "duration_s: 20")
-    .replace("rate_dps: 1.6", "rate_dps: 30")
-)
+SHORT = short_ten_step(hold_s=2, warmup_s=20)
 
 
 @pytest.fixture(scope="module")

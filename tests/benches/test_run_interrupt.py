@@ -8,45 +8,14 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
-import sys
-import time
 
 import numpy as np
 import pytest
 
 from benches.recording import open_recording
-from tests import REPO_ROOT
-from tests.simbench import bench_variant
+from tests.simbench import CLI, bench_variant, short_ten_step, start_cli, wait_for_step
 
-CLI = [sys.executable, "-m", "benches.cli"]
-
-# the ten-step sequence, shortened (holds 3 s, warm-up 5 s, spins at 30 °/s) so a run takes seconds
-SHORT = (
-    (REPO_ROOT / "procedures" / "ten-step.yaml")
-    .read_text(encoding="utf-8")
-    .replace("settle_s: 5", "settle_s: 1")
-    .replace("hold_s: 60", "hold_s: 3")
-    .replace("spin_settle_s: 10", "spin_settle_s: 1")
-    .replace("duration_s: 900", "duration_s: 5")
-    .replace("rate_dps: 1.6", "rate_dps: 30")
-)
-
-
-def _start(args: list[str], cwd) -> subprocess.Popen:
-    return subprocess.Popen(
-        CLI + args, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
-    )
-
-
-def _wait_for_step(proc: subprocess.Popen, marker: str, timeout: float = 120.0) -> None:
-    t0 = time.monotonic()
-    assert proc.stderr is not None
-    for line in proc.stderr:
-        if line.startswith(f"step {marker}"):
-            return
-        if time.monotonic() - t0 > timeout:
-            break
-    raise AssertionError(f"step {marker} never started")
+SHORT = short_ten_step(hold_s=3, warmup_s=5)
 
 
 def _contents(path):
@@ -96,8 +65,8 @@ def test_stopped_run_keeps_completed_steps_and_resumes_bit_for_bit(setup, sig, w
     tmp, common, ref = setup
     ref_status, ref_steps, _ref_smp, _ref_tab = ref
     out = tmp / f"stopped-{sig.name}-{where.replace('/', '_')}"
-    proc = _start(["run", *common, "--out", str(out)], tmp)
-    _wait_for_step(proc, where)
+    proc = start_cli(["run", *common, "--out", str(out)], tmp)
+    wait_for_step(proc, where)
     os.kill(proc.pid, sig)
     _, err = proc.communicate(timeout=120)
     if sig != signal.SIGKILL:  # the safe stop: table at rest, recording closed, how to resume
@@ -126,8 +95,8 @@ def test_stopped_run_keeps_completed_steps_and_resumes_bit_for_bit(setup, sig, w
 def test_resume_refuses_another_seed_and_finishes_a_complete_run(setup):
     tmp, common, _ = setup
     out = tmp / "seeded"
-    proc = _start(["run", *common, "--out", str(out)], tmp)
-    _wait_for_step(proc, "A/hold-1")
+    proc = start_cli(["run", *common, "--out", str(out)], tmp)
+    wait_for_step(proc, "A/hold-1")
     os.kill(proc.pid, signal.SIGINT)
     proc.communicate(timeout=120)
     res = subprocess.run(CLI + ["run", "--resume", str(out), "--seed", "6"], cwd=tmp, capture_output=True, text=True)

@@ -42,11 +42,12 @@ def test_complete_run_records_every_step_with_consistent_ranges(tmp_path):
         assert hold.acq_start - hold.start_sample == 50
         spin = steps[3]
         assert spin.acq_end - spin.acq_start == 1200
-        # samples are contiguous and counted from 0; table read once per block
+        # samples are contiguous and counted from 0; table read and heartbeat sent once per block (0.1 s)
         assert np.array_equal(f.samples(fields=("counter",)).counter, np.arange(n, dtype=np.uint32))
         assert f.n_table >= n // 10
         messages = [e.message for e in f.events()]
         assert any("note: done" in m for m in messages)
+    assert table.heartbeats >= n // 10
     # the table was left at rest
     assert table.commands[-1] == ("stop",)
     assert np.all(table.rates == 0)

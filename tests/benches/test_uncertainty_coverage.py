@@ -72,6 +72,27 @@ def test_simulator_moves_the_true_attitude_per_command_within_the_stated_accurac
     assert np.sqrt(np.mean(resid**2)) < 0.01 * np.sqrt(np.mean(pred**2)), (resid, pred)
 
 
+def test_every_motion_command_a_controller_sends_re_positions_the_true_attitude():
+    """The simulated ACUTROL demands each axis on its own (``command_axis_position``, way-points included): a
+    position reached that way must get its own attitude error like one reached by ``command_position``, or
+    the positions of an orientation share one error and b and d under-cover (the regression of issue 12)."""
+    from drivers.sim.acl_controller import AclController
+    from drivers.sim.config import BudgetInputs, SimConfig
+
+    w = SimulatedWorld(SimConfig(budget_inputs=BudgetInputs(attitude_error_bound=2 * ARCSEC)), 3)
+    seen = [w._dphi.copy()]
+    for cmd in (lambda: w.command_axis_position(2, 0.5), lambda: w.command_rate(0, 0.01),
+                lambda: w.command_position([0.0, 0.0, 0.0])):  # fmt: skip
+        cmd()
+        seen.append(w._dphi.copy())
+    acl = AclController(w)
+    acl.handle(":I:C ALL;:M:P ALL")
+    before = w._dphi.copy()
+    acl.handle(":D:P 3,45.0")
+    assert not np.array_equal(w._dphi, before)
+    assert len({tuple(x) for x in seen}) == len(seen)
+
+
 def test_without_realisation_the_simulator_streams_are_unchanged(tmp_path):
     from procedures.paths import resolve_bench
 

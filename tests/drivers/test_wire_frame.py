@@ -28,21 +28,14 @@ from drivers.imu_frame_desc import (
     shipped_frames,
 )
 from drivers.imu_frame_samples import SampleConverter, encode_samples
-from drivers.serial_imu import concat_samples
-
-KVH_MANUAL = bytes.fromhex("fe81ff5537a96a6e38586c1fb75bf862bf803e78bb650d283b0a37ac773d00284bfa34d8")
-KVH_BUILT = bytes.fromhex("fe81ff55339c1f3f00000000b58637bd3a83126fbb03126f3f800000772a001f4db75c56")
-STIM_93 = bytes.fromhex("93002000fff00003c0000000147b00000008000000000000feb852400000001001f4e549ab2c")
-
-
-def _crc_mpeg2_bitwise(data: bytes) -> int:
-    """Independent bit-by-bit CRC-32/MPEG-2 (reference for the table-driven engine)."""
-    crc = 0xFFFFFFFF
-    for b in data:
-        crc ^= b << 24
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x04C11DB7) & 0xFFFFFFFF if crc & 0x80000000 else (crc << 1) & 0xFFFFFFFF
-    return crc
+from tests.drivers.frame_support import (
+    KVH_BUILT,
+    KVH_MANUAL,
+    STIM_93,
+    check_damage_counts,
+    crc_mpeg2_bitwise,
+    decode_in_random_chunks,
+)
 
 
 def _decode(name: str, data: bytes, options: dict | None = None, rate: float = 1000.0):
@@ -63,7 +56,7 @@ def test_crc_catalogue_check_values_and_references():
     rng = np.random.default_rng(3)
     rows = rng.integers(0, 256, (80, 37), dtype=np.uint8)
     mpeg = CrcEngine(CrcSpec.named("crc-32/mpeg-2"))(rows)
-    assert [int(x) for x in mpeg] == [_crc_mpeg2_bitwise(r.tobytes()) for r in rows]
+    assert [int(x) for x in mpeg] == [crc_mpeg2_bitwise(r.tobytes()) for r in rows]
     zl = CrcEngine(CrcSpec.named("crc-32"))(rows)
     assert [int(x) for x in zl] == [zlib.crc32(r.tobytes()) for r in rows]
     assert int(CrcEngine(CrcSpec.named("sum8"))(rows[:1])[0]) == int(rows[0].sum()) % 256
@@ -71,9 +64,9 @@ def test_crc_catalogue_check_values_and_references():
 
 def test_spec_frames_carry_the_crc_the_spec_states():
     for frame, n in ((KVH_MANUAL, 32), (KVH_BUILT, 32)):
-        assert struct.unpack(">I", frame[n:])[0] == _crc_mpeg2_bitwise(frame[:n])
+        assert struct.unpack(">I", frame[n:])[0] == crc_mpeg2_bitwise(frame[:n])
     # STIM300: the CRC covers the 34 bytes before it plus (-34) mod 4 = 2 zero bytes never sent
-    assert struct.unpack(">I", STIM_93[34:])[0] == _crc_mpeg2_bitwise(STIM_93[:34] + b"\0\0")
+    assert struct.unpack(">I", STIM_93[34:])[0] == crc_mpeg2_bitwise(STIM_93[:34] + b"\0\0")
 
 
 # ---- the spec's frames, exactly ---------------------------------------------------------------------------
@@ -261,25 +254,8 @@ def test_round_trip_with_garbage_truncation_resets_and_duplicates(name):
         if i in duplicated:
             pieces.append(rows[i].tobytes())
     data = b"".join(pieces)
-    dec = FrameDecoder(fmt.desc)
-    conv = SampleConverter(fmt)
-    parts = []
-    pos = 0
-    while pos < len(data):  # random chunking, including chunks shorter than a frame
-        k = int(rng.integers(1, 3 * L))
-        batch, _ = dec.feed(data[pos : pos + k])
-        pos += k
-        if len(batch):
-            parts.append(conv.convert(batch))
-    dec.flush()
-    s = concat_samples(parts)
-    lost = truncated | flipped
-    kept = np.array([i for i in range(n) if i not in lost])
-    assert dec.total.frames == kept.size + len(duplicated)
-    assert dec.total.rejected == len(lost)
-    assert dec.total.garbage_bytes == garbage_total
-    assert (s.gaps, s.resets, s.duplicates) == (len(lost), 1, len(duplicated))
-    assert len(s) == kept.size
+    dec, s, _ = decode_in_random_chunks(fmt, data, rng, 3 * L)
+    kept = check_damage_counts(dec, s, n, truncated | flipped, duplicated, garbage_total)
     absent = sum(1 << FLAG_BITS[ch] for ch in FLAG_BITS if ch not in {c.channel for c in fmt.conversions.values()})
     absent &= 0x3F  # recorded channels the format does not carry are flagged (and NaN)
     s.status &= np.uint16(~absent & 0xFFFF)

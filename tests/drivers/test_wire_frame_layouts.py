@@ -20,20 +20,14 @@ from core.yaml_source import ConfigError, load_yaml_text
 from drivers.imu_frame import FrameDecoder
 from drivers.imu_frame_desc import FLAG_BITS, compile_format, load_frame, parse_description
 from drivers.imu_frame_samples import SampleConverter, encode_samples
-from drivers.serial_imu import concat_samples
-
-STIM_93 = bytes.fromhex("93002000fff00003c0000000147b00000008000000000000feb852400000001001f4e549ab2c")
-KVH_MANUAL = bytes.fromhex("fe81ff5537a96a6e38586c1fb75bf862bf803e78bb650d283b0a37ac773d00284bfa34d8")
-KVH_BUILT = bytes.fromhex("fe81ff55339c1f3f00000000b58637bd3a83126fbb03126f3f800000772a001f4db75c56")
-
-
-def _crc_mpeg2_bitwise(data: bytes) -> int:
-    crc = 0xFFFFFFFF
-    for b in data:
-        crc ^= b << 24
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x04C11DB7) & 0xFFFFFFFF if crc & 0x80000000 else (crc << 1) & 0xFFFFFFFF
-    return crc
+from tests.drivers.frame_support import (
+    KVH_BUILT,
+    KVH_MANUAL,
+    STIM_93,
+    check_damage_counts,
+    crc_mpeg2_bitwise,
+    decode_in_random_chunks,
+)
 
 
 def _bit_frame(header: bytes, payload: bytes) -> bytes:
@@ -58,7 +52,7 @@ def test_stim300_description_selects_the_layout_by_identifier_with_the_specs_len
 
 
 def test_stim300_spec_datagram_decodes_exactly_through_the_any_datagram_description():
-    assert struct.unpack(">I", STIM_93[34:])[0] == _crc_mpeg2_bitwise(STIM_93[:34] + b"\0\0")
+    assert struct.unpack(">I", STIM_93[34:])[0] == crc_mpeg2_bitwise(STIM_93[:34] + b"\0\0")
     fmt = compile_format(load_frame("stim300"), None, 1000.0)
     dec = FrameDecoder(fmt.desc)
     batch, stats = dec.feed(STIM_93 + b"\r\n")
@@ -141,26 +135,9 @@ def test_mixed_identifier_stream_round_trip_exact_counts():
         if i in duplicated:
             pieces.append(fr)
     data = b"".join(pieces)
-    dec = FrameDecoder(fmt.desc)
-    conv = SampleConverter(fmt)
-    parts, layouts = [], []
-    pos = 0
-    while pos < len(data):  # random chunking, including chunks shorter than the shortest datagram
-        k = int(rng.integers(1, 150))
-        batch, _ = dec.feed(data[pos : pos + k])
-        pos += k
-        if len(batch):
-            layouts.append(batch.layout)
-            parts.append(conv.convert(batch))
-    dec.flush()
-    s = concat_samples(parts)
+    dec, s, layouts = decode_in_random_chunks(fmt, data, rng, 150)  # some chunks shorter than any datagram
     lost = truncated | flipped
-    kept = np.array([i for i in range(n) if i not in lost])
-    assert dec.total.frames == kept.size + len(duplicated)
-    assert dec.total.rejected == len(lost)
-    assert dec.total.garbage_bytes == garbage
-    assert (s.gaps, s.resets, s.duplicates) == (len(lost), 1, len(duplicated))
-    assert len(s) == kept.size
+    kept = check_damage_counts(dec, s, n, lost, duplicated, garbage)
     # each frame decoded with its own layout: the identifier sequence comes back, duplicates included
     sent = [int(which[i]) for i in range(n) if i not in lost for _ in range(2 if i in duplicated else 1)]
     order = [d.sync[0] for _r, d in [("data", fmt.desc), *fmt.desc.alternates]]

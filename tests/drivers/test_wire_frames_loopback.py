@@ -4,7 +4,6 @@ identification equal to the in-process run within the formats' quantisation."""
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import h5py  # only to craft a damaged copy as another tool would
@@ -14,37 +13,14 @@ import pytest
 from analysis.identification.model import PARAM_NAMES
 from benches.identify import identify_run
 from benches.recording import open_recording
-from tests import REPO_ROOT
-from tests.simbench import run_procedure
+from tests.simbench import bench_variant, run_procedure, short_ten_step
 
 RATE = 250.0
 
 
 def _short_ten_step(tmp_path: Path) -> Path:
-    """The published ten-step sequence with short holds and fast spins (the same steps, less bench time)."""
-    text = (REPO_ROOT / "procedures" / "ten-step.yaml").read_text(encoding="utf-8")
-    for old, new in (
-        ("hold_s: 60", "hold_s: 2"),
-        ("settle_s: 5", "settle_s: 1"),
-        ("spin_settle_s: 10", "spin_settle_s: 1"),
-        ("duration_s: 900", "duration_s: 5"),
-        ("rate_dps: 1.6", "rate_dps: 30"),
-        ("name: ten-step", "name: ten-step-short"),
-    ):
-        assert old in text
-        text = text.replace(old, new)
     p = tmp_path / "ten-step-short.yaml"
-    p.write_text(text, encoding="utf-8")
-    return p
-
-
-def _bench(tmp_path: Path, name: str) -> Path:
-    text = (REPO_ROOT / "benches" / name).read_text(encoding="utf-8")
-    text = re.sub(r"sample_rate_hz: [0-9.]+", f"sample_rate_hz: {RATE}", text)
-    text = re.sub(r"anti_alias_hz: [0-9.]+", f"anti_alias_hz: {RATE / 4}", text)
-    text = re.sub(r"latency_ms: [0-9.]+", f"latency_ms: {1e3 / (2**0.5 * RATE):.6g}", text)
-    p = tmp_path / name
-    p.write_text(text, encoding="utf-8")
+    p.write_text(short_ten_step(hold_s=2, warmup_s=5, name="ten-step-short"), encoding="utf-8")
     return p
 
 
@@ -53,7 +29,7 @@ def _bench(tmp_path: Path, name: str) -> Path:
 )
 def test_ten_step_over_loopback_in_a_real_format_equals_in_process(tmp_path, bench_name, frame, length):
     proc = _short_ten_step(tmp_path)
-    bench = _bench(tmp_path, bench_name)
+    bench = bench_variant(tmp_path, rate=RATE, source=bench_name, name=bench_name)
     wire = run_procedure(tmp_path, bench, str(proc), seed=5, out="loopback", transport="loopback")
     local = run_procedure(tmp_path, bench, str(proc), seed=5, out="in-process", transport="in-process")
     with open_recording(wire) as rec:  # the one reader (accel may be stored as counts)
@@ -94,7 +70,7 @@ def test_samples_flagged_invalid_are_never_used(tmp_path):
     from benches.analysis_input import InputError, load_input
 
     proc = _short_ten_step(tmp_path)
-    bench = _bench(tmp_path, "sim-kvh.yaml")
+    bench = bench_variant(tmp_path, rate=RATE, source="sim-kvh.yaml", name="sim-kvh.yaml")
     run = run_procedure(tmp_path, bench, str(proc), seed=5, out="clean", transport="in-process")
     base = identify_run(run).to_dict()
     flagged, unflagged = tmp_path / "flagged", tmp_path / "unflagged"

@@ -20,15 +20,11 @@ from drivers.imu_frame_desc import compile_format, load_frame
 from drivers.imu_frame_samples import encode_samples
 from drivers.serial_imu import SerialInertialUnit
 from drivers.sim.serial_unit import Corruption, SerialUnitServer
-from tests import REPO_ROOT
+from tests import REPO_ROOT, line_of
 from tests.drivers.wire_support import make_world
 
 BENCHES = REPO_ROOT / "benches"
 KVH = (BENCHES / "sim-kvh.yaml").read_text(encoding="utf-8")
-
-
-def _line_of(text: str, needle: str) -> int:
-    return next(i for i, line in enumerate(text.splitlines(), 1) if needle in line)
 
 
 def test_shipped_format_benches_load_with_their_options():
@@ -60,7 +56,7 @@ def test_bad_unit_format_keys_name_the_bench_line(tmp_path, old, new, needle, wo
     with pytest.raises(ConfigError) as ei:
         load_bench(p)
     msg = str(ei.value)
-    assert msg.startswith(f"{p}:{_line_of(text, needle)}:"), msg
+    assert msg.startswith(f"{p}:{line_of(text, needle)}:"), msg
     assert all(w in msg for w in words), msg
 
 

@@ -12,19 +12,13 @@ from scipy.spatial.transform import Rotation
 
 from analysis.gimbal import body_rate, body_to_nav
 from core.yaml_source import ConfigError
-from drivers.protocols import AxisLimits
 from procedures.compiler import compile_procedure
 from procedures.loader import load_procedure, load_procedure_text
 from procedures.paths import resolve_procedure
 from procedures.steps import CompiledProcedure, move_time
+from tests.procedures.tables import SIM_LIMITS, D
 
-D = math.pi / 180
-# Sim-like table: all three axes continuous.
-SIM_LIMITS = (
-    AxisLimits(rate_max=100 * D, accel_max=50 * D),
-    AxisLimits(rate_max=200 * D, accel_max=100 * D),
-    AxisLimits(rate_max=400 * D, accel_max=200 * D),
-)
+# the spec's direction words, restated here rather than imported (analysis.gimbal.ENU_DIRECTIONS): an independent table
 ENU = {
     "East": (1, 0, 0),
     "West": (-1, 0, 0),

@@ -16,13 +16,7 @@ from procedures.compiler import compile_procedure
 from procedures.loader import load_procedure
 from procedures.paths import PACKAGE_BENCHES, default_bench_path, resolve_procedure
 from procedures.trajectory import nominal_samples
-
-D = math.pi / 180
-SIM_LIMITS = (
-    AxisLimits(rate_max=100 * D, accel_max=50 * D),
-    AxisLimits(rate_max=200 * D, accel_max=100 * D),
-    AxisLimits(rate_max=400 * D, accel_max=200 * D),
-)
+from tests.procedures.tables import SIM_LIMITS, D
 
 
 def test_nominal_samples_weights_and_spin_geometry() -> None:
@@ -116,7 +110,6 @@ def test_check_help_has_examples(capsys: pytest.CaptureFixture[str]) -> None:
     assert "examples:" in capsys.readouterr().out
 
 
-@pytest.mark.skipif(not (PACKAGE_BENCHES / "sim.yaml").is_file(), reason="benches/sim.yaml not shipped yet")
 @pytest.mark.parametrize("name", ["ten-step", "ten-step-fast-spin", "twenty-four-position", "static-noise"])
 def test_check_shipped_on_the_sim_bench(name: str, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["check", name, "--bench", str(PACKAGE_BENCHES / "sim.yaml"), "--quiet"]) == 0
@@ -153,7 +146,6 @@ steps:
 """
 
 
-@pytest.mark.skipif(not (PACKAGE_BENCHES / "sim.yaml").is_file(), reason="benches/sim.yaml not shipped yet")
 def test_compiled_attitudes_on_the_simulated_bench(tmp_path: Path) -> None:
     """End to end through ``tablebench run``: the simulator's accelerometers see gravity where the compiler says."""
     from benches.recording import open_recording

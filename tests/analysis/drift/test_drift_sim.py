@@ -12,32 +12,29 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-import pytest
 
 from analysis.drift.report import analyse_drift
+from benches.bench_config import load_bench
+from drivers.sim.config import NoiseTruth, SimConfig
+from drivers.sim.inprocess import SimInertialUnit
+from drivers.sim.world import SimulatedWorld
 from tests import REPO_ROOT
 
 ROOT = REPO_ROOT
 BENCH = ROOT / "benches" / "sim-gyro-noise.yaml"
 
 
-def _record(seconds: float, rate: float, periodic: bool, seed: int) -> tuple[dict, float, object]:
-    bench_config = pytest.importorskip("benches.bench_config")
-    world_mod = pytest.importorskip("drivers.sim.world")
-    inproc = pytest.importorskip("drivers.sim.inprocess")
-    config_mod = pytest.importorskip("drivers.sim.config")
-    if not BENCH.exists():
-        pytest.skip("benches/sim-gyro-noise.yaml not in the tree")
-    sim = bench_config.load_bench(BENCH).simulation
+def _record(seconds: float, rate: float, periodic: bool, seed: int) -> tuple[dict, float, SimConfig]:
+    sim = load_bench(BENCH).simulation
     cfg = dataclasses.replace(
         sim,
         sample_rate=rate,
         anti_alias_hz=None,
-        gyro_noise=config_mod.NoiseTruth(),
+        gyro_noise=NoiseTruth(),
         periodic=sim.periodic if periodic else (),
     )
-    world = world_mod.SimulatedWorld(cfg, seed)
-    blk = inproc.SimInertialUnit(world).read(int(round(seconds * rate)))
+    world = SimulatedWorld(cfg, seed)
+    blk = SimInertialUnit(world).read(int(round(seconds * rate)))
     assert blk.dropped == 0
     return {f"gyro_{a}": blk.gyro[:, i] for i, a in enumerate("xyz")}, world.sample_rate, cfg
 

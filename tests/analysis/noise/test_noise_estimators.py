@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
+import allantools
 import numpy as np
 import pytest
 
 from analysis.noise.allan import ESTIMATORS, allan_variances, improved_total_variance, tau_grid
-
-allantools = pytest.importorskip("allantools")
 
 _AT = {"avar": "adev", "oavar": "oadev", "totvar": "totdev", "mvar": "mdev"}
 

@@ -15,6 +15,9 @@ import pytest
 
 from analysis import units
 from analysis.noise.terms import analyse_noise
+from benches.bench_config import load_bench
+from drivers.sim.inprocess import SimInertialUnit
+from drivers.sim.world import SimulatedWorld
 from tests import REPO_ROOT
 from tests.noise_synth import pink
 
@@ -25,16 +28,13 @@ AXES = "xyz"
 
 def _sim_static(seconds: float, seed: int, rate: float | None = None) -> tuple[dict, float, dict]:
     """A static record from the simulated bench: channels (SI), sample rate, configured noise per channel."""
-    bench_config = pytest.importorskip("benches.bench_config")
-    world_mod = pytest.importorskip("drivers.sim.world")
-    inproc = pytest.importorskip("drivers.sim.inprocess")
-    bench = bench_config.load_bench(SIM_BENCH)
+    bench = load_bench(SIM_BENCH)
     if rate is None:
-        world = world_mod.SimulatedWorld.from_bench(bench, seed)
+        world = SimulatedWorld.from_bench(bench, seed)
     else:
         cfg = dataclasses.replace(bench.simulation, sample_rate=rate, anti_alias_hz=None)
-        world = world_mod.SimulatedWorld(cfg, seed)
-    unit = inproc.SimInertialUnit(world)
+        world = SimulatedWorld(cfg, seed)
+    unit = SimInertialUnit(world)
     fs = world.sample_rate
     blk = unit.read(int(round(seconds * fs)))
     assert blk.dropped == 0

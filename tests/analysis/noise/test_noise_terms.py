@@ -9,7 +9,14 @@ import pytest
 
 from analysis import units
 from analysis.noise.allan import allan_variances
-from analysis.noise.terms import B_FLOOR, analyse_noise, fit_noise_terms, slope_terms, to_display
+from analysis.noise.terms import (
+    B_FLOOR,
+    FIT_ESTIMATORS,
+    analyse_noise,
+    fit_noise_terms,
+    slope_terms,
+    to_display,
+)
 from tests.noise_synth import pink
 
 
@@ -133,3 +140,27 @@ def test_quoted_sigmas_match_the_scatter_over_repeated_records() -> None:
     for t in vals:
         ratio = np.median(sigs[t]) / np.std(vals[t])
         assert 0.5 < ratio < 2.0, (t, ratio)
+
+
+@pytest.mark.parametrize("estimator", FIT_ESTIMATORS)
+def test_every_fit_estimator_recovers_white_and_random_walk_terms(estimator: str) -> None:
+    """White FM + rate random walk (N, K) through each accepted estimator's own gains (Allan or Hadamard model):
+    N within 5 %, K within 40 % (one 4·10⁴-sample record); the Hadamard model reports no rate ramp."""
+    rng = np.random.default_rng(107)
+    rate, n = 10.0, 40_000
+    n_arw, k_rrw = 1e-3, 2e-5
+    ts = 1.0 / rate
+    y = rng.normal(0.0, n_arw / math.sqrt(ts), n) + np.cumsum(rng.normal(0.0, k_rrw * math.sqrt(ts), n))
+    out = analyse_noise({"g": y}, rate, "rad/s", estimators=(estimator,), fit_estimator=estimator)
+    ch = out["channels"]["g"]
+    assert ch["terms"]["N"]["value"] == pytest.approx(n_arw, rel=0.05)
+    assert ch["terms"]["K"]["value"] == pytest.approx(k_rrw, rel=0.4)
+    hadamard = estimator in ("hdev", "ohdev", "htotdev")
+    assert ch["fit"]["model"] == ("hadamard" if hadamard else "allan")
+    assert math.isnan(ch["terms"]["R"]["value"]) == hadamard
+
+
+def test_fit_refuses_estimators_without_a_term_model() -> None:
+    for name in ("mdev", "mtotdev", "theo1", "mtie"):
+        with pytest.raises(ValueError, match="fixed gain per noise term"):
+            analyse_noise({"g": np.ones(100)}, 1.0, fit_estimator=name)

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
+import allantools
 import numpy as np
 import pytest
 
 from analysis.noise.stability import ESTIMATORS, m_grid, stability
 
-allantools = pytest.importorskip("allantools")
-
-_ALL = tuple(e for e in ESTIMATORS if e != "theoh")  # TheoH is a stitched curve (tested below)
+_ALL = tuple(e for e in ESTIMATORS if e not in ("theoh", "theobr"))  # not in allantools (tested below)
 
 
 def _record(n: int, c: int, seed: int) -> np.ndarray:
@@ -89,16 +88,28 @@ def test_channels_are_independent() -> None:
         np.testing.assert_allclose(both.estimates[name].dev[:, 1], one.estimates[name].dev[:, 0], rtol=1e-12)
 
 
-def test_theoh_stitches_oadev_and_theo1() -> None:
+def test_theoh_stitches_oadev_and_theobr() -> None:
+    """TheoH: OADEV for m < k (k = split·T), TheoBR = Theo1·√kf at 0.75 m ≥ k, kf the mean OAVAR(9+3i)/Theo1(12+4i)
+    over i = 0 … ⌊N/6⌋ − 3, each recomputed here with allantools."""
     y = _record(600, 1, seed=6)
-    res = stability(y, 1.0, ("theoh", "oadev", "theo1"), "all", "freq", confidence=None, theoh_split=0.1)
+    res = stability(y, 1.0, ("theoh", "theobr", "oadev", "theo1"), "all", "freq", confidence=None, theoh_split=0.1)
     th = res.estimates["theoh"]
-    avar_part = th.tau <= 60.0
+    avar_part = th.tau < 59.9
     o = res.estimates["oadev"]
     np.testing.assert_allclose(th.dev[avar_part, 0], o.dev[np.isin(o.m, th.m[avar_part]), 0], rtol=1e-12)
+    i = np.arange(601 // 6 - 3 + 1)  # 601 phase points; the last AVAR (m = 300) has a single term and is skipped
+    ta, a, _, na = allantools.oadev(y, rate=1.0, data_type="freq", taus=9.0 + 3 * i)
+    tt, t, _, _ = allantools.theo1(y, rate=1.0, data_type="freq", taus=12.0 + 4 * i)
+    assert list(ta) == list(9.0 + 3 * i[:-1]) and list(tt) == list(12.0 + 4 * i) and na[-1] > 1
+    kf = np.mean((a / t[:-1]) ** 2)
     t1 = res.estimates["theo1"]
     np.testing.assert_allclose(th.tau[~avar_part], 0.75 * th.m[~avar_part])
-    np.testing.assert_allclose(th.dev[~avar_part, 0], t1.dev[np.isin(t1.m, th.m[~avar_part]), 0], rtol=1e-15)
+    assert np.all(0.75 * th.m[~avar_part] >= 60) and np.all(th.m[avar_part] < 60)
+    want = t1.dev[np.isin(t1.m, th.m[~avar_part]), 0] * np.sqrt(kf)
+    np.testing.assert_allclose(th.dev[~avar_part, 0], want, rtol=1e-9)
+    br = res.estimates["theobr"]
+    np.testing.assert_allclose(br.dev[:, 0], t1.dev[:, 0] * np.sqrt(kf), rtol=1e-9)
+    np.testing.assert_allclose(br.tau, 0.75 * t1.m)
 
 
 def test_grids_and_bad_input() -> None:

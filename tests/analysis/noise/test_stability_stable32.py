@@ -62,10 +62,11 @@ def test_noise_type_where_the_lag1_method_applies(result, name: str) -> None:
     assert agree >= 0.75, f"{name}: α agrees with Stable32 at only {agree:.0%} of τ"
 
 
-@pytest.mark.parametrize("name", ("adev", "oadev", "mdev", "tdev", "hdev", "ohdev", "totdev", "htotdev"))
+@pytest.mark.parametrize("name", WITH_CI)
 def test_interval_bounds_within_2_percent(result, name: str) -> None:
-    """Greenhall EDF (Allan/Hadamard family), the TOTVAR and HTOTVAR fits: bounds within 2 % wherever α agrees
-    (HTOTDEV: FM noise at m ≥ 16, where the published fit applies)."""
+    """Greenhall EDF (Allan/Hadamard family), the TOTVAR, MTOT/TTOT (Howe's revised coefficients, MVAR EDF for
+    m ≤ 8) and HTOTVAR fits: bounds within 2 % wherever α agrees (HTOTDEV: FM noise at m ≥ 16, where the
+    published fit applies)."""
     ref = _table(name)
     est = result.estimates[name]
     m = ref[:, 0].astype(int)
@@ -79,14 +80,49 @@ def test_interval_bounds_within_2_percent(result, name: str) -> None:
 
 
 def test_theo1_edf_reproduces_stable32_interval_widths(result) -> None:
-    """Theo1 (Stable32 run with fixed α = −1): the Howe–Peppler EDF gives Stable32's relative bounds within 2 %.
-
-    Stable32's printed Thêo1 values are this estimator (= allantools.theo1) times a constant √1.349 on this
-    record — a normalisation we could not trace in its documentation, so values are compared with allantools
-    (test_stability.py) and only the interval widths here."""
+    """Theo1 (Stable32 run with fixed α = −1): the Howe–Peppler EDF gives Stable32's relative bounds within 2 %."""
     ref = _table("theo1")
     for af, _tau, _n, alpha, lo, val, hi in ref:
         e = ci.edf("theo1", int(alpha), int(af), 1253)
         lo_r, hi_r = ci.chi2_interval(np.array(1.0), np.array(e), 0.683)
         assert float(lo_r) == pytest.approx(lo / val, rel=0.02)
         assert float(hi_r) == pytest.approx(hi / val, rel=0.02)
+
+
+def test_stable32_theo1_is_theobr() -> None:
+    """Stable32's printed "Thêo1" is the bias-removed TheoBR: Theo1 (= allantools.theo1) × √kf with kf the mean
+    of OAVAR(9+3i)/Theo1(12+4i) over i = 0 … ⌊N/6⌋ − 3 (here 206 ratios, kf = 1.349), at τ = 0.75 m τ₀; values
+    and τ to Stable32's 5 printed digits."""
+    x = np.loadtxt(DATA / "phase_data.txt", comments="#")
+    ref = _table("theo1")
+    res = stability(x, 1.0 / TAU0, ("theobr", "theo1"), ref[:, 0] * TAU0, "phase", confidence=None)
+    br, t1 = res.estimates["theobr"], res.estimates["theo1"]
+    np.testing.assert_array_equal(br.m, ref[:, 0].astype(int))
+    np.testing.assert_allclose(br.tau, ref[:, 1], rtol=1e-12)
+    np.testing.assert_array_equal(br.n_terms[:, 0], ref[:, 2].astype(int))
+    np.testing.assert_allclose(br.dev[:, 0], ref[:, 5], rtol=1e-4)
+    kf = (br.dev[:, 0] / t1.dev[:, 0]) ** 2
+    assert np.ptp(kf) < 1e-12 and 1.3 < kf[0] < 1.4
+
+
+def test_theoh_reproduces_stable32() -> None:
+    """Stable32's ThêoH run (fixed α = 0): OADEV below k = the largest τ ≤ 20 % of the record, TheoBR at effective
+    τ ≥ k: rows, τ, values to 5 digits; bounds within 2 % with the OADEV / Theo1 EDF for α = 0."""
+    x = np.loadtxt(DATA / "phase_data.txt", comments="#")
+    rows = []
+    for line in (DATA / "theoh.txt").read_text(encoding="utf-8").splitlines():
+        f = line.split()
+        if f and f[0].isdigit():
+            rows.append([float(v) for v in f])
+    ref = np.array(rows)  # AF, σ τ, σ #, ThêoH τ, σ, Thêo1 dev, min, max
+    res = stability(x, 1.0 / TAU0, ("theoh",), "decade", "phase", confidence=None)
+    th = res.estimates["theoh"]
+    np.testing.assert_array_equal(th.m, ref[:, 0].astype(int))
+    np.testing.assert_allclose(th.tau, ref[:, 3], rtol=1e-12)
+    value = np.where(ref[:, 2] > 0, ref[:, 4], ref[:, 5])
+    np.testing.assert_allclose(th.dev[:, 0], value, rtol=1e-4)
+    for j, (af, _t, n_sigma, *_rest, lo, hi) in enumerate(ref):
+        e = ci.edf("oadev" if n_sigma > 0 else "theo1", 0, int(af), 1253)
+        lo_r, hi_r = ci.chi2_interval(np.array(1.0), np.array(e), 0.683)
+        assert float(lo_r) == pytest.approx(lo / value[j], rel=0.02)
+        assert float(hi_r) == pytest.approx(hi / value[j], rel=0.02)

@@ -9,20 +9,19 @@ import math
 import numpy as np
 import pytest
 
+from analysis.periodic.compensator import PeriodicCompensator
 from analysis.periodic.identify import identify_periodic
+from analysis.periodic.linear import fit_fixed_frequencies
+from benches.bench_config import BenchConfig, load_bench
+from drivers.sim.inprocess import SimInertialUnit
+from drivers.sim.world import SimulatedWorld
 from tests import REPO_ROOT
 
 BENCH = REPO_ROOT / "benches" / "sim-gyro-noise.yaml"
 
 
 @pytest.fixture(scope="module")
-def sim_data():
-    if not BENCH.exists():
-        pytest.skip("benches/sim-gyro-noise.yaml not present")
-    from benches.bench_config import load_bench
-    from drivers.sim.inprocess import SimInertialUnit
-    from drivers.sim.world import SimulatedWorld
-
+def sim_data() -> tuple[BenchConfig, float, np.ndarray]:
     bench = load_bench(BENCH)
     unit = SimInertialUnit(SimulatedWorld.from_bench(bench))
     blocks = [unit.read(2000) for _ in range(8)]  # 16 s at 1 kHz, in driver-sized blocks
@@ -66,14 +65,6 @@ def test_two_hour_sim_record_compensated_without_phase_drift() -> None:
     """2 h of SimInertialUnit data (≈80 s to simulate): compensating gyro_x with the bench's configured terms,
     block by block, leaves no tone at the end of the run — the compensator's phase (fixed-point, absolute
     index) and the simulator's (its own k·f/f_s mod 1) still agree after 7.2e6 samples."""
-    if not BENCH.exists():
-        pytest.skip("benches/sim-gyro-noise.yaml not present")
-    from analysis.periodic.compensator import PeriodicCompensator
-    from analysis.periodic.linear import fit_fixed_frequencies
-    from benches.bench_config import load_bench
-    from drivers.sim.inprocess import SimInertialUnit
-    from drivers.sim.world import SimulatedWorld
-
     bench = load_bench(BENCH)
     unit = SimInertialUnit(SimulatedWorld.from_bench(bench))
     rate = unit.sample_rate
