@@ -199,6 +199,7 @@ def _read_channels(rec: Recording, start: int, stop: int, sel: list[str], source
     mask = sum(1 << RECORDING_CHANNELS.index(s) for s in sel)  # status bit i = channel i invalid
     data = np.empty((len(sel), max(0, stop - start)))
     bad_total, first_bad = 0, None
+    n_flag, first_flag = 0, None
     try:
         for chunk in rec.iter_samples(start, stop, fields, chunk=READ_CHUNK_ROWS):
             a = chunk.start - start
@@ -206,10 +207,9 @@ def _read_channels(rec: Recording, start: int, stop: int, sel: list[str], source
             if status is not None and status.size:
                 flagged = np.flatnonzero(status & mask)
                 if flagged.size:
-                    raise InputError(
-                        f"{source}: sample(s) of {', '.join(sel)} flagged invalid by the unit's status, first at "
-                        f"sample {chunk.start + int(flagged[0])}; analyse a clean step with --step NAME"
-                    )
+                    if first_flag is None:
+                        first_flag = chunk.start + int(flagged[0])
+                    n_flag += int(flagged.size)
             nrow = getattr(chunk, fields[0]).shape[0]
             for i, name in enumerate(sel):
                 data[i, a : a + nrow] = getattr(chunk, name[:-2])[:, "xyz".index(name[-1])]
@@ -223,6 +223,11 @@ def _read_channels(rec: Recording, start: int, stop: int, sel: list[str], source
                     first_bad = (sel[int(cols[k])], chunk.start - start + int(idx[k]))
     except RecordingError as exc:
         raise InputError(str(exc)) from None
+    if first_flag is not None:
+        raise InputError(
+            f"{source}: {n_flag} sample(s) of {', '.join(sel)} flagged invalid by the unit's status, first at "
+            f"sample {first_flag}; analyse a clean step with --step NAME"
+        )
     if first_bad is not None:
         raise InputError(
             f"{source}: {bad_total} non-finite value(s) (NaN/inf), first in channel {first_bad[0]!r} "
