@@ -47,8 +47,8 @@ rounding estimate is below 1e-9 of the variance (and for m ≥ 8 / 64); otherwis
 direct sums (O(N·m) per τ, vectorised, in chunks) are used. Several channels: the closed forms run channel by
 channel over the whole τ grid (:func:`_prepass`), so one channel's series and autocorrelation are alive at a
 time. Memory (benchmarks/bench_noise.py, RESULTS.md): the classic path about 2.5× the record; the total family
-about 4× over most of the grid and ≈ 10× at the largest τ (window 3m ≈ 0.6–0.8 N: end-segment FFTs as long as
-the record); a gap-free phase input and a gap-free frequency input for HTOTDEV are used without copies.
+about 4× over most of the grid and 9–12× at the largest τ (window 3m ≈ 0.6–0.8 N, Theo1 m up to N − 1:
+end-segment FFTs and triangle sums as long as the record); a gap-free phase input and a gap-free frequency input for HTOTDEV are used without copies.
 
 Gaps. NaN samples are gaps. A term is skipped when it touches a gap: for phase input (allantools'
 gap-robust ``gradev`` convention) the phase points a point-estimator uses (ADEV, OADEV, HDEV, OHDEV, TIE rms)
