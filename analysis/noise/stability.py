@@ -43,12 +43,14 @@ record's autocorrelation (one FFT per channel and record, :func:`_autocorr`) and
 end samples (:func:`_mtot_fft`: O(N) once plus O(m log m) per τ). Theo1: window sums, one lagged product, a
 blocked FFT correlation and two anti-diagonal triangle sums by divide and conquer (:func:`_theo1_fft`,
 O(N log m + m log² m) per τ). Both closed forms expand squares into products, so they are used only where their
-rounding estimate is below 1e-9 of the variance (and for m ≥ 8 / 64); otherwise, and with gaps, the exact
-direct sums (O(N·m) per τ, vectorised, in chunks) are used. Several channels: the closed forms run channel by
+rounding estimate is below 1e-9 of the variance (and for m ≥ 8 / 64); above it (small m on a long random-walk
+phase) block by block (:func:`_blocked_sum`, O(N log B) per τ); with gaps, the exact direct sums (O(N·m) per τ,
+vectorised, in chunks). Several channels: the closed forms run channel by
 channel over the whole τ grid (:func:`_prepass`), so one channel's series and autocorrelation are alive at a
 time. Memory (benchmarks/bench_noise.py, RESULTS.md): the classic path about 2.5× the record; the total family
 about 4× over most of the grid and 9–12× at the largest τ (window 3m ≈ 0.6–0.8 N, Theo1 m up to N − 1:
-end-segment FFTs and triangle sums as long as the record); a gap-free phase input and a gap-free frequency input for HTOTDEV are used without copies.
+end-segment FFTs and triangle sums as long as the record); a gap-free phase input and a gap-free frequency
+input for HTOTDEV are used without copies.
 
 Gaps. NaN samples are gaps. A term is skipped when it touches a gap: for phase input (allantools'
 gap-robust ``gradev`` convention) the phase points a point-estimator uses (ADEV, OADEV, HDEV, OHDEV, TIE rms)
