@@ -23,9 +23,11 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from benches.recording import RecordingError, open_recording, recording_file
+from benches.recording import Recording, RecordingError, open_recording, recording_file
 from core.errors import UserError
 
+READ_CHUNK_ROWS = 1 << 18
+"""Rows per chunk when a recording step is read into the analysis arrays."""
 RECORDING_CHANNELS: tuple[str, ...] = ("accel_x", "accel_y", "accel_z", "gyro_x", "gyro_y", "gyro_z")
 CHANNEL_UNITS: dict[str, str] = {
     "accel_x": "m/s^2",
@@ -177,38 +179,61 @@ def _load_recording(
             except RecordingError as exc:
                 raise InputError(str(exc)) from None
             start, stop = s.start_sample, s.end_sample
-        fields = ("accel", "gyro", "status") if "status" in rec.sample_fields else ("accel", "gyro")
-        try:
-            smp = rec.samples(start, stop, fields)
-        except RecordingError as exc:
-            raise InputError(str(exc)) from None
-    accel, gyro = smp.accel, smp.gyro
-    status = smp.status if smp.status is not None else np.zeros(0, np.uint16)
-    assert accel is not None and gyro is not None
-    channels = {
-        "accel_x": accel[:, 0],
-        "accel_y": accel[:, 1],
-        "accel_z": accel[:, 2],
-        "gyro_x": gyro[:, 0],
-        "gyro_y": gyro[:, 1],
-        "gyro_z": gyro[:, 2],
-    }
-    channels = {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in channels.items()}
-    sel = _select(channels, wanted, source)
-    mask = sum(1 << RECORDING_CHANNELS.index(s) for s in sel)  # status bit i = channel i invalid
-    flagged = np.flatnonzero(status & mask)
-    if flagged.size:
-        raise InputError(
-            f"{source}: {flagged.size} sample(s) of {', '.join(sel)} flagged invalid by the unit's status, first at "
-            f"sample {start + int(flagged[0])}; analyse a clean step with --step NAME"
-        )
-    data = np.stack([channels[s] for s in sel], axis=1) if sel else np.zeros((0, 0))
-    _finite_columns(data, sel, source, allow_gaps)
+        sel = _select(dict.fromkeys(RECORDING_CHANNELS[:6]), wanted, source)
+        data = _read_channels(rec, start, stop, sel, source, allow_gaps)
+    channels = dict(zip(sel, data, strict=True))  # rows of one (C, N) float64 array
     result = AnalysisInput(source, file_rate, {s: channels[s] for s in sel}, {s: CHANNEL_UNITS[s] for s in sel})
     result.integrity_note = rec.integrity_note
     if not rec.integrity_verified:
         print(f"warning: {rec.integrity_note}", file=sys.stderr)
     return result
+
+
+def _read_channels(rec: Recording, start: int, stop: int, sel: list[str], source: str, allow_gaps: bool) -> NDArray:
+    """The selected channels of rows [start, stop) read chunk by chunk (``Recording.iter_samples``) straight
+    into one (C, N) float64 array: no whole-step temporaries, no per-channel copies, no stacking. The unit's
+    status flags and non-finite values are checked per chunk."""
+    fields = tuple(f for f in ("accel", "gyro") if any(s.startswith(f) for s in sel))
+    if "status" in rec.sample_fields:
+        fields += ("status",)
+    mask = sum(1 << RECORDING_CHANNELS.index(s) for s in sel)  # status bit i = channel i invalid
+    data = np.empty((len(sel), max(0, stop - start)))
+    bad_total, first_bad = 0, None
+    n_flag, first_flag = 0, None
+    try:
+        for chunk in rec.iter_samples(start, stop, fields, chunk=READ_CHUNK_ROWS):
+            a = chunk.start - start
+            status = getattr(chunk, "status", None)
+            if status is not None and status.size:
+                flagged = np.flatnonzero(status & mask)
+                if flagged.size:
+                    if first_flag is None:
+                        first_flag = chunk.start + int(flagged[0])
+                    n_flag += int(flagged.size)
+            nrow = getattr(chunk, fields[0]).shape[0]
+            for i, name in enumerate(sel):
+                data[i, a : a + nrow] = getattr(chunk, name[:-2])[:, "xyz".index(name[-1])]
+            rows = data[:, a : a + nrow]
+            bad = np.isinf(rows) if allow_gaps else ~np.isfinite(rows)
+            if bad.any():
+                cols, idx = np.nonzero(bad)
+                bad_total += int(bad.sum())
+                k = int(np.argmin(idx))
+                if first_bad is None:
+                    first_bad = (sel[int(cols[k])], chunk.start - start + int(idx[k]))
+    except RecordingError as exc:
+        raise InputError(str(exc)) from None
+    if first_flag is not None:
+        raise InputError(
+            f"{source}: {n_flag} sample(s) of {', '.join(sel)} flagged invalid by the unit's status, first at "
+            f"sample {first_flag}; analyse a clean step with --step NAME"
+        )
+    if first_bad is not None:
+        raise InputError(
+            f"{source}: {bad_total} non-finite value(s) (NaN/inf), first in channel {first_bad[0]!r} "
+            f"at sample {first_bad[1]}; remove or interpolate them before analysis"
+        )
+    return data
 
 
 def recording_path(path: str | Path) -> Path:

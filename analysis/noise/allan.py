@@ -18,9 +18,11 @@ One pass per τ over the phase, in cache-sized chunks, vectorised over the chann
 d_i = x_{i+2m} − 2x_{i+m} + x_i serve the overlapping AVAR, the central part of the total variance (whose
 remaining O(m) reflected edge terms are evaluated separately from slices) and the modified AVAR — on an
 octave grid from moving sums of the phase, doubled in place from one τ to the next (one add per sample per
-τ), otherwise from a running sum of d over each chunk; the non-overlapping AVAR is the strided subset. Cost
-O(N) per τ; memory two float64 arrays of N+1 per channel (phase and moving sums) plus O(chunk) temporaries,
-i.e. about twice the record (measured in benchmarks/bench_noise.py).
+τ), otherwise from a running sum of d over each chunk; the non-overlapping AVAR is the strided subset. The
+chunk temporaries are two preallocated buffers (no allocation per chunk) and the plain sums Σd, Σs telescope to
+O(m) end sums, so a pass is two differences and one product-sum per estimator. Cost O(N) per τ; memory two
+float64 arrays of N+1 per channel (phase and moving sums) plus O(chunk) temporaries, i.e. about twice the
+record (measured in benchmarks/bench_noise.py).
 
 Precision: before integration the least-squares line (mean and rate ramp) is removed from each channel and
 its contribution is added back analytically (a ramp r adds exactly r τ² to every central second difference,
@@ -243,6 +245,22 @@ def _edge_sum(x: NDArray[np.float64], m: int, lo: int, hi: int, half_a: NDArray[
     return out
 
 
+def _range_sum(x: NDArray[np.float64], a: int, b: int) -> NDArray[np.float64]:
+    """Σ_{a ≤ j < b} x_j per channel (zero for an empty range)."""
+    return x[:, a:b].sum(axis=1) if b > a else np.zeros(x.shape[0])
+
+
+def _lag2_sum(x: NDArray[np.float64], m: int, count: int) -> NDArray[np.float64]:
+    """Σ_{i<count} (x_{i+2m} − 2x_{i+m} + x_i) per channel by telescoping: O(min(count, m)) columns read."""
+
+    def lag_sum(off: int) -> NDArray[np.float64]:  # Σ_{i<count} (x_{i+off+m} − x_{i+off})
+        if count >= m:
+            return _range_sum(x, off + count, off + count + m) - _range_sum(x, off, off + m)
+        return _range_sum(x, off + m, off + m + count) - _range_sum(x, off, off + count)
+
+    return lag_sum(m) - lag_sum(0)
+
+
 def _sums_one_m(
     x: NDArray[np.float64], m: int, chunk: int, msum: NDArray[np.float64] | None = None
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], int, int]:
@@ -250,48 +268,59 @@ def _sums_one_m(
     their m-sums s_j = d_j + … + d_{j+m−1} (modified AVAR).
 
     ``msum`` (optional): the moving sums S_j = x_j + … + x_{j+m−1}, then s_j = S_{j+2m} − 2S_{j+m} + S_j;
-    otherwise s_j is formed from a running sum of d over the chunk extended by m − 1.
+    otherwise s_j is formed from a running sum of d over the chunk extended by m − 1. The plain sums Σd and
+    (with ``msum``) Σs telescope to O(m) end sums; the squares are accumulated chunk by chunk in preallocated
+    buffers (no allocation per chunk).
     """
     c, n1 = x.shape
     n = n1 - 1
     n_o = n + 1 - 2 * m
     n_m = n + 2 - 3 * m
-    s1 = np.zeros(c)
     s2 = np.zeros(c)
     t1 = np.zeros(c)
     t2 = np.zeros(c)
     if n_o <= 0:
-        return s1, s2, t1, t2, max(n_o, 0), max(n_m, 0)
+        return np.zeros(c), s2, t1, t2, max(n_o, 0), max(n_m, 0)
+    s1 = _lag2_sum(x, m, n_o)
     step = max(chunk, 2 * m) if msum is None else chunk
+    width = min(n_o, step) + (m - 1 if msum is None else 0)
+    buf1 = np.empty((c, 2 * width if width > m else 0))
+    buf2 = np.empty((c, width))
     for s in range(0, n_o, step):
         e = min(n_o, s + step)
         ee = min(n_o, e + m - 1) if (n_m > 0 and msum is None) else e
-        if ee - s <= m:
-            d = x[:, s + 2 * m : ee + 2 * m] + x[:, s:ee]
+        k = ee - s
+        d = buf2[:, :k]
+        if k <= m:
+            np.add(x[:, s + 2 * m : ee + 2 * m], x[:, s:ee], out=d)
             d -= x[:, s + m : ee + m]
             d -= x[:, s + m : ee + m]
         else:  # first differences at lag m, then their difference: two passes instead of three
-            d1 = x[:, s + m : ee + 2 * m] - x[:, s : ee + m]
-            d = d1[:, m:] - d1[:, :-m]
+            d1 = buf1[:, : k + m]
+            np.subtract(x[:, s + m : ee + 2 * m], x[:, s : ee + m], out=d1)
+            np.subtract(d1[:, m:], d1[:, :k], out=d)
         dc = d[:, : e - s]
-        s1 += dc.sum(axis=1)
         s2 += np.einsum("ij,ij->i", dc, dc)
         if n_m > 0 and s < n_m:
-            k = min(e, n_m) - s
+            kk = min(e, n_m) - s
             if msum is not None:
-                if k > m:
-                    g1 = msum[:, s + m : s + 2 * m + k] - msum[:, s : s + m + k]
-                    inner = g1[:, m:] - g1[:, :-m]
+                inner = buf2[:, :kk]
+                if kk <= m:
+                    np.add(msum[:, s + 2 * m : s + 2 * m + kk], msum[:, s : s + kk], out=inner)
+                    inner -= msum[:, s + m : s + m + kk]
+                    inner -= msum[:, s + m : s + m + kk]
                 else:
-                    inner = msum[:, s + 2 * m : s + 2 * m + k] + msum[:, s : s + k]
-                    inner -= msum[:, s + m : s + m + k]
-                    inner -= msum[:, s + m : s + m + k]
+                    g1 = buf1[:, : kk + m]
+                    np.subtract(msum[:, s + m : s + 2 * m + kk], msum[:, s : s + m + kk], out=g1)
+                    np.subtract(g1[:, m:], g1[:, :kk], out=inner)
             else:
                 cs = np.cumsum(d, axis=1)
-                inner = cs[:, m - 1 : m - 1 + k].copy()
-                inner[:, 1:] -= cs[:, : k - 1]
-            t1 += inner.sum(axis=1)
+                inner = cs[:, m - 1 : m - 1 + kk].copy()
+                inner[:, 1:] -= cs[:, : kk - 1]
+                t1 += inner.sum(axis=1)
             t2 += np.einsum("ij,ij->i", inner, inner)
+    if n_m > 0 and msum is not None:
+        t1 = _lag2_sum(msum, m, n_m)
     return s1, s2, t1, t2, n_o, max(n_m, 0)
 
 

@@ -42,8 +42,8 @@ _D_ORDER = {"adev": 2, "oadev": 2, "mdev": 2, "tdev": 2, "hdev": 3, "ohdev": 3, 
 def _lag1(z: NDArray[np.float64]) -> float:
     """Lag-1 autocorrelation as Stable32 computes it: Σ z̃_i z̃_{i+1} / Σ z̃_i² · (n − 1)/n, z̃ = z − mean."""
     z = z - z.mean()
-    den = float(z @ z)
-    return float(z[:-1] @ z[1:]) / den * (z.size - 1) / z.size if den > 0 else 0.0
+    den = float(np.einsum("i,i->", z, z))  # einsum, not BLAS: its threads cost more than this sum on a busy machine
+    return float(np.einsum("i,i->", z[:-1], z[1:])) / den * (z.size - 1) / z.size if den > 0 else 0.0
 
 
 def lag1_alpha(x_phase: NDArray[np.float64], m: int, dmax: int = 2) -> int | None:

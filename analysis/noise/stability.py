@@ -33,19 +33,24 @@ tierms     rms of x_{i+m} − x_i                                               
 Frequency input is integrated to phase as allantools does (mean removed, x_0 = 0, x_j = x_{j−1} + y_j τ₀);
 phase input for ``htotdev`` is differenced to frequency.
 
-Speed. Every estimator costs O(N) or O(N log N) per τ, all channels at once. ADEV/OADEV/HDEV/OHDEV/TIE rms:
-chunked differences; MDEV/TDEV: a cumulative sum of the second differences; MTIE: an O(N) running max/min
-filter; the classic ADEV/OADEV/MDEV/TOTDEV of gap-free frequency records go through
-:func:`analysis.noise.allan.allan_variances` (one chunked pass per τ, analytic ramp handling).
-MTOTDEV/TTOTDEV/HTOTDEV: the even reflection makes each subsequence's 6m terms one period of a circular
-filter, i.e. a quadratic form zᵀQz with Q Toeplitz + Hankel; summed over subsequences it reduces to the
-record's autocorrelation and FFT correlations of the 3m − 1 end samples (:func:`_reflected_sumsq_fft`,
-O(N log N) per τ). Theo1: FFT convolutions plus two anti-diagonal triangle sums by divide and conquer
-(:func:`_theo1_sumsq_fft`, O(N log N + m log² m)). Both closed forms expand squares into products, so they are
-used only where their rounding estimate is below 1e-9 of the variance (and for m ≥ 8 / 64); otherwise, and
-with gaps, the exact direct sums (O(N·m) per τ, vectorised) are used. Memory: the classic path about twice the
-record; the FFT forms hold a few complex spectra of twice the record length (measured in
-benchmarks/bench_noise.py).
+Speed. Every estimator costs O(N) or O(N log N) per τ. ADEV/OADEV/HDEV/OHDEV/TIE rms: chunked differences;
+MDEV/TDEV: a cumulative sum of the second differences; MTIE: an O(N) running max/min filter; the classic
+ADEV/OADEV/MDEV/TOTDEV of gap-free frequency records go through :func:`analysis.noise.allan.allan_variances`
+(channel by channel, one chunked pass per τ in preallocated buffers, plain sums by telescoping, analytic ramp
+handling). MTOTDEV/TTOTDEV/HTOTDEV: the even reflection makes each subsequence's 6m terms one period of a
+circular filter, i.e. a quadratic form zᵀQz with Q Toeplitz + Hankel; summed over subsequences it reduces to the
+record's autocorrelation (one FFT per channel and record, :func:`_autocorr`) and FFT correlations of the 3m − 1
+end samples (:func:`_mtot_fft`: O(N) once plus O(m log m) per τ). Theo1: window sums, one lagged product, a
+blocked FFT correlation and two anti-diagonal triangle sums by divide and conquer (:func:`_theo1_fft`,
+O(N log m + m log² m) per τ). Both closed forms expand squares into products, so they are used only where their
+rounding estimate is below 1e-9 of the variance (and for m ≥ 8 / 64); above it (small m on a long random-walk
+phase) block by block (:func:`_blocked_sum`, O(N log B) per τ); with gaps, the exact direct sums (O(N·m) per τ,
+vectorised, in chunks). Several channels: the closed forms run channel by
+channel over the whole τ grid (:func:`_prepass`), so one channel's series and autocorrelation are alive at a
+time. Memory (benchmarks/bench_noise.py, RESULTS.md): the classic path about 2.5× the record; the total family
+about 4× over most of the grid and 9–12× at the largest τ (window 3m ≈ 0.6–0.8 N, Theo1 m up to N − 1:
+end-segment FFTs and triangle sums as long as the record); a gap-free phase input and a gap-free frequency
+input for HTOTDEV are used without copies.
 
 Gaps. NaN samples are gaps. A term is skipped when it touches a gap: for phase input (allantools'
 gap-robust ``gradev`` convention) the phase points a point-estimator uses (ADEV, OADEV, HDEV, OHDEV, TIE rms)
@@ -61,8 +66,8 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.fft import irfft, rfft
 from numpy.typing import ArrayLike, NDArray
+from scipy import fft as sfft
 
 ESTIMATORS: tuple[str, ...] = (
     "adev",
@@ -155,42 +160,67 @@ class _Record:
             raise ValueError(f"sample rate must be a positive number of Hz, got {rate}")
         if data_type not in DATA_TYPES:
             raise ValueError(f"data_type must be 'freq' or 'phase', got {data_type!r}")
-        a = np.ascontiguousarray(np.asarray(a, dtype=np.float64).T)  # (C, n)
-        if np.any(np.isinf(a)):
-            raise ValueError("record contains ±inf; only NaN marks a gap")
+        a = np.ascontiguousarray(np.asarray(a, dtype=np.float64).T)  # (C, n), a view of 1-D float64 input
         self.ts = 1.0 / rate
         self.data_type = data_type
+        c, n_in = a.shape
+        self.channels = c
+        self.n = n_in + 1 if data_type == "freq" else n_in
+        self._raw = a
+        self._x: NDArray[np.float64] | None = None
+        if np.isfinite(a).all():  # the usual case: one pass, no mask kept
+            self.has_gaps = False
+            self.gap_samples = np.zeros(c, dtype=np.int64)
+            self.gap_runs = np.zeros(c, dtype=np.int64)
+            self.bad_prefix = None
+            self.point_ok = None
+            self.freq_raw = a if data_type == "freq" else None
+            return
+        if np.any(np.isinf(a)):
+            raise ValueError("record contains ±inf; only NaN marks a gap")
         bad = np.isnan(a)
         self.gap_samples = bad.sum(axis=1)
         self.gap_runs = (np.diff(bad.astype(np.int8), axis=1, prepend=0) == 1).sum(axis=1)
-        self.has_gaps = bool(bad.any())
+        self.has_gaps = True
         if np.all(bad, axis=1).any():
             raise ValueError("a channel holds no finite sample")
-        c = a.shape[0]
-        if data_type == "freq":
+        self.bad_prefix = np.zeros((c, n_in + 1), dtype=np.int64)
+        np.cumsum(bad, axis=1, out=self.bad_prefix[:, 1:])
+        if data_type == "freq":  # bad intervals: prefix count over frequency samples, aligned with phase points
             self.freq_raw = a
-            y = a - np.nanmean(a, axis=1, keepdims=True)
-            y[bad] = 0.0
-            x = np.empty((c, a.shape[1] + 1))
-            x[:, 0] = 0.0
-            np.cumsum(y, axis=1, out=x[:, 1:])
-            x *= self.ts
-            self.x = x
-            # bad intervals: prefix count over frequency samples, aligned with phase points
-            self.bad_prefix = np.zeros((c, a.shape[1] + 1), dtype=np.int64) if self.has_gaps else None
-            if self.has_gaps:
-                np.cumsum(bad, axis=1, out=self.bad_prefix[:, 1:])
             self.point_ok = None
         else:
-            x = a.copy()
-            x[bad] = 0.0
-            self.x = x
             self.freq_raw = None
-            self.bad_prefix = np.zeros((c, a.shape[1] + 1), dtype=np.int64) if self.has_gaps else None
-            if self.has_gaps:
-                np.cumsum(bad, axis=1, out=self.bad_prefix[:, 1:])
-            self.point_ok = ~bad if self.has_gaps else None
-        self.n = self.x.shape[1]
+            self.point_ok = ~bad
+
+    @property
+    def x(self) -> NDArray[np.float64]:
+        """Phase (C, N), gaps zero-filled: frequency input integrated (mean removed, x_0 = 0, chunked cumulative
+        sum with carry, no full-size temporary); gap-free phase input is the caller's array itself (read only)."""
+        if self._x is None:
+            a = self._raw
+            c, n_in = a.shape
+            if self.data_type == "freq":
+                mean = np.nanmean(a, axis=1, keepdims=True) if self.has_gaps else a.mean(axis=1, keepdims=True)
+                x = np.empty((c, n_in + 1))
+                x[:, 0] = 0.0
+                carry = np.zeros((c, 1))
+                step = 1 << 16
+                for s0 in range(0, n_in, step):
+                    e0 = min(n_in, s0 + step)
+                    blk = a[:, s0:e0] - mean
+                    if self.has_gaps:
+                        blk[np.isnan(blk)] = 0.0
+                    np.cumsum(blk, axis=1, out=x[:, s0 + 1 : e0 + 1])
+                    x[:, s0 + 1 : e0 + 1] += carry
+                    carry = x[:, e0 : e0 + 1].copy()
+                x *= self.ts
+            elif self.has_gaps:
+                x = np.where(self.point_ok, a, 0.0)
+            else:
+                x = a
+            self._x = x
+        return self._x
 
     def span_ok(self, start: int, count: int, span: int) -> NDArray[np.bool_] | None:
         """Validity of terms i = start … start+count−1 whose phase span is [i, i+span]; None: all valid."""
@@ -208,7 +238,7 @@ class _Record:
         if self.data_type == "freq":
             ok = self.span_ok(start, count, max(offsets))
             return ok[:, ::stride]
-        ok = np.ones((self.x.shape[0], len(range(start, start + count, stride))), dtype=bool)
+        ok = np.ones((self.channels, len(range(start, start + count, stride))), dtype=bool)
         for o in offsets:
             ok &= self.point_ok[:, start + o : start + o + count : stride]
         return ok
@@ -216,11 +246,9 @@ class _Record:
     def frequency(self) -> tuple[NDArray[np.float64], NDArray[np.int64] | None]:
         """Frequency (C, N_f) with gaps zero-filled, and the prefix count of bad frequency samples."""
         if self.data_type == "freq":
-            y = self.freq_raw.copy()
             if self.has_gaps:
-                y[np.isnan(y)] = 0.0
-                return y, self.bad_prefix
-            return y, None
+                return np.where(np.isnan(self.freq_raw), 0.0, self.freq_raw), self.bad_prefix
+            return self.freq_raw, None  # the caller's array: read only
         y = np.diff(self.x, axis=1) / self.ts
         if not self.has_gaps:
             return y, None
@@ -368,6 +396,35 @@ def _tot_sumsq(rec: _Record, m: int) -> tuple[NDArray[np.float64], NDArray[np.in
 # ------------------------------------------------------------------------------------- the total family
 
 
+def _reflected_reps(m: int) -> list[tuple[float, float, tuple[tuple[int, float], ...], float, float]]:
+    """Per evaluated term j of :func:`_reflected_sumsq`: (weight, g_tot, ((p, κ_p), …), Σκ_p, Σκ_p q(p))."""
+    L = 3 * m
+
+    def q(p: int) -> float:
+        return 0.5 * p * (p - 1)
+
+    def f_parts(a: int) -> tuple[float, float, int]:
+        if a <= L:
+            return 1.0, -1.0, L - a
+        if a <= 2 * L:
+            return 1.0, 1.0, a - L
+        return 3.0, -1.0, 3 * L - a
+
+    js: list[tuple[int, float]] = [(j, 1.0 if 2 * j == L else 2.0) for j in range(0, L // 2 + 1)]
+    js += [(j, 1.0 if 2 * j == 9 * m else 2.0) for j in range(L + 1, (9 * m) // 2 + 1) if 2 * j <= 9 * m]
+    out = []
+    for j, w in js:
+        coef_p: dict[int, float] = {}
+        g_tot = 0.0
+        for k, sign in ((0, -1.0), (1, 3.0), (2, -3.0), (3, 1.0)):
+            gz, sz, pz = f_parts(j + k * m)
+            g_tot += sign * gz
+            coef_p[pz] = coef_p.get(pz, 0.0) + sign * sz
+        items = tuple((p, kp) for p, kp in coef_p.items() if kp != 0.0)
+        out.append((w, g_tot, items, sum(coef_p.values()), sum(kp * q(p) for p, kp in coef_p.items())))
+    return out
+
+
 def _reflected_sumsq(
     s: NDArray[np.float64], m: int, ok: NDArray[np.bool_] | None
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -379,156 +436,294 @@ def _reflected_sumsq(
     (a ≤ 3m), Z(3m) + Z(a−3m) (a ≤ 6m), 3Z(3m) − Z(9m−a), and S₁ − 2S₂ + S₃ = −F(j) + 3F(j+m) − 3F(j+2m) +
     F(j+3m). The reflected series is one and a half periods of the even 6m-periodic extension and the
     kernel is symmetric, so term j equals term 3m − j (mod 6m): only ⌈3m⌉ of the 6m terms are evaluated.
+    O(N·m) per τ, in chunks of subsequences with local prefix sums (memory O(chunk + 3m) per channel).
     """
     c, n_s = s.shape
     L = 3 * m
     count = n_s - L + 1
     if count <= 0:
         return np.zeros(c), np.zeros(c, dtype=np.int64)
-    P = np.zeros((c, n_s + 1))
-    np.cumsum(s - s.mean(axis=1, keepdims=True), axis=1, out=P[:, 1:])
-    h1 = L // 2
-    h2 = L - h1  # ceil
-    D = (0.5 * (L - 1) + 1) if L % 2 else 0.5 * L
-    P0 = P[:, :count]
-    b = ((P[:, L : L + count] - P[:, h2 : h2 + count]) - (P[:, h1 : h1 + count] - P0)) / (h1 * D)
-
-    def q(p: int) -> float:
-        return 0.5 * p * (p - 1)
-
-    # F(a) = gz·Ztot + sz·Z(pz); Z(p) = P[p] − P0 − b q(p); Ztot = Z(L)
-    def f_parts(a: int) -> tuple[float, float, int]:
-        if a <= L:
-            return 1.0, -1.0, L - a
-        if a <= 2 * L:
-            return 1.0, 1.0, a - L
-        return 3.0, -1.0, 3 * L - a
-
-    reps: list[tuple[int, float]] = []
-    for j in range(0, L // 2 + 1):
-        reps.append((j, 1.0 if 2 * j == L else 2.0))
-    for j in range(L + 1, (9 * m) // 2 + 1):
-        if 2 * j == 9 * m:
-            reps.append((j, 1.0))
-        elif 2 * j < 9 * m:
-            reps.append((j, 2.0))
-    ztot = P[:, L : L + count] - P0 - b * q(L)
-    acc = np.zeros((c, count))
-    for j, w in reps:
-        coef_p: dict[int, float] = {}
-        g_tot = 0.0
-        for k, sign in ((0, -1.0), (1, 3.0), (2, -3.0), (3, 1.0)):
-            gz, sz, pz = f_parts(j + k * m)
-            g_tot += sign * gz
-            coef_p[pz] = coef_p.get(pz, 0.0) + sign * sz
-        # Σ_p κ_p Z(p) = Σ κ_p P[p] − (Σκ_p) P0 − b Σ κ_p q(p)
-        kappa_sum = sum(coef_p.values())
-        qsum = sum(kp * q(p) for p, kp in coef_p.items())
-        v = g_tot * ztot
-        for p, kp in coef_p.items():
-            if kp != 0.0:
-                v += kp * P[:, p : p + count]
-        if kappa_sum != 0.0:
-            v -= kappa_sum * P0
-        if qsum != 0.0:
-            v -= qsum * b
-        acc += w * (v * v)
-    if ok is not None:
-        acc[~ok] = 0.0
-        return acc.sum(axis=1), ok.sum(axis=1)
-    return acc.sum(axis=1), np.full(c, count, dtype=np.int64)
-
-
-def _nfft(n: int) -> int:
-    return 1 << int(np.ceil(np.log2(max(n, 2))))
-
-def _xcorr(a: NDArray, b: NDArray, maxlag: int) -> NDArray[np.float64]:
-    """Σ_t a_t b_{t+d}, d = 0..maxlag (last axis), zero outside."""
-    n = a.shape[-1] + b.shape[-1]
-    nf = _nfft(n)
-    r = irfft(np.conj(rfft(a, nf)) * rfft(b, nf), nf)
-    return r[..., : maxlag + 1]
-
-def _conv(a: NDArray, b: NDArray, nout: int) -> NDArray[np.float64]:
-    """Linear convolution along the last axis, first ``nout`` values."""
-    nf = _nfft(a.shape[-1] + b.shape[-1])
-    return irfft(rfft(a, nf) * rfft(b, nf), nf)[..., :nout]
-
-def _reflected_sumsq_fft(
-    s: NDArray[np.float64], m: int, R: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The sum of :func:`_reflected_sumsq` in O(N log N), and an error scale (≈ ε × the largest summand / E).
-
-    Per subsequence the 6m terms are one period of a circular filter of the even extension z (period 6m), so
-    Σ_j c_j² = zᵀQz with Q_kl = 2[ρ(k−l) + ρ(k+l+1)], ρ the circular autocorrelation of the kernel
-    (1…1, −2…−2, 1…1). With z = X_i − b_i k (X_i the window, b_i its half-mean slope):
-    Σ_i zᵀQz = Σ_i X_iᵀQX_i − 2 Σ_i b_i (Qk)·X_i + kᵀQk Σ_i b_i². The Toeplitz part of the first sum is
-    Σ_d ρ(d) × (the record's autocorrelation R_d times the window count, less head and tail corrections that
-    are weighted autocorrelations of the first and last 3m − 1 samples); the Hankel part sums, for each pair
-    (u, v), ρ over t = u + v + 1 − 2i of every window i holding both, which in the interior depends only on
-    |u − v| (same-parity cumulative sums of ρ) and at the two ends on u + v (self-convolutions of the end
-    segments). Everything is FFT correlation: O(N log N) per τ given R.
-    """
-    c, ls = s.shape
-    L = 3 * m
-    M = ls - L + 1
-    P = 6 * m
-    s = s - s.mean(axis=1, keepdims=True)
-    w = np.zeros(P)
-    w[:m] = 1.0
-    w[m : 2 * m] = -2.0
-    w[2 * m : 3 * m] = 1.0
-    W = rfft(w)
-    rho = irfft(W * np.conj(W), P)
-    # same-parity cumulative sums, RC[t+2] = Rc(t)
-    RC = np.zeros(P + 2)
-    RC[2::2] = np.cumsum(rho[0::2])
-    RC[3::2] = np.cumsum(rho[1::2])
-
-    def Rc(t: NDArray | int) -> NDArray:  # noqa: N802 - the paper's R_c
-        return RC[np.asarray(t) + 2]
-
-    d = np.arange(L)
-    Hd = Rc(2 * L - 1 - d) - Rc(d - 1)
-    wd = np.where(d == 0, 1.0, 2.0)
-    Rd = R[:, :L]
-    h = s[:, : L - 1]
-    g = s[:, M:]
-    t = np.arange(L - 1, dtype=float)
-    A = _xcorr(h, h, L - 1)
-    B = _xcorr(t * h, h, L - 1)
-    A2 = _xcorr(g, g, L - 1)
-    B2 = _xcorr(t * g, g, L - 1)
-    for arr in (A, B, A2, B2):
-        arr[:, L - 1 :] = 0.0  # lags beyond the segment
-    Td = (L - d) * Rd - ((L - 1 - d) * A - B) - (B2 + A2)
-    TT = 2.0 * (Td * (wd * rho[:L])).sum(axis=1)
-    ch = _conv(h, h, 2 * L - 3) if L >= 2 else np.zeros((c, 0))
-    cg = _conv(g, g, 2 * L - 3) if L >= 2 else np.zeros((c, 0))
-    sig = np.arange(ch.shape[1])
-    head = (A * (wd * Rc(2 * L - 1 - d))).sum(axis=1) - (ch * Rc(sig + 1)).sum(axis=1)
-    tail = (cg * Rc(sig + 1)).sum(axis=1) - (A2 * (wd * Rc(d - 1))).sum(axis=1)
-    HK = 2.0 * ((Rd * (wd * Hd)).sum(axis=1) - head - tail)
-    T1 = TT + HK
-    # detrend terms
-    Ps = np.zeros((c, ls + 1))
-    np.cumsum(s, axis=1, out=Ps[:, 1:])
     h1 = L // 2
     h2 = L - h1
     D = (0.5 * (L - 1) + 1) if L % 2 else 0.5 * L
-    b = ((Ps[:, L:L+M] - Ps[:, h2:h2+M]) - (Ps[:, h1:h1+M] - Ps[:, :M])) / (h1 * D)
-    lv = np.arange(L, dtype=float)
-    kern = rho[np.abs(np.arange(2 * L - 1) - (L - 1))]
-    t1 = _conv(kern, lv, 2 * L - 1)[L - 1 : 2 * L - 1]
-    rr = rho[1 : 2 * L] if 2 * L <= P else np.concatenate([rho[1:], rho[:2*L-P]])
-    t2 = _conv(rr, lv[::-1], 2 * L - 1)[L - 1 : 2 * L - 1]
-    q = 2.0 * (t1 + t2)
-    kqk = float(lv @ q)
-    u = _conv(s, q[::-1][None, :], ls)[:, L - 1 : L - 1 + M]
-    E = T1 - 2.0 * (b * u).sum(axis=1) + kqk * (b * b).sum(axis=1)
-    scale = 4.0 * L * abs(rho[0]) * R[:, 0] + 2.0 * np.abs(b * u).sum(axis=1) + abs(kqk) * (b * b).sum(axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        err = 1.1e-16 * scale / np.abs(E)
+    qL = 0.5 * L * (L - 1)
+    reps = _reflected_reps(m)
+    total = np.zeros(c)
+    step = max(_CHUNK // 8 // max(1, c), 1024)  # short chunks: partial sums stay small (rounding ∝ chunk^1.5)
+    for a in range(0, count, step):
+        k = min(count, a + step) - a
+        P = np.zeros((c, k + L))
+        seg = s[:, a : a + k + L - 1]
+        np.cumsum(seg - seg.mean(axis=1, keepdims=True), axis=1, out=P[:, 1:])  # local offset: small partial sums
+        P0 = P[:, :k]
+        b = ((P[:, L : L + k] - P[:, h2 : h2 + k]) - (P[:, h1 : h1 + k] - P0)) / (h1 * D)
+        ztot = P[:, L : L + k] - P0
+        ztot -= qL * b
+        acc = np.zeros((c, k))
+        v = np.empty((c, k))
+        for w, g_tot, items, kappa_sum, qsum in reps:
+            np.multiply(ztot, g_tot, out=v)
+            for p, kp in items:
+                v += kp * P[:, p : p + k]
+            if kappa_sum != 0.0:
+                v -= kappa_sum * P0
+            if qsum != 0.0:
+                v -= qsum * b
+            v *= v
+            if w != 1.0:
+                v *= w
+            acc += v
+        if ok is not None:
+            acc[~ok[:, a : a + k]] = 0.0
+        total += acc.sum(axis=1)
+    if ok is not None:
+        return total, ok.sum(axis=1)
+    return total, np.full(c, count, dtype=np.int64)
+
+
+def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+    """Σ a_i b_i of two 1-D arrays without BLAS (its thread start-up costs more than the sum on a busy machine)."""
+    return float(np.einsum("i,i->", a, b))
+
+
+def _fast_len(n: int) -> int:
+    """A fast real FFT length ≥ n."""
+    return int(sfft.next_fast_len(max(int(n), 2), real=True))
+
+
+def _fconv(a: NDArray[np.float64], b: NDArray[np.float64], nout: int) -> NDArray[np.float64]:
+    """First ``nout`` values of the linear convolution of two 1-D arrays (one FFT length, temporaries freed)."""
+    nf = _fast_len(a.size + b.size - 1)
+    fa = sfft.rfft(a, nf)
+    fa *= sfft.rfft(b, nf)
+    out = sfft.irfft(fa, nf, overwrite_x=True)
+    del fa
+    return out[:nout].copy() if nout < out.size else out
+
+
+def _autocorr(s: NDArray[np.float64], maxlag: int) -> NDArray[np.float64]:
+    """R_d = Σ_t s_t s_{t+d}, d = 0 … maxlag, of a 1-D series (zero outside), by one real FFT of ≈ N + maxlag
+    points and a DCT-I of the (real, even) power spectrum: peak memory about four times the series."""
+    n = s.size
+    maxlag = min(int(maxlag), n - 1)
+    nf = _fast_len(n + maxlag)
+    while nf % 2:
+        nf = _fast_len(nf + 1)
+    spec = sfft.rfft(s, nf)
+    v = spec.view(np.float64)
+    p = v[0::2] * v[0::2]
+    p += v[1::2] * v[1::2]
+    del spec, v
+    r = sfft.dct(p, type=1, overwrite_x=True)
+    del p
+    out = r[: maxlag + 1] / nf
+    del r
+    return out
+
+
+def _detrend_quadratic(s: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
+    """A 1-D series minus its least-squares quadratic, and the quadratic's coefficient per sample².
+
+    The basis 1, t, t² − mean(t²) with t = (i − (N−1)/2)/N is orthogonal on the sample grid, so each
+    coefficient is one projection (chunked sums: no N × 3 design matrix)."""
+    n = s.size
+    c = 0.5 * (n - 1)
+    step = 1 << 16
+    mt2 = float((n * n - 1.0) / (12.0 * n * n))  # mean of t² on the grid
+    proj = np.zeros(3)
+    norm = np.zeros(3)
+    for a in range(0, n, step):
+        b = min(n, a + step)
+        t = (np.arange(a, b, dtype=np.float64) - c) / n
+        q = t * t - mt2
+        blk = s[a:b]
+        proj += (blk.sum(), _dot(blk, t), _dot(blk, q))
+        norm += (b - a, _dot(t, t), _dot(q, q))
+    coef = np.where(norm > 0, proj / np.where(norm > 0, norm, 1.0), 0.0)
+    out = np.empty(n)
+    for a in range(0, n, step):
+        b = min(n, a + step)
+        t = (np.arange(a, b, dtype=np.float64) - c) / n
+        np.subtract(s[a:b], coef[0] + coef[1] * t + coef[2] * (t * t - mt2), out=out[a:b])
+    return out, float(coef[2]) / float(n) ** 2
+
+
+def _seg_products(h: NDArray[np.float64], wa: NDArray, wb: NDArray, fb: float, wc: NDArray, fc: float) -> float:
+    """Σ_d wa_d A_d + fb Σ_d wb_d B_d + fc Σ_σ wc_σ C_σ for a 1-D segment h of n points, with A_d = Σ_t h_t h_{t+d}
+    and B_d = Σ_t t h_t h_{t+d} (d < n) and the self-convolution C_σ = Σ_{u+v=σ} h_u h_v (σ < 2n − 1), from one
+    spectrum of h (the correlations are reduced as soon as they are formed; one padded buffer)."""
+    n = h.size
+    nf = _fast_len(2 * n - 1)
+    buf = np.zeros(nf)
+    buf[:n] = h
+    hf = sfft.rfft(buf, nf, overwrite_x=True)
+    del buf
+    p = hf * hf
+    out = sfft.irfft(p, nf, overwrite_x=True)
+    tot = fc * _dot(out[: 2 * n - 1], wc[: 2 * n - 1])
+    del out
+    pv = p.view(np.float64)
+    hv = hf.view(np.float64)
+    np.multiply(hv[0::2], hv[0::2], out=pv[0::2])
+    pv[1::2] = hv[1::2]
+    pv[1::2] *= hv[1::2]
+    pv[0::2] += pv[1::2]
+    pv[1::2] = 0.0
+    out = sfft.irfft(p, nf, overwrite_x=True)
+    tot += _dot(out[:n], wa[:n])
+    del out, p, pv
+    buf = np.zeros(nf)
+    np.multiply(np.arange(n, dtype=np.float64), h, out=buf[:n])
+    p = sfft.rfft(buf, nf, overwrite_x=True)
+    del buf
+    np.conjugate(p, out=p)
+    p *= hf
+    del hf, hv
+    out = sfft.irfft(p, nf, overwrite_x=True)
+    del p
+    tot += fb * _dot(out[:n], wb[:n])
+    return tot
+
+
+def _seg_corr(seg: NDArray[np.float64], u: NDArray[np.float64], lo: int, hi: int) -> NDArray[np.float64]:
+    """Σ_k u_k seg_{i+k} for i = lo … hi−1 (seg zero outside its n points; i ≥ −(len(u) − 1)) by FFT."""
+    nf = _fast_len(seg.size + u.size - 1)
+    f = sfft.rfft(seg, nf)
+    f *= sfft.rfft(u[::-1], nf)
+    full = sfft.irfft(f, nf, overwrite_x=True)  # index i + len(u) − 1
+    del f
+    return full[lo + u.size - 1 : hi + u.size - 1].copy()
+
+
+def _beta_corr(v: NDArray[np.float64], d0: int, d1: int, L: int, h1: int, D: float) -> NDArray[np.float64]:
+    """Σ_k β_k v_{k+d} for d = d0 … d1 − 1 and the half-mean slope kernel β (−1/(h1·D) on the first h1 of L = 3m
+    points, +1/(h1·D) on the last h1), v zero outside its points: differences of v's prefix sums, O(L)."""
+    n = v.size
+    sv = np.zeros(n + 1)
+    np.cumsum(v, out=sv[1:])
+
+    def ps(off: int) -> NDArray[np.float64]:  # sv[clip(d + off, 0, n)] for the d range
+        lo, hi = d0 + off, d1 + off
+        out = np.empty(hi - lo)
+        a = min(max(0, -lo), out.size)  # leading indices below 0
+        b = max(a, min(out.size, n + 1 - lo))  # indices up to n
+        out[:a] = 0.0
+        out[a:b] = sv[lo + a : lo + b]
+        out[b:] = sv[n]
+        return out
+
+    res = ps(L)
+    res -= ps(L - h1)
+    res -= ps(h1)
+    res += ps(0)
+    res /= h1 * D
+    return res
+
+
+def _mtot_fft(
+    s: NDArray[np.float64], m: int, R: NDArray[np.float64], a: float
+) -> tuple[float, float]:
+    """The sum of :func:`_reflected_sumsq` for one gap-free channel in O(N) + O(m log m) given R, and an
+    error scale (≈ ε × the largest summand / E).
+
+    s is the series with its least-squares quadratic removed (a its coefficient per sample²) and R its
+    autocorrelation. Per subsequence the 6m terms are one period of a circular filter of the even extension z
+    (period 6m), so Σ_j c_j² = zᵀQz with Q_kl = 2[ρ(k−l) + ρ(k+l+1)], ρ the circular autocorrelation of the
+    kernel (1…1, −2…−2, 1…1). With z = X_i − b_i k (X_i the window, b_i = βᵀX_i its half-mean slope) and
+    q = Qk: Σ_i zᵀQz = Σ_i X_iᵀQX_i − 2 Σ_i (βᵀX_i)(qᵀX_i) + kᵀQk Σ_i (βᵀX_i)². Every sum over windows
+    Σ_{i<M} (uᵀX_i)(vᵀX_i) is Σ_d c_uv(d) R_|d| (c_uv the kernels' cross-correlation) less the partial windows
+    hanging over the first and last 3m − 1 samples (FFT correlations of those segments). The Toeplitz part of
+    X_iᵀQX_i weighs R_d by the window count less head and tail corrections (weighted autocorrelations of the
+    end segments); the Hankel part sums, for each pair (u, v), ρ over t = u + v + 1 − 2i of every window i
+    holding both, which in the interior depends only on |u − v| (same-parity cumulative sums of ρ) and at the
+    two ends on u + v (self-convolutions of the end segments). The quadratic a t² removed from the record
+    adds the same vector r = a(k² − βk) to every detrended window; its terms 2 Σ_i rᵀQz_i + M rᵀQr are exact.
+    """
+    ls = s.size
+    L = 3 * m
+    M = ls - L + 1
+    rho = _kernel_rho(m)
+    P = 6 * m
+    RC = np.zeros(P + 2)  # same-parity cumulative sums, RC[t+2] = Rc(t)
+    RC[2::2] = np.cumsum(rho[0::2])
+    RC[3::2] = np.cumsum(rho[1::2])
+    wr = 2.0 * rho[:L]  # w_d ρ(d), w = 1 at d = 0 else 2
+    wr[0] = rho[0]
+    rho0 = float(rho[0])
+    del rho
+    Rd = R[:L]
+    h = s[: L - 1]
+    g = s[M:]
+    sig = RC[3 : 2 * L]  # Rc(σ + 1), σ = 0 … 2L − 4
+    rc_hi = RC[2 * L + 1 : L + 1 : -1]  # Rc(2L − 1 − d), d = 0 … L − 1
+    rc_lo = RC[1 : L + 1]  # Rc(d − 1)
+    # head and tail segments: the Toeplitz part's window-count corrections and the Hankel part's end terms
+    wa = np.multiply(rc_hi, 2.0)
+    wa[0] = rc_hi[0]
+    wa += wr * np.arange(L - 1, -1, -1, dtype=np.float64)
+    wa *= -2.0
+    T1 = _seg_products(h, wa, wr, 2.0, sig, 2.0)
+    np.multiply(rc_lo, 2.0, out=wa)
+    wa[0] = rc_lo[0]
+    wa -= wr
+    wa *= 2.0
+    T1 += _seg_products(g, wa, wr, -2.0, sig, -2.0)
+    np.subtract(rc_hi, rc_lo, out=wa)
+    wa *= 2.0
+    wa[0] *= 0.5
+    wa += wr * np.arange(L, 0, -1, dtype=np.float64)
+    T1 += 2.0 * _dot(Rd, wa)
+    del wa, wr, RC, sig, rc_hi, rc_lo
+    rho = _kernel_rho(m)
+    # detrend terms: β the half-mean slope, q = Qk; Σ_{i<M} (βᵀX_i)(vᵀX_i) = Σ_d c_βv(d) R_|d| − partial windows
+    h1 = L // 2
+    h2 = L - h1
+    D = (0.5 * (L - 1) + 1) if L % 2 else 0.5 * L
+    r0 = abs(float(Rd[0]))
+
+    def full(c: NDArray) -> tuple[float, float]:  # Σ_d c(d) R_|d| for c over d = −(L−1) … L−1, and Σ|c| R_0
+        return float(c[L - 1] * Rd[0] + _dot(c[L:] + c[L - 2 :: -1], Rd[1:])), r0 * float(np.abs(c).sum())
+
+    lv = np.arange(L, dtype=np.float64)
+    q = _q_apply(rho, lv)
+    kqk = _dot(lv, q)
+    del lv
+    beta = np.zeros(L)
+    beta[:h1] = -1.0 / (h1 * D)
+    beta[h2:] = 1.0 / (h1 * D)
+    s_bu, sc_bu = full(_beta_corr(q, -(L - 1), L, L, h1, D))
+    s_bb, sc_bb = full(_beta_corr(beta, -(L - 1), L, L, h1, D))
+    del beta
+    for seg, lo, hi in ((h, -(L - 1), 0), (g, 0, L - 1)):  # partial windows over the head and the tail
+        sb = _beta_corr(seg, lo, hi, L, h1, D)
+        sq = _seg_corr(seg, q, lo, hi)
+        s_bu -= _dot(sb, sq)
+        sc_bu += _dot(np.abs(sb), np.abs(sq))
+        del sq
+        bb = _dot(sb, sb)
+        s_bb -= bb
+        sc_bb += bb
+        del sb
+    del q
+    E = T1 - 2.0 * s_bu + kqk * s_bb
+    scale = 4.0 * L * abs(rho0) * r0 + 2.0 * sc_bu + abs(kqk) * sc_bb
+    if a != 0.0:
+        k = np.arange(L, dtype=np.float64)
+        beta_s = ((k[h2:] ** 2).mean() - (k[:h1] ** 2).mean()) / D
+        r1 = k * k - beta_s * k
+        qr1 = _q_apply(rho, r1)
+        square = M * a * a * _dot(r1, qr1)
+        del r1
+        win = np.empty(L)  # Σ_{i<M} s[i + k]
+        win[0] = s[:M].sum()
+        np.cumsum(s[M : M + L - 1] - s[: L - 1], out=win[1:])
+        win[1:] += win[0]
+        bsum = (win[h2:].sum() - win[:h1].sum()) / (h1 * D)
+        win -= bsum * k  # Σ_i z_i
+        cross = 2.0 * a * _dot(win, qr1)
+        E += cross + square
+        scale += 8.0 * (abs(cross) + abs(square))
+    err = 1.1e-16 * scale / abs(E) if E != 0.0 else math.inf
     return E, err
 
 
@@ -540,95 +735,176 @@ used): far below any confidence interval (a relative half-width of 1e-9 would ne
 
 
 def _kernel_rho(m: int) -> NDArray[np.float64]:
-    """Circular autocorrelation (period 6m) of the modified-total kernel (1…1, −2…−2, 1…1)."""
+    """Circular autocorrelation (period 6m) of the modified-total kernel (1…1, −2…−2, 1…1): the box's triangle
+    max(m − |t|, 0) combined with the second difference's (1, −4, 6, −4, 1) at spacing m (closed form, O(m)):
+    ρ(t) = (m − t)·(6, −4, 1 at t in [0, m), [m, 2m), [2m, 3m)) + t'·(−4, 1) ramps, mirrored to period 6m."""
     p = 6 * m
-    w = np.zeros(p)
-    w[:m] = 1.0
-    w[m : 2 * m] = -2.0
-    w[2 * m : 3 * m] = 1.0
-    wf = rfft(w)
-    return irfft(wf * np.conj(wf), p)
+    out = np.empty(p)
+    t = np.arange(m, dtype=np.float64)  # position inside each m-block
+    # triangle sums on the blocks [km, (k+1)m): f_k(t) = Σ_j c_j max(m − |km + t − jm|, 0)
+    out[:m] = 6.0 * (m - t) - 4.0 * t
+    out[m : 2 * m] = -4.0 * (m - t) + 1.0 * t
+    out[2 * m : 3 * m] = 1.0 * (m - t)
+    out[3 * m] = 0.0
+    out[3 * m + 1 :] = out[3 * m - 1 : 0 : -1]
+    return out
 
 
 def _q_apply(rho: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Q v with Q_kl = 2[ρ(k−l) + ρ(k+l+1)], k, l < L = len(v) (FFT products)."""
+    """Q v with Q_kl = 2[ρ(k−l) + ρ(k+l+1)], k, l < L = len(v) = 3m: Q = Eᵀ C E with E the even extension of
+    period 6m and C the circulant of ρ, so Q v folds one circular FFT convolution of period 6m."""
     L = v.size
-    kern = rho[np.abs(np.arange(2 * L - 1) - (L - 1))]
-    t1 = _conv(kern, v, 2 * L - 1)[L - 1 : 2 * L - 1]
-    t2 = _conv(rho[1 : 2 * L], v[::-1], 2 * L - 1)[L - 1 : 2 * L - 1]
-    return 2.0 * (t1 + t2)
+    p = rho.size  # 2L
+    ev = np.empty(p)
+    ev[:L] = v
+    ev[L:] = v[::-1]
+    f = sfft.rfft(ev, p)
+    del ev
+    f *= sfft.rfft(rho, p)
+    u = sfft.irfft(f, p, overwrite_x=True)
+    del f
+    return u[:L] + u[p - 1 : L - 1 : -1]
+
+
+def _series_cache(s: NDArray[np.float64], ch: int, cache: dict, key: str) -> tuple[NDArray, NDArray, float]:
+    """(series minus its least-squares quadratic, its autocorrelation, the quadratic coefficient) of one
+    channel, computed once per record and kept in ``cache``."""
+    ck = (key, ch)
+    if ck not in cache:
+        sd, a = _detrend_quadratic(s[ch])
+        cache[ck] = (sd, _autocorr(sd, sd.size - 1), a)
+    return cache[ck]
+
+
+_BLOCK_MIN = 1 << 16
+"""Fewest windows per block of :func:`_blocked_sum`."""
+
+
+def _blocked_sum(s: NDArray[np.float64], m: int, kind: str) -> float:
+    """The closed form evaluated block by block: windows i ∈ [b₀, b₁) use only s[b₀ : b₁ + span], so their sum
+    is the closed form of that segment (its own quadratic removed, its own autocorrelation). A short segment's
+    autocorrelation is small next to the record's (a random-walk phase: R₀ ∝ length²), which keeps the
+    expansion's rounding below :data:`_FFT_MAX_ERR` where the record-wide form is not; a block still above it
+    is summed directly. O(N log B) per τ for blocks of B ≈ max(2¹⁶, 16·span) windows."""
+    if kind == "mtot":
+        span, count, fn = 3 * m - 1, s.size - 3 * m + 1, _mtot_fft
+    else:
+        span, count, fn = m, s.size - m, _theo1_fft
+    block = max(_BLOCK_MIN, 16 * span)
+    total = 0.0
+    for b0 in range(0, count, block):
+        b1 = min(count, b0 + block)
+        seg = s[b0 : b1 + span]
+        sd, a = _detrend_quadratic(seg)
+        r = _autocorr(sd, min(seg.size - 1, span + 1))
+        v, err = fn(sd, m, r, a)
+        del sd, r
+        if err >= _FFT_MAX_ERR:
+            if kind == "mtot":
+                v = float(_reflected_sumsq(seg[None, :], m, None)[0][0])
+            else:
+                v = float(_theo1_sumsq(seg[None, :], m, None)[0][0])
+        total += v
+    return total
 
 
 def _total_sumsq(
     s: NDArray[np.float64], m: int, ok: NDArray[np.bool_] | None, cache: dict, key: str
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """:func:`_reflected_sumsq` through the O(N log N) form when the record has no gaps, m ≥ 8 and its
-    rounding estimate is below :data:`_FFT_MAX_ERR`; otherwise directly.
+    """:func:`_reflected_sumsq` through :func:`_mtot_fft` (channel by channel) when the record has no gaps,
+    m ≥ :data:`_FFT_MIN_M` and its rounding estimate is below :data:`_FFT_MAX_ERR`; otherwise directly.
 
-    For the dynamic range the record's least-squares quadratic a t² + … is removed first: each subsequence is
-    detrended, so the line changes nothing and the quadratic adds the same vector r = a(k² − βk) to every
-    detrended window (β its half-mean slope); its terms 2 Σ_i rᵀQz_i + M rᵀQr are added back exactly."""
+    For the dynamic range the record's least-squares quadratic is removed first: each subsequence is
+    detrended, so the line changes nothing and the quadratic's exact terms are added back."""
     c, n_s = s.shape
     count = n_s - 3 * m + 1
     if ok is None and m >= _FFT_MIN_M and count > 0:
-        if key not in cache:
-            t = (np.arange(n_s, dtype=np.float64) - 0.5 * (n_s - 1)) / max(n_s, 1)
-            basis = np.vstack([np.ones(n_s), t, t * t - np.mean(t * t)])
-            coef = np.linalg.lstsq(basis.T, s.T, rcond=None)[0]  # (3, C)
-            sd = s - coef.T @ basis
-            a = coef[2] / max(n_s, 1) ** 2  # quadratic coefficient per sample²
-            cache[key] = (sd, _xcorr(sd, sd, n_s - 1), a)
-        sd, r, a = cache[key]
-        e, err = _reflected_sumsq_fft(sd, m, r)
-        if np.any(a != 0.0):
-            L = 3 * m
-            k = np.arange(L, dtype=np.float64)
-            h1 = L // 2
-            h2 = L - h1
-            D = (0.5 * (L - 1) + 1) if L % 2 else 0.5 * L
-            beta = ((k[h2:] ** 2).mean() - (k[:h1] ** 2).mean()) / D
-            r1 = k * k - beta * k
-            qr1 = _q_apply(_kernel_rho(m), r1)
-            ps = np.zeros((c, n_s + 1))
-            np.cumsum(sd, axis=1, out=ps[:, 1:])
-            win = ps[:, count : count + L] - ps[:, :L]  # Σ_i sd[i + k]
-            bsum = (
-                (ps[:, L : L + count] - ps[:, h2 : h2 + count]) - (ps[:, h1 : h1 + count] - ps[:, :count])
-            ).sum(axis=1) / (h1 * D)
-            zsum = win - np.outer(bsum, k)
-            cross = 2.0 * a * (zsum @ qr1)
-            square = count * a * a * float(r1 @ qr1)
-            e = e + cross + square
-            with np.errstate(divide="ignore", invalid="ignore"):
-                err = err + 1.1e-16 * 8.0 * (np.abs(cross) + np.abs(square)) / np.abs(e)
-        if np.all(err < _FFT_MAX_ERR):
-            return e, np.full(c, count, dtype=np.int64)
+        pre = cache.get(("pre", key, m))
+        e = np.zeros(c)
+        for ch in range(c):
+            if pre is not None:
+                v, err = pre[ch], 0.0 if np.isfinite(pre[ch]) else math.inf
+            else:
+                sd, r, a = _series_cache(s, ch, cache, key)
+                v, err = _mtot_fft(sd, m, r, a)
+            e[ch] = v if err < _FFT_MAX_ERR else _blocked_sum(s[ch], m, "mtot")
+        return e, np.full(c, count, dtype=np.int64)
     return _reflected_sumsq(s, m, ok)
 
 
-def _theo1_sumsq(rec: _Record, m: int) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Σ_i Σ_{δ<m/2} [(x_i − x_{i+m/2−δ}) + (x_{i+m} − x_{i+m/2+δ})]² / (m/2 − δ), i = 0 … N−m−1."""
-    x = rec.x
-    n = rec.n
-    c = x.shape[0]
+def _prepass(rec: _Record, name: str, ms: NDArray[np.int64], cache: dict) -> None:
+    """Gap-free records: the O(N log N) forms of one estimator for every m of its grid, channel by channel, so
+    that only one channel's detrended series and autocorrelation are alive at a time (memory a few × one
+    channel instead of × all channels). Stored as ``cache[("pre", key, m)]`` (NaN: rounding estimate too
+    large, the direct sum is used)."""
+    if rec.has_gaps or rec.channels == 1:
+        return
+    if name in ("mtotdev", "ttotdev"):
+        key, fn, src = "R_phase", _mtot_fft, rec.x
+        todo = [int(m) for m in ms if m >= _FFT_MIN_M and rec.n - 3 * m + 1 > 0]
+    elif name == "htotdev":
+        if "freq" not in cache:
+            cache["freq"] = rec.frequency()
+        key, fn, src = "R_freq", _mtot_fft, cache["freq"][0]
+        todo = [int(m) for m in ms if m >= _FFT_MIN_M and src.shape[1] - 3 * m + 1 > 0]
+    elif name == "theo1":
+        key, fn, src = "R_theo", _theo1_fft, rec.x
+        todo = [int(m) for m in ms if m >= 64 and m % 2 == 0 and rec.n - m > 0]
+    else:
+        return
+    todo = [m for m in todo if ("pre", key, m) not in cache]
+    if not todo:
+        return
+    vals = {m: np.full(rec.channels, np.nan) for m in todo}
+    for ch in range(rec.channels):
+        sd, r, a = _series_cache(src, ch, cache, key)
+        bad = []
+        for m in todo:
+            v, err = fn(sd, m, r, a)
+            if err < _FFT_MAX_ERR:
+                vals[m][ch] = v
+            else:
+                bad.append(m)
+        del cache[(key, ch)], sd, r
+        for m in bad:  # record-wide rounding too large: block by block (see _blocked_sum)
+            vals[m][ch] = _blocked_sum(src[ch], m, "theo1" if fn is _theo1_fft else "mtot")
+    for m in todo:
+        cache[("pre", key, m)] = vals[m]
+
+
+def _theo1_sumsq(
+    x: NDArray[np.float64], m: int, ok: NDArray[np.bool_] | None
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Σ_i Σ_{δ<m/2} [(x_i − x_{i+m/2−δ}) + (x_{i+m} − x_{i+m/2+δ})]² / (m/2 − δ), i = 0 … N−m−1, per channel
+    of the phase x (C, N), terms with ok False skipped (O(N·m), in chunks of i)."""
+    c, n = x.shape
     count = n - m
     h = m // 2
     if count <= 0 or m % 2:
         return np.zeros(c), np.zeros(c, dtype=np.int64)
-    base = x[:, :count] + x[:, m : m + count]
-    acc = np.zeros((c, count))
-    for dlt in range(h):
-        e = base - x[:, h - dlt : h - dlt + count]
-        e -= x[:, h + dlt : h + dlt + count]
-        e *= e
-        acc += e * (1.0 / (h - dlt))
-    ok = rec.span_ok(0, count, m)
+    total = np.zeros(c)
+    step = max(_CHUNK // max(1, c), 1024)
+    e = np.empty((c, min(step, count)))
+    for a0 in range(0, count, step):
+        b0 = min(count, a0 + step)
+        k = b0 - a0
+        base = x[:, a0:b0] + x[:, a0 + m : b0 + m]
+        acc = np.zeros((c, k))
+        ek = e[:, :k]
+        for dlt in range(h):
+            np.subtract(base, x[:, a0 + h - dlt : b0 + h - dlt], out=ek)
+            ek -= x[:, a0 + h + dlt : b0 + h + dlt]
+            ek *= ek
+            ek *= 1.0 / (h - dlt)
+            acc += ek
+        if ok is not None:
+            acc[~ok[:, a0:b0]] = 0.0
+        total += acc.sum(axis=1)
     if ok is not None:
-        acc[~ok] = 0.0
-        return acc.sum(axis=1), ok.sum(axis=1) * h
-    return acc.sum(axis=1), np.full(c, count * h, dtype=np.int64)
+        return total, ok.sum(axis=1) * h
+    return total, np.full(c, count * h, dtype=np.int64)
 
-_TRI_BASE = 96
+_TRI_BASE = 256
 """Triangle size below which :func:`_tri` sums directly."""
 
 
@@ -645,10 +921,15 @@ def _tri(a: NDArray, b: NDArray, g: NDArray, off: int, n: int, gz: int) -> NDArr
         wmat = g[(u[None, :] - u[:, None]) + off + gz] * ((u[:, None] + u[None, :]) < n)
         return np.einsum("cu,uv,cv->c", a[:, :n], wmat, b[:, :n])
     k = n // 2
-    nf = _nfft(2 * k)
-    cc = irfft(np.conj(rfft(a[:, :k], nf)) * rfft(b[:, :k], nf), nf)
+    nf = _fast_len(2 * k)
+    f = sfft.rfft(a[:, :k], nf)
+    np.conjugate(f, out=f)
+    f *= sfft.rfft(b[:, :k], nf)
+    cc = sfft.irfft(f, nf, overwrite_x=True)
+    del f
     d = np.arange(-(k - 1), k)
     tot = (cc[:, d % nf] * g[d + off + gz]).sum(axis=1)
+    del cc
     r = n - k
     a2 = np.zeros((a.shape[0], r))
     a2[:, :k] = a[:, :k]
@@ -661,82 +942,98 @@ def _tri(a: NDArray, b: NDArray, g: NDArray, off: int, n: int, gz: int) -> NDArr
     return tot
 
 
-def _theo1_sumsq_fft(
-    x: NDArray[np.float64], m: int, r: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Theo1's double sum in O(N log N + m log² m), and a rounding-error scale (see :func:`_theo1_sumsq`).
+def _window_sums(f, count: int, top: int, sq: bool) -> NDArray[np.float64]:
+    """W(o) = Σ_{c<count} f_{c+o} (or f²) for o = 0 … top: one direct sum and a cumulative sum of the O(top)
+    end differences (no full-length prefix sums)."""
+    w = np.empty(top + 1)
+    head = f[:top]
+    tail = f[count : count + top]
+    w[0] = _dot(f[:count], f[:count]) if sq else float(f[:count].sum())
+    np.cumsum(tail * tail - head * head if sq else tail - head, out=w[1:])
+    w[1:] += w[0]
+    return w
+
+
+def _theo1_fft(x: NDArray[np.float64], m: int, r: NDArray[np.float64], a: float) -> tuple[float, float]:
+    """Theo1's double sum of one gap-free channel in O(N log m + m log² m) given the autocorrelation r of x,
+    and a rounding-error scale (see :func:`_theo1_sumsq`).
 
     With c = i + m/2 and A_c = x_{c−m/2} + x_{c+m/2}, each term is (A_c − x_{c−δ} − x_{c+δ})²/(m/2 − δ); summed
     over δ it is W A_c² − 2 A_c (k∗x)_c + (k∗x²)_c + 2 Σ_δ w_δ x_{c−δ} x_{c+δ} with k the symmetric kernel of the
-    weights w_δ = 1/(m/2 − δ). The convolutions are FFTs; the last sum over c is Σ_δ w_δ R_{2δ} (the record's
-    autocorrelation) less two anti-diagonal triangles of the first and of the reversed last m − 1 samples
-    (:func:`_tri`).
+    weights w_δ = 1/(m/2 − δ). Σ A_c² and Σ (k∗x²)_c are window sums of x² plus one lagged dot product;
+    Σ A_c (k∗x)_c is a blocked (overlap-save) FFT correlation, memory O(max(m, 2¹⁶)); the last sum over c is
+    Σ_δ w_δ R_{2δ} (the record's autocorrelation) less two anti-diagonal triangles of the first and of the
+    reversed last m − 1 samples (:func:`_tri`). x has its least-squares quadratic removed (a its coefficient per
+    sample², whose exact terms 2a(h² − δ²) per term are added back).
     """
-    c, n = x.shape
+    n = x.size
     h = m // 2
     count = n - m
     dl = np.arange(h)
     w = 1.0 / (h - dl)
     wsum = float(w.sum())
-    a_c = x[:, :count] + x[:, m : m + count]
-    kern = np.zeros(m - 1)
+    w2 = _window_sums(x, count, m, True)
+    t3 = _dot(w, w2[h - dl] + w2[h + dl])
+    t1 = wsum * (w2[0] + w2[m] + 2.0 * _dot(x[:count], x[m : m + count]))
+    # Σ_c A_c (k∗x)_c, (k∗x)_c = Σ_{j<m−1} kern_j x_{c+1+j}
+    kl = m - 1
+    kern = np.zeros(kl)
     kern[h - 1 - dl] = w
     kern[h - 1 + dl] = w
     kern[h - 1] = 2.0 * w[0]
-    k_c = _conv(x, kern[None, :], n + m - 2)[:, 2 * h - 1 : 2 * h - 1 + count]
-    q_c = _conv(x * x, kern[None, :], n + m - 2)[:, 2 * h - 1 : 2 * h - 1 + count]
-    t1 = wsum * np.einsum("ij,ij->i", a_c, a_c)
-    t2 = 2.0 * np.einsum("ij,ij->i", a_c, k_c)
-    t3 = q_c.sum(axis=1)
-    s4 = (r[:, 2 * dl] * w).sum(axis=1)
-    gz = 2 * m + 2
-    g = np.zeros(4 * m + 5)
+    nf = min(_fast_len(max(4 * kl, 1 << 16)), _fast_len(count + kl - 1))
+    blk = nf - kl + 1
+    kf = sfft.rfft(kern[::-1], nf)
+    t2 = 0.0
+    for c0 in range(0, count, blk):
+        c1 = min(count, c0 + blk)
+        f = sfft.rfft(x[c0 + 1 : c1 + kl], nf)
+        f *= kf
+        kc = sfft.irfft(f, nf, overwrite_x=True)[kl - 1 : kl - 1 + c1 - c0]
+        del f
+        t2 += _dot(x[c0:c1] + x[c0 + m : c1 + m], kc)
+        del kc
+    t2 *= 2.0
+    s4 = _dot(r[2 * dl], w)
+    gz = m  # _tri reads g at gz + (v − u), |v − u| ≤ m − 2
+    g = np.zeros(2 * m + 1)
     g[gz + 2 * dl] = w
-    head = x[:, : m - 1]
-    tail = x[:, ::-1][:, : m - 1]
-    s4 -= _tri(head, head, g, 0, m - 1, gz) + _tri(tail, tail, g, 0, m - 1, gz)
+    head = x[None, : m - 1]
+    tail = x[None, ::-1][:, : m - 1]
+    s4 -= float(_tri(head, head, g, 0, m - 1, gz)[0] + _tri(tail, tail, g, 0, m - 1, gz)[0])
     v = t1 - t2 + t3 + 2.0 * s4
-    with np.errstate(divide="ignore", invalid="ignore"):
-        err = 1.1e-16 * 8.0 * (t1 + np.abs(t2) + t3 + 2.0 * wsum * r[:, 0]) / np.abs(v)
+    scale = 8.0 * (t1 + abs(t2) + t3 + 2.0 * wsum * abs(float(r[0])))
+    if a != 0.0:
+        # Theo1 is blind to a line in the phase, and a quadratic a t² adds exactly 2a(h² − δ²) to every term
+        qd = 2.0 * (h * h - dl * dl.astype(np.float64))
+        s1 = _window_sums(x, count, m, False)
+        esum = s1[0] + s1[m] - s1[h - dl] - s1[h + dl]
+        cross = 2.0 * a * _dot(esum, w * qd)
+        square = count * a * a * float(np.sum(w * qd * qd))
+        v += cross + square
+        scale += 8.0 * (abs(cross) + abs(square))
+    err = 1.1e-16 * scale / abs(v) if v != 0.0 else math.inf
     return v, err
 
 
 def _theo1_total(rec: _Record, m: int, cache: dict) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Theo1 sums: the O(N log N) form for gap-free records with m ≥ 64 when its rounding estimate is below
-    :data:`_FFT_MAX_ERR`, else :func:`_theo1_sumsq`."""
+    """Theo1 sums: :func:`_theo1_fft` channel by channel for gap-free records with m ≥ 64 when its rounding
+    estimate is below :data:`_FFT_MAX_ERR`, else :func:`_theo1_sumsq`."""
     n = rec.n
     if not rec.has_gaps and m >= 64 and m % 2 == 0 and n - m > 0:
-        if "R_theo" not in cache:
-            # Theo1 is blind to a line in the phase, and a quadratic a t² adds exactly 2a(h² − δ²) to every
-            # term: remove the least-squares quadratic for the dynamic range and add its terms back below
-            t = (np.arange(n, dtype=np.float64) - 0.5 * (n - 1)) / n
-            basis = np.vstack([np.ones(n), t, t * t - np.mean(t * t)])
-            coef = np.linalg.lstsq(basis.T, rec.x.T, rcond=None)[0]
-            xd = rec.x - coef.T @ basis
-            cache["R_theo"] = (xd, _xcorr(xd, xd, n - 1), coef[2] / float(n) ** 2)
-        xd, r, a = cache["R_theo"]
-        v, err = _theo1_sumsq_fft(xd, m, r)
-        if np.any(a != 0.0):
-            h = m // 2
-            count = n - m
-            dl = np.arange(h)
-            w = 1.0 / (h - dl)
-            qd = 2.0 * (h * h - dl * dl.astype(np.float64))
-            ps = np.zeros((xd.shape[0], n + 1))
-            np.cumsum(xd, axis=1, out=ps[:, 1:])
+        c = rec.channels
+        out = np.zeros(c)
+        pre = cache.get(("pre", "R_theo", m))
+        for ch in range(c):
+            if pre is not None:
+                v, err = pre[ch], 0.0 if np.isfinite(pre[ch]) else math.inf
+            else:
+                xd, r, a = _series_cache(rec.x, ch, cache, "R_theo")
+                v, err = _theo1_fft(xd, m, r, a)
+            out[ch] = v if err < _FFT_MAX_ERR else _blocked_sum(rec.x[ch], m, "theo1")
+        return out, np.full(c, (n - m) * (m // 2), dtype=np.int64)
+    return _theo1_sumsq(rec.x, m, rec.span_ok(0, n - m, m) if n - m > 0 else None)
 
-            def wsum(o: NDArray[np.int64] | int) -> NDArray[np.float64]:
-                return ps[:, np.asarray(o) + count] - ps[:, np.asarray(o)]
-
-            esum = wsum(np.zeros(h, dtype=np.int64)) + wsum(np.full(h, m)) - wsum(h - dl) - wsum(h + dl)
-            cross = 2.0 * a * (esum @ (w * qd))
-            square = count * a * a * float(np.sum(w * qd * qd))
-            v = v + cross + square
-            with np.errstate(divide="ignore", invalid="ignore"):
-                err = err + 1.1e-16 * 8.0 * (np.abs(cross) + np.abs(square)) / np.abs(v)
-        if np.all(err < _FFT_MAX_ERR):
-            return v, np.full(xd.shape[0], (n - m) * (m // 2), dtype=np.int64)
-    return _theo1_sumsq(rec, m)
 
 
 def _mtie(rec: _Record, m: int) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -888,7 +1185,7 @@ def stability(
     grid = m_grid(rec.n, taus, rate)
     if grid.size == 0:
         raise ValueError(f"no averaging time of the requested grid fits a record of {rec.n} points at {rate} Hz")
-    c = rec.x.shape[0]
+    c = rec.channels
     out: dict[str, Estimate] = {}
     cache: dict = {}
     classic = None
@@ -898,7 +1195,13 @@ def stability(
             from analysis.noise.allan import allan_variances
 
             ms = grid[grid <= max(_MAX_M[e](rec.n) for e in want)]
-            classic = allan_variances(rec.freq_raw.T, rate, ms / rate, max_m=int(ms.max()) if ms.size else 1)
+            top = int(ms.max()) if ms.size else 1
+            # channel by channel: the pass's phase and moving sums then cost two single-channel arrays
+            parts = [allan_variances(rec.freq_raw[ch], rate, ms / rate, max_m=top) for ch in range(c)]
+            classic = parts[0]
+            if c > 1:
+                classic.var = {k: np.concatenate([p.var[k] for p in parts], axis=1) for k in classic.var}
+            del parts
     key = {"adev": "avar", "oadev": "oavar", "mdev": "mvar", "totdev": "totvar"}
     for name in estimators:
         if name in ("theoh", "theobr"):
@@ -906,6 +1209,7 @@ def stability(
         ms = grid[grid <= _MAX_M[name](rec.n)]
         if name == "theo1":
             ms = ms[ms % 2 == 0]
+        _prepass(rec, name, ms, cache)
         dev = np.full((ms.size, c), np.nan)
         nt = np.zeros((ms.size, c), dtype=np.int64)
         for j, m in enumerate(ms):
@@ -938,8 +1242,9 @@ _USE_RN = ESTIMATORS
 and total estimators and calls every B1 phase-noise result flicker PM for the others; that misreads white PM
 at long τ (coverage test) — the split costs one MVAR per τ and is used for all."""
 
-_ID_POINTS = 1 << 20
-"""Noise identification uses at most this many decimated points per τ (the lag-1 ACF is then exact to ~1e-3)."""
+_ID_POINTS = 1 << 18
+"""Noise identification uses at most this many decimated points per τ (the lag-1 ACF's standard error is then
+≈ 1/√N = 0.002, far inside its classification bands of width 0.5)."""
 
 
 def _id_phase(rec: _Record, ch: int) -> NDArray[np.float64]:
@@ -1037,7 +1342,7 @@ def _theobr_factor(rec: _Record, cache: dict) -> NDArray[np.float64]:
     2006); NaN when too short."""
     if "theobr_kf" in cache:
         return cache["theobr_kf"]
-    c = rec.x.shape[0]
+    c = rec.channels
     count = theobr_ratio_count(rec.n)
     if count == 0:
         kf = np.full(c, np.nan)
@@ -1069,7 +1374,7 @@ def _theobr(rec: _Record, grid: NDArray[np.int64], cache: dict) -> Estimate:
     TheoH uses TheoBR only at τ ≥ 0.2 T, where the Theo1 EDF (8–19) is about twice the actual one."""
     kf = _theobr_factor(rec, cache)
     ms = grid[(grid % 2 == 0) & (grid <= _MAX_M["theobr"](rec.n))]
-    c = rec.x.shape[0]
+    c = rec.channels
     dev = np.full((ms.size, c), np.nan)
     nt = np.zeros((ms.size, c), dtype=np.int64)
     for j, m in enumerate(ms):
@@ -1085,7 +1390,7 @@ def _theoh(rec: _Record, grid: NDArray[np.int64], done: dict, cache: dict, split
     t_rec = (rec.n - 1) * rec.ts
     m_split = max(1, int(math.floor(split * t_rec / rec.ts)))
     ms_a = grid[grid < min(m_split, _MAX_M["oadev"](rec.n) + 1)]
-    c = rec.x.shape[0]
+    c = rec.channels
     rows_m, rows_tau, rows_dev, rows_n = [], [], [], []
     for m in ms_a:
         d, k = _one(rec, "oadev", int(m), cache)

@@ -330,6 +330,22 @@ FIT_ESTIMATORS: tuple[str, ...] = tuple(FIT_GAINS)
 """Estimators accepted by the noise-term fit (see :data:`FIT_GAINS`)."""
 
 
+def _rows(arrays: list[NDArray[np.float64]]) -> NDArray[np.float64]:
+    """The equal-length 1-D float64 arrays as one C-contiguous (C, N) array: a view when they already are the
+    consecutive rows of one (as the recording loader delivers them), else one copy."""
+    n = arrays[0].size
+    step = n * 8
+    ptr = [a.__array_interface__["data"][0] for a in arrays]
+    if all(a.dtype == np.float64 and a.flags.c_contiguous for a in arrays) and all(
+        p == ptr[0] + i * step for i, p in enumerate(ptr)
+    ):
+        return np.lib.stride_tricks.as_strided(arrays[0], shape=(len(arrays), n), strides=(step, 8), writeable=False)
+    out = np.empty((len(arrays), n))
+    for i, a in enumerate(arrays):
+        out[i] = a
+    return out
+
+
 def analyse_noise(
     channels: dict[str, ArrayLike],
     rate: float,
@@ -401,7 +417,7 @@ def analyse_noise(
         unit_of = {k: units or "SI" for k in names}
     else:
         unit_of = {k: units.get(k, "SI") for k in names}
-    data = np.stack(arrays, axis=1)
+    data = _rows(arrays).T  # (N, C) view of a (C, N) array: stability reads its rows without a copy
     del arrays
     ests = tuple(dict.fromkeys((*estimators, fit_estimator)))
     res = stability(data, rate, ests, taus, data_type, confidence=confidence)

@@ -159,3 +159,39 @@ def test_gaps_are_reported_and_skipped(tmp_path: Path, capsys: pytest.CaptureFix
     assert ch["gaps"] == {"samples": 3, "runs": 2}
     assert ch["deviations"]["oadev"]["n_terms"][0] == 5001 - 2 - 5  # the five second differences over a gap
     assert ch["terms"]["N"]["value"] == pytest.approx(1e-3 / math.sqrt(10), rel=0.05)
+
+
+def test_recording_is_read_in_chunks_into_one_array(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The recording loader fills one (C, N) float64 array chunk by chunk (chunk boundaries inside the step):
+    values equal the file's, the channels are rows of that one array, gaps and ±inf are located exactly."""
+    import benches.analysis_input as ai
+    from benches.analysis_input import InputError, load_input
+
+    monkeypatch.setattr(ai, "READ_CHUNK_ROWS", 1000)
+    rng = np.random.default_rng(4)
+    n, rate = 4321, 100.0
+    accel = rng.normal(0.0, 1e-3, (n, 3))
+    gyro = rng.normal(0.0, 1e-4, (n, 3))
+    gyro[2500, 1] = np.nan
+    run = tmp_path / "run"
+    run.mkdir()
+    _write_recording(run / "recording.h5", accel, gyro, rate)
+    data = load_input(run, channels="gyro_y,accel_x,gyro_z", allow_gaps=True)
+    assert list(data.channels) == ["gyro_y", "accel_x", "gyro_z"]
+    np.testing.assert_array_equal(data.channels["gyro_y"], gyro[:, 1])
+    np.testing.assert_array_equal(data.channels["accel_x"], accel[:, 0])
+    np.testing.assert_array_equal(data.channels["gyro_z"], gyro[:, 2])
+    base = data.channels["gyro_y"]
+    assert all(np.shares_memory(base.base, v) for v in data.channels.values())  # one array, no per-channel copies
+    with pytest.raises(InputError, match=r"first in channel 'gyro_y' at sample 2500"):
+        load_input(run, channels="gyro_x,gyro_y")
+    gyro[3999, 0] = np.inf
+    _write_recording(run / "recording.h5", accel, gyro, rate)
+    with pytest.raises(InputError, match=r"first in channel 'gyro_x' at sample 3999"):
+        load_input(run, channels="gyro_x,gyro_z", allow_gaps=True)
+    # the command on the recording equals the same data as .npy
+    res_rec = analyse_noise(load_input(run, channels="accel_y,accel_z").channels, rate, "SI")
+    np.save(tmp_path / "a.npy", accel[:, 1:])
+    res_npy = analyse_noise(load_input(tmp_path / "a.npy", rate=rate).channels, rate, "SI")
+    for k_rec, k_npy in (("accel_y", "ch0"), ("accel_z", "ch1")):
+        np.testing.assert_array_equal(res_rec["channels"][k_rec]["oadev"], res_npy["channels"][k_npy]["oadev"])

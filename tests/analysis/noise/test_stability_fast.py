@@ -1,0 +1,155 @@
+"""The fast paths of analysis/noise/stability.py against straightforward references kept here.
+
+The O(N) + O(m log m) closed forms of the total family and Theo1 (autocorrelation, end-segment FFT
+correlations), the memory-lean autocorrelation, the chunked direct sums, the lazy phase of a record and the
+channel-by-channel evaluation of several channels must give the same numbers as the definitions evaluated
+window by window (allantools' loops, vectorised per window).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import analysis.noise.stability as st
+from analysis.noise.stability import stability
+
+
+def _mtot_reference(s: np.ndarray, m: int) -> float:
+    """Σ over 3m-point windows of the squared modified second differences of the detrended (half-mean slope)
+    window extended by even reflection to 9m points (allantools' mtotdev loop, one window at a time)."""
+    L = 3 * m
+    h1 = L // 2
+    D = (0.5 * (L - 1) + 1) if L % 2 else 0.5 * L
+    tot = 0.0
+    for i in range(s.size - L + 1):
+        z = s[i : i + L]
+        slope = (z[L - h1 :].sum() - z[:h1].sum()) / (h1 * D)
+        z = z - slope * np.arange(L)
+        e = np.concatenate([z[::-1], z, z[::-1]])
+        c = np.concatenate([[0.0], np.cumsum(e)])
+        j = np.arange(6 * m)
+        t = (c[j + m] - c[j]) - 2.0 * (c[j + 2 * m] - c[j + m]) + (c[j + 3 * m] - c[j + 2 * m])
+        tot += float(t @ t)
+    return tot
+
+
+def _theo1_reference(x: np.ndarray, m: int) -> float:
+    h = m // 2
+    tot = 0.0
+    for i in range(x.size - m):
+        d = np.arange(h)
+        t = (x[i] - x[i + h - d]) + (x[i + m] - x[i + h + d])
+        tot += float(np.sum(t * t / (h - d)))
+    return tot
+
+
+def _series(n: int, seed: int, kind: str) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    y = rng.normal(size=n) + 0.02 * np.cumsum(rng.normal(size=n)) + 3.0 * np.linspace(0.0, 1.0, n) ** 2 + 2.0
+    return y if kind == "freq" else np.cumsum(y) * 1e-2
+
+
+@pytest.mark.parametrize("kind", ["freq", "phase"])
+@pytest.mark.parametrize(("n", "seed"), [(211, 1), (390, 2), (517, 3)])
+def test_total_family_closed_form_equals_the_window_loop(n: int, seed: int, kind: str) -> None:
+    s = _series(n, seed, kind)
+    sd, a = st._detrend_quadratic(s)
+    r = st._autocorr(sd, n - 1)
+    for m in sorted({8, 9, 13, 16, n // 6, n // 3}):
+        if 3 * m > n:
+            continue
+        ref = _mtot_reference(s, m)
+        v, err = st._mtot_fft(sd, m, r, a)
+        assert err < st._FFT_MAX_ERR
+        assert v == pytest.approx(ref, rel=1e-10), m
+        d, k = st._reflected_sumsq(s[None, :], m, None)  # the chunked direct sum
+        assert d[0] == pytest.approx(ref, rel=1e-10) and k[0] == n - 3 * m + 1
+
+
+@pytest.mark.parametrize(("n", "seed"), [(300, 4), (455, 5)])
+def test_theo1_closed_form_equals_the_definition(n: int, seed: int) -> None:
+    x = _series(n, seed, "phase")
+    xd, a = st._detrend_quadratic(x)
+    r = st._autocorr(xd, n - 1)
+    for m in (64, 66, 98, 2 * ((n - 3) // 2)):
+        ref = _theo1_reference(x, m)
+        v, err = st._theo1_fft(xd, m, r, a)
+        assert err < st._FFT_MAX_ERR
+        assert v == pytest.approx(ref, rel=1e-10), m
+        d, k = st._theo1_sumsq(x[None, :], m, None)
+        assert d[0] == pytest.approx(ref, rel=1e-10) and k[0] == (n - m) * (m // 2)
+
+
+@pytest.mark.parametrize("n", [2, 7, 64, 1001, 4096])
+def test_autocorrelation_equals_direct_lag_products(n: int) -> None:
+    s = np.random.default_rng(n).normal(size=n) + 5.0
+    r = st._autocorr(s, n - 1)
+    ref = np.array([s[: n - d] @ s[d:] for d in range(n)])
+    np.testing.assert_allclose(r, ref, rtol=0, atol=1e-12 * ref[0])
+    assert st._autocorr(s, n // 2).size == n // 2 + 1
+
+
+def test_chunked_direct_sums_cross_chunk_boundaries(monkeypatch: pytest.MonkeyPatch) -> None:
+    s = _series(700, 6, "freq")
+    ref = {m: st._reflected_sumsq(s[None, :], m, None)[0][0] for m in (1, 2, 5)}
+    th = {m: st._theo1_sumsq(s[None, :], m, None)[0][0] for m in (2, 8)}
+    monkeypatch.setattr(st, "_CHUNK", 1024)  # the floor of the chunk: several chunks below
+    s2 = np.concatenate([s] * 3)
+    for m in ref:
+        one = st._reflected_sumsq(s[None, :], m, None)[0][0]
+        assert one == pytest.approx(ref[m], rel=1e-13)
+        ok = np.ones((1, s2.size - 3 * m + 1), dtype=bool)
+        ok[0, 5:9] = False
+        full, k = st._reflected_sumsq(s2[None, :], m, None)
+        part, kk = st._reflected_sumsq(s2[None, :], m, ok)
+        assert kk[0] == k[0] - 4 and part[0] < full[0]
+    for m in th:
+        assert st._theo1_sumsq(s[None, :], m, None)[0][0] == pytest.approx(th[m], rel=1e-13)
+
+
+@pytest.mark.parametrize("data_type", ["freq", "phase"])
+def test_several_channels_equal_one_at_a_time(data_type: str) -> None:
+    """The channel-by-channel pre-pass (several channels) gives each channel's single-channel result."""
+    rng = np.random.default_rng(7)
+    n = 1500
+    data = rng.normal(size=(n, 3)) + 0.05 * np.cumsum(rng.normal(size=(n, 3)), axis=0)
+    data[:, 1] += np.linspace(0.0, 2.0, n) ** 2
+    if data_type == "phase":
+        data = np.cumsum(data, axis=0) / 50.0
+    names = ("mtotdev", "ttotdev", "htotdev", "theo1", "oadev", "mdev", "totdev", "adev")
+    res = stability(data, 50.0, names, "octave", data_type, confidence=None)
+    for ch in range(3):
+        one = stability(np.ascontiguousarray(data[:, ch]), 50.0, names, "octave", data_type, confidence=None)
+        for k in names:
+            np.testing.assert_allclose(res.estimates[k].dev[:, ch], one.estimates[k].dev[:, 0], rtol=1e-12, err_msg=k)
+            np.testing.assert_array_equal(res.estimates[k].n_terms[:, ch], one.estimates[k].n_terms[:, 0])
+
+
+def test_record_phase_is_lazy_and_equals_the_integrated_frequency() -> None:
+    rng = np.random.default_rng(8)
+    y = rng.normal(size=(200_003, 2)) + 3.0
+    rec = st._Record(y, 10.0, "freq")
+    assert rec._x is None and not rec.has_gaps
+    x = rec.x
+    ref = np.concatenate([np.zeros((1, 2)), np.cumsum(y - y.mean(axis=0), axis=0)], axis=0).T / 10.0
+    np.testing.assert_allclose(x, ref, rtol=0, atol=1e-9 * np.abs(ref).max())
+    assert rec.frequency()[0] is rec.freq_raw  # gap-free frequency: no copy
+    phase = np.ascontiguousarray(ref[0])
+    prec = st._Record(phase, 10.0, "phase")
+    assert np.shares_memory(prec.x, phase)  # gap-free phase input: used as given
+    yg = y.copy()
+    yg[5, 1] = np.nan
+    grec = st._Record(yg, 10.0, "freq")
+    assert grec.has_gaps and int(grec.gap_samples[1]) == 1 and np.isfinite(grec.x).all()
+
+
+def test_blocked_closed_form_equals_the_definition(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The block-by-block closed form (used where the record-wide rounding estimate is too large) sums the same
+    windows: several blocks, the last one partial."""
+    monkeypatch.setattr(st, "_BLOCK_MIN", 37)
+    x = _series(610, 9, "phase")
+    for m in (8, 11, 20):
+        assert st._blocked_sum(x, m, "mtot") == pytest.approx(_mtot_reference(x, m), rel=1e-10)
+    for m in (64, 70):
+        assert st._blocked_sum(x, m, "theo1") == pytest.approx(_theo1_reference(x, m), rel=1e-10)
