@@ -176,9 +176,6 @@ def test_commands_import_neither_each_other_nor_the_cli() -> None:
 
 LAZY_COMMENT = re.compile(r"#\s*lazy: [^()]+ \(--help time\)")
 """The mark of a justified function-level import: ``# lazy: <heavy library> (--help time)``."""
-LAZY_PENDING = {"benches/commands/noise.py"}
-"""Files whose function-level imports are not converted yet: they were being edited on other branches when the
-rest of benches/ was (the noise command, the recording's writer). Convert them and drop them from here."""
 HEAVY = ("scipy", "matplotlib", "fpdf", "filterpy", "statsmodels", "pyvisa", "pymodbus", "tqdm")
 """Third-party libraries that cost ≥ 15 ms each to import, kept off the ``tablebench --help`` path. Not h5py
 (≈ 35 ms): the one HDF5 module, benches/recording.py, uses it at import time and is imported at the top of the
@@ -208,15 +205,10 @@ def _unmarked_lazy_imports() -> dict[str, list[str]]:
 
 def test_function_level_imports_in_benches_are_marked_lazy() -> None:
     """Imports sit at the top of a module; the only exceptions keep a heavy library out of ``--help``."""
-    bad = {rel: lines for rel, lines in _unmarked_lazy_imports().items() if rel not in LAZY_PENDING}
+    bad = _unmarked_lazy_imports()
     assert bad == {}, "function-level imports without '# lazy: <heavy lib> (--help time)':\n" + "\n".join(
         line for lines in bad.values() for line in lines
     )
-
-
-def test_the_pending_lazy_import_files_are_still_pending() -> None:
-    """Once a pending file is converted, drop it from LAZY_PENDING (the list must not go stale)."""
-    assert set(_unmarked_lazy_imports()) >= LAZY_PENDING
 
 
 def _load_time_imports(name: str, path: Path) -> set[str]:

@@ -20,6 +20,7 @@ import io
 import shutil
 import signal
 import traceback
+import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -304,7 +305,9 @@ def run_cli(argv: list[str]) -> tuple[int | None, str, str]:
     """(exit code or None on a traceback/hang, stdout, stderr + any traceback)."""
     out, err = io.StringIO(), io.StringIO()
     code: int | None
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        warnings.filterwarnings("ignore", category=DeprecationWarning)
         try:
             with _time_limit(TIMEOUT_S):
                 code = main(argv)
@@ -316,7 +319,9 @@ def run_cli(argv: list[str]) -> tuple[int | None, str, str]:
         except BaseException:  # noqa: BLE001 - a traceback is exactly what this test looks for
             code = None
             err.write("\nTraceback (most recent call last):\n" + traceback.format_exc())
-    return code, out.getvalue(), err.getvalue()
+    # a warning would reach the user's terminal as extra lines (outside pytest nothing captures it)
+    extra = "".join(f"WARNING {w.category.__name__}: {w.message} ({w.filename}:{w.lineno})\n" for w in seen)
+    return code, out.getvalue(), extra + err.getvalue()
 
 
 @pytest.mark.parametrize("case", _params())
@@ -327,6 +332,7 @@ def test_bad_input_is_one_clear_line_and_exit_2(case: Case, corpus: Corpus, monk
     place = _fill(case.place, corpus, case.id)
     code, _out, err = run_cli(argv)
     assert "Traceback" not in err and "HANG" not in err, f"{' '.join(argv)}\n{err[-3000:]}"
+    assert "WARNING " not in err, f"a Python warning reaches the user: {' '.join(argv)}\n{err[-3000:]}"
     assert code == 2, f"exit {code} (expected 2) for: {' '.join(argv)}\n{err[-2000:]}"
     named = place in err or Path(place).name in err
     assert named, f"the error does not name {place!r}: {err.strip()[-600:]}"

@@ -5,6 +5,10 @@ from __future__ import annotations
 import argparse
 import math
 
+from benches.analysis_input import InputError, add_input_arguments, load_input, output_dir
+from core.errors import UsageError
+from core.jsonio import write_json
+
 EXAMPLES = """examples:
   tablebench noise runs/static-noise-001                     # a recording (static-noise procedure)
   tablebench noise runs/static-noise-001 --channels gyro_x,gyro_y,gyro_z --out report/
@@ -36,7 +40,6 @@ DEFAULT_ESTIMATORS = "adev,oadev,mdev,totdev"
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``noise`` subcommand."""
-    from benches.analysis_input import add_input_arguments
 
     p = sub.add_parser(
         "noise",
@@ -110,14 +113,13 @@ def format_table(result: dict) -> str:
 
 def to_display_value(term: str, value_si: float, unit: str) -> float:
     """A term value converted to its display unit."""
-    from analysis.noise.terms import to_display
+    from analysis.noise.terms import to_display  # lazy: scipy (--help time)
 
     return to_display(term, value_si, unit)[0]
 
 
 def _parse_taus(text: str) -> str | list[float]:
     """``--taus``: a grid name or a comma-separated list of τ in seconds."""
-    from core.errors import UsageError
 
     t = text.strip().lower()
     if t in ("octave", "decade", "log", "all"):
@@ -134,8 +136,7 @@ def _parse_taus(text: str) -> str | list[float]:
 
 
 def _parse_estimators(text: str) -> tuple[str, ...]:
-    from analysis.noise.stability import ESTIMATORS
-    from core.errors import UsageError
+    from analysis.noise.stability import ESTIMATORS  # lazy: scipy (--help time)
 
     names = [e.strip().lower() for e in text.split(",") if e.strip()]
     if not names:
@@ -148,9 +149,8 @@ def _parse_estimators(text: str) -> tuple[str, ...]:
 
 def _parse_fit_estimator(text: str) -> str:
     """``--fit-estimator``: one of :data:`analysis.noise.terms.FIT_ESTIMATORS`, else a UsageError saying why."""
-    from analysis.noise.stability import ESTIMATORS
-    from analysis.noise.terms import FIT_ESTIMATORS
-    from core.errors import UsageError
+    from analysis.noise.stability import ESTIMATORS  # lazy: scipy (--help time)
+    from analysis.noise.terms import FIT_ESTIMATORS  # lazy: scipy (--help time)
 
     name = text.strip().lower()
     if name in FIT_ESTIMATORS:
@@ -171,10 +171,7 @@ def _parse_fit_estimator(text: str) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench noise``."""
-    from analysis.noise.terms import analyse_noise
-    from benches.analysis_input import InputError, load_input, output_dir
-    from core.errors import UsageError
-    from core.jsonio import write_json
+    from analysis.noise.terms import analyse_noise  # lazy: scipy (--help time)
 
     if not 0.0 < args.confidence < 1.0:
         raise UsageError(f"--confidence must be between 0 and 1 (e.g. 0.683 or 0.95), got {args.confidence}")
@@ -220,7 +217,7 @@ def run(args: argparse.Namespace) -> int:
         print("gaps: none")
     print(format_table(result))
     if out is not None:
-        from analysis.noise.plot import plot_noise
+        from analysis.noise.plot import plot_noise  # lazy: matplotlib (--help time)
 
         write_json(out / "noise.json", result, nonfinite="null")
         fig = plot_noise(result, title=f"Noise analysis: {data.source}")
