@@ -341,39 +341,50 @@ class _StepHasher:
 
 
 def _fletcher32(data: bytes) -> int:
-    """HDF5's Fletcher-32 (``H5_checksum_fletcher32``): 16-bit big-endian words, folded every 360 words."""
+    """HDF5's Fletcher-32 (``H5_checksum_fletcher32``): 16-bit big-endian words, sums in one's-complement
+    arithmetic modulo 65535 (the library folds every 360 words; folding keeps the sums congruent and a
+    non-zero sum never folds to 0, so the result is the residue in 1 … 65535, or 0 for an all-zero input).
+
+    Vectorised in a few numpy passes (each releasing the GIL): it runs in the recorder's encoder thread.
+    """
     b = np.frombuffer(data, np.uint8)
     n = b.size // 2
-    w = (b[0 : 2 * n : 2].astype(np.uint64) << np.uint64(8)) | b[1 : 2 * n : 2]
     sum1 = sum2 = 0
-    full = n // 360
-    weights = np.arange(360, 0, -1, dtype=np.uint64)
-    if full:
-        blk = w[: full * 360].reshape(full, 360)
-        s1, s2 = blk.sum(1).tolist(), (blk * weights).sum(1).tolist()
-        for a, c in zip(s1, s2, strict=True):
-            sum2 += 360 * sum1 + c
-            sum1 += a
-            sum1, sum2 = (sum1 & 0xFFFF) + (sum1 >> 16), (sum2 & 0xFFFF) + (sum2 >> 16)
-    rest = w[full * 360 :]
-    if rest.size:
-        t = rest.size
-        sum2 += t * sum1 + int((rest * weights[360 - t :]).sum())
-        sum1 += int(rest.sum())
-        sum1, sum2 = (sum1 & 0xFFFF) + (sum1 >> 16), (sum2 & 0xFFFF) + (sum2 >> 16)
+    block = 1 << 20  # words per pass: the weighted sum stays below 2⁶⁴ (65535 · 2²⁰ · 2²⁰ / 2)
+    for start in range(0, n, block):
+        stop = min(n, start + block)
+        w = (b[2 * start : 2 * stop : 2].astype(np.uint64) << np.uint64(8)) | b[2 * start + 1 : 2 * stop : 2]
+        k = stop - start
+        s1 = int(w.sum())
+        s2 = int(np.dot(w, np.arange(k, 0, -1, dtype=np.uint64)))
+        sum2 += k * sum1 + s2  # each word adds the running sum1 to sum2
+        sum1 += s1
     if b.size % 2:
         sum1 += int(b[-1]) << 8
         sum2 += sum1
-        sum1, sum2 = (sum1 & 0xFFFF) + (sum1 >> 16), (sum2 & 0xFFFF) + (sum2 >> 16)
-    sum1, sum2 = (sum1 & 0xFFFF) + (sum1 >> 16), (sum2 & 0xFFFF) + (sum2 >> 16)
-    return ((sum2 << 16) | sum1) & 0xFFFFFFFF
+    r1 = (sum1 - 1) % 65535 + 1 if sum1 else 0
+    r2 = (sum2 - 1) % 65535 + 1 if sum2 else 0
+    return (r2 << 16) | r1
 
 
-def _encode_chunk(chunk: NDArray[Any]) -> bytes:
-    """One chunk through HDF5's pipeline shuffle → deflate (level 1) → Fletcher-32, as the library would."""
+_RLE_FIELDS = frozenset({"accel", "gyro", "temperature"})
+"""Datasets deflated with zlib's run-length strategy: their low byte planes are noise (no long matches to
+find), their high planes runs; Z_RLE is about twice as fast as the default match search there and no larger.
+Counters and time stamps (long arithmetic runs) keep the default strategy."""
+
+
+def _encode_chunk(chunk: NDArray[Any], rle: bool = False) -> bytes:
+    """One chunk through HDF5's pipeline shuffle → deflate (level 1) → Fletcher-32, as the library would.
+
+    ``rle``: deflate with zlib's Z_RLE strategy (still a standard deflate stream: HDF5's filter inflates it).
+    """
     it = chunk.dtype.itemsize
     raw = np.ascontiguousarray(chunk).view(np.uint8).reshape(-1, it).T.tobytes()
-    z = zlib.compress(raw, 1)
+    if rle:
+        enc = zlib.compressobj(1, zlib.DEFLATED, zlib.MAX_WBITS, 8, zlib.Z_RLE)
+        z = enc.compress(raw) + enc.flush()
+    else:
+        z = zlib.compress(raw, 1)
     return z + _fletcher32(z).to_bytes(4, "little")
 
 
@@ -434,9 +445,9 @@ class _ChunkWriter:
                 if len(part) < self.chunk:
                     buf = np.zeros((self.chunk, *self.shapes[name]), dtype=self.dtypes[name])
                     buf[: len(part)] = part
-                    part_bytes = _encode_chunk(buf)
+                    part_bytes = _encode_chunk(buf, name in _RLE_FIELDS)
                 else:
-                    part_bytes = _encode_chunk(part)
+                    part_bytes = _encode_chunk(part, name in _RLE_FIELDS)
                 out.append((name, r0 + off, r0 + off + min(self.chunk, len(rows) - off), part_bytes))
             left = len(rows) % self.chunk
             self.tail[name] = rows[len(rows) - left :] if left else rows[:0]
