@@ -83,11 +83,11 @@ def b1_alpha(x_phase: NDArray[np.float64], m: int, ts: float, n_terms: int, use_
     classified against B1(N = the estimator's term count, μ) as Stable32 does; phase noise (μ = −2) is split
     into white/flicker PM by R(n) = MVAR/AVAR for the modified and total estimators, flicker PM otherwise.
     None when fewer than two averages or two terms exist."""
-    y = np.diff(x_phase) / ts
-    k = y.size // m
+    k = (x_phase.size - 1) // m
     if k < 2 or n_terms < 2:
         return None
-    ya = y[: k * m].reshape(k, m).mean(axis=1)
+    # the mean of m consecutive frequency values telescopes to a phase difference: O(N/m), no full-length pass
+    ya = (x_phase[m : k * m + 1 : m] - x_phase[: (k - 1) * m + 1 : m]) / (m * ts)
     svar = float(np.var(ya, ddof=1))
     d = x_phase[2 * m :: m] - 2.0 * x_phase[m:-m:m] + x_phase[: -2 * m : m]
     nd = min(d.size, (x_phase.size - 1) // m - 1)

@@ -349,6 +349,36 @@ def _mod_sumsq(rec: _Record, m: int) -> tuple[NDArray[np.float64], NDArray[np.in
     return np.einsum("ij,ij->i", v, v), np.full(c, count, dtype=np.int64)
 
 
+def _oadev_sumsq(rec: _Record, m: int, cache: dict) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Σ (x_{i+2m} − 2x_{i+m} + x_i)² over i = 0 … N−2m−1 (gap terms skipped), once per m (OADEV, TOTDEV)."""
+    if ("osum", m) not in cache:
+        cache[("osum", m)] = _diff_sumsq(rec, m, (1.0, -2.0, 1.0), 1)
+    return cache[("osum", m)]
+
+
+def _tot_sumsq_central(rec: _Record, m: int, cache: dict) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """:func:`_tot_sumsq` of a gap-free record: its centres m … N−1−m reach no reflected point, so their terms
+    are exactly OADEV's (shared through ``cache``); only the ≤ 2(m−1) centres near the ends are formed here."""
+    x = rec.x
+    n = rec.n
+    c = x.shape[0]
+    if m > n - 2:
+        return np.zeros(c), np.zeros(c, dtype=np.int64)
+    s = _oadev_sumsq(rec, m, cache)[0].copy() if n - 2 * m > 0 else np.zeros(c)
+    ends = np.concatenate([np.arange(1, min(m, n - 1)), np.arange(max(n - m, m), n - 1)])
+    if ends.size:
+
+        def refl(j: NDArray[np.int64]) -> NDArray[np.float64]:
+            jj = np.where(j < 0, -j, np.where(j > n - 1, 2 * (n - 1) - j, j))
+            v = x[:, jj]
+            v = np.where(j < 0, 2.0 * x[:, :1] - v, v)
+            return np.where(j > n - 1, 2.0 * x[:, n - 1 : n] - v, v)
+
+        v = refl(ends - m) - 2.0 * x[:, ends] + refl(ends + m)
+        s += np.einsum("ij,ij->i", v, v)
+    return s, np.full(c, n - 2, dtype=np.int64)
+
+
 def _tot_sumsq(rec: _Record, m: int) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Total variance: Σ over centres i = 1 … N−2 of (x*_{i−m} − 2x_i + x*_{i+m})², phase reflected
     (inverted) at both ends; gap terms skipped (their mapped points / span)."""
@@ -1092,8 +1122,11 @@ def _one(rec: _Record, name: str, m: int, cache: dict) -> tuple[NDArray[np.float
     """(variance-or-deviation, n_terms) of estimator ``name`` at m for every channel; see :func:`stability`."""
     ts = rec.ts
     tau = m * ts
-    if name in ("adev", "oadev"):
-        s, k = _diff_sumsq(rec, m, (1.0, -2.0, 1.0), m if name == "adev" else 1)
+    if name == "oadev":
+        s, k = _oadev_sumsq(rec, m, cache)
+        return np.sqrt(s / (2.0 * np.maximum(k, 1) * tau * tau)), k
+    if name == "adev":
+        s, k = _diff_sumsq(rec, m, (1.0, -2.0, 1.0), m)
         return np.sqrt(s / (2.0 * np.maximum(k, 1) * tau * tau)), k
     if name in ("hdev", "ohdev"):
         s, k = _diff_sumsq(rec, m, (-1.0, 3.0, -3.0, 1.0), m if name == "hdev" else 1)
@@ -1105,7 +1138,7 @@ def _one(rec: _Record, name: str, m: int, cache: dict) -> tuple[NDArray[np.float
         md = np.sqrt(s / (2.0 * m * m * tau * tau * np.maximum(k, 1)))
         return (md if name == "mdev" else tau * md / math.sqrt(3.0)), k
     if name == "totdev":
-        s, k = _tot_sumsq(rec, m)
+        s, k = _tot_sumsq(rec, m) if rec.has_gaps else _tot_sumsq_central(rec, m, cache)
         return np.sqrt(s / (2.0 * tau * tau * np.maximum(k, 1))), k
     if name in ("mtotdev", "ttotdev"):
         if ("mtot", m) not in cache:

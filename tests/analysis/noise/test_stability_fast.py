@@ -153,3 +153,17 @@ def test_blocked_closed_form_equals_the_definition(monkeypatch: pytest.MonkeyPat
         assert st._blocked_sum(x, m, "mtot") == pytest.approx(_mtot_reference(x, m), rel=1e-10)
     for m in (64, 70):
         assert st._blocked_sum(x, m, "theo1") == pytest.approx(_theo1_reference(x, m), rel=1e-10)
+
+
+@pytest.mark.parametrize("n", [7, 40, 257])
+def test_gap_free_totdev_from_oadev_terms_equals_the_reflected_definition(n):
+    """Gap-free TOTDEV reuses OADEV's second differences for the centres m … N−1−m and forms only the end
+    terms; it must equal the term-by-term reflected definition (_tot_sumsq) at every m up to N−2."""
+    rng = np.random.default_rng(n)
+    x = np.cumsum(rng.standard_normal((2, n)), axis=1)
+    rec = st._Record(x.T, 1.0, "phase")
+    for m in range(1, n):
+        ref_s, ref_k = st._tot_sumsq(rec, m)
+        s, k = st._tot_sumsq_central(rec, m, {})
+        np.testing.assert_allclose(s, ref_s, rtol=1e-12, atol=0.0)
+        np.testing.assert_array_equal(k, ref_k)
