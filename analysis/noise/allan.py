@@ -262,7 +262,7 @@ def _lag2_sum(x: NDArray[np.float64], m: int, count: int) -> NDArray[np.float64]
 
 
 def _sums_one_m(
-    x: NDArray[np.float64], m: int, chunk: int, msum: NDArray[np.float64] | None = None
+    x: NDArray[np.float64], m: int, chunk: int, msum: NDArray[np.float64] | None = None, double: bool = False
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], int, int]:
     """Σd and Σd² of the overlapping second differences d_i = x_{i+2m} − 2x_{i+m} + x_i, and Σs and Σs² of
     their m-sums s_j = d_j + … + d_{j+m−1} (modified AVAR).
@@ -271,6 +271,9 @@ def _sums_one_m(
     otherwise s_j is formed from a running sum of d over the chunk extended by m − 1. The plain sums Σd and
     (with ``msum``) Σs telescope to O(m) end sums; the squares are accumulated chunk by chunk in preallocated
     buffers (no allocation per chunk).
+
+    ``double`` (with ``msum``): leave ``msum`` as the moving sums over 2m (:func:`_double_moving_sum`), each
+    chunk doubled right after its last use while it is still in cache (one pass over the record saved per τ).
     """
     c, n1 = x.shape
     n = n1 - 1
@@ -280,8 +283,14 @@ def _sums_one_m(
     t1 = np.zeros(c)
     t2 = np.zeros(c)
     if n_o <= 0:
+        if double and msum is not None:
+            _double_moving_sum(msum, m, chunk)
         return np.zeros(c), s2, t1, t2, max(n_o, 0), max(n_m, 0)
     s1 = _lag2_sum(x, m, n_o)
+    if n_m > 0 and msum is not None:
+        t1 = _lag2_sum(msum, m, n_m)  # before msum is doubled in place below
+    top = msum.shape[1] - m if msum is not None else 0
+    done = 0  # msum columns [0, done) already doubled
     step = max(chunk, 2 * m) if msum is None else chunk
     width = min(n_o, step) + (m - 1 if msum is None else 0)
     buf1 = np.empty((c, 2 * width if width > m else 0))
@@ -313,14 +322,22 @@ def _sums_one_m(
                     g1 = buf1[:, : kk + m]
                     np.subtract(msum[:, s + m : s + 2 * m + kk], msum[:, s : s + m + kk], out=g1)
                     np.subtract(g1[:, m:], g1[:, :kk], out=inner)
+                if double:  # columns < s + kk are not read again at this m (later chunks start at s + kk)
+                    hi = min(top, s + kk)
+                    if hi > done:
+                        msum[:, done:hi] += msum[:, done + m : hi + m]
+                        done = hi
             else:
                 cs = np.cumsum(d, axis=1)
                 inner = cs[:, m - 1 : m - 1 + kk].copy()
                 inner[:, 1:] -= cs[:, : kk - 1]
                 t1 += inner.sum(axis=1)
             t2 += np.einsum("ij,ij->i", inner, inner)
-    if n_m > 0 and msum is not None:
-        t1 = _lag2_sum(msum, m, n_m)
+    if double and msum is not None:
+        for a in range(done, top, chunk):  # the rest, ascending (as _double_moving_sum)
+            b = min(top, a + chunk)
+            msum[:, a:b] += msum[:, a + m : b + m]
+        msum[:, top:] = np.nan
     return s1, s2, t1, t2, n_o, max(n_m, 0)
 
 
@@ -396,7 +413,7 @@ def allan_variances(
         cr = 2.0 * half_a * m * m  # exact central second difference of the removed ramp (phase units)
         # non-overlapping: strided subset
         k = n // m - 1
-        if k >= 1:
+        if k >= 1 and m > 1:  # at m = 1 the non-overlapping terms are the overlapping ones (copied below)
             a1 = np.zeros(c)
             a2 = np.zeros(c)
             for k0 in range(0, k, chunk):
@@ -408,15 +425,21 @@ def allan_variances(
             tot = a2 + 2.0 * cr * a1 + k * cr * cr
             var["avar"][j] = tot / (2.0 * tau * tau * k)
             nterm["avar"][j] = k
+        fuse = False
         if msum is not None:
             while m_cur < m:
                 _double_moving_sum(msum, m_cur, chunk)
                 m_cur *= 2
-        s1, s2, t1, t2, n_o, n_m = _sums_one_m(x, m, chunk, msum)
+            fuse = j + 1 < nm and int(ms[j + 1]) == 2 * m  # the next τ needs the sums over 2m
+        s1, s2, t1, t2, n_o, n_m = _sums_one_m(x, m, chunk, msum, double=fuse)
+        if fuse:
+            m_cur = 2 * m
         if n_o > 0:
             central = s2 + 2.0 * cr * s1 + n_o * cr * cr
             var["oavar"][j] = central / (2.0 * tau * tau * n_o)
             nterm["oavar"][j] = n_o
+            if m == 1:
+                var["avar"][j], nterm["avar"][j] = var["oavar"][j], n_o
         else:
             central = np.zeros(c)
         if n_m > 0:

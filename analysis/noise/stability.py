@@ -310,11 +310,22 @@ def _diff_sumsq(
         return s, k
     offs = tuple(j * m for j in range(d + 1))
     step = max(_CHUNK - _CHUNK % stride, stride)
+    width = -(-min(step, count) // stride)
+    buf, tmp = np.empty((c, width)), np.empty((c, width))  # reused: no allocation per chunk
     for a in range(0, count, step):
         b = min(count, a + step)
-        v = coeffs[0] * x[:, a:b:stride]
+        w = -(-(b - a) // stride)
+        v, t = buf[:, :w], tmp[:, :w]
+        np.multiply(x[:, a:b:stride], coeffs[0], out=v)
         for j in range(1, d + 1):
-            v += coeffs[j] * x[:, a + offs[j] : b + offs[j] : stride]
+            xj = x[:, a + offs[j] : b + offs[j] : stride]
+            if coeffs[j] == 1.0:
+                np.add(v, xj, out=v)
+            elif coeffs[j] == -1.0:
+                np.subtract(v, xj, out=v)
+            else:
+                np.multiply(xj, coeffs[j], out=t)
+                np.add(v, t, out=v)
         ok = rec.points_ok(a, b - a, offs, stride)
         if ok is not None:
             v[~ok] = 0.0
