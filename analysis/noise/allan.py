@@ -314,7 +314,9 @@ def _sums_one_m(
             kk = min(e, n_m) - s
             if msum is not None:
                 inner = buf2[:, :kk]
-                if kk <= m:
+                if m == 1 and k > m and kk <= k:  # S_1 is x itself: inner = d and g1 = d1, bit for bit
+                    g1 = d1
+                elif kk <= m:
                     np.add(msum[:, s + 2 * m : s + 2 * m + kk], msum[:, s : s + kk], out=inner)
                     inner -= msum[:, s + m : s + m + kk]
                     inner -= msum[:, s + m : s + m + kk]
@@ -325,7 +327,12 @@ def _sums_one_m(
                 if double:  # columns < s + kk are not read again at this m (later chunks start at s + kk)
                     hi = min(top, s + kk)
                     if hi > done:
-                        msum[:, done:hi] += msum[:, done + m : hi + m]
+                        if kk > m and done == s:  # S_2m(j) = 2 S_m(j) + (S_m(j+m) − S_m(j)): g1 is in cache
+                            blk = msum[:, s:hi]
+                            blk *= 2.0
+                            blk += g1[:, : hi - s]
+                        else:
+                            msum[:, done:hi] += msum[:, done + m : hi + m]
                         done = hi
             else:
                 cs = np.cumsum(d, axis=1)
