@@ -388,6 +388,27 @@ def _encode_chunk(chunk: NDArray[Any], rle: bool = False) -> bytes:
     return z + _fletcher32(z).to_bytes(4, "little")
 
 
+def _append_rows(d: h5py.Dataset, data: NDArray[Any]) -> None:
+    """Append rows to an extendable dataset."""
+    n0 = d.shape[0]
+    d.resize(n0 + data.shape[0], axis=0)
+    d[n0:] = data
+
+
+def _stored_rows(
+    name: str, data: NDArray[Any], hasher: _StepHasher, quanta: dict[str, float], row0: int
+) -> tuple[NDArray[Any], NDArray[Any] | None]:
+    """Hash recording rows ``row0 …`` of /imu dataset ``name`` (recorded values) into the step's SHA-256 and
+    return what is stored: counts and their exceptions (recording rows) for a quantised dataset, else the
+    values and None."""
+    hasher.update("imu", name, data)
+    if name not in quanta:
+        return data, None
+    counts, exc = _quantise(data, quanta[name], _COUNT_DTYPE[name])
+    exc["row"] += row0
+    return counts, exc
+
+
 class _ChunkWriter:
     """The /imu writing pipeline of the compressed storage: everything but the HDF5 calls runs in one worker
     thread, in submission order, so the runner's thread never waits for it (zlib and numpy release the GIL;
@@ -429,13 +450,9 @@ class _ChunkWriter:
         out: list[tuple[str, int, int, bytes]] = []
         excs: dict[str, NDArray[Any]] = {}
         for name in self.names:
-            data = cols[name]
-            hasher.update("imu", name, data)
-            if name in self.quanta:
-                data, exc = _quantise(data, self.quanta[name], self.dtypes[name])
-                if exc.size:
-                    exc["row"] += row0
-                    excs[name] = exc
+            data, exc = _stored_rows(name, cols[name], hasher, self.quanta, row0)
+            if exc is not None and exc.size:
+                excs[name] = exc
             new = np.asarray(data, dtype=self.dtypes[name])
             tail = self.tail[name]
             rows = np.concatenate([tail, new]) if len(tail) else new
@@ -468,10 +485,7 @@ class _ChunkWriter:
                     d.resize(r1, axis=0)
                 d.id.write_direct_chunk((r0,) + (0,) * (d.ndim - 1), data, 0)
             for name, exc in excs.items():
-                e = self.exc_ds[name]
-                n0 = e.shape[0]
-                e.resize(n0 + exc.shape[0], axis=0)
-                e[n0:] = exc
+                _append_rows(self.exc_ds[name], exc)
 
     def close(self) -> None:
         """Write everything pending and stop the worker."""
@@ -741,11 +755,6 @@ class Hdf5Recorder:
         """Buffer an event-log line."""
         self._buf_events.append((float(time), _utc_now(), level, message))
 
-    def _append(self, d: h5py.Dataset, data: NDArray[Any]) -> None:
-        n0 = d.shape[0]
-        d.resize(n0 + data.shape[0], axis=0)
-        d[n0:] = data
-
     def checkpoint(self, full: bool = True, wait: bool = True) -> None:
         """Write buffered samples, table readings and events, then flush the file (RecordingError if it fails).
 
@@ -785,15 +794,10 @@ class Hdf5Recorder:
                 self._chunks.submit({name: cols[name][:k] for name in IMU_FIELDS}, self._written, self._hasher)
             elif k > 0:
                 for name in IMU_FIELDS:
-                    data = cols[name][:k]
-                    self._hasher.update("imu", name, data)
-                    if name in self._quanta:
-                        c, exc = _quantise(data, self._quanta[name], _COUNT_DTYPE[name])
-                        if exc.size:
-                            exc["row"] += self._written
-                            self._append(f["imu/exceptions"][name], exc)
-                        data = c
-                    self._append(f["imu"][name], data)
+                    data, exc = _stored_rows(name, cols[name][:k], self._hasher, self._quanta, self._written)
+                    if exc is not None and exc.size:
+                        _append_rows(f["imu/exceptions"][name], exc)
+                    _append_rows(f["imu"][name], data)
             if k > 0:
                 self._written += k
                 self._buf_imu.clear()
@@ -815,7 +819,7 @@ class Hdf5Recorder:
             }
             for name, data in tcols.items():
                 self._hasher.update("table", name, data)
-                self._append(f["table"][name], data)
+                _append_rows(f["table"][name], data)
             self._table_written += len(b)
             self._buf_table.clear()
         if self._buf_events:
@@ -826,7 +830,7 @@ class Hdf5Recorder:
                 ],
                 dtype=EVENT_DTYPE,
             )
-            self._append(f["events"], rows)
+            _append_rows(f["events"], rows)
             self._buf_events.clear()
         f.flush()
 
@@ -863,7 +867,7 @@ class Hdf5Recorder:
                 ],
                 dtype=STEP_DTYPE,
             )
-            self._append(self._file["steps"], row)
+            _append_rows(self._file["steps"], row)
             self._file.flush()
 
         with self._writing():
