@@ -360,6 +360,20 @@ def _mod_sumsq(rec: _Record, m: int) -> tuple[NDArray[np.float64], NDArray[np.in
     return np.einsum("ij,ij->i", v, v), np.full(c, count, dtype=np.int64)
 
 
+def _mirror(j: NDArray[np.int64], n: int) -> NDArray[np.int64]:
+    """The sample a reflected index −(n−1) ≤ j ≤ 2(n−1) mirrors: −j before the start, 2(n−1) − j after the end."""
+    return np.where(j < 0, -j, np.where(j > n - 1, 2 * (n - 1) - j, j))
+
+
+def _reflected(x: NDArray[np.float64], j: NDArray[np.int64]) -> NDArray[np.float64]:
+    """x*_j of the phase x (C, n) extended by inverted reflection at both ends (the total variances'
+    extension): x*_{−j} = 2x_0 − x_j, x*_{n−1+j} = 2x_{n−1} − x_{n−1−j}."""
+    n = x.shape[1]
+    v = x[:, _mirror(j, n)]
+    v = np.where(j < 0, 2.0 * x[:, :1] - v, v)
+    return np.where(j > n - 1, 2.0 * x[:, n - 1 : n] - v, v)
+
+
 def _oadev_sumsq(rec: _Record, m: int, cache: dict) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Σ (x_{i+2m} − 2x_{i+m} + x_i)² over i = 0 … N−2m−1 (gap terms skipped), once per m (OADEV, TOTDEV)."""
     if ("osum", m) not in cache:
@@ -378,14 +392,7 @@ def _tot_sumsq_central(rec: _Record, m: int, cache: dict) -> tuple[NDArray[np.fl
     s = _oadev_sumsq(rec, m, cache)[0].copy() if n - 2 * m > 0 else np.zeros(c)
     ends = np.concatenate([np.arange(1, min(m, n - 1)), np.arange(max(n - m, m), n - 1)])
     if ends.size:
-
-        def refl(j: NDArray[np.int64]) -> NDArray[np.float64]:
-            jj = np.where(j < 0, -j, np.where(j > n - 1, 2 * (n - 1) - j, j))
-            v = x[:, jj]
-            v = np.where(j < 0, 2.0 * x[:, :1] - v, v)
-            return np.where(j > n - 1, 2.0 * x[:, n - 1 : n] - v, v)
-
-        v = refl(ends - m) - 2.0 * x[:, ends] + refl(ends + m)
+        v = _reflected(x, ends - m) - 2.0 * x[:, ends] + _reflected(x, ends + m)
         s += np.einsum("ij,ij->i", v, v)
     return s, np.full(c, n - 2, dtype=np.int64)
 
@@ -399,28 +406,16 @@ def _tot_sumsq(rec: _Record, m: int) -> tuple[NDArray[np.float64], NDArray[np.in
     i = np.arange(1, n - 1)
     lo = i - m
     hi = i + m
-
-    def refl(j: NDArray[np.int64]) -> NDArray[np.float64]:
-        out = np.empty((c, j.size))
-        left = j < 0
-        right = j > n - 1
-        mid = ~(left | right)
-        out[:, mid] = x[:, j[mid]]
-        out[:, left] = 2.0 * x[:, :1] - x[:, -j[left]]
-        out[:, right] = 2.0 * x[:, n - 1 : n] - x[:, 2 * (n - 1) - j[right]]
-        return out
-
     if m > n - 2:
         return np.zeros(c), np.zeros(c, dtype=np.int64)
-    v = refl(lo) - 2.0 * x[:, 1 : n - 1] + refl(hi)
+    v = _reflected(x, lo) - 2.0 * x[:, 1 : n - 1] + _reflected(x, hi)
     if not rec.has_gaps:
         return np.einsum("ij,ij->i", v, v), np.full(c, n - 2, dtype=np.int64)
     if rec.data_type == "phase":
         p = rec.point_ok
         ok = p[:, 1 : n - 1].copy()
         for j in (lo, hi):
-            jj = np.where(j < 0, -j, np.where(j > n - 1, 2 * (n - 1) - j, j))
-            ok &= p[:, jj]
+            ok &= p[:, _mirror(j, n)]
         ok &= np.where(lo < 0, p[:, :1], True)
         ok &= np.where(hi > n - 1, p[:, n - 1 : n], True)
     else:
