@@ -341,17 +341,15 @@ def _sums_one_m(
                 t1 += inner.sum(axis=1)
             t2 += np.einsum("ij,ij->i", inner, inner)
     if double and msum is not None:
-        for a in range(done, top, chunk):  # the rest, ascending (as _double_moving_sum)
-            b = min(top, a + chunk)
-            msum[:, a:b] += msum[:, a + m : b + m]
-        msum[:, top:] = np.nan
+        _double_moving_sum(msum, m, chunk, start=done)  # the columns not doubled in the loop
     return s1, s2, t1, t2, n_o, max(n_m, 0)
 
 
-def _double_moving_sum(msum: NDArray[np.float64], m: int, chunk: int) -> None:
-    """In place: moving sums over m → over 2m (S_{2m}(j) = S_m(j) + S_m(j+m)), ascending chunks."""
+def _double_moving_sum(msum: NDArray[np.float64], m: int, chunk: int, start: int = 0) -> None:
+    """In place: moving sums over m → over 2m (S_{2m}(j) = S_m(j) + S_m(j+m)), ascending chunks, from column
+    ``start`` on (the columns before it already doubled)."""
     top = msum.shape[1] - m
-    for s in range(0, top, chunk):
+    for s in range(start, top, chunk):
         e = min(top, s + chunk)
         msum[:, s:e] += msum[:, s + m : e + m]
     msum[:, top:] = np.nan  # windows that run past the record are undefined
