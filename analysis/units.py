@@ -12,6 +12,9 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+from numpy.typing import ArrayLike
+
 G0: float = 9.80665
 """Standard gravity (m/s²), used only to express accelerations in g / µg for display."""
 
@@ -127,3 +130,17 @@ def format_hms(seconds: float) -> str:
 MAX_MAGNITUDE: float = 1e100
 """Largest |value| (SI) the analyses accept: sums of squares of 10⁸ such values stay far below the float64
 overflow (1.8e308). A larger value is a unit or scale-factor mistake, refused with the channel and sample."""
+
+
+def magnitude_problem(values: ArrayLike, sums: str) -> str | None:
+    """The one rule for values too large to analyse: None if every |value| ≤ :data:`MAX_MAGNITUDE` (NaN gaps
+    ignored), else the message (largest value, its sample, the limit and the fix) for the caller to raise with
+    its own error type and the channel's name. ``sums`` names what would overflow (e.g. "variance")."""
+    a = np.abs(np.asarray(values, dtype=np.float64).ravel())
+    peak = float(np.fmax.reduce(a, initial=0.0))
+    if peak <= MAX_MAGNITUDE:
+        return None
+    return (
+        f"values up to {peak:.3g} (sample {int(np.nanargmax(a))}) are too large for the {sums} sums "
+        f"(limit {MAX_MAGNITUDE:.0e}); check the channel's unit or scale factor"
+    )

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from analysis.units import MAX_MAGNITUDE
+from analysis.units import magnitude_problem
 from core.errors import UserError
 
 MAD_TO_SIGMA: float = 1.4826022185056018
@@ -50,12 +50,10 @@ def check_series(x: ArrayLike, name: str = "series", min_samples: int = 16) -> N
             f"{name}: {int(bad.sum())} NaN/inf value(s), first at sample {int(np.argmax(bad))}; "
             "remove or interpolate them before drift analysis"
         )
+    too_large = magnitude_problem(a, "variance and likelihood")
+    if too_large:
+        raise DriftInputError(f"{name}: {too_large}")
     scale = max(float(np.max(np.abs(a))), np.finfo(float).tiny)
-    if scale > MAX_MAGNITUDE:
-        raise DriftInputError(
-            f"{name}: values up to {scale:.3g} (sample {int(np.argmax(np.abs(a)))}) are too large for the variance "
-            f"and likelihood sums (limit {MAX_MAGNITUDE:.0e}); check the channel's unit or scale factor"
-        )
     if float(np.ptp(a)) <= 1e-13 * scale:
         raise DriftInputError(
             f"{name}: the series is constant ({a[0]:.6g}); drift analysis needs a varying signal "

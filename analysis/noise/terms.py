@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import nnls
 
 from analysis import units
-from analysis.units import MAX_MAGNITUDE
+from analysis.units import magnitude_problem
 
 TERMS: tuple[str, ...] = ("Q", "N", "B", "K", "R")
 """Noise terms in the order of the powers τ^−2 … τ^2."""
@@ -415,12 +415,9 @@ def analyse_noise(
     if bad:
         raise ValueError(f"channels {', '.join(bad)} differ in length from {names[0]} ({n} samples)")
     for k, a in zip(names, arrays, strict=True):
-        peak = float(np.fmax.reduce(np.abs(a), initial=0.0))  # NaN (gaps) ignored
-        if peak > MAX_MAGNITUDE:
-            raise ValueError(
-                f"channel {k!r}: values up to {peak:.3g} are too large for the variance sums (limit "
-                f"{MAX_MAGNITUDE:.0e}); check the channel's unit or scale factor"
-            )
+        too_large = magnitude_problem(a, "variance")
+        if too_large:
+            raise ValueError(f"channel {k!r}: {too_large}")
     if isinstance(units, str) or units is None:
         unit_of = {k: units or "SI" for k in names}
     else:

@@ -14,7 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 from analysis.periodic.comparison import COMPARISON_UNITS, smoothing_comparison, welch_psd
 from analysis.periodic.identify import identify_periodic
 from analysis.periodic.model import PeriodicInputError, PeriodicModel, PeriodicTerm
-from analysis.units import MAX_MAGNITUDE
+from analysis.units import magnitude_problem
 
 __all__ = ["ChannelAnalysis", "analyse_channel", "analyse_periodic", "term_json", "psd_unit"]
 
@@ -181,12 +181,9 @@ def analyse_channel(
     v = np.asarray(x, dtype=np.float64)
     if not np.all(np.isfinite(v)):
         raise PeriodicInputError("the record contains NaN/inf values; remove or interpolate them")
-    peak = float(np.max(np.abs(v))) if v.size else 0.0
-    if peak > MAX_MAGNITUDE:
-        raise PeriodicInputError(
-            f"values up to {peak:.3g} (sample {int(np.argmax(np.abs(v)))}) are too large for the periodic sums "
-            f"(limit {MAX_MAGNITUDE:.0e}); check the channel's unit or scale factor"
-        )
+    too_large = magnitude_problem(v, "periodic")
+    if too_large:
+        raise PeriodicInputError(too_large)
     if not math.isfinite(calibrate_seconds) or calibrate_seconds <= 0:
         raise PeriodicInputError(
             f"the calibration length must be a positive number of seconds, got {calibrate_seconds}",
