@@ -192,13 +192,12 @@ def _load_recording(
 def _read_channels(rec: Recording, start: int, stop: int, sel: list[str], source: str, allow_gaps: bool) -> NDArray:
     """The selected channels of rows [start, stop) read chunk by chunk (``Recording.iter_samples``) straight
     into one (C, N) float64 array: no whole-step temporaries, no per-channel copies, no stacking. The unit's
-    status flags and non-finite values are checked per chunk."""
+    status flags are checked per chunk, the values as every input is (:func:`_finite_columns`)."""
     fields = tuple(f for f in ("accel", "gyro") if any(s.startswith(f) for s in sel))
     if "status" in rec.sample_fields:
         fields += ("status",)
     mask = sum(1 << RECORDING_CHANNELS.index(s) for s in sel)  # status bit i = channel i invalid
     data = np.empty((len(sel), max(0, stop - start)))
-    bad_total, first_bad = 0, None
     n_flag, first_flag = 0, None
     try:
         for chunk in rec.iter_samples(start, stop, fields, chunk=READ_CHUNK_ROWS):
@@ -213,14 +212,6 @@ def _read_channels(rec: Recording, start: int, stop: int, sel: list[str], source
             nrow = getattr(chunk, fields[0]).shape[0]
             for i, name in enumerate(sel):
                 data[i, a : a + nrow] = getattr(chunk, name[:-2])[:, "xyz".index(name[-1])]
-            rows = data[:, a : a + nrow]
-            bad = np.isinf(rows) if allow_gaps else ~np.isfinite(rows)
-            if bad.any():
-                cols, idx = np.nonzero(bad)
-                bad_total += int(bad.sum())
-                k = int(np.argmin(idx))
-                if first_bad is None:
-                    first_bad = (sel[int(cols[k])], chunk.start - start + int(idx[k]))
     except RecordingError as exc:
         raise InputError(str(exc)) from None
     if first_flag is not None:
@@ -228,11 +219,7 @@ def _read_channels(rec: Recording, start: int, stop: int, sel: list[str], source
             f"{source}: {n_flag} sample(s) of {', '.join(sel)} flagged invalid by the unit's status, first at "
             f"sample {first_flag}; analyse a clean step with --step NAME"
         )
-    if first_bad is not None:
-        raise InputError(
-            f"{source}: {bad_total} non-finite value(s) (NaN/inf), first in channel {first_bad[0]!r} "
-            f"at sample {first_bad[1]}; remove or interpolate them before analysis"
-        )
+    _finite_columns(data.T, sel, source, allow_gaps)
     return data
 
 
