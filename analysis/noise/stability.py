@@ -537,24 +537,62 @@ def _fconv(a: NDArray[np.float64], b: NDArray[np.float64], nout: int) -> NDArray
     return out[:nout].copy() if nout < out.size else out
 
 
-def _autocorr(s: NDArray[np.float64], maxlag: int) -> NDArray[np.float64]:
-    """R_d = Σ_t s_t s_{t+d}, d = 0 … maxlag, of a 1-D series (zero outside), by one real FFT of ≈ N + maxlag
-    points and a DCT-I of the (real, even) power spectrum: peak memory about four times the series."""
+def _autocorr(s: NDArray[np.float64], maxlag: int, step: int = 1) -> NDArray[np.float64]:
+    """R_d = Σ_t s_t s_{t+d}, d = 0, step, 2·step … ≤ maxlag, of a 1-D series (zero outside).
+
+    One buffer of ≈ N + maxlag points holds everything: the series is transformed in place (a complex FFT of
+    its even/odd pairs, then the real-FFT split), the power spectrum is written over it and a DCT-I of that
+    (real, even) spectrum, also in place, gives R; the buffer is then shrunk to the lags kept. Peak memory: the
+    series plus N + maxlag points (at most about twice the series)."""
     n = s.size
     maxlag = min(int(maxlag), n - 1)
-    nf = _fast_len(n + maxlag)
-    while nf % 2:
-        nf = _fast_len(nf + 1)
-    spec = sfft.rfft(s, nf)
-    v = spec.view(np.float64)
-    p = v[0::2] * v[0::2]
-    p += v[1::2] * v[1::2]
-    del spec, v
-    r = sfft.dct(p, type=1, overwrite_x=True)
-    del p
-    out = r[: maxlag + 1] / nf
+    h = int(sfft.next_fast_len(max((n + maxlag + 1) // 2, 2), real=False))  # complex length, nf = 2h ≥ n + maxlag
+    nf = 2 * h
+    buf = np.empty(nf)
+    buf[:n] = s
+    buf[n:] = 0.0
+    z = buf.view(np.complex128)
+    zz = sfft.fft(z, overwrite_x=True, workers=1)
+    if not np.shares_memory(zz, z):  # pragma: no cover - scipy transforms a contiguous complex128 array in place
+        z[:] = zz
+    del zz
+    p0 = (z[0].real + z[0].imag) ** 2  # |X_0|², |X_h|² of the real spectrum X
+    ph = (z[0].real - z[0].imag) ** 2
+    half = h // 2
+    step_k = 1 << 15
+    # pairs (k, h − k): X_k, X_{h−k} = E ∓ i W^k O from Z_k, Z_{h−k}; |X|² written over Z_k, Z_{h−k}
+    for a in range(1, half + 1, step_k):
+        b = min(half + 1, a + step_k)
+        zk = z[a:b].copy()
+        zm = np.conj(z[h - b + 1 : h - a + 1][::-1])
+        e = zk + zm
+        e *= 0.5
+        zk -= zm
+        zk *= 0.5j * np.exp(np.arange(a, b) * (-2j * np.pi / nf))  # i W^k O
+        del zm
+        d = e - zk
+        z[a:b] = d.real * d.real + d.imag * d.imag
+        e += zk
+        z[h - b + 1 : h - a + 1] = (e.real * e.real + e.imag * e.imag)[::-1]
+        del e, zk, d
+    del z
+    buf[0] = p0
+    for a in range(1, h, step_k):  # compact the real parts: buf[k] = P_k
+        b = min(h, a + step_k)
+        buf[a:b] = buf[2 * a : 2 * b : 2]
+    buf[h] = ph
+    r = sfft.dct(buf[: h + 1], type=1, overwrite_x=True, workers=1)
+    if not np.shares_memory(r, buf):  # pragma: no cover - DCT-I of a contiguous view runs in place
+        buf[: h + 1] = r
     del r
-    return out
+    keep = maxlag // step + 1
+    if step > 1:
+        for a in range(1, keep, step_k):
+            b = min(keep, a + step_k)
+            buf[a:b] = buf[step * a : step * b : step]
+    buf.resize(keep, refcheck=False)
+    buf /= nf
+    return buf
 
 
 def _detrend_quadratic(s: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
@@ -802,13 +840,21 @@ def _q_apply(rho: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.flo
     return u[:L] + u[p - 1 : L - 1 : -1]
 
 
-def _series_cache(s: NDArray[np.float64], ch: int, cache: dict, key: str) -> tuple[NDArray, NDArray, float]:
+def _series_cache(
+    s: NDArray[np.float64], ch: int, cache: dict, key: str, need: int
+) -> tuple[NDArray, NDArray, float]:
     """(series minus its least-squares quadratic, its autocorrelation, the quadratic coefficient) of one
-    channel, computed once per record and kept in ``cache``."""
+    channel, computed once per record and kept in ``cache``.
+
+    The autocorrelation holds the lags up to ``need`` at least, or up to ``cache[("maxlag", key)]`` (the largest
+    lag of the estimator's τ grid, set by :func:`_prepass`) when that is larger; ``R_theo`` (Theo1) keeps the
+    even lags only (r[j] = R_2j), the only ones Theo1 reads."""
     ck = (key, ch)
-    if ck not in cache:
+    step = 2 if key == "R_theo" else 1
+    if ck not in cache or (cache[ck][1].size - 1) * step < need:
+        cache.pop(ck, None)
         sd, a = _detrend_quadratic(s[ch])
-        cache[ck] = (sd, _autocorr(sd, sd.size - 1), a)
+        cache[ck] = (sd, _autocorr(sd, max(need, cache.get(("maxlag", key), 0)), step), a)
     return cache[ck]
 
 
@@ -832,7 +878,7 @@ def _blocked_sum(s: NDArray[np.float64], m: int, kind: str) -> float:
         b1 = min(count, b0 + block)
         seg = s[b0 : b1 + span]
         sd, a = _detrend_quadratic(seg)
-        r = _autocorr(sd, min(seg.size - 1, span + 1))
+        r = _autocorr(sd, min(seg.size - 1, span + 1), 1 if kind == "mtot" else 2)
         v, err = fn(sd, m, r, a)
         del sd, r
         if err >= _FFT_MAX_ERR:
@@ -861,7 +907,7 @@ def _total_sumsq(
             if pre is not None:
                 v, err = pre[ch], 0.0 if np.isfinite(pre[ch]) else math.inf
             else:
-                sd, r, a = _series_cache(s, ch, cache, key)
+                sd, r, a = _series_cache(s, ch, cache, key, 3 * m - 1)
                 v, err = _mtot_fft(sd, m, r, a)
             e[ch] = v if err < _FFT_MAX_ERR else _blocked_sum(s[ch], m, "mtot")
         return e, np.full(c, count, dtype=np.int64)
@@ -873,7 +919,7 @@ def _prepass(rec: _Record, name: str, ms: NDArray[np.int64], cache: dict) -> Non
     that only one channel's detrended series and autocorrelation are alive at a time (memory a few × one
     channel instead of × all channels). Stored as ``cache[("pre", key, m)]`` (NaN: rounding estimate too
     large, the direct sum is used)."""
-    if rec.has_gaps or rec.channels == 1:
+    if rec.has_gaps:
         return
     if name in ("mtotdev", "ttotdev"):
         key, fn, src = "R_phase", _mtot_fft, rec.x
@@ -888,12 +934,17 @@ def _prepass(rec: _Record, name: str, ms: NDArray[np.int64], cache: dict) -> Non
         todo = [int(m) for m in ms if m >= 64 and m % 2 == 0 and rec.n - m > 0]
     else:
         return
+    if todo:  # the largest lag the grid reads: R_d, d < 3m (total family); R_2δ, δ < m/2 (Theo1)
+        need = max(todo) - 2 if fn is _theo1_fft else 3 * max(todo) - 1
+        cache[("maxlag", key)] = max(need, cache.get(("maxlag", key), 0))
+    if rec.channels == 1:  # one channel: the τ loop computes each m in turn, with the same cached series
+        return
     todo = [m for m in todo if ("pre", key, m) not in cache]
     if not todo:
         return
     vals = {m: np.full(rec.channels, np.nan) for m in todo}
     for ch in range(rec.channels):
-        sd, r, a = _series_cache(src, ch, cache, key)
+        sd, r, a = _series_cache(src, ch, cache, key, cache[("maxlag", key)])
         bad = []
         for m in todo:
             v, err = fn(sd, m, r, a)
@@ -940,112 +991,217 @@ def _theo1_sumsq(
         return total, ok.sum(axis=1) * h
     return total, np.full(c, count * h, dtype=np.int64)
 
-_TRI_BASE = 256
-"""Triangle size below which :func:`_tri` sums directly."""
+_LEAN_MIN = 1 << 16
+"""Smallest FFT length of the blocked correlations (:func:`_fft_cap`)."""
+_LEAN_DIV = 8
+"""The blocked correlations of a series of N points use FFTs of at most about N / this many points, so each of
+their few buffers costs a fraction of the series (see :func:`_corr_sum`)."""
 
 
-def _tri(a: NDArray, b: NDArray, g: NDArray, off: int, n: int, gz: int) -> NDArray[np.float64]:
-    """Σ over u, v ∈ [0, n) with u + v < n of a_u b_v g[v − u + off + gz], per channel, in O(n log² n).
+def _fft_cap(n: int) -> int:
+    """Largest FFT length (even) of the blocked correlations of a series of n points."""
+    cap = _fast_len(max(_LEAN_MIN, n // _LEAN_DIV))
+    return cap + cap % 2
 
-    Divide and conquer on the anti-diagonal triangle: the square [0, n/2)² is a cross-correlation (FFT), the
-    two remaining strips are triangles of half the size (recursion), and for odd n the centre point.
-    """
-    if n <= 0:
-        return np.zeros(a.shape[0])
-    if n <= _TRI_BASE:
-        u = np.arange(n)
-        wmat = g[(u[None, :] - u[:, None]) + off + gz] * ((u[:, None] + u[None, :]) < n)
-        return np.einsum("cu,uv,cv->c", a[:, :n], wmat, b[:, :n])
-    k = n // 2
-    nf = _fast_len(2 * k)
-    f = sfft.rfft(a[:, :k], nf)
-    np.conjugate(f, out=f)
-    f *= sfft.rfft(b[:, :k], nf)
-    cc = sfft.irfft(f, nf, overwrite_x=True)
-    del f
-    d = np.arange(-(k - 1), k)
-    tot = (cc[:, d % nf] * g[d + off + gz]).sum(axis=1)
-    del cc
-    r = n - k
-    a2 = np.zeros((a.shape[0], r))
-    a2[:, :k] = a[:, :k]
-    tot += _tri(a2, b[:, k:n], g, off + k, r, gz)
-    b2 = np.zeros((b.shape[0], r))
-    b2[:, :k] = b[:, :k]
-    tot += _tri(a[:, k:n], b2, g, off - k, r, gz)
-    if n % 2:
-        tot += a[:, k] * b[:, k] * g[off + gz]
+
+def _corr_sum(get_a, na: int, get_b, nb: int, kern, lo: int, hi: int, cap: int) -> float:
+    """Σ_{u<na, v<nb} a_u b_v K(v − u) for a kernel K that is zero outside the lags [lo, hi).
+
+    ``get_a(i, j)`` and ``get_b(i, j)`` return a[i:j] and b[i:j] (so a series can be formed block by block),
+    ``kern(l0, l1)`` K over the lags l0 … l1 − 1. One FFT cross-correlation when na + nb − 1 ≤ cap; otherwise
+    blocks of cap/2 points of a against blocks of b whose lags meet [lo, hi), one FFT of cap points per pair
+    (memory O(cap), a few buffers, instead of O(na + nb))."""
+    if na <= 0 or nb <= 0 or hi <= lo:
+        return 0.0
+    if na + nb - 1 <= cap:
+        nf, blk = _fast_len(na + nb - 1), max(na, nb)
+    else:
+        nf, blk = cap, cap // 2
+    tot = 0.0
+    for j0 in range(0, na, blk):
+        j1 = min(na, j0 + blk)
+        fa = None
+        for k0 in range(0, nb, blk):
+            k1 = min(nb, k0 + blk)
+            base = k0 - j0  # lag of a_{j0} with b_{k0}; the pair covers base − (j1 − j0 − 1) … base + k1 − k0 − 1
+            if base + (k1 - k0) <= lo or base - (j1 - j0 - 1) >= hi:
+                continue
+            if fa is None:
+                fa = sfft.rfft(get_a(j0, j1), nf)
+                np.conjugate(fa, out=fa)
+            f = sfft.rfft(get_b(k0, k1), nf)
+            f *= fa
+            cc = sfft.irfft(f, nf, overwrite_x=True)  # cc[δ mod nf] = Σ_u a_{j0+u} b_{k0+u+δ}
+            del f
+            tot += _dot(cc[: k1 - k0], kern(base, base + k1 - k0))
+            if j1 - j0 > 1:
+                tot += _dot(cc[nf - (j1 - j0) + 1 :], kern(base - (j1 - j0) + 1, base))
+            del cc
+        del fa
     return tot
 
 
-def _window_sums(f, count: int, top: int, sq: bool) -> NDArray[np.float64]:
-    """W(o) = Σ_{c<count} f_{c+o} (or f²) for o = 0 … top: one direct sum and a cumulative sum of the O(top)
-    end differences (no full-length prefix sums)."""
-    w = np.empty(top + 1)
-    head = f[:top]
-    tail = f[count : count + top]
-    w[0] = _dot(f[:count], f[:count]) if sq else float(f[:count].sum())
-    np.cumsum(tail * tail - head * head if sq else tail - head, out=w[1:])
-    w[1:] += w[0]
-    return w
+_TRI_BASE = 256
+"""Triangle size below which :func:`_tri` sums directly."""
+_TRI_IDX: dict[int, tuple[NDArray, NDArray]] = {}
+
+
+def _tri(a: NDArray, b: NDArray, gk, off: int, n: int, cap: int) -> float:
+    """Σ over u, v ∈ [0, n) with u + v < n of a_u b_v G(v − u + off), 1-D a and b zero beyond their length and
+    ``gk(e0, e1)`` G over e0 … e1 − 1 (zero outside [0, ∞)), in O(n log² n).
+
+    Divide and conquer on the anti-diagonal triangle: the square [0, n/2)² is a cross-correlation
+    (:func:`_corr_sum`, blocked beyond ``cap``), the two remaining strips are triangles of half the size
+    (recursion, on views: a strip's missing half is a's or b's end), and for odd n the centre point.
+    """
+    a = a[:n]
+    b = b[:n]
+    if n <= 0 or a.size == 0 or b.size == 0:
+        return 0.0
+    if n <= _TRI_BASE:
+        if n not in _TRI_IDX:
+            u = np.arange(n)
+            _TRI_IDX[n] = ((u[None, :] - u[:, None]) + (n - 1), (u[:, None] + u[None, :]) < n)
+        idx, mask = _TRI_IDX[n]
+        g = gk(off - (n - 1), off + n)
+        wmat = g[idx] * mask
+        return float(np.einsum("u,uv,v->", a, wmat[: a.size, : b.size], b))
+    k = n // 2
+    tot = _corr_sum(
+        lambda i, j: a[i:j], min(a.size, k), lambda i, j: b[i:j], min(b.size, k),
+        lambda l0, l1: gk(l0 + off, l1 + off), -off, 1 << 62, cap,
+    )
+    r = n - k
+    tot += _tri(a[:k], b[k:n], gk, off + k, r, cap)
+    tot += _tri(a[k:n], b[:k], gk, off - k, r, cap)
+    if n % 2 and k < a.size and k < b.size:
+        tot += float(a[k] * b[k] * gk(off, off + 1)[0])
+    return tot
+
+
+def _window_sum_chunks(f: NDArray[np.float64], count: int, top: int, sq: bool):
+    """Yield (o₀, W[o₀ : o₁]) for W(o) = Σ_{c<count} f_{c+o} (or f²), o = 0 … top, in ascending chunks: one direct
+    sum and a running cumulative sum of the O(top) end differences (no array as long as top)."""
+    w0 = _dot(f[:count], f[:count]) if sq else float(f[:count].sum())
+    yield 0, np.array([w0])
+    carry = w0
+    step = 1 << 16
+    for o0 in range(1, top + 1, step):
+        o1 = min(top + 1, o0 + step)
+        tail = f[count + o0 - 1 : count + o1 - 1]
+        head = f[o0 - 1 : o1 - 1]
+        c = np.cumsum(tail * tail - head * head if sq else tail - head)
+        c += carry
+        carry = float(c[-1])
+        yield o0, c
+
+
+def _fold_windows(chunks, h: int, coef) -> tuple[float, float, float]:
+    """(Σ_{δ<h} c_δ (W[h − δ] + W[h + δ]), W[0], W[2h]) over the chunks of :func:`_window_sum_chunks` (top = 2h),
+    ``coef(d0, d1)`` giving c_δ for δ = d0 … d1 − 1."""
+    tot = w_lo = w_hi = 0.0
+    for o0, v in chunks:
+        o1 = o0 + v.size
+        if o0 == 0:
+            w_lo = float(v[0])
+        if o1 > 2 * h:
+            w_hi = float(v[2 * h - o0])
+        lo, hi = max(o0, 1), min(o1, h + 1)  # o = h − δ
+        if hi > lo:
+            tot += _dot(v[lo - o0 : hi - o0][::-1], coef(h - hi + 1, h - lo + 1))
+        lo, hi = max(o0, h), min(o1, 2 * h)  # o = h + δ
+        if hi > lo:
+            tot += _dot(v[lo - o0 : hi - o0], coef(lo - h, hi - h))
+    return tot, w_lo, w_hi
 
 
 def _theo1_fft(x: NDArray[np.float64], m: int, r: NDArray[np.float64], a: float) -> tuple[float, float]:
-    """Theo1's double sum of one gap-free channel in O(N log m + m log² m) given the autocorrelation r of x,
-    and a rounding-error scale (see :func:`_theo1_sumsq`).
+    """Theo1's double sum of one gap-free channel in O(N log m + m log² m) given the even-lag autocorrelation
+    r (r[j] = R_2j) of x, and a rounding-error scale (see :func:`_theo1_sumsq`).
 
     With c = i + m/2 and A_c = x_{c−m/2} + x_{c+m/2}, each term is (A_c − x_{c−δ} − x_{c+δ})²/(m/2 − δ); summed
     over δ it is W A_c² − 2 A_c (k∗x)_c + (k∗x²)_c + 2 Σ_δ w_δ x_{c−δ} x_{c+δ} with k the symmetric kernel of the
-    weights w_δ = 1/(m/2 − δ). Σ A_c² and Σ (k∗x²)_c are window sums of x² plus one lagged dot product;
-    Σ A_c (k∗x)_c is a blocked (overlap-save) FFT correlation, memory O(max(m, 2¹⁶)); the last sum over c is
-    Σ_δ w_δ R_{2δ} (the record's autocorrelation) less two anti-diagonal triangles of the first and of the
+    weights w_δ = 1/(m/2 − δ). Σ A_c² and Σ (k∗x²)_c are window sums of x² (in chunks) plus one lagged dot
+    product; Σ A_c (k∗x)_c is a blocked (overlap-save) FFT correlation, the kernel itself cut into pieces when
+    it is long; the last sum over c is Σ_δ w_δ R_{2δ} less two anti-diagonal triangles of the first and of the
     reversed last m − 1 samples (:func:`_tri`). x has its least-squares quadratic removed (a its coefficient per
-    sample², whose exact terms 2a(h² − δ²) per term are added back).
+    sample², whose exact terms 2a(h² − δ²) per term are added back). Memory: the weights (m/2 points) and FFT
+    buffers of at most :func:`_fft_cap` points, whatever m.
     """
     n = x.size
     h = m // 2
     count = n - m
-    dl = np.arange(h)
-    w = 1.0 / (h - dl)
+    cap = _fft_cap(n)
+    w = 1.0 / (h - np.arange(h))
     wsum = float(w.sum())
-    w2 = _window_sums(x, count, m, True)
-    t3 = _dot(w, w2[h - dl] + w2[h + dl])
-    t1 = wsum * (w2[0] + w2[m] + 2.0 * _dot(x[:count], x[m : m + count]))
-    # Σ_c A_c (k∗x)_c, (k∗x)_c = Σ_{j<m−1} kern_j x_{c+1+j}
+    t3, w2_0, w2_m = _fold_windows(_window_sum_chunks(x, count, m, True), h, lambda d0, d1: w[d0:d1])
+    t1 = wsum * (w2_0 + w2_m + 2.0 * _dot(x[:count], x[m : m + count]))
+    # Σ_c A_c (k∗x)_c, (k∗x)_c = Σ_{j<m−1} kern_j x_{c+1+j}, kern_j = w_{|j − h + 1|} (2 w_0 at j = h − 1)
     kl = m - 1
-    kern = np.zeros(kl)
-    kern[h - 1 - dl] = w
-    kern[h - 1 + dl] = w
-    kern[h - 1] = 2.0 * w[0]
-    nf = min(_fast_len(max(4 * kl, 1 << 16)), _fast_len(count + kl - 1))
-    blk = nf - kl + 1
-    kf = sfft.rfft(kern[::-1], nf)
+
+    def kern(j0: int, j1: int) -> NDArray[np.float64]:
+        out = np.empty(j1 - j0)
+        p1 = min(j1, h - 1)
+        if p1 > j0:
+            out[: p1 - j0] = w[h - p1 : h - j0][::-1]
+        if j0 <= h - 1 < j1:
+            out[h - 1 - j0] = 2.0 * w[0]
+        p2 = max(j0, h)
+        if j1 > p2:
+            out[p2 - j0 :] = w[p2 - h + 1 : j1 - h + 1]
+        return out
+
+    piece = kl if 4 * kl <= cap else cap // 2
     t2 = 0.0
-    for c0 in range(0, count, blk):
-        c1 = min(count, c0 + blk)
-        f = sfft.rfft(x[c0 + 1 : c1 + kl], nf)
-        f *= kf
-        kc = sfft.irfft(f, nf, overwrite_x=True)[kl - 1 : kl - 1 + c1 - c0]
-        del f
-        t2 += _dot(x[c0:c1] + x[c0 + m : c1 + m], kc)
-        del kc
+    for j0 in range(0, kl, piece):  # kernel pieces j0 … j1 − 1, each an overlap-save pass over c
+        j1 = min(kl, j0 + piece)
+        kp = j1 - j0
+        nf = min(_fast_len(max(4 * kp, 1 << 16) if piece == kl else 2 * kp), _fast_len(count + kp - 1))
+        blk = nf - kp + 1
+        kf = sfft.rfft(kern(j0, j1)[::-1], nf)
+        for c0 in range(0, count, blk):
+            c1 = min(count, c0 + blk)
+            f = sfft.rfft(x[c0 + 1 + j0 : c1 + j1], nf)
+            f *= kf
+            kc = sfft.irfft(f, nf, overwrite_x=True)[kp - 1 : kp - 1 + c1 - c0]
+            del f
+            t2 += _dot(x[c0:c1] + x[c0 + m : c1 + m], kc)
+            del kc
+        del kf
     t2 *= 2.0
-    s4 = _dot(r[2 * dl], w)
-    gz = m  # _tri reads g at gz + (v − u), |v − u| ≤ m − 2
-    g = np.zeros(2 * m + 1)
-    g[gz + 2 * dl] = w
-    head = x[None, : m - 1]
-    tail = x[None, ::-1][:, : m - 1]
-    s4 -= float(_tri(head, head, g, 0, m - 1, gz)[0] + _tri(tail, tail, g, 0, m - 1, gz)[0])
+    s4 = _dot(r[:h], w)
+
+    def gk(e0: int, e1: int) -> NDArray[np.float64]:  # G(e) = w_{e/2} at even e ∈ [0, m − 2], else 0
+        out = np.zeros(e1 - e0)
+        s = max(e0, 0)
+        s += s & 1
+        t = min(e1, 2 * h - 1)
+        if t > s:
+            out[s - e0 : t - e0 : 2] = w[s // 2 : (t + 1) // 2]
+        return out
+
+    s4 -= _tri(x[: m - 1], x[: m - 1], gk, 0, m - 1, cap)
+    tail = x[::-1][: m - 1]
+    s4 -= _tri(tail, tail, gk, 0, m - 1, cap)
     v = t1 - t2 + t3 + 2.0 * s4
     scale = 8.0 * (t1 + abs(t2) + t3 + 2.0 * wsum * abs(float(r[0])))
     if a != 0.0:
         # Theo1 is blind to a line in the phase, and a quadratic a t² adds exactly 2a(h² − δ²) to every term
-        qd = 2.0 * (h * h - dl * dl.astype(np.float64))
-        s1 = _window_sums(x, count, m, False)
-        esum = s1[0] + s1[m] - s1[h - dl] - s1[h + dl]
-        cross = 2.0 * a * _dot(esum, w * qd)
-        square = count * a * a * float(np.sum(w * qd * qd))
+
+        def wq(d0: int, d1: int) -> NDArray[np.float64]:  # w_δ · 2(h² − δ²)
+            d = np.arange(d0, d1, dtype=np.float64)
+            return w[d0:d1] * (2.0 * (h * h - d * d))
+
+        s1, s1_0, s1_m = _fold_windows(_window_sum_chunks(x, count, m, False), h, wq)
+        step = 1 << 16
+        wq_sum = wq_sq = 0.0
+        for d0 in range(0, h, step):
+            c = wq(d0, min(h, d0 + step))
+            d = np.arange(d0, d0 + c.size, dtype=np.float64)
+            wq_sum += float(c.sum())
+            wq_sq += _dot(c, 2.0 * (h * h - d * d))
+        cross = 2.0 * a * ((s1_0 + s1_m) * wq_sum - s1)
+        square = count * a * a * wq_sq
         v += cross + square
         scale += 8.0 * (abs(cross) + abs(square))
     err = 1.1e-16 * scale / abs(v) if v != 0.0 else math.inf
@@ -1064,7 +1220,7 @@ def _theo1_total(rec: _Record, m: int, cache: dict) -> tuple[NDArray[np.float64]
             if pre is not None:
                 v, err = pre[ch], 0.0 if np.isfinite(pre[ch]) else math.inf
             else:
-                xd, r, a = _series_cache(rec.x, ch, cache, "R_theo")
+                xd, r, a = _series_cache(rec.x, ch, cache, "R_theo", m - 2)
                 v, err = _theo1_fft(xd, m, r, a)
             out[ch] = v if err < _FFT_MAX_ERR else _blocked_sum(rec.x[ch], m, "theo1")
         return out, np.full(c, (n - m) * (m // 2), dtype=np.int64)
