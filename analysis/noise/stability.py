@@ -527,58 +527,127 @@ def _fast_len(n: int) -> int:
     return int(sfft.next_fast_len(max(int(n), 2), real=True))
 
 
-def _fconv(a: NDArray[np.float64], b: NDArray[np.float64], nout: int) -> NDArray[np.float64]:
-    """First ``nout`` values of the linear convolution of two 1-D arrays (one FFT length, temporaries freed)."""
-    nf = _fast_len(a.size + b.size - 1)
-    fa = sfft.rfft(a, nf)
-    fa *= sfft.rfft(b, nf)
-    out = sfft.irfft(fa, nf, overwrite_x=True)
-    del fa
-    return out[:nout].copy() if nout < out.size else out
+_IP_STEP = 1 << 15
+"""Chunk (complex values) of the in-place spectrum passes."""
+_IP_SMALL = 1 << 18
+"""Buffers up to this length are transformed by scipy's real FFT through a temporary (faster when small)."""
 
 
-def _autocorr(s: NDArray[np.float64], maxlag: int, step: int = 1) -> NDArray[np.float64]:
-    """R_d = Σ_t s_t s_{t+d}, d = 0, step, 2·step … ≤ maxlag, of a 1-D series (zero outside).
-
-    One buffer of ≈ N + maxlag points holds everything: the series is transformed in place (a complex FFT of
-    its even/odd pairs, then the real-FFT split), the power spectrum is written over it and a DCT-I of that
-    (real, even) spectrum, also in place, gives R; the buffer is then shrunk to the lags kept. Peak memory: the
-    series plus N + maxlag points (at most about twice the series)."""
-    n = s.size
-    maxlag = min(int(maxlag), n - 1)
-    h = int(sfft.next_fast_len(max((n + maxlag + 1) // 2, 2), real=False))  # complex length, nf = 2h ≥ n + maxlag
-    nf = 2 * h
-    buf = np.empty(nf)
-    buf[:n] = s
-    buf[n:] = 0.0
+def _rfft_ip(buf: NDArray[np.float64]) -> NDArray[np.complex128]:
+    """Real FFT of ``buf`` (even length nf) in place: returns the complex view of buf holding X_k, k < nf/2, with
+    the two real values packed in slot 0 (X_0 + i X_{nf/2}). A complex FFT of the even/odd sample pairs, then
+    the real-FFT split pair by pair (k, nf/2 − k) in chunks: no buffer besides buf."""
     z = buf.view(np.complex128)
+    h = z.size
+    nf = 2 * h
+    if nf <= _IP_SMALL:  # small: scipy's real FFT (a temporary of nf points), packed
+        f = sfft.rfft(buf, workers=1)
+        z[1:] = f[1:h]
+        z[0] = complex(f[0].real, f[h].real)
+        return z
     zz = sfft.fft(z, overwrite_x=True, workers=1)
     if not np.shares_memory(zz, z):  # pragma: no cover - scipy transforms a contiguous complex128 array in place
         z[:] = zz
     del zz
-    p0 = (z[0].real + z[0].imag) ** 2  # |X_0|², |X_h|² of the real spectrum X
-    ph = (z[0].real - z[0].imag) ** 2
+    z0 = z[0]
+    z[0] = complex(z0.real + z0.imag, z0.real - z0.imag)
     half = h // 2
-    step_k = 1 << 15
-    # pairs (k, h − k): X_k, X_{h−k} = E ∓ i W^k O from Z_k, Z_{h−k}; |X|² written over Z_k, Z_{h−k}
-    for a in range(1, half + 1, step_k):
-        b = min(half + 1, a + step_k)
+    for a in range(1, half + 1, _IP_STEP):  # X_k = E − F, X_{h−k} = conj(E + F), F = i W^k O, W = e^{−2πi/nf}
+        b = min(half + 1, a + _IP_STEP)
         zk = z[a:b].copy()
         zm = np.conj(z[h - b + 1 : h - a + 1][::-1])
         e = zk + zm
         e *= 0.5
         zk -= zm
-        zk *= 0.5j * np.exp(np.arange(a, b) * (-2j * np.pi / nf))  # i W^k O
+        zk *= 0.5j * np.exp(np.arange(a, b) * (-2j * np.pi / nf))
         del zm
-        d = e - zk
-        z[a:b] = d.real * d.real + d.imag * d.imag
+        z[a:b] = e - zk
         e += zk
-        z[h - b + 1 : h - a + 1] = (e.real * e.real + e.imag * e.imag)[::-1]
-        del e, zk, d
+        z[h - b + 1 : h - a + 1] = np.conj(e)[::-1]
+    return z
+
+
+def _irfft_ip(z: NDArray[np.complex128]) -> NDArray[np.float64]:
+    """Inverse of :func:`_rfft_ip` in place (packed spectrum → the real series, 1/nf included), returned as the
+    float view of the same buffer."""
+    h = z.size
+    nf = 2 * h
+    x0, xh = z[0].real, z[0].imag
+    if nf <= _IP_SMALL:
+        f = np.empty(h + 1, dtype=np.complex128)
+        f[1:h] = z[1:]
+        f[0], f[h] = x0, xh
+        out = z.view(np.float64)
+        out[:] = sfft.irfft(f, nf, workers=1)
+        return out
+    half = h // 2
+    for a in range(1, half + 1, _IP_STEP):  # Z_k = Ev_k + i Od_k, Ev = (X_k + conj X_{h−k})/2, Od = W^{−k}(X_k − …)/2
+        b = min(half + 1, a + _IP_STEP)
+        xk = z[a:b].copy()
+        xm = np.conj(z[h - b + 1 : h - a + 1][::-1])
+        ev = xk + xm
+        ev *= 0.5
+        xk -= xm
+        xk *= 0.5j * np.exp(np.arange(a, b) * (2j * np.pi / nf))  # i·Od_k
+        del xm
+        z[a:b] = ev + xk
+        ev -= xk  # Z_{h−k} = conj(Ev_k) + i conj(Od_k) = conj(Ev_k − i Od_k)
+        z[h - b + 1 : h - a + 1] = np.conj(ev)[::-1]
+    z[0] = complex(0.5 * (x0 + xh), 0.5 * (x0 - xh))
+    zz = sfft.ifft(z, overwrite_x=True, workers=1)
+    if not np.shares_memory(zz, z):  # pragma: no cover
+        z[:] = zz
+    del zz
+    return z.view(np.float64)
+
+
+def _spec_update(z: NDArray[np.complex128], op: str, w: NDArray[np.complex128] | None = None) -> None:
+    """In place on a packed spectrum (:func:`_rfft_ip`): "pow" |z|², "sq" z², "mulc" z·conj(w), "cmul"
+    conj(z)·w (w packed alike)."""
+    z0 = z[0]
+    w0 = w[0] if w is not None else 0j
+    for a in range(1, z.size, 1 << 16):
+        b = min(z.size, a + (1 << 16))
+        blk = z[a:b]
+        if op == "pow":
+            blk[:] = blk.real * blk.real + blk.imag * blk.imag
+        elif op == "sq":
+            blk *= blk
+        elif op == "cmul":
+            np.conjugate(blk, out=blk)
+            blk *= w[a:b]
+        else:
+            blk *= np.conj(w[a:b])
+    if op in ("mulc", "cmul"):
+        z[0] = complex(z0.real * w0.real, z0.imag * w0.imag)
+    else:
+        z[0] = complex(z0.real * z0.real, z0.imag * z0.imag)
+
+
+def _even_len(n: int) -> int:
+    """A fast even FFT length ≥ n (whose half is a fast complex length)."""
+    return 2 * int(sfft.next_fast_len(max((int(n) + 1) // 2, 1), real=False))
+
+
+def _autocorr(s, maxlag: int, step: int = 1) -> NDArray[np.float64]:
+    """R_d = Σ_t s_t s_{t+d}, d = 0, step, 2·step … ≤ maxlag, of a 1-D series (zero outside; an array or a
+    :class:`_Detrended`, written into the buffer chunk by chunk).
+
+    One buffer of ≈ N + maxlag points holds everything: the series is transformed in place (:func:`_rfft_ip`),
+    the power spectrum is written over it and a DCT-I of that (real, even) spectrum, also in place, gives R; the
+    buffer is then shrunk to the lags kept. Peak memory: the series plus N + maxlag points."""
+    n = s.size
+    maxlag = min(int(maxlag), n - 1)
+    nf = _even_len(n + maxlag)
+    h = nf // 2
+    buf = np.empty(nf)
+    _fill(buf, s, 0, n)
+    z = _rfft_ip(buf)
+    _spec_update(z, "pow")
+    ph = z[0].imag
     del z
-    buf[0] = p0
-    for a in range(1, h, step_k):  # compact the real parts: buf[k] = P_k
-        b = min(h, a + step_k)
+    for a in range(1, h, _IP_STEP):  # compact the real parts: buf[k] = P_k
+        b = min(h, a + _IP_STEP)
         buf[a:b] = buf[2 * a : 2 * b : 2]
     buf[h] = ph
     r = sfft.dct(buf[: h + 1], type=1, overwrite_x=True, workers=1)
@@ -587,216 +656,406 @@ def _autocorr(s: NDArray[np.float64], maxlag: int, step: int = 1) -> NDArray[np.
     del r
     keep = maxlag // step + 1
     if step > 1:
-        for a in range(1, keep, step_k):
-            b = min(keep, a + step_k)
+        for a in range(1, keep, _IP_STEP):
+            b = min(keep, a + _IP_STEP)
             buf[a:b] = buf[step * a : step * b : step]
     buf.resize(keep, refcheck=False)
     buf /= nf
     return buf
 
 
-def _detrend_quadratic(s: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
-    """A 1-D series minus its least-squares quadratic, and the quadratic's coefficient per sample².
+def _fill(buf: NDArray[np.float64], s, a: int, b: int, ramp: bool = False) -> None:
+    """buf[: b − a] = s[a:b] (times its local index 0 … b − a − 1 if ``ramp``), zeros after; s an array or a
+    :class:`_Detrended`, in chunks."""
+    k = b - a
+    step = 1 << 16
+    for c0 in range(0, k, step):
+        c1 = min(k, c0 + step)
+        blk = buf[c0:c1]
+        blk[:] = s[a + c0 : a + c1] if isinstance(s, np.ndarray) else s.seg(a + c0, a + c1)
+        if ramp:
+            blk *= np.arange(c0, c1, dtype=np.float64)
+    buf[k:] = 0.0
+
+
+class _Detrended:
+    """A 1-D series minus its least-squares quadratic, formed on demand (:meth:`seg`) instead of stored; ``a`` is
+    the quadratic's coefficient per sample².
 
     The basis 1, t, t² − mean(t²) with t = (i − (N−1)/2)/N is orthogonal on the sample grid, so each
     coefficient is one projection (chunked sums: no N × 3 design matrix)."""
-    n = s.size
-    c = 0.5 * (n - 1)
-    step = 1 << 16
-    mt2 = float((n * n - 1.0) / (12.0 * n * n))  # mean of t² on the grid
-    proj = np.zeros(3)
-    norm = np.zeros(3)
-    for a in range(0, n, step):
-        b = min(n, a + step)
-        t = (np.arange(a, b, dtype=np.float64) - c) / n
-        q = t * t - mt2
-        blk = s[a:b]
-        proj += (blk.sum(), _dot(blk, t), _dot(blk, q))
-        norm += (b - a, _dot(t, t), _dot(q, q))
-    coef = np.where(norm > 0, proj / np.where(norm > 0, norm, 1.0), 0.0)
-    out = np.empty(n)
-    for a in range(0, n, step):
-        b = min(n, a + step)
-        t = (np.arange(a, b, dtype=np.float64) - c) / n
-        np.subtract(s[a:b], coef[0] + coef[1] * t + coef[2] * (t * t - mt2), out=out[a:b])
-    return out, float(coef[2]) / float(n) ** 2
 
+    def __init__(self, s: NDArray[np.float64]) -> None:
+        n = s.size
+        self.s = s
+        self.size = n
+        self.c = 0.5 * (n - 1)
+        self.mt2 = float((n * n - 1.0) / (12.0 * n * n))  # mean of t² on the grid
+        proj = np.zeros(3)
+        norm = np.zeros(3)
+        step = 1 << 16
+        for a in range(0, n, step):
+            b = min(n, a + step)
+            t = (np.arange(a, b, dtype=np.float64) - self.c) / n
+            q = t * t - self.mt2
+            blk = s[a:b]
+            proj += (blk.sum(), _dot(blk, t), _dot(blk, q))
+            norm += (b - a, _dot(t, t), _dot(q, q))
+        self.coef = np.where(norm > 0, proj / np.where(norm > 0, norm, 1.0), 0.0)
+        self.a = float(self.coef[2]) / float(n) ** 2
 
-def _seg_products(h: NDArray[np.float64], wa: NDArray, wb: NDArray, fb: float, wc: NDArray, fc: float) -> float:
-    """Σ_d wa_d A_d + fb Σ_d wb_d B_d + fc Σ_σ wc_σ C_σ for a 1-D segment h of n points, with A_d = Σ_t h_t h_{t+d}
-    and B_d = Σ_t t h_t h_{t+d} (d < n) and the self-convolution C_σ = Σ_{u+v=σ} h_u h_v (σ < 2n − 1), from one
-    spectrum of h (the correlations are reduced as soon as they are formed; one padded buffer)."""
-    n = h.size
-    nf = _fast_len(2 * n - 1)
-    buf = np.zeros(nf)
-    buf[:n] = h
-    hf = sfft.rfft(buf, nf, overwrite_x=True)
-    del buf
-    p = hf * hf
-    out = sfft.irfft(p, nf, overwrite_x=True)
-    tot = fc * _dot(out[: 2 * n - 1], wc[: 2 * n - 1])
-    del out
-    pv = p.view(np.float64)
-    hv = hf.view(np.float64)
-    np.multiply(hv[0::2], hv[0::2], out=pv[0::2])
-    pv[1::2] = hv[1::2]
-    pv[1::2] *= hv[1::2]
-    pv[0::2] += pv[1::2]
-    pv[1::2] = 0.0
-    out = sfft.irfft(p, nf, overwrite_x=True)
-    tot += _dot(out[:n], wa[:n])
-    del out, p, pv
-    buf = np.zeros(nf)
-    np.multiply(np.arange(n, dtype=np.float64), h, out=buf[:n])
-    p = sfft.rfft(buf, nf, overwrite_x=True)
-    del buf
-    np.conjugate(p, out=p)
-    p *= hf
-    del hf, hv
-    out = sfft.irfft(p, nf, overwrite_x=True)
-    del p
-    tot += fb * _dot(out[:n], wb[:n])
-    return tot
+    def total(self) -> float:
+        """Σ of every detrended value (computed once)."""
+        if not hasattr(self, "_total"):
+            step = 1 << 18
+            self._total = sum(float(self.seg(a, min(self.size, a + step)).sum()) for a in range(0, self.size, step))
+        return self._total
 
-
-def _seg_corr(seg: NDArray[np.float64], u: NDArray[np.float64], lo: int, hi: int) -> NDArray[np.float64]:
-    """Σ_k u_k seg_{i+k} for i = lo … hi−1 (seg zero outside its n points; i ≥ −(len(u) − 1)) by FFT."""
-    nf = _fast_len(seg.size + u.size - 1)
-    f = sfft.rfft(seg, nf)
-    f *= sfft.rfft(u[::-1], nf)
-    full = sfft.irfft(f, nf, overwrite_x=True)  # index i + len(u) − 1
-    del f
-    return full[lo + u.size - 1 : hi + u.size - 1].copy()
-
-
-def _beta_corr(v: NDArray[np.float64], d0: int, d1: int, L: int, h1: int, D: float) -> NDArray[np.float64]:
-    """Σ_k β_k v_{k+d} for d = d0 … d1 − 1 and the half-mean slope kernel β (−1/(h1·D) on the first h1 of L = 3m
-    points, +1/(h1·D) on the last h1), v zero outside its points: differences of v's prefix sums, O(L)."""
-    n = v.size
-    sv = np.zeros(n + 1)
-    np.cumsum(v, out=sv[1:])
-
-    def ps(off: int) -> NDArray[np.float64]:  # sv[clip(d + off, 0, n)] for the d range
-        lo, hi = d0 + off, d1 + off
-        out = np.empty(hi - lo)
-        a = min(max(0, -lo), out.size)  # leading indices below 0
-        b = max(a, min(out.size, n + 1 - lo))  # indices up to n
-        out[:a] = 0.0
-        out[a:b] = sv[lo + a : lo + b]
-        out[b:] = sv[n]
+    def seg(self, a: int, b: int, out: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+        """The detrended values a … b − 1 (the same numbers whatever the range)."""
+        a, b = max(a, 0), min(b, self.size)
+        out = np.empty(max(b - a, 0)) if out is None else out
+        coef, n = self.coef, self.size
+        for c0 in range(a, b, 1 << 16):
+            c1 = min(b, c0 + (1 << 16))
+            t = (np.arange(c0, c1, dtype=np.float64) - self.c) / n
+            np.subtract(self.s[c0:c1], coef[0] + coef[1] * t + coef[2] * (t * t - self.mt2), out=out[c0 - a : c1 - a])
         return out
 
-    res = ps(L)
-    res -= ps(L - h1)
-    res -= ps(h1)
-    res += ps(0)
+
+def _detrend_quadratic(s: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
+    """A 1-D series minus its least-squares quadratic (stored), and the quadratic's coefficient per sample²."""
+    d = _Detrended(s)
+    return d.seg(0, s.size), d.a
+
+
+def _rho_slice(m: int, t0: int, t1: int) -> NDArray[np.float64]:
+    """ρ(t) of :func:`_kernel_rho` for t = t0 … t1 − 1 (0 ≤ t0 ≤ t1 ≤ 6m) by its closed form (integers)."""
+    t = np.arange(t0, t1)
+    t = np.where(t > 3 * m, 6 * m - t, t)
+    out = np.empty(t.size)
+    a = t < m
+    out[a] = 6.0 * (m - t[a]) - 4.0 * t[a]
+    b = (t >= m) & (t < 2 * m)
+    u = t[b] - m
+    out[b] = -4.0 * (m - u) + 1.0 * u
+    c = t >= 2 * m
+    out[c] = 1.0 * (m - (t[c] - 2 * m))
+    return out
+
+
+def _rho_spectrum(m: int, f0: int, f1: int) -> NDArray[np.float64]:
+    """The real FFT of ρ (period 6m) at f = f0 … f1 − 1: ρ is the kernel's circular autocorrelation, so its
+    spectrum is |κ̂|² = 16 sin⁶(πf/6) / sin²(πf/6m) (0 at f = 0), sin⁶(πf/6) taken exactly from f mod 6."""
+    f = np.arange(f0, f1)
+    s6 = np.array([0.0, 1.0 / 64.0, 27.0 / 64.0, 1.0, 27.0 / 64.0, 1.0 / 64.0])[f % 6]
+    den = np.sin(f * (np.pi / (6 * m)))
+    den *= den
+    return np.divide(16.0 * s6, den, out=np.zeros(f.size), where=f > 0)
+
+
+class _ParityCumsum:
+    """RC[j] = Σ ρ(u) over u ≤ j − 2 with u ≡ j (mod 2), j = 0 … 6m + 1 (RC[0] = RC[1] = 0), slice by slice from
+    checkpoints: ρ is integer-valued, so these are exactly the numbers of one cumulative sum."""
+
+    CH = 1 << 16
+
+    def __init__(self, m: int) -> None:
+        self.m = m
+        p = 6 * m
+        self.full = None
+        if p <= self.CH:  # small: the whole array
+            r = _kernel_rho(m)
+            self.full = np.zeros(p + 2)
+            self.full[2::2] = np.cumsum(r[0::2])
+            self.full[3::2] = np.cumsum(r[1::2])
+            return
+        self.chk = [(0.0, 0.0)]
+        e = o = 0.0
+        for t0 in range(0, p, self.CH):
+            r = _rho_slice(m, t0, min(p, t0 + self.CH))
+            e += float(r[0::2].sum())
+            o += float(r[1::2].sum())
+            self.chk.append((e, o))
+
+    def get(self, j0: int, j1: int) -> NDArray[np.float64]:
+        if self.full is not None:
+            return self.full[j0:j1]
+        q = j0 // self.CH
+        base = q * self.CH
+        out = np.empty(j1 - base)
+        e, o = self.chk[q]
+        out[0::2] = e
+        out[1::2] = o
+        if j1 - 2 > base:
+            r = _rho_slice(self.m, base, j1 - 2)
+            out[2::2] += np.cumsum(r[0::2])
+            out[3::2] += np.cumsum(r[1::2])
+        return out[j0 - base :]
+
+
+class _Prefix:
+    """S(j) = Σ_{k<j} v_k of a series of n values given by ``get(a, b)`` = v[a:b], clipped (S = 0 below 0 and
+    S(n) above n), slice by slice from checkpoints (no array of n values)."""
+
+    CH = 1 << 16
+
+    def __init__(self, get, n: int) -> None:
+        self.get, self.n = get, n
+        self.chk = [0.0]
+        acc = 0.0
+        for a in range(0, n, self.CH):
+            acc += float(get(a, min(n, a + self.CH)).sum())
+            self.chk.append(acc)
+
+    def at(self, j0: int, j1: int) -> NDArray[np.float64]:
+        out = np.empty(j1 - j0)
+        a = min(max(0, -j0), out.size)  # indices below 0
+        b = max(a, min(out.size, self.n + 1 - j0))  # indices up to n
+        out[:a] = 0.0
+        if b > a:
+            lo, hi = j0 + a, j0 + b  # S over [lo, hi) ⊂ [0, n]
+            q = lo // self.CH
+            base = q * self.CH
+            cs = np.empty(hi - base)
+            cs[0] = self.chk[q]
+            if hi - 1 > base:
+                np.cumsum(self.get(base, hi - 1), out=cs[1:])
+                cs[1:] += self.chk[q]
+            out[a:b] = cs[lo - base :]
+        out[b:] = self.chk[-1]
+        return out
+
+
+def _beta_chunk(p: _Prefix, d0: int, d1: int, L: int, h1: int, D: float) -> NDArray[np.float64]:
+    """Σ_k β_k v_{k+d} for d = d0 … d1 − 1, β the half-mean slope kernel (−1/(h1·D) on the first h1 of L = 3m
+    points, +1/(h1·D) on the last h1), v zero outside its points: differences of v's prefix sums."""
+    res = p.at(d0 + L, d1 + L)
+    res -= p.at(d0 + L - h1, d1 + L - h1)
+    res -= p.at(d0 + h1, d1 + h1)
+    res += p.at(d0, d1)
     res /= h1 * D
     return res
 
 
-def _mtot_fft(
-    s: NDArray[np.float64], m: int, R: NDArray[np.float64], a: float
-) -> tuple[float, float]:
+def _q_apply(m: int, v) -> NDArray[np.float64]:
+    """Q v with Q_kl = 2[ρ(k−l) + ρ(k+l+1)], k, l < L = 3m, v an array or ``v(a, b)`` = v[a:b]: Q = Eᵀ C E with E
+    the even extension of period 6m and C the circulant of ρ, so Q v folds one circular convolution of period 6m,
+    done in one buffer of 6m points (:func:`_rfft_ip`, ρ's spectrum in closed form)."""
+    L = 3 * m
+    p = 2 * L
+    get = (lambda a, b: v[a:b]) if isinstance(v, np.ndarray) else v
+    buf = np.empty(p)
+    step = 1 << 16
+    for a in range(0, L, step):
+        b = min(L, a + step)
+        buf[a:b] = get(a, b)
+        buf[p - b : p - a] = buf[a:b][::-1]
+    z = _rfft_ip(buf)
+    sp = _rho_spectrum(m, L, L + 1)[0]
+    z[0] = complex(z[0].real * _rho_spectrum(m, 0, 1)[0], z[0].imag * sp)
+    for a in range(1, L, step):
+        b = min(L, a + step)
+        z[a:b] *= _rho_spectrum(m, a, b)
+    del z
+    u = _irfft_ip(buf.view(np.complex128))
+    del u
+    for a in range(0, L, step):  # fold: Q v = u[:L] + u[L:][::-1]
+        b = min(L, a + step)
+        buf[a:b] += buf[p - b : p - a][::-1]
+    buf.resize(L, refcheck=False)
+    return buf
+
+
+def _mtot_fft(s, m: int, R, a: float) -> tuple[float, float]:
     """The sum of :func:`_reflected_sumsq` for one gap-free channel in O(N) + O(m log m) given R, and an
     error scale (≈ ε × the largest summand / E).
 
-    s is the series with its least-squares quadratic removed (a its coefficient per sample²) and R its
-    autocorrelation. Per subsequence the 6m terms are one period of a circular filter of the even extension z
-    (period 6m), so Σ_j c_j² = zᵀQz with Q_kl = 2[ρ(k−l) + ρ(k+l+1)], ρ the circular autocorrelation of the
-    kernel (1…1, −2…−2, 1…1). With z = X_i − b_i k (X_i the window, b_i = βᵀX_i its half-mean slope) and
-    q = Qk: Σ_i zᵀQz = Σ_i X_iᵀQX_i − 2 Σ_i (βᵀX_i)(qᵀX_i) + kᵀQk Σ_i (βᵀX_i)². Every sum over windows
-    Σ_{i<M} (uᵀX_i)(vᵀX_i) is Σ_d c_uv(d) R_|d| (c_uv the kernels' cross-correlation) less the partial windows
-    hanging over the first and last 3m − 1 samples (FFT correlations of those segments). The Toeplitz part of
-    X_iᵀQX_i weighs R_d by the window count less head and tail corrections (weighted autocorrelations of the
-    end segments); the Hankel part sums, for each pair (u, v), ρ over t = u + v + 1 − 2i of every window i
-    holding both, which in the interior depends only on |u − v| (same-parity cumulative sums of ρ) and at the
-    two ends on u + v (self-convolutions of the end segments). The quadratic a t² removed from the record
-    adds the same vector r = a(k² − βk) to every detrended window; its terms 2 Σ_i rᵀQz_i + M rᵀQr are exact.
+    s is the series with its least-squares quadratic removed (an array or a :class:`_Detrended`, a its
+    coefficient per sample²) and R its autocorrelation (lags < 3m at least; passed in a one-element list, it is
+    released as soon as its terms are summed). Per subsequence the 6m terms are one period of a circular filter
+    of the even extension z (period 6m), so Σ_j c_j² = zᵀQz with Q_kl = 2[ρ(k−l) + ρ(k+l+1)], ρ the circular
+    autocorrelation of the kernel (1…1, −2…−2, 1…1). With z = X_i − b_i k (X_i the window, b_i = βᵀX_i its
+    half-mean slope) and q = Qk: Σ_i zᵀQz = Σ_i X_iᵀQX_i − 2 Σ_i (βᵀX_i)(qᵀX_i) + kᵀQk Σ_i (βᵀX_i)². Every sum
+    over windows Σ_{i<M} (uᵀX_i)(vᵀX_i) is Σ_d c_uv(d) R_|d| (c_uv the kernels' cross-correlation) less the
+    partial windows hanging over the first and last 3m − 1 samples (FFT correlations of those segments). The
+    Toeplitz part of X_iᵀQX_i weighs R_d by the window count less head and tail corrections (weighted
+    autocorrelations of the end segments); the Hankel part sums, for each pair (u, v), ρ over t = u + v + 1 − 2i
+    of every window i holding both, which in the interior depends only on |u − v| (same-parity cumulative sums
+    of ρ) and at the two ends on u + v (self-convolutions of the end segments). The quadratic a t² removed from
+    the record adds the same vector r = a(k² − βk) to every detrended window; its terms 2 Σ_i rᵀQz_i + M rᵀQr
+    are exact.
+
+    Memory: the weights (ρ, its parity sums, the kernels' correlations) are formed slice by slice and every
+    sum of products is reduced as it is formed, so besides s and R at most two in-place FFT buffers of ≈ 6m
+    points are alive (:func:`_rfft_ip`; R released before them when owned).
     """
+    own = isinstance(R, list)
+    Rv = R.pop() if own else R
+    seg = (lambda i, j: s[i:j]) if isinstance(s, np.ndarray) else s.seg
     ls = s.size
     L = 3 * m
     M = ls - L + 1
-    rho = _kernel_rho(m)
-    P = 6 * m
-    RC = np.zeros(P + 2)  # same-parity cumulative sums, RC[t+2] = Rc(t)
-    RC[2::2] = np.cumsum(rho[0::2])
-    RC[3::2] = np.cumsum(rho[1::2])
-    wr = 2.0 * rho[:L]  # w_d ρ(d), w = 1 at d = 0 else 2
-    wr[0] = rho[0]
-    rho0 = float(rho[0])
-    del rho
-    Rd = R[:L]
-    h = s[: L - 1]
-    g = s[M:]
-    sig = RC[3 : 2 * L]  # Rc(σ + 1), σ = 0 … 2L − 4
-    rc_hi = RC[2 * L + 1 : L + 1 : -1]  # Rc(2L − 1 − d), d = 0 … L − 1
-    rc_lo = RC[1 : L + 1]  # Rc(d − 1)
-    # head and tail segments: the Toeplitz part's window-count corrections and the Hankel part's end terms
-    wa = np.multiply(rc_hi, 2.0)
-    wa[0] = rc_hi[0]
-    wa += wr * np.arange(L - 1, -1, -1, dtype=np.float64)
-    wa *= -2.0
-    T1 = _seg_products(h, wa, wr, 2.0, sig, 2.0)
-    np.multiply(rc_lo, 2.0, out=wa)
-    wa[0] = rc_lo[0]
-    wa -= wr
-    wa *= 2.0
-    T1 += _seg_products(g, wa, wr, -2.0, sig, -2.0)
-    np.subtract(rc_hi, rc_lo, out=wa)
-    wa *= 2.0
-    wa[0] *= 0.5
-    wa += wr * np.arange(L, 0, -1, dtype=np.float64)
-    T1 += 2.0 * _dot(Rd, wa)
-    del wa, wr, RC, sig, rc_hi, rc_lo
-    rho = _kernel_rho(m)
-    # detrend terms: β the half-mean slope, q = Qk; Σ_{i<M} (βᵀX_i)(vᵀX_i) = Σ_d c_βv(d) R_|d| − partial windows
+    n = L - 1  # end-segment length
     h1 = L // 2
     h2 = L - h1
     D = (0.5 * (L - 1) + 1) if L % 2 else 0.5 * L
-    r0 = abs(float(Rd[0]))
+    rho0 = 6.0 * m  # ρ(0)
+    r0 = abs(float(Rv[0]))
+    rc = _ParityCumsum(m)
+    step = 1 << 16
+    rho_all = _kernel_rho(m)[:L] if L <= step else None
 
-    def full(c: NDArray) -> tuple[float, float]:  # Σ_d c(d) R_|d| for c over d = −(L−1) … L−1, and Σ|c| R_0
-        return float(c[L - 1] * Rd[0] + _dot(c[L:] + c[L - 2 :: -1], Rd[1:])), r0 * float(np.abs(c).sum())
+    def weights(d0: int, d1: int) -> tuple[NDArray, NDArray, NDArray]:  # wr(d) = w_d ρ(d), rc_hi(d), rc_lo(d)
+        wr = 2.0 * (rho_all[d0:d1] if rho_all is not None else _rho_slice(m, d0, d1))
+        if d0 == 0:
+            wr[0] *= 0.5
+        return wr, rc.get(2 * L + 2 - d1, 2 * L + 2 - d0)[::-1], rc.get(1 + d0, 1 + d1)
 
-    lv = np.arange(L, dtype=np.float64)
-    q = _q_apply(rho, lv)
-    kqk = _dot(lv, q)
-    del lv
-    beta = np.zeros(L)
-    beta[:h1] = -1.0 / (h1 * D)
-    beta[h2:] = 1.0 / (h1 * D)
-    s_bu, sc_bu = full(_beta_corr(q, -(L - 1), L, L, h1, D))
-    s_bb, sc_bb = full(_beta_corr(beta, -(L - 1), L, L, h1, D))
-    del beta
-    for seg, lo, hi in ((h, -(L - 1), 0), (g, 0, L - 1)):  # partial windows over the head and the tail
-        sb = _beta_corr(seg, lo, hi, L, h1, D)
-        sq = _seg_corr(seg, q, lo, hi)
-        s_bu -= _dot(sb, sq)
-        sc_bu += _dot(np.abs(sb), np.abs(sq))
-        del sq
-        bb = _dot(sb, sb)
-        s_bb -= bb
-        sc_bb += bb
-        del sb
+    # Toeplitz part's interior: Σ_d R_d [2(Rc(2L−1−d) − Rc(d−1)) + w_d ρ(d)(L − d)]
+    T1 = 0.0
+    for d0 in range(0, L, step):
+        d1 = min(L, d0 + step)
+        wr, hi, lo = weights(d0, d1)
+        wa = np.subtract(hi, lo)
+        wa *= 2.0
+        if d0 == 0:
+            wa[0] *= 0.5
+        wa += wr * np.arange(L - d0, L - d1, -1, dtype=np.float64)
+        T1 += 2.0 * _dot(Rv[d0:d1], wa)
+    E_quad = scale_quad = 0.0
+    if a != 0.0:  # the removed quadratic's exact terms: r1 = k² − β_s k, Q r1, and Σ_i z_i
+        kk = np.arange(L, dtype=np.float64)
+        beta_s = ((kk[h2:] ** 2).mean() - (kk[:h1] ** 2).mean()) / D
+        del kk
+
+        def r1(i: int, j: int) -> NDArray[np.float64]:
+            k = np.arange(i, j, dtype=np.float64)
+            return k * k - beta_s * k
+
+        qr1 = _q_apply(m, r1)
+        square = M * a * a * sum(_dot(r1(i, min(L, i + step)), qr1[i : i + step]) for i in range(0, L, step))
+        if isinstance(s, np.ndarray):  # Σ_{i<M} s[i + k] at k = 0
+            w0 = float(s[:M].sum())
+        else:
+            w0 = s.total() - float(seg(M, ls).sum())
+        carry = w0
+        wq = kq = w_lo = w_hi = 0.0
+        for i in range(0, L, step):
+            j = min(L, i + step)
+            win = np.empty(j - i)
+            if i == 0:
+                win[0] = w0
+                win[1:] = np.cumsum(seg(M, M + j - 1) - seg(0, j - 1)) + w0
+            else:
+                np.cumsum(seg(M + i - 1, M + j - 1) - seg(i - 1, j - 1), out=win)
+                win += carry
+            carry = float(win[-1])
+            wq += _dot(win, qr1[i:j])
+            kq += _dot(np.arange(i, j, dtype=np.float64), qr1[i:j])
+            w_lo += float(win[: max(0, min(j, h1) - i)].sum())
+            w_hi += float(win[max(0, h2 - i) :].sum())
+        del qr1
+        bsum = (w_hi - w_lo) / (h1 * D)
+        cross = 2.0 * a * (wq - bsum * kq)
+        E_quad = cross + square
+        scale_quad = 8.0 * (abs(cross) + abs(square))
+    # detrend terms: β the half-mean slope, q = Qk; Σ_{i<M} (βᵀX_i)(vᵀX_i) = Σ_d c_βv(d) R_|d| − partial windows
+    q = _q_apply(m, np.arange(L, dtype=np.float64))
+    kqk = sum(_dot(np.arange(i, min(L, i + step), dtype=np.float64), q[i : i + step]) for i in range(0, L, step))
+
+    def full(p: _Prefix, rv: NDArray) -> tuple[float, float]:  # Σ_d c(d) R_|d|, c = β ⋆ v, d = −(L−1) … L−1; Σ|c| R_0
+        c0 = float(_beta_chunk(p, 0, 1, L, h1, D)[0])
+        tot, ab = c0 * float(rv[0]), abs(c0)
+        for d0 in range(1, L, step):
+            d1 = min(L, d0 + step)
+            cp = _beta_chunk(p, d0, d1, L, h1, D)
+            cn = _beta_chunk(p, 1 - d1, 1 - d0, L, h1, D)[::-1]
+            ab += float(np.abs(cp).sum() + np.abs(cn).sum())
+            cp += cn
+            tot += _dot(cp, rv[d0:d1])
+        return tot, r0 * ab
+
+    def beta(i: int, j: int) -> NDArray[np.float64]:
+        k = np.arange(i, j)
+        return np.where(k < h1, -1.0 / (h1 * D), np.where(k >= h2, 1.0 / (h1 * D), 0.0))
+
+    s_bu, sc_bu = full(_Prefix(lambda i, j, q=q: q[i:j], L), Rv)
+    s_bb, sc_bb = full(_Prefix(beta, L), Rv)
+    del Rv  # every R term is summed
+    nf = _even_len(2 * n)  # ≥ 2n − 1 (self-convolutions) and ≥ n + L − 1 (the correlations with q)
+    # partial windows over the head and the tail: Σ_i sb_i sq_i with sq = q ⋆ segment (one FFT of q for both)
+    bq = np.empty(nf)
+    _fill(bq, q, 0, L)
     del q
-    E = T1 - 2.0 * s_bu + kqk * s_bb
-    scale = 4.0 * L * abs(rho0) * r0 + 2.0 * sc_bu + abs(kqk) * sc_bb
-    if a != 0.0:
-        k = np.arange(L, dtype=np.float64)
-        beta_s = ((k[h2:] ** 2).mean() - (k[:h1] ** 2).mean()) / D
-        r1 = k * k - beta_s * k
-        qr1 = _q_apply(rho, r1)
-        square = M * a * a * _dot(r1, qr1)
-        del r1
-        win = np.empty(L)  # Σ_{i<M} s[i + k]
-        win[0] = s[:M].sum()
-        np.cumsum(s[M : M + L - 1] - s[: L - 1], out=win[1:])
-        win[1:] += win[0]
-        bsum = (win[h2:].sum() - win[:h1].sum()) / (h1 * D)
-        win -= bsum * k  # Σ_i z_i
-        cross = 2.0 * a * _dot(win, qr1)
-        E += cross + square
-        scale += 8.0 * (abs(cross) + abs(square))
+    qz = _rfft_ip(bq)
+    for s0, lo, hi in ((0, -(L - 1), 0), (M, 0, L - 1)):
+        bs = np.empty(nf)
+        _fill(bs, s, s0, s0 + n)
+        sz = _rfft_ip(bs)
+        _spec_update(sz, "mulc", qz)
+        out = _irfft_ip(sz)  # out[i mod nf] = Σ_k q_k seg_{i+k}
+        del sz
+        pre = _Prefix(lambda i, j, s0=s0: seg(s0 + i, s0 + j), n)
+        for i0 in range(lo, hi, step):
+            i1 = min(hi, i0 + step)
+            sb = _beta_chunk(pre, i0, i1, L, h1, D)
+            sq = out[i0 % nf : i0 % nf + (i1 - i0)]
+            s_bu -= _dot(sb, sq)
+            sc_bu += _dot(np.abs(sb), np.abs(sq))
+            bb = _dot(sb, sb)
+            s_bb -= bb
+            sc_bb += bb
+            del sb, sq
+        del out, bs, pre
+    del qz, bq
+    # head and tail segments: the Toeplitz part's window-count corrections (Σ wa_d A_d with A the segment's
+    # autocorrelation, Σ wb_d B_d with B_d = Σ_t t h_t h_{t+d}) and the Hankel part's end terms (Σ wc_σ C_σ, C the
+    # self-convolution), from the segment's spectrum (two buffers)
+    for s0, sign in ((0, 1.0), (M, -1.0)):
+        b1 = np.empty(nf)
+        _fill(b1, s, s0, s0 + n)
+        hz = _rfft_ip(b1)
+        b2 = np.empty(nf)
+        _fill(b2, s, s0, s0 + n, ramp=True)
+        tz = _rfft_ip(b2)
+        _spec_update(tz, "cmul", hz)  # conj(TH)·H
+        out = _irfft_ip(tz)
+        del tz
+        for d0 in range(0, n, step):
+            d1 = min(n, d0 + step)
+            T1 += 2.0 * sign * _dot(out[d0:d1], weights(d0, d1)[0])
+        np.copyto(b2, b1)
+        cz = b2.view(np.complex128)
+        _spec_update(cz, "sq")
+        out = _irfft_ip(cz)
+        del cz
+        for c0 in range(0, 2 * n - 1, step):
+            c1 = min(2 * n - 1, c0 + step)
+            T1 += 2.0 * sign * _dot(out[c0:c1], rc.get(3 + c0, 3 + c1))
+        del out, b2
+        _spec_update(hz, "pow")
+        out = _irfft_ip(hz)
+        del hz
+        for d0 in range(0, n, step):
+            d1 = min(n, d0 + step)
+            wr, hi, lo = weights(d0, d1)
+            if s0 == 0:  # −2[2 Rc(2L−1−d) (Rc(2L−1) at d = 0) + w_d ρ(d)(L − 1 − d)]
+                wa = np.multiply(hi, 2.0)
+                if d0 == 0:
+                    wa[0] = hi[0]
+                wa += wr * np.arange(L - 1 - d0, L - 1 - d1, -1, dtype=np.float64)
+                wa *= -2.0
+            else:  # 2[2 Rc(d − 1) (Rc(−1) at d = 0) − w_d ρ(d)]
+                wa = np.multiply(lo, 2.0)
+                if d0 == 0:
+                    wa[0] = lo[0]
+                wa -= wr
+                wa *= 2.0
+            T1 += _dot(out[d0:d1], wa)
+        del out, b1
+    E = T1 - 2.0 * s_bu + kqk * s_bb + E_quad
+    scale = 4.0 * L * abs(rho0) * r0 + 2.0 * sc_bu + abs(kqk) * sc_bb + scale_quad
     err = 1.1e-16 * scale / abs(E) if E != 0.0 else math.inf
     return E, err
 
@@ -824,22 +1083,6 @@ def _kernel_rho(m: int) -> NDArray[np.float64]:
     return out
 
 
-def _q_apply(rho: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Q v with Q_kl = 2[ρ(k−l) + ρ(k+l+1)], k, l < L = len(v) = 3m: Q = Eᵀ C E with E the even extension of
-    period 6m and C the circulant of ρ, so Q v folds one circular FFT convolution of period 6m."""
-    L = v.size
-    p = rho.size  # 2L
-    ev = np.empty(p)
-    ev[:L] = v
-    ev[L:] = v[::-1]
-    f = sfft.rfft(ev, p)
-    del ev
-    f *= sfft.rfft(rho, p)
-    u = sfft.irfft(f, p, overwrite_x=True)
-    del f
-    return u[:L] + u[p - 1 : L - 1 : -1]
-
-
 def _series_cache(
     s: NDArray[np.float64], ch: int, cache: dict, key: str, need: int
 ) -> tuple[NDArray, NDArray, float]:
@@ -853,7 +1096,11 @@ def _series_cache(
     step = 2 if key == "R_theo" else 1
     if ck not in cache or (cache[ck][1].size - 1) * step < need:
         cache.pop(ck, None)
-        sd, a = _detrend_quadratic(s[ch])
+        if key == "R_theo":  # Theo1 reads the whole series many times: stored
+            sd, a = _detrend_quadratic(s[ch])
+        else:  # the total family reads its two end segments and a few sums: formed on demand from s
+            sd = _Detrended(s[ch])
+            a = sd.a
         cache[ck] = (sd, _autocorr(sd, max(need, cache.get(("maxlag", key), 0)), step), a)
     return cache[ck]
 
@@ -908,7 +1155,11 @@ def _total_sumsq(
                 v, err = pre[ch], 0.0 if np.isfinite(pre[ch]) else math.inf
             else:
                 sd, r, a = _series_cache(s, ch, cache, key, 3 * m - 1)
+                if 3 * m - 1 >= cache.get(("maxlag", key), math.inf):  # the grid's largest m: R's last use
+                    del cache[(key, ch)]
+                    r = [r]  # owned: released inside once its terms are summed
                 v, err = _mtot_fft(sd, m, r, a)
+                del sd, r
             e[ch] = v if err < _FFT_MAX_ERR else _blocked_sum(s[ch], m, "mtot")
         return e, np.full(c, count, dtype=np.int64)
     return _reflected_sumsq(s, m, ok)
@@ -945,14 +1196,17 @@ def _prepass(rec: _Record, name: str, ms: NDArray[np.int64], cache: dict) -> Non
     vals = {m: np.full(rec.channels, np.nan) for m in todo}
     for ch in range(rec.channels):
         sd, r, a = _series_cache(src, ch, cache, key, cache[("maxlag", key)])
+        del cache[(key, ch)]
+        rr = [r]  # the total family releases R at the last m (see _mtot_fft)
+        del r
         bad = []
-        for m in todo:
-            v, err = fn(sd, m, r, a)
+        for j, m in enumerate(todo):
+            v, err = fn(sd, m, rr if fn is _mtot_fft and j == len(todo) - 1 else rr[0], a)
             if err < _FFT_MAX_ERR:
                 vals[m][ch] = v
             else:
                 bad.append(m)
-        del cache[(key, ch)], sd, r
+        del sd, rr
         for m in bad:  # record-wide rounding too large: block by block (see _blocked_sum)
             vals[m][ch] = _blocked_sum(src[ch], m, "theo1" if fn is _theo1_fft else "mtot")
     for m in todo:
