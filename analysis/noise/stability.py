@@ -1096,12 +1096,11 @@ def _series_cache(
     step = 2 if key == "R_theo" else 1
     if ck not in cache or (cache[ck][1].size - 1) * step < need:
         cache.pop(ck, None)
-        if key == "R_theo":  # Theo1 reads the whole series many times: stored
-            sd, a = _detrend_quadratic(s[ch])
-        else:  # the total family reads its two end segments and a few sums: formed on demand from s
-            sd = _Detrended(s[ch])
-            a = sd.a
-        cache[ck] = (sd, _autocorr(sd, max(need, cache.get(("maxlag", key), 0)), step), a)
+        d = _Detrended(s[ch])  # formed on demand: R's buffer is filled from it
+        r = _autocorr(d, max(need, cache.get(("maxlag", key), 0)), step)
+        # Theo1 reads the whole series many times: stored (after R's buffer is shrunk); the total family reads
+        # its two end segments and a few sums: kept on demand
+        cache[ck] = (d.seg(0, d.size) if key == "R_theo" else d, r, d.a)
     return cache[ck]
 
 
