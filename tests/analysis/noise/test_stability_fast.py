@@ -169,3 +169,124 @@ def test_gap_free_totdev_from_oadev_terms_equals_the_reflected_definition(n):
         s, k = st._tot_sumsq_central(rec, m, {})
         np.testing.assert_allclose(s, ref_s, rtol=1e-12, atol=0.0)
         np.testing.assert_array_equal(k, ref_k)
+
+
+# ---------------------------------------------------------------- memory-lean long-τ machinery (issue 16)
+
+
+@pytest.fixture
+def small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Force the blocked / in-place code paths that N = 10⁷ takes at long τ onto records of a few hundred points:
+    in-place FFTs at every size, FFT blocks of a few dozen points, checkpoints every few values."""
+    monkeypatch.setattr(st, "_IP_SMALL", 0)
+    monkeypatch.setattr(st, "_IP_STEP", 3)
+    monkeypatch.setattr(st, "_LEAN_MIN", 16)
+    monkeypatch.setattr(st, "_TRI_BASE", 8)
+    monkeypatch.setattr(st._ParityCumsum, "CH", 8)
+    monkeypatch.setattr(st._Prefix, "CH", 6)
+
+
+@pytest.mark.parametrize("nf", [2, 4, 6, 10, 64, 130, 1000, 4620])
+def test_inplace_real_fft_equals_scipy(nf: int, small_blocks: None) -> None:
+    x = np.random.default_rng(nf).normal(size=nf)
+    ref = np.fft.rfft(x)
+    z = st._rfft_ip(x.copy())
+    got = np.concatenate([[z[0].real], z[1:], [z[0].imag]])
+    want = np.concatenate([[ref[0].real], ref[1:-1], [ref[-1].real]])
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-13 * np.abs(ref).max())
+    np.testing.assert_allclose(st._irfft_ip(z), x, rtol=0, atol=1e-14 * nf)
+
+
+@pytest.mark.parametrize("m", [1, 2, 3, 5, 8, 13])
+def test_kernel_closed_forms_equal_the_arrays(m: int, small_blocks: None) -> None:
+    rho = st._kernel_rho(m)
+    assert np.array_equal(st._rho_slice(m, 0, 6 * m), rho)
+    spec = np.fft.rfft(rho)
+    np.testing.assert_allclose(st._rho_spectrum(m, 0, 3 * m + 1), spec.real, rtol=0, atol=1e-13 * np.abs(spec).max())
+    rc = np.zeros(6 * m + 2)
+    rc[2::2] = np.cumsum(rho[0::2])
+    rc[3::2] = np.cumsum(rho[1::2])
+    pc = st._ParityCumsum(m)  # checkpoints every 8 values (or the whole array when 6m ≤ 8)
+    for j0 in range(0, 6 * m + 2, 3):
+        for j1 in range(j0 + 1, 6 * m + 3, 5):
+            assert np.array_equal(pc.get(j0, j1), rc[j0:j1])
+    v = np.random.default_rng(m).normal(size=3 * m + 4)
+    pre = st._Prefix(lambda i, j: v[i:j], v.size)
+    s = np.concatenate([[0.0], np.cumsum(v)])
+    for j0 in range(-5, v.size + 3, 2):
+        j1 = j0 + 9
+        want = s[np.clip(np.arange(j0, j1), 0, v.size)]
+        np.testing.assert_allclose(pre.at(j0, j1), want, rtol=0, atol=1e-12 * np.abs(s).max())
+
+
+def test_blocked_correlation_sum_equals_the_double_sum(small_blocks: None) -> None:
+    rng = np.random.default_rng(11)
+    a, b = rng.normal(size=70), rng.normal(size=53)
+    kern = rng.normal(size=200)  # K(l) = kern[l + 100], zero outside [lo, hi)
+    for lo, hi in ((-100, 100), (0, 40), (-30, -5), (5, 6)):
+        ref = sum(a[u] * b[v] * kern[v - u + 100] for u in range(a.size) for v in range(b.size) if lo <= v - u < hi)
+
+        def k(l0: int, l1: int, lo: int = lo, hi: int = hi) -> np.ndarray:
+            ll = np.arange(l0, l1)
+            return np.where((ll >= lo) & (ll < hi), kern[np.clip(ll + 100, 0, 199)], 0.0)
+
+        for cap in (16, 30, 1 << 10):  # blocks of 8 and 15 points, one FFT
+            got = st._corr_sum(lambda i, j: a[i:j], a.size, lambda i, j: b[i:j], b.size, k, lo, hi, cap)
+            assert got == pytest.approx(ref, rel=1e-12, abs=1e-12), (lo, hi, cap)
+
+
+@pytest.mark.parametrize("kind", ["freq", "phase"])
+@pytest.mark.parametrize(("n", "seed"), [(211, 1), (517, 3)])
+def test_total_family_lean_paths_equal_the_window_loop(n: int, seed: int, kind: str, small_blocks: None) -> None:
+    """The in-place buffers, slice-by-slice weights, on-demand detrended series and released R (a one-element list)
+    give the window-by-window definition."""
+    s = _series(n, seed, kind)
+    for m in sorted({8, 9, 13, n // 6, n // 3}):
+        if 3 * m > n:
+            continue
+        ref = _mtot_reference(s, m)
+        d = st._Detrended(s)
+        r = st._autocorr(d, 3 * m - 1)
+        assert r.size == 3 * m
+        v, err = st._mtot_fft(d, m, [r], d.a)
+        assert err < st._FFT_MAX_ERR
+        assert v == pytest.approx(ref, rel=1e-10), m
+
+
+@pytest.mark.parametrize(("n", "seed"), [(300, 4), (455, 5)])
+def test_theo1_blocked_paths_equal_the_definition(n: int, seed: int, small_blocks: None) -> None:
+    """Kernel pieces in the overlap-save correlation, blocked triangle squares (FFTs of ≤ 16–56 points here)."""
+    x = _series(n, seed, "phase")
+    xd, a = st._detrend_quadratic(x)
+    r = st._autocorr(xd, n - 1, 2)
+    for m in (64, 66, 98, 2 * ((n - 3) // 2)):
+        ref = _theo1_reference(x, m)
+        v, err = st._theo1_fft(xd, m, r, a)
+        assert err < st._FFT_MAX_ERR
+        assert v == pytest.approx(ref, rel=1e-10), m
+
+
+@pytest.mark.parametrize("data_type", ["freq", "phase"])
+def test_stability_lean_paths_equal_the_default_ones(data_type: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Several channels (the channel-by-channel pre-pass, R released at the last m) and a record with gaps, the
+    long-τ code paths forced onto small blocks, against the same call with the default sizes."""
+    rng = np.random.default_rng(12)
+    n = 1200
+    data = rng.normal(size=(n, 2)) + 0.05 * np.cumsum(rng.normal(size=(n, 2)), axis=0)
+    data[:, 1] += np.linspace(0.0, 2.0, n) ** 2
+    if data_type == "phase":
+        data = np.cumsum(data, axis=0) / 50.0
+    gappy = data.copy()
+    gappy[100:104, 0] = np.nan
+    names = ("mtotdev", "ttotdev", "htotdev", "theo1")
+    taus = np.array([2, 8, 16, 64, 100, 128, 200, 256, 330, 398]) / 50.0  # windows up to 3m ≈ N and m ≈ N/3
+    ref = [stability(d, 50.0, names, taus, data_type, confidence=None) for d in (data, gappy)]
+    for attr, val in (("_IP_SMALL", 0), ("_IP_STEP", 64), ("_LEAN_MIN", 16), ("_TRI_BASE", 8)):
+        monkeypatch.setattr(st, attr, val)
+    monkeypatch.setattr(st._ParityCumsum, "CH", 8)
+    monkeypatch.setattr(st._Prefix, "CH", 10)
+    for d, want in zip((data, gappy), ref, strict=True):
+        got = stability(d, 50.0, names, taus, data_type, confidence=None)
+        for k in names:
+            np.testing.assert_allclose(got.estimates[k].dev, want.estimates[k].dev, rtol=1e-10, err_msg=k)
+            np.testing.assert_array_equal(got.estimates[k].n_terms, want.estimates[k].n_terms)
