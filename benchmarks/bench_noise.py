@@ -199,10 +199,11 @@ def part_total_big(n: int) -> str:
         "| estimator | τ | time (s) | per τ (s) | peak memory (tracemalloc) |\n|---|---|---|---|---|\n"
         + "\n".join(rows)
         + "\n\nOne run each, under tracemalloc (time and memory of the same call; tracemalloc adds a little time). "
-        "Peak memory is reached at the "
-        "largest τ (MTOT/HTOT/TTOT window 3m ≈ 0.6–0.8 N; Theo1 m up to N − 1), where the end-segment FFT "
-        "correlations and triangle sums are as long as the record; the rest of the grid stays near the "
-        "autocorrelation's ≈ 4×. Where the record-wide closed form's rounding estimate exceeds 1e-9 (small m on "
+        "Peak memory: the phase, the "
+        "autocorrelation's single in-place buffer (N + the grid's largest lag) and, at the largest τ (MTOT/HTOT/TTOT "
+        "window 3m ≈ 0.6 N), at most two in-place FFT buffers of ≈ 6m points for the end-segment correlations (R "
+        "released first); Theo1's long correlations and triangle sums are blocked (FFTs of ≤ N/8 points). "
+        "Where the record-wide closed form's rounding estimate exceeds 1e-9 (small m on "
         "this random-walk phase) it is evaluated block by block (O(N log B) per τ).\n"
     )
 

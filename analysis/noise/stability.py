@@ -48,9 +48,12 @@ phase) block by block (:func:`_blocked_sum`, O(N log B) per τ); with gaps, the 
 vectorised, in chunks). Several channels: the closed forms run channel by
 channel over the whole τ grid (:func:`_prepass`), so one channel's series and autocorrelation are alive at a
 time. Memory (benchmarks/bench_noise.py, RESULTS.md): the classic path about 2.5× the record; the total family
-about 4× over most of the grid and 9–12× at the largest τ (window 3m ≈ 0.6–0.8 N, Theo1 m up to N − 1:
-end-segment FFTs and triangle sums as long as the record); a gap-free phase input and a gap-free frequency
-input for HTOTDEV are used without copies.
+and Theo1 below 4× over the whole grid, longest τ included (N = 10⁷ octave grid: MTOT/HTOT/TTOT 3.6×, Theo1
+3.3×): the autocorrelation is formed in one buffer of N + maxlag points (:func:`_autocorr`, in-place FFTs, only
+the lags the grid reads); the total family's detrended series is formed on demand (:class:`_Detrended`), its
+end-segment correlations use at most two in-place FFT buffers of ≈ 6m points, with R released at the grid's
+largest m; Theo1's long correlations and triangle squares are blocked (FFTs of ≤ N/8 points, :func:`_corr_sum`).
+A gap-free phase input and a gap-free frequency input for HTOTDEV are used without copies.
 
 Gaps. NaN samples are gaps. A term is skipped when it touches a gap: for phase input (allantools'
 gap-robust ``gradev`` convention) the phase points a point-estimator uses (ADEV, OADEV, HDEV, OHDEV, TIE rms)
