@@ -1093,14 +1093,17 @@ def _series_cache(
     channel, computed once per record and kept in ``cache``.
 
     The autocorrelation holds the lags up to ``need`` at least, or up to ``cache[("maxlag", key)]`` (the largest
-    lag of the estimator's τ grid, set by :func:`_prepass`) when that is larger; ``R_theo`` (Theo1) keeps the
-    even lags only (r[j] = R_2j), the only ones Theo1 reads."""
+    lag of the estimator's τ grid, set by :func:`_prepass`) when that is larger; every lag without that hint or
+    when a cached one falls short (TheoBR's ratios ask for growing m); ``R_theo`` (Theo1) keeps the even lags
+    only (r[j] = R_2j), the only ones Theo1 reads."""
     ck = (key, ch)
     step = 2 if key == "R_theo" else 1
     if ck not in cache or (cache[ck][1].size - 1) * step < need:
+        hint = cache.get(("maxlag", key))
+        lag = max(need, hint) if hint is not None and ck not in cache else s.shape[1] - 1  # else: every lag
         cache.pop(ck, None)
         d = _Detrended(s[ch])  # formed on demand: R's buffer is filled from it
-        r = _autocorr(d, max(need, cache.get(("maxlag", key), 0)), step)
+        r = _autocorr(d, lag, step)
         # Theo1 reads the whole series many times: stored (after R's buffer is shrunk); the total family reads
         # its two end segments and a few sums: kept on demand
         cache[ck] = (d.seg(0, d.size) if key == "R_theo" else d, r, d.a)
