@@ -1276,11 +1276,6 @@ def stability(
     return res
 
 
-_USE_RN = ESTIMATORS
-"""Estimators whose B1 fallback splits phase noise by R(n) = MVAR/AVAR. Stable32 does it only for the modified
-and total estimators and calls every B1 phase-noise result flicker PM for the others; that misreads white PM
-at long τ (coverage test) — the split costs one MVAR per τ and is used for all."""
-
 _ID_POINTS = 1 << 18
 """Noise identification uses at most this many decimated points per τ (the lag-1 ACF's standard error is then
 ≈ 1/√N = 0.002, far inside its classification bands of width 0.5)."""
@@ -1302,24 +1297,34 @@ def _attach_intervals(rec: _Record, res: StabilityResult) -> None:
     from analysis.noise import confidence as ci
 
     lag1_cache: dict[tuple[int, int, int], int | None] = {}
+    pm_cache: dict[tuple[int, int], int] = {}
     phases: dict[int, NDArray[np.float64]] = {}
     prev: dict[tuple[str, int], int] = {}
 
     def alpha_of(name: str, ch: int, m: int, dmax: int, n_terms: int, carry: bool = False) -> int:
+        """Lag-1 ACF (≥ 30 decimated points); below, the phase-noise test, then (Theo1) the α carried from
+        shorter τ, then B1; a phase-noise result at m ≥ 4 is split into white/flicker PM by R(n)."""
         if ch not in phases:
             phases[ch] = _id_phase(rec, ch)
         x = phases[ch]
         key = (ch, m, dmax)
         if key not in lag1_cache:
-            lag1_cache[key] = ci.lag1_alpha(x[: _ID_POINTS * m], m, dmax)
+            a = ci.lag1_alpha(x[: _ID_POINTS * m], m, dmax)
+            if a is None and ci.is_phase_noise(x, m):
+                a = 2
+            lag1_cache[key] = a
         a = lag1_cache[key]
         if a is None and carry:
             a = prev.get((name, ch))
         if a is None:
-            a = ci.b1_alpha(x, m, rec.ts, n_terms, name in _USE_RN)
+            a = ci.b1_alpha(x, m, rec.ts, n_terms)
         if a is None:
             a = prev.get((name, ch), 0)
         a = int(min(2, max(-2, a)))
+        if a >= 1 and m >= ci.RN_MIN_FACTOR:
+            if (ch, m) not in pm_cache:
+                pm_cache[(ch, m)] = ci.pm_alpha(x, m)
+            a = pm_cache[(ch, m)]
         prev[(name, ch)] = a
         return a
 
