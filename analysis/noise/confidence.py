@@ -51,7 +51,7 @@ def _lag1(z: NDArray[np.float64]) -> float:
 
 LAG1_MIN_POINTS = 30
 """Fewest decimated points for the lag-1 method (Riley & Greenhall: "at least 30")."""
-PM_TEST_MIN_POINTS = 16
+PM_TEST_MIN_POINTS = 8
 """Fewest decimated points for the phase-noise test below the lag-1 range (see :func:`is_phase_noise`)."""
 _DECIMATION_POINTS = 1 << 18
 """The lag-1 statistics average the m decimation phases up to about this many points in all (one phase when
@@ -118,15 +118,16 @@ RN_MIN_FACTOR = 4
 """Smallest averaging factor at which R(n) splits white from flicker PM (at m = 2 both give R ≈ 0.5)."""
 
 
-def pm_alpha(x_phase: NDArray[np.float64], m: int) -> int:
+def pm_alpha(x_phase: NDArray[np.float64], m: int) -> int | None:
     """White (2) or flicker (1) PM from R(n) = MVAR/AVAR at factor m ≥ 2 (SP 1065 §5.6): 1/m for white PM,
     3.37/(1.04 + 3 ln(πm)) for flicker PM, split at their geometric mean. Both variances overlapping (Stable32's
     AVAR here is non-overlapping: ~N/m terms, which mis-split 25–45 % of white-PM records at N/m ≤ 16);
-    computed on the first 2¹⁸·m phase points at most."""
+    computed on the first 2¹⁸·m phase points at most; None with fewer than 3m + 2 points (MVAR needs m + 1
+    terms at least to mean anything)."""
     x = np.asarray(x_phase[: _DECIMATION_POINTS * m + 2 * m], dtype=np.float64)
+    if x.size < 3 * m + 2:
+        return None
     dd = x[2 * m :] - 2.0 * x[m:-m] + x[: -2 * m]
-    if dd.size <= m:
-        return 1
     avar = float(np.einsum("i,i->", dd, dd)) / dd.size
     cs = np.concatenate([[0.0], np.cumsum(dd)])
     s = cs[m:] - cs[:-m]
@@ -182,7 +183,7 @@ def b1_alpha(x_phase: NDArray[np.float64], m: int, ts: float, n_terms: int) -> i
         if b1 > bound:
             mu = hi_mu
             break
-    return _MU_TO_ALPHA[mu] if mu != -2 else pm_alpha(x_phase, m)
+    return _MU_TO_ALPHA[mu] if mu != -2 else pm_alpha(x_phase, m) or 1
 
 
 # --------------------------------------------------------------------------------------- Greenhall EDF

@@ -1297,34 +1297,35 @@ def _attach_intervals(rec: _Record, res: StabilityResult) -> None:
     from analysis.noise import confidence as ci
 
     lag1_cache: dict[tuple[int, int, int], int | None] = {}
-    pm_cache: dict[tuple[int, int], int] = {}
+    pm_cache: dict[tuple[int, int], int | None] = {}
+    pm_test: dict[tuple[int, int], bool | None] = {}
     phases: dict[int, NDArray[np.float64]] = {}
     prev: dict[tuple[str, int], int] = {}
 
     def alpha_of(name: str, ch: int, m: int, dmax: int, n_terms: int, carry: bool = False) -> int:
-        """Lag-1 ACF (≥ 30 decimated points); below, the phase-noise test, then (Theo1) the α carried from
-        shorter τ, then B1; a phase-noise result at m ≥ 4 is split into white/flicker PM by R(n)."""
+        """Lag-1 ACF (≥ 30 decimated points); below, the α carried from the previous τ (Theo1; every estimator
+        below 8 points), else the phase-noise test, then B1; a phase-noise result at m ≥ 4 is split into
+        white/flicker PM by R(n) where it has terms enough."""
         if ch not in phases:
             phases[ch] = _id_phase(rec, ch)
         x = phases[ch]
         key = (ch, m, dmax)
         if key not in lag1_cache:
-            a = ci.lag1_alpha(x[: _ID_POINTS * m], m, dmax)
-            if a is None and ci.is_phase_noise(x, m):
-                a = 2
-            lag1_cache[key] = a
+            lag1_cache[key] = ci.lag1_alpha(x[: _ID_POINTS * m], m, dmax)
         a = lag1_cache[key]
-        if a is None and carry:
+        if a is None and (carry or x.size // m < ci.PM_TEST_MIN_POINTS):
             a = prev.get((name, ch))
         if a is None:
-            a = ci.b1_alpha(x, m, rec.ts, n_terms)
+            if (ch, m) not in pm_test:
+                pm_test[(ch, m)] = ci.is_phase_noise(x, m)
+            a = 2 if pm_test[(ch, m)] else ci.b1_alpha(x, m, rec.ts, n_terms)
         if a is None:
             a = prev.get((name, ch), 0)
         a = int(min(2, max(-2, a)))
         if a >= 1 and m >= ci.RN_MIN_FACTOR:
             if (ch, m) not in pm_cache:
                 pm_cache[(ch, m)] = ci.pm_alpha(x, m)
-            a = pm_cache[(ch, m)]
+            a = pm_cache[(ch, m)] or a
         prev[(name, ch)] = a
         return a
 
