@@ -10,12 +10,21 @@ C. Greenhall, "Power law noise identification using the lag 1 autocorrelation", 
    α = 2 − round(2ρ) − 2d. With fewer than 30 decimated points: the B1 ratio (standard variance of the
    m-averaged frequency over the Allan variance) against Barnes' theoretical B1(N, μ), the phase-noise
    case split by R(n) = MVAR/AVAR; with too few points even for that, the α of the previous τ.
+
+   Where tablebench departs from Stable32, each measured by the slow coverage test (1000 records of 1024
+   points per noise type; white / flicker PM were misidentified at 15–85 % of the long τ before):
+   r₁ is averaged over the m decimation phases (:func:`lag1_alpha`); below 30 points a phase-noise test on
+   that r₁ comes before B1 (:func:`is_phase_noise`); every phase-noise result at m ≥ 4 is split into
+   white / flicker PM by R(n) with overlapping variances (:func:`pm_alpha`: the lag-1 method reads short
+   records of flicker PM as white at m ≥ 8); below 8 decimated points the previous τ's α is kept (B1 on 4
+   averages read white PM as white FM in 60 % of the records).
 2. EDF: Greenhall's combined algorithm (modelling the phase as the first difference of a continuous-time
    power-law process) for ADEV, OADEV, MDEV, TDEV, HDEV, OHDEV; the published fits for the total family —
    TOTVAR b·N/m − c (SP 1065 Table 7), at most OAVAR's EDF scaled by the term count (OAVAR's at m = 1,
    where TOTVAR has no reflected term); for white PM the exact EDF of the reflected estimator, for flicker PM
    Table 5's AVAR formula; MTOT/TTOT b·N/m − c (Howe's revised coefficients as in Stable32, the MVAR
-   EDF for m ≤ 8), HTOT (N/m)/(b₀ + b₁ m/N) (Howe et al. 2000, HDEV's EDF below m = 16), and Theo1 / TheoBR
+   EDF for m ≤ 8), HTOT (N/m)/(b₀ + b₁ m/N) (Howe et al. 2000, HDEV's EDF below m = 16; for phase noise, which no
+   published fit covers, OHDEV's EDF times tablebench's Monte Carlo ratio ``_HTOT_PM_RATIO``), and Theo1 / TheoBR
    (Howe & Peppler 2003, at the effective factor 0.75 m; beyond the lag-1 range Theo1 keeps the last lag-1 α).
 3. χ² interval of the deviation: σ √(EDF/χ²_{1−p/2}) … σ √(EDF/χ²_{p/2}).
 """
