@@ -1358,6 +1358,8 @@ def _attach_intervals(rec: _Record, res: StabilityResult) -> None:
                 a = alpha_of(name, ch, m_id, dmax, n_b1, carry=kind == "theo1")
                 alpha[j, ch] = a
                 e[j, ch] = ci.edf(kind, a, m, n)
+                if kind == "theo1" and name != "theo1":  # TheoBR = kf·Theo1: add the scatter of kf
+                    e[j, ch] = ci.edf_theobr(e[j, ch])
         est.alpha = alpha
         est.edf = e
         if name in ("totdev", "htotdev"):
@@ -1413,10 +1415,9 @@ def _theobr_factor(rec: _Record, cache: dict) -> NDArray[np.float64]:
 def _theobr(rec: _Record, grid: NDArray[np.int64], cache: dict) -> Estimate:
     """TheoBR = Theo1 · kf (even m), reported at Theo1's effective τ = 0.75 m τ₀.
 
-    Its intervals use the Theo1 EDF, as Stable32 and W. Riley's TheoBR.cpp do. That ignores the scatter of kf,
-    which is set by the long-τ AVAR: simulated (N = 1024, 200 records) TheoBR's actual EDF is about 20 (white FM)
-    and 11–28 (random-walk FM) at every m, so the 68 % intervals cover 10–58 % (Theo1's own: 62–71 %).
-    TheoH uses TheoBR only at τ ≥ 0.2 T, where the Theo1 EDF (8–19) is about twice the actual one."""
+    Its intervals combine the Theo1 EDF with that of kf (:func:`analysis.noise.confidence.edf_theobr`);
+    Stable32 and W. Riley's TheoBR.cpp use the Theo1 EDF alone, which ignores the scatter of kf (set by the
+    long-τ AVAR): simulated (N = 1024, 100 records) their 68 % intervals covered 6–52 % of white-FM records."""
     kf = _theobr_factor(rec, cache)
     ms = grid[(grid % 2 == 0) & (grid <= _MAX_M["theobr"](rec.n))]
     c = rec.channels
