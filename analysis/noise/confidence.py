@@ -61,7 +61,8 @@ def _lag1(z: NDArray[np.float64]) -> float:
 LAG1_MIN_POINTS = 30
 """Fewest decimated points for the lag-1 method (Riley & Greenhall: "at least 30")."""
 PM_TEST_MIN_POINTS = 8
-"""Fewest decimated points for the phase-noise test below the lag-1 range (see :func:`is_phase_noise`)."""
+"""Fewest decimated points for the phase-noise test below the lag-1 range (see :func:`is_phase_noise`); below
+it the previous τ's α is kept."""
 _DECIMATION_POINTS = 1 << 18
 """The lag-1 statistics average the m decimation phases up to about this many points in all (one phase when
 the decimated record alone is longer)."""
@@ -108,13 +109,14 @@ def _expected_lag1(n: int, random_walk: bool) -> float:
 
 
 def is_phase_noise(x_phase: NDArray[np.float64], m: int) -> bool | None:
-    """Below the lag-1 range: is the noise at factor m phase noise (white or flicker PM)? None below 16 points.
+    """Below the lag-1 range: is the noise at factor m phase noise (white or flicker PM)? None below 8 points.
 
     The m-decimated phase of PM noise is white-like (r₁ ≈ −1/n; flicker PM's drifts towards it at large m),
     that of FM noise a random walk or steeper (white FM: exactly a random walk). PM when the r₁ averaged over
     the decimation phases is below the midpoint of the white and the random-walk expectations at n points
-    (0.30 at n = 16, Riley & Greenhall's 1/3 from 24 points). tablebench's addition, not Stable32's: the B1
-    ratio it replaces there read 18–35 % of white-PM records as white FM at N/m = 16–32 (N = 1024)."""
+    (0.15 at n = 8, 0.30 at n = 16, Riley & Greenhall's 1/3 from 24 points). tablebench's addition, not
+    Stable32's: the B1 ratio it replaces there read 18–35 % of white-PM records as white FM at N/m = 8–16
+    (N = 1024)."""
     z = _decimations(x_phase, m)
     n = z.shape[0]
     if n < PM_TEST_MIN_POINTS:
