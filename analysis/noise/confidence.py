@@ -116,7 +116,8 @@ def is_phase_noise(x_phase: NDArray[np.float64], m: int) -> bool | None:
     the decimation phases is below the midpoint of the white and the random-walk expectations at n points
     (0.15 at n = 8, 0.30 at n = 16, Riley & Greenhall's 1/3 from 24 points). tablebench's addition, not
     Stable32's: the B1 ratio it replaces there read 18–35 % of white-PM records as white FM at N/m = 8–16
-    (N = 1024)."""
+    (N = 1024). Its own error: white FM is called phase noise in 9–12 % of records at 16 points and 26 % at 8
+    (a short random walk can look flat); B1 misidentified 32–60 % of white FM at those lengths."""
     z = _decimations(x_phase, m)
     n = z.shape[0]
     if n < PM_TEST_MIN_POINTS:
