@@ -63,9 +63,9 @@ LAG1_MIN_POINTS = 30
 PM_TEST_MIN_POINTS = 8
 """Fewest decimated points for the phase-noise test below the lag-1 range (see :func:`is_phase_noise`); below
 it the previous τ's α is kept."""
-_DECIMATION_POINTS = 1 << 18
+_DECIMATION_POINTS = 1 << 16
 """The lag-1 statistics average the m decimation phases up to about this many points in all (one phase when
-the decimated record alone is longer)."""
+the decimated record alone is longer: r₁'s scatter is then ≤ 0.004, far inside the bands)."""
 
 
 def _decimations(x_phase: NDArray[np.float64], m: int) -> NDArray[np.float64]:
@@ -80,7 +80,7 @@ def lag1_alpha(x_phase: NDArray[np.float64], m: int, dmax: int = 2) -> int | Non
     Stable32: no trend removal — remove drift before the analysis); None below 30 decimated points.
 
     Where Stable32 takes one decimation (offset 0), r₁ here is the mean over the m decimation phases
-    (offsets 0 … m − 1, up to ≈ 2¹⁸ points in all): the same expectation, a smaller scatter — at N = 1024 the
+    (offsets 0 … m − 1, up to ≈ 2¹⁶ points in all): the same expectation, a smaller scatter — at N = 1024 the
     single-phase r₁ read white PM as flicker at m = 8–32 in 2–15 % of records, the averaged one in none."""
     z = _decimations(x_phase, m)
     if z.shape[0] < LAG1_MIN_POINTS:
@@ -134,7 +134,7 @@ def pm_alpha(x_phase: NDArray[np.float64], m: int) -> int | None:
     """White (2) or flicker (1) PM from R(n) = MVAR/AVAR at factor m ≥ 2 (SP 1065 §5.6): 1/m for white PM,
     3.37/(1.04 + 3 ln(πm)) for flicker PM, split at their geometric mean. Both variances overlapping (Stable32's
     AVAR here is non-overlapping: ~N/m terms, which mis-split 25–45 % of white-PM records at N/m ≤ 16);
-    computed on the first 2¹⁸·m phase points at most; None with fewer than 3m + 2 points (MVAR needs m + 1
+    computed on the first 2¹⁶·m phase points at most; None with fewer than 3m + 2 points (MVAR needs m + 1
     terms at least to mean anything)."""
     x = np.asarray(x_phase[: _DECIMATION_POINTS * m + 2 * m], dtype=np.float64)
     if x.size < 3 * m + 2:
