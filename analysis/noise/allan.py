@@ -170,42 +170,71 @@ def tau_grid(
     return m
 
 
-def _detrend_and_integrate(a: NDArray, ts: float, chunk: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Phase of the detrended record and the removed ramp per sample.
+_DOT_BLOCK = 4096
+"""Elements per BLAS dot product in :func:`_dot` (OpenBLAS spreads a dot product of more than 10 000 elements over
+threads, which on a busy machine costs far more than it saves; below that it runs on the calling thread)."""
 
-    Returns
-    -------
-    x : ndarray (C, N+1)
-        x_0 = 0, x_j = T_s Σ_{k≤j} e_k with e the record minus its least-squares line.
-    r_s : ndarray (C,)
-        Slope of the removed line, data unit per sample.
-    """
-    n, c = a.shape
+_vecdot = getattr(np, "vecdot", None)  # numpy ≥ 2.0
+
+
+def _dot(u: NDArray[np.float64], v: NDArray[np.float64] | None = None) -> float:
+    """Σ u·v (Σ u² without ``v``) of 1-D, possibly strided, float64 arrays: single-threaded BLAS dot products of
+    :data:`_DOT_BLOCK` elements (about twice as fast as ``einsum``)."""
+    v = u if v is None else v
+    k = u.shape[0]
+    q = k - k % _DOT_BLOCK
+    tot = 0.0
+    if q:
+        bu = u[:q].reshape(-1, _DOT_BLOCK)
+        bv = v[:q].reshape(-1, _DOT_BLOCK)
+        tot = float((_vecdot(bu, bv) if _vecdot is not None else np.einsum("ij,ij->i", bu, bv)).sum())
+    if k > q:
+        tot += float(np.dot(u[q:], v[q:]))
+    return tot
+
+
+def _line(col: NDArray, ks: NDArray[np.float64]) -> tuple[float, float]:
+    """Mean and least-squares slope (data unit per sample) of one channel, in chunks of ``ks.size`` samples
+    (``ks`` = 0, 1, 2, …); non-finite if the channel holds NaN or ±inf (they propagate into the sums)."""
+    n = col.shape[0]
     kbar = (n - 1) / 2.0
-    s0 = np.zeros(c)
-    s1 = np.zeros(c)
-    big = max(chunk, 1 << 16)
-    for s in range(0, n, big):
-        e = min(n, s + big)
-        blk = np.asarray(a[s:e], dtype=np.float64)
-        s0 += blk.sum(axis=0)
-        # einsum, not matmul: BLAS threads on a busy machine cost more than this O(N) reduction
-        s1 += np.einsum("i,ij->j", np.arange(s, e, dtype=np.float64) - kbar, blk)
-    mean = s0 / n
+    s0 = 0.0
+    s1 = 0.0  # Σ (k − k̄) a_k
+    for s in range(0, n, ks.size):
+        e = min(n, s + ks.size)
+        blk = np.asarray(col[s:e], dtype=np.float64)
+        t = float(blk.sum())
+        s0 += t
+        s1 += _dot(blk, ks[: e - s]) + (s - kbar) * t
     skk = n * (n * n - 1.0) / 12.0
-    r_s = s1 / skk if n > 1 else np.zeros(c)
-    x = np.empty((c, n + 1))
-    x[:, 0] = 0.0
-    carry = np.zeros(c)
+    return s0 / n, (s1 / skk if n > 1 else 0.0)
+
+
+def _integrate(
+    col: NDArray, mean: float, r_s: float, ks: NDArray[np.float64], x: NDArray[np.float64], e_out: NDArray[np.float64]
+) -> None:
+    """Phase of one channel minus its line, in data unit × samples: x_0 = 0, x_j = Σ_{k<j} e_k with
+    e_k = a_k − mean − r_s (k − k̄), written into ``x`` (N+1,); e itself is left in ``e_out`` — (N+1,): all of
+    it, the moving-difference array G_1 of the octave passes; or a chunk-sized scratch buffer."""
+    n = col.shape[0]
+    kbar = (n - 1) / 2.0
+    big = ks.size
+    ramp = r_s * ks
+    whole = e_out.shape[0] > n
+    x[0] = 0.0
+    carry = 0.0
     for s in range(0, n, big):
         e = min(n, s + big)
-        blk = np.ascontiguousarray(np.asarray(a[s:e], dtype=np.float64).T) - mean[:, None]
-        blk -= r_s[:, None] * (np.arange(s, e, dtype=np.float64) - kbar)
-        np.cumsum(blk, axis=1, out=x[:, s + 1 : e + 1])
-        x[:, s + 1 : e + 1] += carry[:, None]
-        carry = x[:, e].copy()
-    x *= ts
-    return x, r_s
+        blk = e_out[s:e] if whole else e_out[: e - s]
+        np.subtract(col[s:e], ramp[: e - s], out=blk)
+        blk -= mean + r_s * (s - kbar)
+        first = blk[0]
+        blk[0] = first + carry  # the running sum carried into the chunk's cumulative sum
+        np.cumsum(blk, out=x[s + 1 : e + 1])
+        blk[0] = first
+        carry = float(x[e])
+    if whole:
+        e_out[n:] = 0.0
 
 
 def _reflected_range(x: NDArray[np.float64], a: int, b: int) -> NDArray[np.float64]:
@@ -228,131 +257,189 @@ def _reflected_range(x: NDArray[np.float64], a: int, b: int) -> NDArray[np.float
     return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
 
 
-def _edge_sum(x: NDArray[np.float64], m: int, lo: int, hi: int, half_a: NDArray[np.float64]) -> NDArray[np.float64]:
+def _edge_sum_general(x: NDArray[np.float64], m: int, lo: int, hi: int, half_a: float, chunk: int) -> float:
     """Σ over centres lo ≤ i ≤ hi of the squared reflected second differences x*_{i−m} − 2x_i + x*_{i+m},
-    plus the removed ramp's exact contribution half_a·(2m² − 2·max(m−i, 0)² − 2·max(i+m−N, 0)²)."""
-    n = x.shape[1] - 1
-    out = np.zeros(x.shape[0])
-    for a in range(lo, hi + 1, _CHUNK):
-        b = min(hi, a + _CHUNK - 1)
-        d = _reflected_range(x, a - m, b - m) + _reflected_range(x, a + m, b + m)
-        d -= 2.0 * x[:, a : b + 1]
-        if np.any(half_a != 0.0):
+    plus the removed ramp's exact contribution half_a·(2m² − 2·max(m−i, 0)² − 2·max(i+m−N, 0)²); any m ≤ N
+    (a centre may reach past both ends). ``x`` is one channel's phase, (N+1,)."""
+    n = x.shape[0] - 1
+    x2 = x[None, :]
+    out = 0.0
+    for a in range(lo, hi + 1, chunk):
+        b = min(hi, a + chunk - 1)
+        d = (_reflected_range(x2, a - m, b - m) + _reflected_range(x2, a + m, b + m))[0]
+        d -= 2.0 * x[a : b + 1]
+        if half_a != 0.0:
             i = np.arange(a, b + 1, dtype=np.float64)
-            dq = 2.0 * m * m - 2.0 * np.maximum(m - i, 0.0) ** 2 - 2.0 * np.maximum(i + m - n, 0.0) ** 2
-            d += half_a[:, None] * dq[None, :]
-        out += np.einsum("ij,ij->i", d, d)
+            d += half_a * (2.0 * m * m - 2.0 * np.maximum(m - i, 0.0) ** 2 - 2.0 * np.maximum(i + m - n, 0.0) ** 2)
+        out += _dot(d)
     return out
 
 
-def _range_sum(x: NDArray[np.float64], a: int, b: int) -> NDArray[np.float64]:
-    """Σ_{a ≤ j < b} x_j per channel (zero for an empty range)."""
-    return x[:, a:b].sum(axis=1) if b > a else np.zeros(x.shape[0])
+def _edge_sums(x: NDArray[np.float64], m: int, half_a: float, chunk: int, bufs: _Buffers) -> float:
+    """Σ of the squared reflected second differences (with the removed ramp's contribution) over the total
+    variance's edge centres, 1 ≤ i ≤ m − 1 and N − m + 1 ≤ i ≤ N − 1, of one channel's phase x (N+1,), x_0 = 0.
+
+    For 2m ≤ N each edge centre reaches past one end only: with u = i (left) or N − i (right), 1 ≤ u ≤ m − 1,
+    the terms are x_{u+m} − 2x_u − x_{m−u} and 2x_N − x_{N+u−m} − 2x_{N−u} + x_{N−u−m}, and the ramp adds
+    half_a·2u(2m − u) to both (reversed slices, no index arrays). Otherwise :func:`_edge_sum_general`."""
+    n = x.shape[0] - 1
+    if n < 3:
+        return 0.0
+    if 2 * m > n:
+        left_end = min(m - 1, n - 1)
+        out = _edge_sum_general(x, m, 1, left_end, half_a, chunk)
+        return out + _edge_sum_general(x, m, max(n - m + 1, left_end + 1), n - 1, half_a, chunk)
+    out = 0.0
+    two_xn = 2.0 * float(x[n])
+    ks = bufs.ks
+    for u0 in range(1, m, chunk):
+        u1 = min(m, u0 + chunk)
+        k = u1 - u0
+        d = bufs.b2[:k]
+        t = bufs.b3[:k]
+        if half_a != 0.0:  # q = half_a · 2u(2m − u)
+            q = bufs.b1[:k]
+            np.add(ks[:k], u0, out=t)  # u
+            np.subtract(2.0 * m, t, out=q)
+            q *= t
+            q *= 2.0 * half_a
+        np.subtract(x[u0 + m : u1 + m], x[m - u0 : m - u1 : -1], out=d)  # left: x_{u+m} − x_{m−u}
+        d -= x[u0:u1]
+        d -= x[u0:u1]
+        if half_a != 0.0:
+            d += q
+        out += _dot(d)
+        np.subtract(x[n - m - u0 : n - m - u1 : -1], x[n - m + u0 : n - m + u1], out=d)  # right
+        d -= x[n - u0 : n - u1 : -1]
+        d -= x[n - u0 : n - u1 : -1]
+        d += two_xn
+        if half_a != 0.0:
+            d += q
+        out += _dot(d)
+    return out
 
 
-def _lag2_sum(x: NDArray[np.float64], m: int, count: int) -> NDArray[np.float64]:
-    """Σ_{i<count} (x_{i+2m} − 2x_{i+m} + x_i) per channel by telescoping: O(min(count, m)) columns read."""
-
-    def lag_sum(off: int) -> NDArray[np.float64]:  # Σ_{i<count} (x_{i+off+m} − x_{i+off})
-        if count >= m:
-            return _range_sum(x, off + count, off + count + m) - _range_sum(x, off, off + m)
-        return _range_sum(x, off + m, off + m + count) - _range_sum(x, off, off + count)
-
-    return lag_sum(m) - lag_sum(0)
+def _range_sum(x: NDArray[np.float64], a: int, b: int) -> float:
+    """Σ_{a ≤ j < b} x_j (zero for an empty range)."""
+    return float(x[a:b].sum()) if b > a else 0.0
 
 
-def _sums_one_m(
-    x: NDArray[np.float64], m: int, chunk: int, msum: NDArray[np.float64] | None = None, double: bool = False
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], int, int]:
-    """Σd and Σd² of the overlapping second differences d_i = x_{i+2m} − 2x_{i+m} + x_i, and Σs and Σs² of
-    their m-sums s_j = d_j + … + d_{j+m−1} (modified AVAR).
+def _lag_sum(x: NDArray[np.float64], m: int, count: int, off: int = 0) -> float:
+    """Σ_{i<count} (x_{i+off+m} − x_{i+off}) by telescoping: O(min(count, m)) elements read."""
+    if count >= m:
+        return _range_sum(x, off + count, off + count + m) - _range_sum(x, off, off + m)
+    return _range_sum(x, off + m, off + m + count) - _range_sum(x, off, off + count)
 
-    ``msum`` (optional): the moving sums S_j = x_j + … + x_{j+m−1}, then s_j = S_{j+2m} − 2S_{j+m} + S_j;
-    otherwise s_j is formed from a running sum of d over the chunk extended by m − 1. The plain sums Σd and
-    (with ``msum``) Σs telescope to O(m) end sums; the squares are accumulated chunk by chunk in preallocated
-    buffers (no allocation per chunk).
 
-    ``double`` (with ``msum``): leave ``msum`` as the moving sums over 2m (:func:`_double_moving_sum`), each
-    chunk doubled right after its last use while it is still in cache (one pass over the record saved per τ).
+def _lag2_sum(x: NDArray[np.float64], m: int, count: int) -> float:
+    """Σ_{i<count} (x_{i+2m} − 2x_{i+m} + x_i) by telescoping."""
+    return _lag_sum(x, m, count, m) - _lag_sum(x, m, count, 0)
+
+
+class _Buffers:
+    """Chunk scratch arrays shared by the passes of one call (no allocation per chunk or per τ)."""
+
+    def __init__(self, chunk: int, width1: int) -> None:
+        self.ks = np.arange(chunk, dtype=np.float64)  # 0, 1, …: sample offsets inside a chunk
+        self.b1 = np.empty(max(width1, chunk))
+        self.b2 = np.empty(chunk)
+        self.b3 = np.empty(chunk)
+
+
+def _second_diff(x: NDArray[np.float64], m: int, s: int, k: int, bufs: _Buffers) -> NDArray[np.float64]:
+    """d_j = x_{j+2m} − 2x_{j+m} + x_j for j = s … s+k−1 (k ≤ chunk), in ``bufs.b2``."""
+    d = bufs.b2[:k]
+    if k > m:  # first differences at lag m (k + m of them, in cache), then their difference
+        d1 = bufs.b1[: k + m]
+        np.subtract(x[s + m : s + k + 2 * m], x[s : s + k + m], out=d1)
+        np.subtract(d1[m:], d1[:k], out=d)
+    else:
+        t = bufs.b3[:k]
+        np.subtract(x[s + 2 * m : s + k + 2 * m], x[s + m : s + k + m], out=d)
+        np.subtract(x[s + m : s + k + m], x[s : s + k], out=t)
+        d -= t
+    return d
+
+
+def _double_g(g: NDArray[np.float64], m: int, s: int, k: int, bufs: _Buffers) -> None:
+    """In place for j = s … s+k−1: G_{2m}(j) = G_m(j) + 2G_m(j+m) + G_m(j+2m), reading G_m up to j + 2m only
+    (columns ≥ s + k are still G_m afterwards)."""
+    if k > m:
+        h = bufs.b1[: k + m]
+        np.add(g[s : s + k + m], g[s + m : s + k + 2 * m], out=h)
+        np.add(h[:k], h[m : m + k], out=g[s : s + k])
+    else:  # 2m ≥ k: the shifted slices do not overlap the written one
+        w = g[s : s + k]
+        w += g[s + 2 * m : s + k + 2 * m]
+        w += g[s + m : s + k + m]
+        w += g[s + m : s + k + m]
+
+
+def _octave_level(
+    x: NDArray[np.float64], g: NDArray[np.float64], m: int, k_avar: int, double: bool, chunk: int, bufs: _Buffers
+) -> tuple[float, float, float]:
+    """One pass at averaging factor m of the octave grid, for one channel: Σd² over the N + 1 − 2m overlapping
+    second differences d of the phase x, Σd² over the non-overlapping subset j = 0, m, …, (k_avar − 1)m, and
+    Σs² over the N + 2 − 3m modified-AVAR terms s_j = G_m(j+m) − G_m(j) (m > 1; at m = 1 s = d).
+
+    G_m(j) = S_m(j+m) − S_m(j), with S_m the moving sums of m phase points (G_1 is the detrended record itself):
+    s is then one difference, and ``double`` turns G_m into G_{2m} in place, chunk by chunk while it is in
+    cache, for the next τ (the moving sums themselves are never formed: their size grows with m, G's does not).
     """
-    c, n1 = x.shape
-    n = n1 - 1
+    n = x.shape[0] - 1
+    n_o = n + 1 - 2 * m
+    n_m = n + 2 - 3 * m if m > 1 else 0
+    n_g = n + 2 - 4 * m if double else 0  # G_{2m} is needed on j < n_g
+    s2 = a2 = t2 = 0.0
+    for s in range(0, n_o, chunk):  # n_o > n_m, n_g
+        e = min(n_o, s + chunk)
+        d = _second_diff(x, m, s, e - s, bufs)
+        s2 += _dot(d)
+        if m > 1:
+            lo = (-s) % m
+            hi = min(e - s, k_avar * m - s)
+            if hi > lo:
+                a2 += _dot(d[lo:hi:m])
+        if s < n_m:
+            kk = min(e, n_m) - s
+            inner = bufs.b3[:kk]
+            np.subtract(g[s + m : s + m + kk], g[s : s + kk], out=inner)
+            t2 += _dot(inner)
+        if s < n_g:
+            _double_g(g, m, s, min(e, n_g) - s, bufs)
+    return s2, a2, t2
+
+
+def _general_level(x: NDArray[np.float64], m: int, k_avar: int, chunk: int) -> tuple[float, float, float, float]:
+    """Any m, one channel: Σd², the non-overlapping subset's Σd², and Σs, Σs² of the modified-AVAR terms s_j
+    (m-sums of d, from a running sum of d over each chunk extended by m − 1)."""
+    n = x.shape[0] - 1
     n_o = n + 1 - 2 * m
     n_m = n + 2 - 3 * m
-    s2 = np.zeros(c)
-    t1 = np.zeros(c)
-    t2 = np.zeros(c)
+    s2 = a2 = t1 = t2 = 0.0
     if n_o <= 0:
-        if double and msum is not None:
-            _double_moving_sum(msum, m, chunk)
-        return np.zeros(c), s2, t1, t2, max(n_o, 0), max(n_m, 0)
-    s1 = _lag2_sum(x, m, n_o)
-    if n_m > 0 and msum is not None:
-        t1 = _lag2_sum(msum, m, n_m)  # before msum is doubled in place below
-    top = msum.shape[1] - m if msum is not None else 0
-    done = 0  # msum columns [0, done) already doubled
-    step = max(chunk, 2 * m) if msum is None else chunk
-    width = min(n_o, step) + (m - 1 if msum is None else 0)
-    buf1 = np.empty((c, 2 * width if width > m else 0))
-    buf2 = np.empty((c, width))
+        return s2, a2, t1, t2
+    step = max(chunk, 2 * m)
+    width = min(n_o, step) + m - 1
+    bufs = _Buffers(width, 2 * width)
     for s in range(0, n_o, step):
         e = min(n_o, s + step)
-        ee = min(n_o, e + m - 1) if (n_m > 0 and msum is None) else e
-        k = ee - s
-        d = buf2[:, :k]
-        if k <= m:
-            np.add(x[:, s + 2 * m : ee + 2 * m], x[:, s:ee], out=d)
-            d -= x[:, s + m : ee + m]
-            d -= x[:, s + m : ee + m]
-        else:  # first differences at lag m, then their difference: two passes instead of three
-            d1 = buf1[:, : k + m]
-            np.subtract(x[:, s + m : ee + 2 * m], x[:, s : ee + m], out=d1)
-            np.subtract(d1[:, m:], d1[:, :k], out=d)
-        dc = d[:, : e - s]
-        s2 += np.einsum("ij,ij->i", dc, dc)
+        ee = min(n_o, e + m - 1) if n_m > 0 else e
+        d = _second_diff(x, m, s, ee - s, bufs)
+        dc = d[: e - s]
+        s2 += _dot(dc)
+        lo = (-s) % m
+        hi = min(e - s, k_avar * m - s)
+        if hi > lo:
+            a2 += _dot(dc[lo:hi:m])
         if n_m > 0 and s < n_m:
             kk = min(e, n_m) - s
-            if msum is not None:
-                inner = buf2[:, :kk]
-                if m == 1 and k > m and kk <= k:  # S_1 is x itself: inner = d and g1 = d1, bit for bit
-                    g1 = d1
-                elif kk <= m:
-                    np.add(msum[:, s + 2 * m : s + 2 * m + kk], msum[:, s : s + kk], out=inner)
-                    inner -= msum[:, s + m : s + m + kk]
-                    inner -= msum[:, s + m : s + m + kk]
-                else:
-                    g1 = buf1[:, : kk + m]
-                    np.subtract(msum[:, s + m : s + 2 * m + kk], msum[:, s : s + m + kk], out=g1)
-                    np.subtract(g1[:, m:], g1[:, :kk], out=inner)
-                if double:  # columns < s + kk are not read again at this m (later chunks start at s + kk)
-                    hi = min(top, s + kk)
-                    if hi > done:
-                        if kk > m and done == s:  # S_2m(j) = 2 S_m(j) + (S_m(j+m) − S_m(j)): g1 is in cache
-                            blk = msum[:, s:hi]
-                            blk *= 2.0
-                            blk += g1[:, : hi - s]
-                        else:
-                            msum[:, done:hi] += msum[:, done + m : hi + m]
-                        done = hi
-            else:
-                cs = np.cumsum(d, axis=1)
-                inner = cs[:, m - 1 : m - 1 + kk].copy()
-                inner[:, 1:] -= cs[:, : kk - 1]
-                t1 += inner.sum(axis=1)
-            t2 += np.einsum("ij,ij->i", inner, inner)
-    if double and msum is not None:
-        _double_moving_sum(msum, m, chunk, start=done)  # the columns not doubled in the loop
-    return s1, s2, t1, t2, n_o, max(n_m, 0)
-
-
-def _double_moving_sum(msum: NDArray[np.float64], m: int, chunk: int, start: int = 0) -> None:
-    """In place: moving sums over m → over 2m (S_{2m}(j) = S_m(j) + S_m(j+m)), ascending chunks, from column
-    ``start`` on (the columns before it already doubled)."""
-    top = msum.shape[1] - m
-    for s in range(start, top, chunk):
-        e = min(top, s + chunk)
-        msum[:, s:e] += msum[:, s + m : e + m]
-    msum[:, top:] = np.nan  # windows that run past the record are undefined
+            cs = np.cumsum(d)
+            inner = cs[m - 1 : m - 1 + kk].copy()
+            inner[1:] -= cs[: kk - 1]
+            t1 += float(inner.sum())
+            t2 += _dot(inner)
+    return s2, a2, t1, t2
 
 
 def allan_variances(
@@ -362,7 +449,7 @@ def allan_variances(
     *,
     points_per_decade: int = 10,
     max_m: int | None = None,
-    confidence: float = 0.683,
+    confidence: float | None = 0.683,
     chunk: int = _CHUNK,
 ) -> AllanResult:
     """Non-overlapping, overlapping, total and modified Allan variances with EDF and confidence intervals.
@@ -380,10 +467,11 @@ def allan_variances(
         Density of the ``log`` grid.
     max_m : int, optional
         Largest averaging factor (default ⌊N/3⌋).
-    confidence : float
-        Two-sided probability of the χ² intervals (default 0.683, "1σ").
+    confidence : float or None
+        Two-sided probability of the χ² intervals (default 0.683, "1σ"); None: variances only (no noise type,
+        EDF or intervals).
     chunk : int
-        Columns per chunk (tuning only).
+        Samples per chunk of the passes (tuning and tests only).
 
     Returns
     -------
@@ -396,71 +484,96 @@ def allan_variances(
         raise ValueError(f"sample rate must be a positive number of Hz, got {rate}")
     if n < 4:
         raise ValueError(f"record too short for Allan variance: {n} samples (need at least 4)")
-    if not np.all(np.isfinite(a)):
+    chunk = max(16, int(chunk))
+    bufs = _Buffers(chunk, 2 * chunk)
+    lines = [_line(a[:, ch], bufs.ks) for ch in range(c)]
+    if not all(math.isfinite(v) for ln in lines for v in ln) and not np.all(np.isfinite(a)):
         raise ValueError("record contains NaN or inf; remove or interpolate them before the analysis")
-    if not 0.0 < confidence < 1.0:
+    if confidence is not None and not 0.0 < confidence < 1.0:
         raise ValueError(f"confidence must be in (0, 1), got {confidence}")
     ts = 1.0 / rate
     ms = tau_grid(n, rate, taus, points_per_decade, max_m)
     if ms.size == 0:
         raise ValueError(f"no averaging time of the requested grid fits a record of {n} samples at {rate} Hz")
-    x, r_s = _detrend_and_integrate(a, ts, chunk)
-    half_a = 0.5 * ts * r_s  # x_ramp(j) = half_a (j² + j) + linear: a quadratic in the phase
     nm = ms.size
     var = {k: np.full((nm, c), np.nan) for k in ESTIMATORS}
     nterm = {k: np.zeros(nm, dtype=np.int64) for k in ESTIMATORS}
-    octave = bool(np.all(ms & (ms - 1) == 0))  # all powers of two: modified AVAR by moving-sum doubling
-    msum = x.copy() if octave and int(ms.max()) * 3 <= n + 2 else None
-    m_cur = 1
+    octave = bool(np.all(ms & (ms - 1) == 0))  # all powers of two: G doubled in place from one τ to the next
+    x = np.empty(n + 1)  # phase of one channel at a time (and G): two record-sized arrays in all
+    g = np.empty(n + 1) if octave else bufs.b2
+    for ch, (mean, r_s) in enumerate(lines):
+        _integrate(a[:, ch], mean, r_s, bufs.ks, x, g)
+        _channel(x, g if octave else None, r_s, ms, chunk, bufs, var, nterm, ch)
+    del x, g
+    res = AllanResult(ms * ts, ms, float(rate), n, var, nterm, confidence=confidence or 0.683)
+    if confidence is not None:
+        _attach_confidence(res)
+    return res
+
+
+def _channel(
+    x: NDArray[np.float64],
+    g: NDArray[np.float64] | None,
+    r_s: float,
+    ms: NDArray[np.int64],
+    chunk: int,
+    bufs: _Buffers,
+    var: dict[str, NDArray[np.float64]],
+    nterm: dict[str, NDArray[np.int64]],
+    ch: int,
+) -> None:
+    """Fill column ``ch`` of ``var`` / ``nterm`` from one channel's detrended phase x (data unit × samples) and,
+    on an octave grid, G_1 in ``g`` (overwritten: doubled up the grid).
+
+    The removed line's slope r_s (per sample) is added back exactly: the phase of the ramp is the quadratic
+    (r_s/2) j² + linear, which adds cr = r_s m² to every central second difference and m·cr to every
+    modified-AVAR term, and a known quadratic to the reflected edge terms of the total variance. Phase units
+    are data unit × samples, so a variance is Σ (term)² / (2 m² ⋯) with no T_s.
+    """
+    n = x.shape[0] - 1
+    half_a = 0.5 * r_s
+    m_cur = 1  # g holds G_{m_cur}
     for j, m in enumerate(ms):
         m = int(m)
-        tau = m * ts
-        cr = 2.0 * half_a * m * m  # exact central second difference of the removed ramp (phase units)
-        # non-overlapping: strided subset
-        k = n // m - 1
-        if k >= 1 and m > 1:  # at m = 1 the non-overlapping terms are the overlapping ones (copied below)
-            a1 = np.zeros(c)
-            a2 = np.zeros(c)
-            for k0 in range(0, k, chunk):
-                xd = x[:, k0 * m : (min(k, k0 + chunk) + 1) * m + 1 : m]
-                d = xd[:, 2:] + xd[:, :-2]
-                d -= 2.0 * xd[:, 1:-1]
-                a1 += d.sum(axis=1)
-                a2 += np.einsum("ij,ij->i", d, d)
-            tot = a2 + 2.0 * cr * a1 + k * cr * cr
-            var["avar"][j] = tot / (2.0 * tau * tau * k)
-            nterm["avar"][j] = k
-        fuse = False
-        if msum is not None:
-            while m_cur < m:
-                _double_moving_sum(msum, m_cur, chunk)
+        cr = r_s * m * m
+        n_o = n + 1 - 2 * m
+        n_m = n + 2 - 3 * m
+        k_avar = n // m - 1
+        if g is not None:
+            while m_cur < m:  # a power of two missing from the grid: doubling only
+                for s in range(0, n + 2 - 4 * m_cur, chunk):
+                    _double_g(g, m_cur, s, min(n + 2 - 4 * m_cur, s + chunk) - s, bufs)
                 m_cur *= 2
-            fuse = j + 1 < nm and int(ms[j + 1]) == 2 * m  # the next τ needs the sums over 2m
-        s1, s2, t1, t2, n_o, n_m = _sums_one_m(x, m, chunk, msum, double=fuse)
-        if fuse:
-            m_cur = 2 * m
-        if n_o > 0:
-            central = s2 + 2.0 * cr * s1 + n_o * cr * cr
-            var["oavar"][j] = central / (2.0 * tau * tau * n_o)
-            nterm["oavar"][j] = n_o
-            if m == 1:
-                var["avar"][j], nterm["avar"][j] = var["oavar"][j], n_o
+            t1 = _lag_sum(g, m, n_m) if m > 1 and n_m > 0 else 0.0  # Σ s_j telescoped, before G is doubled
+            double = j + 1 < ms.size
+            s2, a2, t2 = _octave_level(x, g, m, k_avar, double, chunk, bufs)
+            if double:
+                m_cur = 2 * m
         else:
-            central = np.zeros(c)
+            s2, a2, t1, t2 = _general_level(x, m, k_avar, chunk)
+        if n_o > 0:
+            s1 = _lag2_sum(x, m, n_o)
+            central = s2 + 2.0 * cr * s1 + n_o * cr * cr
+            var["oavar"][j, ch] = central / (2.0 * m * m * n_o)
+            nterm["oavar"][j] = n_o
+            if m == 1:  # the non-overlapping and modified terms are the overlapping ones
+                var["avar"][j, ch] = var["oavar"][j, ch]
+                nterm["avar"][j] = n_o
+                t1, t2 = s1, s2
+        else:
+            central = 0.0
+        if k_avar >= 1 and m > 1:  # Σ of the strided subset telescopes: (x_{(k+1)m} − x_{km}) − (x_m − x_0)
+            a1 = float((x[(k_avar + 1) * m] - x[k_avar * m]) - (x[m] - x[0]))
+            var["avar"][j, ch] = (a2 + 2.0 * cr * a1 + k_avar * cr * cr) / (2.0 * m * m * k_avar)
+            nterm["avar"][j] = k_avar
         if n_m > 0:
             tot = t2 + 2.0 * m * cr * t1 + n_m * (m * cr) ** 2
-            var["mvar"][j] = tot / (2.0 * m * m * tau * tau * n_m)
+            var["mvar"][j, ch] = tot / (2.0 * m**4 * n_m)
             nterm["mvar"][j] = n_m
         if m <= n and n >= 3:
-            left_end = min(m - 1, n - 1)
-            edge = _edge_sum(x, m, 1, left_end, half_a)
-            edge += _edge_sum(x, m, max(n - m + 1, left_end + 1), n - 1, half_a)
-            var["totvar"][j] = (central + edge) / (2.0 * tau * tau * (n - 1))
+            edge = _edge_sums(x, m, half_a, chunk, bufs)
+            var["totvar"][j, ch] = (central + edge) / (2.0 * m * m * (n - 1))
             nterm["totvar"][j] = n - 1
-    del msum
-    res = AllanResult(ms * ts, ms, float(rate), n, var, nterm, confidence=confidence)
-    _attach_confidence(res)
-    return res
 
 
 # ----------------------------------------------------------------------------------------------- EDF / χ²
