@@ -451,6 +451,7 @@ def allan_variances(
     max_m: int | None = None,
     confidence: float | None = 0.683,
     chunk: int = _CHUNK,
+    phase: NDArray[np.float64] | None = None,
 ) -> AllanResult:
     """Non-overlapping, overlapping, total and modified Allan variances with EDF and confidence intervals.
 
@@ -472,6 +473,10 @@ def allan_variances(
         EDF or intervals).
     chunk : int
         Samples per chunk of the passes (tuning and tests only).
+    phase : ndarray (C, N+1), optional
+        Receives each channel's phase x_j = T_s Σ_{k<j} (Ω_k − Ω̄), x_0 = 0 (the record integrated with only its
+        mean removed, in u·s); the passes then run in it instead of in a phase array of their own, and the
+        removed ramp's phase is added back at the end (no second integration for a caller that needs it).
 
     Returns
     -------
@@ -499,16 +504,41 @@ def allan_variances(
     var = {k: np.full((nm, c), np.nan) for k in ESTIMATORS}
     nterm = {k: np.zeros(nm, dtype=np.int64) for k in ESTIMATORS}
     octave = bool(np.all(ms & (ms - 1) == 0))  # all powers of two: G doubled in place from one τ to the next
-    x = np.empty(n + 1)  # phase of one channel at a time (and G): two record-sized arrays in all
+    if phase is not None and (phase.shape != (c, n + 1) or phase.dtype != np.float64 or not phase.flags.c_contiguous):
+        raise ValueError(f"phase must be a C-contiguous float64 array of shape {(c, n + 1)}")
+    # phase of one channel at a time (and G): two record-sized arrays in all
+    x = np.empty(n + 1) if phase is None else None
     g = np.empty(n + 1) if octave else bufs.b2
     for ch, (mean, r_s) in enumerate(lines):
-        _integrate(a[:, ch], mean, r_s, bufs.ks, x, g)
-        _channel(x, g if octave else None, r_s, ms, chunk, bufs, var, nterm, ch)
+        xc = x if phase is None else phase[ch]
+        _integrate(a[:, ch], mean, r_s, bufs.ks, xc, g)
+        _channel(xc, g if octave else None, r_s, ms, chunk, bufs, var, nterm, ch)
+        if phase is not None:
+            _add_ramp_phase(xc, r_s, ts, bufs)
     del x, g
     res = AllanResult(ms * ts, ms, float(rate), n, var, nterm, confidence=confidence or 0.683)
     if confidence is not None:
         _attach_confidence(res)
     return res
+
+
+def _add_ramp_phase(x: NDArray[np.float64], r_s: float, ts: float, bufs: _Buffers) -> None:
+    """In place: detrended phase (data unit × samples) → T_s·(x_j + r_s Σ_{k<j} (k − k̄)), the phase with only
+    the mean removed; Σ_{k<j} (k − k̄) = j ((j − 1)/2 − k̄), k̄ = (N − 1)/2."""
+    n1 = x.shape[0]
+    c0 = 1.0 + (n1 - 2)  # 1 + 2k̄
+    step = bufs.ks.size
+    for s in range(0, n1, step):
+        e = min(n1, s + step)
+        jj = bufs.b2[: e - s]
+        np.add(bufs.ks[: e - s], s, out=jj)
+        t = bufs.b3[: e - s]
+        np.subtract(jj, c0, out=t)
+        t *= jj
+        t *= 0.5 * r_s
+        seg = x[s:e]
+        seg += t
+        seg *= ts
 
 
 def _channel(

@@ -1238,8 +1238,15 @@ def stability(
 
             ms = grid[grid <= max(_MAX_M[e](rec.n) for e in want)]
             top = int(ms.max()) if ms.size else 1
-            # channel by channel inside (two single-channel arrays); its own older intervals are not wanted here
-            classic = allan_variances(rec.freq_raw.T, rate, ms / rate, max_m=top, confidence=None)
+            # channel by channel inside (two single-channel arrays); its own older intervals are not wanted here.
+            # One channel: the pass also leaves the record's phase (noise identification, other estimators) in
+            # the array it ran in — no second integration, no extra memory.
+            phase = None
+            if c == 1 and (confidence is not None or len(want) < len(estimators)):
+                phase = np.empty((1, rec.n))
+            classic = allan_variances(rec.freq_raw.T, rate, ms / rate, max_m=top, confidence=None, phase=phase)
+            if phase is not None:
+                rec._x = phase
     key = {"adev": "avar", "oadev": "oavar", "mdev": "mvar", "totdev": "totvar"}
     for name in estimators:
         if name in ("theoh", "theobr"):
