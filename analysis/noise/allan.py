@@ -170,6 +170,9 @@ def tau_grid(
     return m
 
 
+_LEVELS_PER_PASS = 8
+"""Octave levels sharing one pass over the record (:func:`_octave_levels`); tuning only."""
+
 _DOT_BLOCK = 4096
 """Elements per BLAS dot product in :func:`_dot` (OpenBLAS spreads a dot product of more than 10 000 elements over
 threads, which on a busy machine costs far more than it saves; below that it runs on the calling thread)."""
@@ -375,39 +378,55 @@ def _double_g(g: NDArray[np.float64], m: int, s: int, k: int, bufs: _Buffers) ->
         w += g[s + m : s + k + m]
 
 
-def _octave_level(
-    x: NDArray[np.float64], g: NDArray[np.float64], m: int, k_avar: int, double: bool, chunk: int, bufs: _Buffers
-) -> tuple[float, float, float]:
-    """One pass at averaging factor m of the octave grid, for one channel: Σd² over the N + 1 − 2m overlapping
-    second differences d of the phase x, Σd² over the non-overlapping subset j = 0, m, …, (k_avar − 1)m, and
-    Σs² over the N + 2 − 3m modified-AVAR terms s_j = G_m(j+m) − G_m(j) (m > 1; at m = 1 s = d).
+def _octave_levels(
+    x: NDArray[np.float64], g: NDArray[np.float64], levels: list[tuple[int, int, bool]], chunk: int, bufs: _Buffers
+) -> list[tuple[float, float, float, float]]:
+    """One pass over the record for consecutive averaging factors m, 2m, 4m, … of the octave grid, one channel.
+
+    Per level (m, k_avar, double): Σd² over the N + 1 − 2m overlapping second differences d of the phase x,
+    Σd² over the non-overlapping subset j = 0, m, …, (k_avar − 1)m, and Σs² and Σs over the N + 2 − 3m
+    modified-AVAR terms s_j = G_m(j+m) − G_m(j) (m > 1; at m = 1 the caller takes s = d).
 
     G_m(j) = S_m(j+m) − S_m(j), with S_m the moving sums of m phase points (G_1 is the detrended record itself):
-    s is then one difference, and ``double`` turns G_m into G_{2m} in place, chunk by chunk while it is in
-    cache, for the next τ (the moving sums themselves are never formed: their size grows with m, G's does not).
+    s is then one difference, and ``double`` turns G_m into G_{2m} = G_m(j) + 2G_m(j+m) + G_m(j+2m) in place,
+    chunk by chunk, for the next level (the moving sums themselves are never formed). Level l works one chunk
+    behind level l − 1, whose G it needs up to 2m columns ahead (every level after the first has 2m ≤ chunk):
+    the levels of one pass share the chunks while they are still in cache instead of each streaming the record.
+    Σs telescopes to Σ G_m over the last m columns (never overwritten: later levels double only lower columns)
+    minus the first m (read before this level doubles them).
     """
     n = x.shape[0] - 1
-    n_o = n + 1 - 2 * m
-    n_m = n + 2 - 3 * m if m > 1 else 0
-    n_g = n + 2 - 4 * m if double else 0  # G_{2m} is needed on j < n_g
-    s2 = a2 = t2 = 0.0
-    for s in range(0, n_o, chunk):  # n_o > n_m, n_g
-        e = min(n_o, s + chunk)
-        d = _second_diff(x, m, s, e - s, bufs)
-        s2 += _dot(d)
-        if m > 1:
-            lo = (-s) % m
-            hi = min(e - s, k_avar * m - s)
-            if hi > lo:
-                a2 += _dot(d[lo:hi:m])
-        if s < n_m:
-            kk = min(e, n_m) - s
-            inner = bufs.b3[:kk]
-            np.subtract(g[s + m : s + m + kk], g[s : s + kk], out=inner)
-            t2 += _dot(inner)
-        if s < n_g:
-            _double_g(g, m, s, min(e, n_g) - s, bufs)
-    return s2, a2, t2
+    spans = [(n + 1 - 2 * m, n + 2 - 3 * m if m > 1 else 0, n + 2 - 4 * m if double else 0) for m, _, double in levels]
+    acc = [[0.0, 0.0, 0.0, 0.0] for _ in levels]  # Σd², Σd² (non-overlapping), Σs², Σs
+    nchunk = -(-max(spans[0][0], 0) // chunk)
+    for it in range(nchunk + len(levels) - 1):
+        for lv, (m, k_avar, _) in enumerate(levels):
+            s = (it - lv) * chunk
+            n_o, n_m, n_g = spans[lv]
+            if s < 0 or s >= n_o:  # n_o > n_m, n_g
+                continue
+            sums = acc[lv]
+            e = min(n_o, s + chunk)
+            d = _second_diff(x, m, s, e - s, bufs)
+            sums[0] += _dot(d)
+            if m > 1:
+                lo = (-s) % m
+                hi = min(e - s, k_avar * m - s)
+                if hi > lo:
+                    sums[1] += _dot(d[lo:hi:m])
+            if s < n_m:
+                kk = min(e, n_m) - s
+                if s == 0:  # the head of Σs's telescoped form, before G_m is doubled
+                    sums[3] = -_range_sum(g, 0, m) if n_m >= m else _range_sum(g, m, m + n_m) - _range_sum(g, 0, n_m)
+                inner = bufs.b3[:kk]
+                np.subtract(g[s + m : s + m + kk], g[s : s + kk], out=inner)
+                sums[2] += _dot(inner)
+            if s < n_g:
+                _double_g(g, m, s, min(e, n_g) - s, bufs)
+    for (m, _, _), (_, n_m, _), sums in zip(levels, spans, acc, strict=True):
+        if n_m >= m > 1:
+            sums[3] += _range_sum(g, n_m, n_m + m)
+    return [(a[0], a[1], a[2], a[3]) for a in acc]
 
 
 def _general_level(x: NDArray[np.float64], m: int, k_avar: int, chunk: int) -> tuple[float, float, float, float]:
@@ -562,25 +581,38 @@ def _channel(
     """
     n = x.shape[0] - 1
     half_a = 0.5 * r_s
-    m_cur = 1  # g holds G_{m_cur}
-    for j, m in enumerate(ms):
-        m = int(m)
+    ml = [int(m) for m in ms]
+    sums: list[tuple[float, float, float, float]] = []  # Σd², Σd² (non-overlapping), Σs², Σs per τ
+    if g is not None:
+        m_cur = 1  # g holds G_{m_cur}
+        while len(sums) < len(ml):
+            j = len(sums)
+            while m_cur < ml[j]:  # a power of two missing from the grid: doubling only
+                top = n + 2 - 4 * m_cur
+                for s in range(0, top, chunk):
+                    _double_g(g, m_cur, s, min(top, s + chunk) - s, bufs)
+                m_cur *= 2
+            group = [j]  # next levels of the same pass: consecutive octaves with 2m ≤ chunk
+            while (
+                len(group) < _LEVELS_PER_PASS
+                and group[-1] + 1 < len(ml)
+                and ml[group[-1] + 1] == 2 * ml[group[-1]]
+                and 2 * ml[group[-1] + 1] <= chunk
+            ):
+                group.append(group[-1] + 1)
+            levels = [(ml[i], n // ml[i] - 1, i + 1 < len(ml)) for i in group]
+            sums += _octave_levels(x, g, levels, chunk, bufs)
+            m_cur = 2 * ml[group[-1]]
+    else:
+        for m in ml:
+            s2, a2, t1, t2 = _general_level(x, m, n // m - 1, chunk)
+            sums.append((s2, a2, t2, t1))
+    for j, m in enumerate(ml):
+        s2, a2, t2, t1 = sums[j]
         cr = r_s * m * m
         n_o = n + 1 - 2 * m
         n_m = n + 2 - 3 * m
         k_avar = n // m - 1
-        if g is not None:
-            while m_cur < m:  # a power of two missing from the grid: doubling only
-                for s in range(0, n + 2 - 4 * m_cur, chunk):
-                    _double_g(g, m_cur, s, min(n + 2 - 4 * m_cur, s + chunk) - s, bufs)
-                m_cur *= 2
-            t1 = _lag_sum(g, m, n_m) if m > 1 and n_m > 0 else 0.0  # Σ s_j telescoped, before G is doubled
-            double = j + 1 < ms.size
-            s2, a2, t2 = _octave_level(x, g, m, k_avar, double, chunk, bufs)
-            if double:
-                m_cur = 2 * m
-        else:
-            s2, a2, t1, t2 = _general_level(x, m, k_avar, chunk)
         if n_o > 0:
             s1 = _lag2_sum(x, m, n_o)
             central = s2 + 2.0 * cr * s1 + n_o * cr * cr
