@@ -157,3 +157,18 @@ def test_edge_sums_fast_form_equals_the_general_reflection(half_a: float) -> Non
             x, m, n - m + 1, n - 1, half_a, 32
         )
         assert fast == pytest.approx(general, rel=1e-12, abs=1e-12), m
+
+
+@pytest.mark.parametrize("per_pass", [1, 2, 3, 8])
+def test_levels_sharing_a_pass_give_the_definitions(monkeypatch: pytest.MonkeyPatch, per_pass: int) -> None:
+    """Several octave levels in one pass (each a chunk behind the previous), on an odd length whose last levels
+    end inside a chunk and have fewer chunks than the first."""
+    monkeypatch.setattr(al, "_LEVELS_PER_PASS", per_pass)
+    n = 2999
+    y = _record(n, 13)
+    res = allan_variances(y, 1.0, "octave", chunk=64)
+    assert list(res.m) == [1, 2, 4, 8, 16, 32, 64, 128, 256, 512]
+    for j, m in enumerate(res.m):
+        ref = _definitions(y, int(m))
+        for est in ESTIMATORS:
+            assert res.var[est][j, 0] == pytest.approx(ref[est], rel=1e-10), (est, int(m))
