@@ -178,21 +178,22 @@ _DOT_BLOCK = 4096
 threads, which on a busy machine costs far more than it saves; below that it runs on the calling thread)."""
 
 _vecdot = getattr(np, "vecdot", None)  # numpy ≥ 2.0
+_add_reduce = np.add.reduce
 
 
 def _dot(u: NDArray[np.float64], v: NDArray[np.float64] | None = None) -> float:
     """Σ u·v (Σ u² without ``v``) of 1-D, possibly strided, float64 arrays: single-threaded BLAS dot products of
     :data:`_DOT_BLOCK` elements (about twice as fast as ``einsum``)."""
-    v = u if v is None else v
     k = u.shape[0]
     q = k - k % _DOT_BLOCK
     tot = 0.0
     if q:
         bu = u[:q].reshape(-1, _DOT_BLOCK)
-        bv = v[:q].reshape(-1, _DOT_BLOCK)
-        tot = float((_vecdot(bu, bv) if _vecdot is not None else np.einsum("ij,ij->i", bu, bv)).sum())
+        bv = bu if v is None else v[:q].reshape(-1, _DOT_BLOCK)
+        tot = float(_add_reduce(_vecdot(bu, bv) if _vecdot is not None else np.einsum("ij,ij->i", bu, bv)))
     if k > q:
-        tot += float(np.dot(u[q:], v[q:]))
+        r = u[q:]
+        tot += float(np.dot(r, r if v is None else v[q:]))
     return tot
 
 
