@@ -14,15 +14,20 @@ They equal allantools ``adev``/``oadev``/``totdev``/``mdev`` with ``data_type='f
 
 Implementation
 --------------
-One pass per τ over the phase, in cache-sized chunks, vectorised over the channels: the second differences
-d_i = x_{i+2m} − 2x_{i+m} + x_i serve the overlapping AVAR, the central part of the total variance (whose
-remaining O(m) reflected edge terms are evaluated separately from slices) and the modified AVAR — on an
-octave grid from moving sums of the phase, doubled in place from one τ to the next (one add per sample per
-τ), otherwise from a running sum of d over each chunk; the non-overlapping AVAR is the strided subset. The
-chunk temporaries are two preallocated buffers (no allocation per chunk) and the plain sums Σd, Σs telescope to
-O(m) end sums, so a pass is two differences and one product-sum per estimator. Cost O(N) per τ; memory two
-float64 arrays of N+1 per channel (phase and moving sums) plus O(chunk) temporaries, i.e. about twice the
-record (measured in benchmarks/bench_noise.py).
+Channel by channel, in cache-sized chunks: the phase x (the detrended record integrated, in data unit ×
+samples: T_s enters only the final normalisation) gives the overlapping second differences
+d_j = x_{j+2m} − 2x_{j+m} + x_j (two subtractions per sample, the first at lag m), which serve the overlapping
+AVAR, the central part of the total variance (whose O(m) reflected edge terms are evaluated separately from
+reversed slices) and, as the strided subset j = 0, m, 2m, …, the non-overlapping AVAR. The modified AVAR's
+terms s_j (m-sums of d) are, on an octave grid, one difference of G_m(j) = S_m(j+m) − S_m(j), S_m the moving
+sums of m phase points: G_1 is the detrended record itself and G_{2m}(j) = G_m(j) + 2G_m(j+m) + G_m(j+2m) is
+formed in place, chunk by chunk (two adds per sample per τ); otherwise s comes from a running sum of d over
+each chunk. Up to :data:`_LEVELS_PER_PASS` consecutive octaves share one pass over the record, each a chunk
+behind the previous, so the chunks are reused while in cache. The plain sums Σd, Σs and the non-overlapping Σd
+telescope to O(m) end sums; sums of squares are single-threaded BLAS dot products of 4096 elements; the chunk
+temporaries are preallocated. Cost O(N) per τ (about seven vector operations per sample); memory two float64
+arrays of N+1 (phase and G, reused channel after channel) plus O(chunk), i.e. about twice one channel of the
+record (measured in benchmarks/bench_noise.py); with ``phase=…`` the caller's phase array serves as x.
 
 Precision: before integration the least-squares line (mean and rate ramp) is removed from each channel and
 its contribution is added back analytically (a ramp r adds exactly r τ² to every central second difference,

@@ -36,8 +36,9 @@ phase input for ``htotdev`` is differenced to frequency.
 Speed. Every estimator costs O(N) or O(N log N) per τ. ADEV/OADEV/HDEV/OHDEV/TIE rms: chunked differences;
 MDEV/TDEV: a cumulative sum of the second differences; MTIE: an O(N) running max/min filter; the classic
 ADEV/OADEV/MDEV/TOTDEV of gap-free frequency records go through :func:`analysis.noise.allan.allan_variances`
-(channel by channel, one chunked pass per τ in preallocated buffers, plain sums by telescoping, analytic ramp
-handling). MTOTDEV/TTOTDEV/HTOTDEV: the even reflection makes each subsequence's 6m terms one period of a
+(channel by channel, chunked passes shared by several octaves, plain sums by telescoping, analytic ramp
+handling; for one channel the pass also leaves the record's phase, so it is not integrated twice).
+MTOTDEV/TTOTDEV/HTOTDEV: the even reflection makes each subsequence's 6m terms one period of a
 circular filter, i.e. a quadratic form zᵀQz with Q Toeplitz + Hankel; summed over subsequences it reduces to the
 record's autocorrelation (one FFT per channel and record, :func:`_autocorr`) and FFT correlations of the 3m − 1
 end samples (:func:`_mtot_fft`: O(N) once plus O(m log m) per τ). Theo1: window sums, one lagged product, a
