@@ -353,6 +353,14 @@ class _Buffers:
         self.b1 = np.empty(max(width1, chunk))
         self.b2 = np.empty(chunk)
         self.b3 = np.empty(chunk)
+        self._scratch: NDArray[np.float64] | None = None
+
+    @property
+    def ks_scratch(self) -> NDArray[np.float64]:
+        """A fourth chunk-sized buffer, allocated on first use (only the passes with m ≥ chunk need it)."""
+        if self._scratch is None:
+            self._scratch = np.empty(self.b2.size)
+        return self._scratch
 
 
 def _second_diff(x: NDArray[np.float64], m: int, s: int, k: int, bufs: _Buffers) -> NDArray[np.float64]:
@@ -433,6 +441,56 @@ def _octave_levels(
         if n_m >= m > 1:
             sums[3] += _range_sum(g, n_m, n_m + m)
     return [(a[0], a[1], a[2], a[3]) for a in acc]
+
+
+def _octave_far(
+    x: NDArray[np.float64], g: NDArray[np.float64], m: int, k_avar: int, double: bool, chunk: int, bufs: _Buffers
+) -> tuple[float, float, float, float]:
+    """:func:`_octave_levels` for one level with m ≥ chunk, walking the record column by column: for each offset
+    block [c, c + w) of the period m, the blocks j = c + t·m + [0, w), t = 0, 1, …, in turn. Consecutive blocks
+    then share their lag-m first differences D1(j) = x_{j+m} − x_j and pair sums h(j) = G_m(j) + G_m(j+m):
+    d = D1(j+m) − D1(j) and G_{2m}(j) = h(j) + h(j+m) cost one new operation each (three with independent
+    chunks), and each step reads one new block of x and of G. Blocks of one column never overlap those of
+    another, and G_m(j) is overwritten only after its last use (by this block's s and h)."""
+    n = x.shape[0] - 1
+    n_o = n + 1 - 2 * m
+    n_m = n + 2 - 3 * m
+    n_g = n + 2 - 4 * m if double else 0
+    s2 = a2 = t2 = 0.0
+    t1 = _lag_sum(g, m, n_m) if n_m > 0 else 0.0  # Σs telescoped, before G is doubled
+    d1a, d1b = bufs.b1[:chunk], bufs.b1[chunk : 2 * chunk]
+    ha, hb = bufs.b2, bufs.b3
+    d = bufs.ks_scratch
+    for c in range(0, min(m, max(n_o, 0)), chunk):
+        w = min(chunk, m - c, n_o - c)
+        np.subtract(x[c + m : c + m + w], x[c : c + w], out=d1a[:w])
+        kg = min(w, n_g - c)
+        if kg > 0:
+            np.add(g[c : c + kg], g[c + m : c + m + kg], out=ha[:kg])
+        j0 = c
+        while j0 < n_o:
+            kd = min(w, n_o - j0)
+            nxt = d1b[:kd]
+            np.subtract(x[j0 + 2 * m : j0 + 2 * m + kd], x[j0 + m : j0 + m + kd], out=nxt)
+            dd = d[:kd]
+            np.subtract(nxt, d1a[:kd], out=dd)
+            s2 += _dot(dd)
+            if c == 0 and j0 < k_avar * m:  # the non-overlapping terms j = 0, m, 2m, …
+                a2 += float(dd[0]) ** 2
+            if j0 < n_m:
+                ki = min(w, n_m - j0)
+                inner = d[:ki]
+                np.subtract(g[j0 + m : j0 + m + ki], g[j0 : j0 + ki], out=inner)
+                t2 += _dot(inner)
+            kg = min(w, n_g - j0)
+            if kg > 0:
+                hn = hb[:kg]
+                np.add(g[j0 + m : j0 + m + kg], g[j0 + 2 * m : j0 + 2 * m + kg], out=hn)
+                np.add(ha[:kg], hn, out=g[j0 : j0 + kg])
+                ha, hb = hb, ha
+            d1a, d1b = d1b, d1a
+            j0 += m
+    return s2, a2, t2, t1
 
 
 def _general_level(x: NDArray[np.float64], m: int, k_avar: int, chunk: int) -> tuple[float, float, float, float]:
@@ -598,6 +656,10 @@ def _channel(
                 for s in range(0, top, chunk):
                     _double_g(g, m_cur, s, min(top, s + chunk) - s, bufs)
                 m_cur *= 2
+            if ml[j] >= chunk:
+                sums.append(_octave_far(x, g, ml[j], n // ml[j] - 1, j + 1 < len(ml), chunk, bufs))
+                m_cur = 2 * ml[j]
+                continue
             group = [j]  # next levels of the same pass: consecutive octaves with 2m ≤ chunk
             while (
                 len(group) < _LEVELS_PER_PASS

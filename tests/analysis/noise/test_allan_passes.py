@@ -172,3 +172,24 @@ def test_levels_sharing_a_pass_give_the_definitions(monkeypatch: pytest.MonkeyPa
         ref = _definitions(y, int(m))
         for est in ESTIMATORS:
             assert res.var[est][j, 0] == pytest.approx(ref[est], rel=1e-10), (est, int(m))
+
+
+@pytest.mark.parametrize("n", [1000, 1001, 1037])
+@pytest.mark.parametrize("m", [16, 24, 48, 128, 250])
+def test_column_walk_equals_the_chunk_walk(n: int, m: int) -> None:
+    """m ≥ chunk: the column-by-column pass (shared first differences and pair sums) gives the sums and the
+    doubled G of the plain chunk-by-chunk pass, for blocks cut by the period, the record's end and the chunk."""
+    rng = np.random.default_rng(n + m)
+    x = np.concatenate([[0.0], np.cumsum(rng.normal(size=n))])
+    g0 = np.append(np.diff(x), 0.0)  # stands for G_m: the passes do not depend on what G holds
+    chunk = 16
+    ga, gb = g0.copy(), g0.copy()
+    bufs = al._Buffers(chunk, 2 * chunk)
+    ref = al._octave_levels(x, ga, [(m, n // m - 1, True)], chunk, bufs)[0]
+    t1 = al._lag_sum(g0, m, n + 2 - 3 * m) if n + 2 - 3 * m > 0 else 0.0
+    far = al._octave_far(x, gb, m, n // m - 1, True, chunk, bufs)
+    np.testing.assert_allclose(far[:3], ref[:3], rtol=1e-12)
+    assert far[3] == pytest.approx(t1, rel=1e-12, abs=1e-12) and ref[3] == pytest.approx(t1, rel=1e-12, abs=1e-12)
+    top = max(n + 2 - 4 * m, 0)
+    np.testing.assert_allclose(gb[:top], ga[:top], rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(gb[top:], g0[top:])  # beyond the doubled range: untouched
