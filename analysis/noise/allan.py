@@ -353,14 +353,14 @@ class _Buffers:
         self.b1 = np.empty(max(width1, chunk))
         self.b2 = np.empty(chunk)
         self.b3 = np.empty(chunk)
-        self._scratch: NDArray[np.float64] | None = None
+        self._b4: NDArray[np.float64] | None = None
 
     @property
-    def ks_scratch(self) -> NDArray[np.float64]:
+    def b4(self) -> NDArray[np.float64]:
         """A fourth chunk-sized buffer, allocated on first use (only the passes with m ≥ chunk need it)."""
-        if self._scratch is None:
-            self._scratch = np.empty(self.b2.size)
-        return self._scratch
+        if self._b4 is None:
+            self._b4 = np.empty(self.b2.size)
+        return self._b4
 
 
 def _second_diff(x: NDArray[np.float64], m: int, s: int, k: int, bufs: _Buffers) -> NDArray[np.float64]:
@@ -460,7 +460,7 @@ def _octave_far(
     t1 = _lag_sum(g, m, n_m) if n_m > 0 else 0.0  # Σs telescoped, before G is doubled
     d1a, d1b = bufs.b1[:chunk], bufs.b1[chunk : 2 * chunk]
     ha, hb = bufs.b2, bufs.b3
-    d = bufs.ks_scratch
+    d = bufs.b4
     for c in range(0, min(m, max(n_o, 0)), chunk):
         w = min(chunk, m - c, n_o - c)
         np.subtract(x[c + m : c + m + w], x[c : c + w], out=d1a[:w])
