@@ -10,12 +10,21 @@ C. Greenhall, "Power law noise identification using the lag 1 autocorrelation", 
    α = 2 − round(2ρ) − 2d. With fewer than 30 decimated points: the B1 ratio (standard variance of the
    m-averaged frequency over the Allan variance) against Barnes' theoretical B1(N, μ), the phase-noise
    case split by R(n) = MVAR/AVAR; with too few points even for that, the α of the previous τ.
+
+   Where tablebench departs from Stable32, each measured by the slow coverage test (1000 records of 1024
+   points per noise type; white / flicker PM were misidentified at 15–85 % of the long τ before):
+   r₁ is averaged over the m decimation phases (:func:`lag1_alpha`); below 30 points a phase-noise test on
+   that r₁ comes before B1 (:func:`is_phase_noise`); every phase-noise result at m ≥ 4 is split into
+   white / flicker PM by R(n) with overlapping variances (:func:`pm_alpha`: the lag-1 method reads short
+   records of flicker PM as white at m ≥ 8); below 8 decimated points the previous τ's α is kept (B1 on 4
+   averages read white PM as white FM in 60 % of the records).
 2. EDF: Greenhall's combined algorithm (modelling the phase as the first difference of a continuous-time
    power-law process) for ADEV, OADEV, MDEV, TDEV, HDEV, OHDEV; the published fits for the total family —
    TOTVAR b·N/m − c (SP 1065 Table 7), at most OAVAR's EDF scaled by the term count (OAVAR's at m = 1,
    where TOTVAR has no reflected term); for white PM the exact EDF of the reflected estimator, for flicker PM
    Table 5's AVAR formula; MTOT/TTOT b·N/m − c (Howe's revised coefficients as in Stable32, the MVAR
-   EDF for m ≤ 8), HTOT (N/m)/(b₀ + b₁ m/N) (Howe et al. 2000, HDEV's EDF below m = 16), and Theo1 / TheoBR
+   EDF for m ≤ 8), HTOT (N/m)/(b₀ + b₁ m/N) (Howe et al. 2000, HDEV's EDF below m = 16; for phase noise, which no
+   published fit covers, OHDEV's EDF times tablebench's Monte Carlo ratio ``_HTOT_PM_RATIO``), and Theo1 / TheoBR
    (Howe & Peppler 2003, at the effective factor 0.75 m; beyond the lag-1 range Theo1 keeps the last lag-1 α).
 3. χ² interval of the deviation: σ √(EDF/χ²_{1−p/2}) … σ √(EDF/χ²_{p/2}).
 """
@@ -40,17 +49,40 @@ _D_ORDER = {"adev": 2, "oadev": 2, "mdev": 2, "tdev": 2, "hdev": 3, "ohdev": 3, 
 
 
 def _lag1(z: NDArray[np.float64]) -> float:
-    """Lag-1 autocorrelation as Stable32 computes it: Σ z̃_i z̃_{i+1} / Σ z̃_i² · (n − 1)/n, z̃ = z − mean."""
-    z = z - z.mean()
-    den = float(np.einsum("i,i->", z, z))  # einsum, not BLAS: its threads cost more than this sum on a busy machine
-    return float(np.einsum("i,i->", z[:-1], z[1:])) / den * (z.size - 1) / z.size if den > 0 else 0.0
+    """Lag-1 autocorrelation as Stable32 computes it, Σ z̃_i z̃_{i+1} / Σ z̃_i² · (n − 1)/n with z̃ = z − mean,
+    of each column of z (n, k), averaged over the columns."""
+    z = z - z.mean(axis=0)
+    den = np.einsum("ij,ij->j", z, z)  # einsum, not BLAS: its threads cost more than this sum on a busy machine
+    num = np.einsum("ij,ij->j", z[:-1], z[1:])
+    ok = den > 0
+    return float(np.mean(num[ok] / den[ok])) * (z.shape[0] - 1) / z.shape[0] if ok.any() else 0.0
+
+
+LAG1_MIN_POINTS = 30
+"""Fewest decimated points for the lag-1 method (Riley & Greenhall: "at least 30")."""
+PM_TEST_MIN_POINTS = 8
+"""Fewest decimated points for the phase-noise test below the lag-1 range (see :func:`is_phase_noise`)."""
+_DECIMATION_POINTS = 1 << 18
+"""The lag-1 statistics average the m decimation phases up to about this many points in all (one phase when
+the decimated record alone is longer)."""
+
+
+def _decimations(x_phase: NDArray[np.float64], m: int) -> NDArray[np.float64]:
+    """The phase decimated by m at offsets 0 … k − 1 as the columns of an (n, k) view, n = ⌊N/m⌋."""
+    n = x_phase.size // m
+    k = min(m, max(1, _DECIMATION_POINTS // max(n, 1)))
+    return np.asarray(x_phase[: n * m], dtype=np.float64).reshape(n, m)[:, :k]
 
 
 def lag1_alpha(x_phase: NDArray[np.float64], m: int, dmax: int = 2) -> int | None:
     """α by the lag-1 autocorrelation method on the phase decimated by m (Riley & Greenhall 2004, as in
-    Stable32: no trend removal — remove drift before the analysis); None below 30 decimated points."""
-    z = np.asarray(x_phase[::m], dtype=np.float64)
-    if z.size < 30:
+    Stable32: no trend removal — remove drift before the analysis); None below 30 decimated points.
+
+    Where Stable32 takes one decimation (offset 0), r₁ here is the mean over the m decimation phases
+    (offsets 0 … m − 1, up to ≈ 2¹⁸ points in all): the same expectation, a smaller scatter — at N = 1024 the
+    single-phase r₁ read white PM as flicker at m = 8–32 in 2–15 % of records, the averaged one in none."""
+    z = _decimations(x_phase, m)
+    if z.shape[0] < LAG1_MIN_POINTS:
         return None
     d = 0
     while True:
@@ -58,8 +90,61 @@ def lag1_alpha(x_phase: NDArray[np.float64], m: int, dmax: int = 2) -> int | Non
         rho = r1 / (1.0 + r1)
         if rho < 0.25 or d >= dmax:
             return int(-round(2.0 * rho) - 2 * d + 2)
-        z = np.diff(z)
+        z = np.diff(z, axis=0)
         d += 1
+
+
+@lru_cache(maxsize=64)
+def _expected_lag1(n: int, random_walk: bool) -> float:
+    """E[Σ z̃_i z̃_{i+1}] / E[Σ z̃_i²] · (n − 1)/n on n points of white noise (−(n − 1)/n²) or of a random walk
+    (covariance min(i, j) + 1), z̃ the points less their mean."""
+    if not random_walk:
+        return -(n - 1.0) / (n * n)
+    i = np.arange(n)
+    cov = np.minimum.outer(i, i) + 1.0
+    c = np.eye(n) - 1.0 / n
+    cm = c @ cov @ c
+    return float(np.trace(cm, 1) / np.trace(cm)) * (n - 1.0) / n
+
+
+def is_phase_noise(x_phase: NDArray[np.float64], m: int) -> bool | None:
+    """Below the lag-1 range: is the noise at factor m phase noise (white or flicker PM)? None below 16 points.
+
+    The m-decimated phase of PM noise is white-like (r₁ ≈ −1/n; flicker PM's drifts towards it at large m),
+    that of FM noise a random walk or steeper (white FM: exactly a random walk). PM when the r₁ averaged over
+    the decimation phases is below the midpoint of the white and the random-walk expectations at n points
+    (0.30 at n = 16, Riley & Greenhall's 1/3 from 24 points). tablebench's addition, not Stable32's: the B1
+    ratio it replaces there read 18–35 % of white-PM records as white FM at N/m = 16–32 (N = 1024)."""
+    z = _decimations(x_phase, m)
+    n = z.shape[0]
+    if n < PM_TEST_MIN_POINTS:
+        return None
+    cut = min(1.0 / 3.0, 0.5 * (_expected_lag1(n, False) + _expected_lag1(n, True)))
+    return _lag1(z) < cut
+
+
+RN_MIN_FACTOR = 4
+"""Smallest averaging factor at which R(n) splits white from flicker PM (at m = 2 both give R ≈ 0.5)."""
+
+
+def pm_alpha(x_phase: NDArray[np.float64], m: int) -> int | None:
+    """White (2) or flicker (1) PM from R(n) = MVAR/AVAR at factor m ≥ 2 (SP 1065 §5.6): 1/m for white PM,
+    3.37/(1.04 + 3 ln(πm)) for flicker PM, split at their geometric mean. Both variances overlapping (Stable32's
+    AVAR here is non-overlapping: ~N/m terms, which mis-split 25–45 % of white-PM records at N/m ≤ 16);
+    computed on the first 2¹⁸·m phase points at most; None with fewer than 3m + 2 points (MVAR needs m + 1
+    terms at least to mean anything)."""
+    x = np.asarray(x_phase[: _DECIMATION_POINTS * m + 2 * m], dtype=np.float64)
+    if x.size < 3 * m + 2:
+        return None
+    dd = x[2 * m :] - 2.0 * x[m:-m] + x[: -2 * m]
+    avar = float(np.einsum("i,i->", dd, dd)) / dd.size
+    cs = np.concatenate([[0.0], np.cumsum(dd)])
+    s = cs[m:] - cs[:-m]
+    mvar = float(np.einsum("i,i->", s, s)) / s.size / (m * m)
+    if avar <= 0:
+        return 2
+    r_fpm = 3.37 / (1.04 + 3.0 * math.log(math.pi * m))
+    return 1 if mvar / avar > math.sqrt(r_fpm / m) else 2
 
 
 def _b1_theory(n: float, mu: int) -> float:
@@ -78,10 +163,11 @@ def _b1_theory(n: float, mu: int) -> float:
 _MU_TO_ALPHA = {2: -3, 1: -2, 0: -1, -1: 0, -2: 1}
 
 
-def b1_alpha(x_phase: NDArray[np.float64], m: int, ts: float, n_terms: int, use_rn: bool) -> int | None:
+def b1_alpha(x_phase: NDArray[np.float64], m: int, ts: float, n_terms: int) -> int | None:
     """α from the B1 ratio (standard variance of the m-averaged frequency over the non-overlapping AVAR),
     classified against B1(N = the estimator's term count, μ) as Stable32 does; phase noise (μ = −2) is split
-    into white/flicker PM by R(n) = MVAR/AVAR for the modified and total estimators, flicker PM otherwise.
+    into white/flicker PM by R(n) (:func:`pm_alpha`) for every estimator — Stable32 splits only for the
+    modified and total ones and calls the rest flicker PM, which misreads white PM at long τ (coverage test).
     None when fewer than two averages or two terms exist."""
     k = (x_phase.size - 1) // m
     if k < 2 or n_terms < 2:
@@ -106,15 +192,7 @@ def b1_alpha(x_phase: NDArray[np.float64], m: int, ts: float, n_terms: int, use_
         if b1 > bound:
             mu = hi_mu
             break
-    if mu != -2 or not use_rn:
-        return _MU_TO_ALPHA[mu]
-    dd = x_phase[2 * m :] - 2.0 * x_phase[m:-m] + x_phase[: -2 * m]
-    cs = np.concatenate([[0.0], np.cumsum(dd)])
-    s = cs[m:] - cs[:-m]
-    mvar = float(np.mean(s * s)) / (2.0 * m * m * (m * ts) ** 2)
-    rn = mvar / avar
-    r_fpm = 3.37 / (1.04 + 3.0 * math.log(math.pi * m))
-    return 1 if rn > math.sqrt(r_fpm / m) else 2
+    return _MU_TO_ALPHA[mu] if mu != -2 else pm_alpha(x_phase, m) or 1
 
 
 # --------------------------------------------------------------------------------------- Greenhall EDF
@@ -269,6 +347,14 @@ _HTOT = {0: (0.559, 1.004), -1: (0.868, 1.140), -2: (0.938, 1.696), -3: (0.974, 
 2000, Table 1; the same rows as Stable32's ``HadTotvarEDF``, k2hrt/edf ``edf4.c``). Stable32's Sr87 intervals
 confirm this row order (allantoolkit's table labels the same rows α = 2 … −2)."""
 
+_HTOT_PM_RATIO = {2: (1.47, 1.90), 1: (1.43, 2.11)}
+"""HTOTVAR EDF over Greenhall's OHVAR EDF for white (2) and flicker (1) PM, at m = 2–3 and m ≥ 4 (HTOTVAR is
+OHVAR at m = 1). No published fit exists (Howe et al. 2000 cover FM noise; Stable32 uses the Hadamard EDF,
+which made the coverage test's 68 % HTOTDEV intervals cover 81–83 %). tablebench's own Monte Carlo calibration:
+geometric-mean ratio of the measured EDF 2E[σ̂²]²/Var[σ̂²] over 400 Kasdin–Walter records at N = 256, 4096 and
+16 384, octave m (3 + 25 points per α; single ratios 1.3–2.7, rising towards 3m → N), from
+``python scripts/calibrate_htot_pm_edf.py``; N = 1024, the coverage test's length, was left out."""
+
 
 def edf_theo1(n: int, m: int, alpha: int) -> float:
     """Theo1 EDF (Howe & Peppler 2003) on n phase points at averaging factor m (effective t = 0.75 m)."""
@@ -284,6 +370,20 @@ def edf_theo1(n: int, m: int, alpha: int) -> float:
         return (2 * nn**2 - 1.3 * nn * t - 3.5 * t) / (nn * t) * t**3 / (t**3 + 2.3)
     a = 4.4 * nn
     return (a - 2) / (2.9 * t) * ((a - 1) ** 2 - 8.6 * t * (a - 1) + 11.4 * t * t) / (a - 3) ** 2
+
+
+THEOBR_KF_EDF = 20.0
+"""EDF of TheoBR's bias-removal factor kf = mean OAVAR(9 + 3i)/Theo1(12 + 4i), i = 0 … N/6 − 3. The ratios span
+m up to N/2, so kf's scatter does not shrink with N: measured EDF of TheoBR at short τ (where Theo1's own is in
+the hundreds) over 60–100 simulated records: white FM 24 (N = 1024) and 22–26 (N = 4096), flicker FM 26,
+random-walk FM 29 (N = 1024); taken as 20, below every measurement (their sampling error is ±15–18 %). No
+published value; for phase noise TheoBR itself is biased (E[TheoBR²]/AVAR 0.3–1.1 with white PM: kf from short τ
+does not hold at long τ) and no EDF makes its interval cover."""
+
+
+def edf_theobr(theo1_edf: float) -> float:
+    """EDF of TheoBR = kf·Theo1 from Theo1's EDF at that τ: 1/EDF adds (relative variances of the product)."""
+    return 1.0 / (1.0 / theo1_edf + 1.0 / THEOBR_KF_EDF)
 
 
 _WPM_EXACT_MAX_N = 1 << 21
@@ -347,7 +447,10 @@ def edf(estimator: str, alpha: int, m: int, n: int) -> float:
         b, c = _MTOT[max(-2, min(2, a))]
         return b * n / m - c
     if estimator == "htotdev":
-        if m < 16 or a > 0:  # short τ, and phase noise (no published HTOT fit): the OHDEV EDF
+        if a > 0:  # phase noise: no published HTOT fit; OHDEV's EDF scaled by tablebench's calibration
+            ratio = 1.0 if m == 1 else _HTOT_PM_RATIO[min(a, 2)][0 if m < 4 else 1]
+            return ratio * edf_greenhall(a, 3, m, n, True, False)
+        if m < 16:  # short τ: the OHDEV EDF (Stable32)
             return edf_greenhall(max(a, -4), 3, m, n, True, False)
         b0, b1 = _HTOT[max(-4, a)]
         return (n / m) / (b0 + b1 * m / n)

@@ -1283,11 +1283,6 @@ def stability(
     return res
 
 
-_USE_RN = ESTIMATORS
-"""Estimators whose B1 fallback splits phase noise by R(n) = MVAR/AVAR. Stable32 does it only for the modified
-and total estimators and calls every B1 phase-noise result flicker PM for the others; that misreads white PM
-at long τ (coverage test) — the split costs one MVAR per τ and is used for all."""
-
 _ID_POINTS = 1 << 18
 """Noise identification uses at most this many decimated points per τ (the lag-1 ACF's standard error is then
 ≈ 1/√N = 0.002, far inside its classification bands of width 0.5)."""
@@ -1309,10 +1304,15 @@ def _attach_intervals(rec: _Record, res: StabilityResult) -> None:
     from analysis.noise import confidence as ci
 
     lag1_cache: dict[tuple[int, int, int], int | None] = {}
+    pm_cache: dict[tuple[int, int], int | None] = {}
+    pm_test: dict[tuple[int, int], bool | None] = {}
     phases: dict[int, NDArray[np.float64]] = {}
     prev: dict[tuple[str, int], int] = {}
 
     def alpha_of(name: str, ch: int, m: int, dmax: int, n_terms: int, carry: bool = False) -> int:
+        """Lag-1 ACF (≥ 30 decimated points); below, the α carried from the previous τ (Theo1; every estimator
+        below 8 points), else the phase-noise test, then B1; a phase-noise result at m ≥ 4 is split into
+        white/flicker PM by R(n) where it has terms enough."""
         if ch not in phases:
             phases[ch] = _id_phase(rec, ch)
         x = phases[ch]
@@ -1320,13 +1320,19 @@ def _attach_intervals(rec: _Record, res: StabilityResult) -> None:
         if key not in lag1_cache:
             lag1_cache[key] = ci.lag1_alpha(x[: _ID_POINTS * m], m, dmax)
         a = lag1_cache[key]
-        if a is None and carry:
+        if a is None and (carry or x.size // m < ci.PM_TEST_MIN_POINTS):
             a = prev.get((name, ch))
         if a is None:
-            a = ci.b1_alpha(x, m, rec.ts, n_terms, name in _USE_RN)
+            if (ch, m) not in pm_test:
+                pm_test[(ch, m)] = ci.is_phase_noise(x, m)
+            a = 2 if pm_test[(ch, m)] else ci.b1_alpha(x, m, rec.ts, n_terms)
         if a is None:
             a = prev.get((name, ch), 0)
         a = int(min(2, max(-2, a)))
+        if a >= 1 and m >= ci.RN_MIN_FACTOR:
+            if (ch, m) not in pm_cache:
+                pm_cache[(ch, m)] = ci.pm_alpha(x, m)
+            a = pm_cache[(ch, m)] or a
         prev[(name, ch)] = a
         return a
 
@@ -1359,6 +1365,8 @@ def _attach_intervals(rec: _Record, res: StabilityResult) -> None:
                 a = alpha_of(name, ch, m_id, dmax, n_b1, carry=kind == "theo1")
                 alpha[j, ch] = a
                 e[j, ch] = ci.edf(kind, a, m, n)
+                if kind == "theo1" and name != "theo1":  # TheoBR = kf·Theo1: add the scatter of kf
+                    e[j, ch] = ci.edf_theobr(e[j, ch])
         est.alpha = alpha
         est.edf = e
         if name in ("totdev", "htotdev"):
@@ -1414,10 +1422,9 @@ def _theobr_factor(rec: _Record, cache: dict) -> NDArray[np.float64]:
 def _theobr(rec: _Record, grid: NDArray[np.int64], cache: dict) -> Estimate:
     """TheoBR = Theo1 · kf (even m), reported at Theo1's effective τ = 0.75 m τ₀.
 
-    Its intervals use the Theo1 EDF, as Stable32 and W. Riley's TheoBR.cpp do. That ignores the scatter of kf,
-    which is set by the long-τ AVAR: simulated (N = 1024, 200 records) TheoBR's actual EDF is about 20 (white FM)
-    and 11–28 (random-walk FM) at every m, so the 68 % intervals cover 10–58 % (Theo1's own: 62–71 %).
-    TheoH uses TheoBR only at τ ≥ 0.2 T, where the Theo1 EDF (8–19) is about twice the actual one."""
+    Its intervals combine the Theo1 EDF with that of kf (:func:`analysis.noise.confidence.edf_theobr`);
+    Stable32 and W. Riley's TheoBR.cpp use the Theo1 EDF alone, which ignores the scatter of kf (set by the
+    long-τ AVAR): simulated (N = 1024, 100 records) their 68 % intervals covered 6–52 % of white-FM records."""
     kf = _theobr_factor(rec, cache)
     ms = grid[(grid % 2 == 0) & (grid <= _MAX_M["theobr"](rec.n))]
     c = rec.channels

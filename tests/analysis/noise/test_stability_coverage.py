@@ -33,23 +33,21 @@ KNOWN_GAPS: dict[int, set[tuple[str, float]]] = {
     0: set(),
     -1: set(),
     -2: set(),
-    2: {("oadev", 0.683), ("ohdev", 0.683), ("totdev", 0.683), ("htotdev", 0.683), ("htotdev", 0.95)},
-    1: {("htotdev", 0.683), ("theo1", 0.683), ("theo1", 0.95), ("ohdev", 0.95), ("oadev", 0.95)},
+    2: {("totdev", 0.683)},
+    1: {("oadev", 0.683), ("ohdev", 0.683)},
 }
-"""Measured (2026-11-24, 1000 records, octave τ, N = 1024):
+"""Measured (2026-11-24, 1000 records, octave τ, N = 1024); all three are conservative (intervals too wide):
 
-- white PM, OADEV 72.0 % and OHDEV 71.8 % (68 %): conservative. Beyond the lag-1 range (< 30 decimated points,
-  m ≥ 64) B1 / R(n) reads 25–45 % of the records as flicker PM, whose EDF is 6–10× lower.
-- white PM, TOTDEV 74.6 % (68 %): conservative at m ≥ 64, where the exact white-PM EDF is used but the estimate
-  is dominated by the reflected end points shared by 2(m − 1) terms, far from a scaled χ² (its 95 % rate, 96.0 %,
-  passes).
-- white and flicker PM, HTOTDEV 83.4 % / 98.8 % and 78.4 % (68 %): conservative. No published HTOTVAR EDF for
-  phase noise; OHDEV's is used, while HTOTVAR's measured EDF stays near 0.7 N at every m.
-- flicker PM, Theo1 62.2 % / 89.9 %: the lag-1 ACF on the 40–85 decimated points at Theo1's identification
-  factor 0.75 m reads flicker PM as white PM in 60–80 % of the records (a small-sample bias of r₁ for flicker
-  noise), and the white-PM Theo1 EDF is 1.6× higher.
-- flicker PM, OHDEV 91.9 % and OADEV 91.99 % (95 %): the same flicker/white PM confusion of the lag-1 method at
-  m = 16–32 (white-PM EDF 410–515 instead of 100–195).
+- white PM, TOTDEV 71.5 % (68 %): the noise type is right at every τ and the EDF is the estimator's exact one,
+  but at m ≥ 64 the estimate is dominated by the reflected end points shared by 2(m − 1) terms, far from a
+  scaled χ² (73–78 % there); its 95 % rate, 95.1 %, passes.
+- flicker PM, OADEV 71.8 % and OHDEV 71.8 % (68 %): identified right at 98–100 % of the records up to m = 64,
+  but Greenhall's flicker-PM EDF (continuous-time model; equal to allantools' ``edf_greenhall``) is 10–25 %
+  below the measured EDF of Kasdin's discrete flicker PM at m = 4–64 (e.g. m = 8: 284 vs 356); 95 % passes.
+
+Before the identification changes of analysis.noise.confidence (decimation-averaged lag-1, phase-noise test,
+R(n) split, carried α below 8 points) and the HTOTDEV phase-noise EDF, 11 cases missed, 4 of them too narrow
+(flicker PM Theo1 62 % / 90 %, OADEV / OHDEV 92 % at 95 %).
 """
 
 

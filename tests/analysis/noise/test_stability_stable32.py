@@ -74,7 +74,9 @@ def test_interval_bounds_within_2_percent(result, name: str) -> None:
     same = est.alpha[j, 0] == ref[:, 3]
     if name == "htotdev":
         same &= (m >= 16) & (ref[:, 3] <= 0)
-    assert same.sum() >= (3 if name == "htotdev" else 0.75 * m.size)
+    # HTOTDEV: FM at m = 20, 40 (m = 200, 400 have 6 and 3 decimated points: Stable32's B1 reads flicker FM,
+    # tablebench keeps the flicker PM identified at m = 100, see analysis.noise.confidence)
+    assert same.sum() >= (2 if name == "htotdev" else 0.75 * m.size)
     np.testing.assert_allclose(est.lo[j, 0][same], ref[same, 4], rtol=0.02)
     np.testing.assert_allclose(est.hi[j, 0][same], ref[same, 6], rtol=0.02)
 
