@@ -219,12 +219,41 @@ def _line(col: NDArray, ks: NDArray[np.float64]) -> tuple[float, float]:
     return s0 / n, (s1 / skk if n > 1 else 0.0)
 
 
+def _prefix_sum(v: NDArray[np.float64], out: NDArray[np.float64], scratch: NDArray[np.float64], depth: int = 4) -> None:
+    """out_i = v_0 + … + v_i (1-D, ``out`` may be strided; ``scratch`` ≥ len(v) elements, not overlapping either).
+
+    numpy's cumulative sum adds one element after the other (≈ 2.7 ns per element); here the pair sums
+    p_i = v_{2i} + v_{2i+1} are summed recursively (``depth`` levels, then numpy's cumulative sum on 1/16 of the
+    elements) and the prefix sums interleaved back, out_{2i+1} = P_i and out_{2i} = P_i − v_{2i+1}: ≈ 1 ns per
+    element, and the rounding of a pairwise tree instead of a chain."""
+    k = v.shape[0]
+    if depth == 0 or k < 256:
+        np.cumsum(v, out=out)
+        return
+    if k % 2:
+        _prefix_sum(v[:-1], out[:-1], scratch, depth)
+        out[-1] = out[-2] + v[-1]
+        return
+    h = k // 2
+    p = scratch[:h]
+    np.add(v[0::2], v[1::2], out=p)
+    _prefix_sum(p, out[1::2], scratch[h:], depth - 1)
+    np.subtract(out[1::2], v[1::2], out=out[0::2])
+
+
 def _integrate(
-    col: NDArray, mean: float, r_s: float, ks: NDArray[np.float64], x: NDArray[np.float64], e_out: NDArray[np.float64]
+    col: NDArray,
+    mean: float,
+    r_s: float,
+    ks: NDArray[np.float64],
+    x: NDArray[np.float64],
+    e_out: NDArray[np.float64],
+    scratch: NDArray[np.float64],
 ) -> None:
     """Phase of one channel minus its line, in data unit × samples: x_0 = 0, x_j = Σ_{k<j} e_k with
     e_k = a_k − mean − r_s (k − k̄), written into ``x`` (N+1,); e itself is left in ``e_out`` — (N+1,): all of
-    it, the moving-difference array G_1 of the octave passes; or a chunk-sized scratch buffer."""
+    it, the moving-difference array G_1 of the octave passes; or a chunk-sized scratch buffer. ``scratch``: at
+    least a chunk, for :func:`_prefix_sum`."""
     n = col.shape[0]
     kbar = (n - 1) / 2.0
     big = ks.size
@@ -239,7 +268,7 @@ def _integrate(
         blk -= mean + r_s * (s - kbar)
         first = blk[0]
         blk[0] = first + carry  # the running sum carried into the chunk's cumulative sum
-        np.cumsum(blk, out=x[s + 1 : e + 1])
+        _prefix_sum(blk, x[s + 1 : e + 1], scratch)
         blk[0] = first
         carry = float(x[e])
     if whole:
@@ -594,7 +623,7 @@ def allan_variances(
     g = np.empty(n + 1) if octave else bufs.b2
     for ch, (mean, r_s) in enumerate(lines):
         xc = x if phase is None else phase[ch]
-        _integrate(a[:, ch], mean, r_s, bufs.ks, xc, g)
+        _integrate(a[:, ch], mean, r_s, bufs.ks, xc, g, bufs.b1)
         _channel(xc, g if octave else None, r_s, ms, chunk, bufs, var, nterm, ch)
         if phase is not None:
             _add_ramp_phase(xc, r_s, ts, bufs)

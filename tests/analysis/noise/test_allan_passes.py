@@ -193,3 +193,15 @@ def test_column_walk_equals_the_chunk_walk(n: int, m: int) -> None:
     top = max(n + 2 - 4 * m, 0)
     np.testing.assert_allclose(gb[:top], ga[:top], rtol=1e-12, atol=1e-12)
     np.testing.assert_array_equal(gb[top:], g0[top:])  # beyond the doubled range: untouched
+
+
+@pytest.mark.parametrize("k", [1, 2, 3, 255, 256, 257, 1000, 4097, 65536])
+@pytest.mark.parametrize("depth", [0, 1, 4])
+def test_pairwise_prefix_sum_equals_the_cumulative_sum(k: int, depth: int) -> None:
+    rng = np.random.default_rng(k + depth)
+    v = rng.normal(size=k) + 50.0
+    out = np.full(2 * k, np.nan)
+    al._prefix_sum(v, out[::2], np.empty(k), depth)  # into a strided view, as the recursion does
+    ref = np.cumsum(v.astype(np.longdouble))
+    np.testing.assert_allclose(out[::2], ref.astype(np.float64), rtol=1e-14)
+    assert np.isnan(out[1::2]).all()  # nothing written outside the view
