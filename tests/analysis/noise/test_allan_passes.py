@@ -205,3 +205,12 @@ def test_pairwise_prefix_sum_equals_the_cumulative_sum(k: int, depth: int) -> No
     ref = np.cumsum(v.astype(np.longdouble))
     np.testing.assert_allclose(out[::2], ref.astype(np.float64), rtol=1e-12)
     assert np.isnan(out[1::2]).all()  # nothing written outside the view
+
+
+def test_blocked_dot_without_vecdot(monkeypatch: pytest.MonkeyPatch) -> None:
+    """numpy < 2.0 has no vecdot: the blocks are then summed by einsum, same values."""
+    v = np.random.default_rng(3).normal(size=3 * 4096 + 17)
+    with_vecdot = al._dot(v)
+    monkeypatch.setattr(al, "_vecdot", None)
+    assert al._dot(v) == pytest.approx(with_vecdot, rel=1e-13)
+    assert al._dot(v[::2], v[1::2]) == pytest.approx(float(v[::2] @ v[1::2]), rel=1e-12, abs=1e-12)
