@@ -209,7 +209,7 @@ def test_pairwise_prefix_sum_equals_the_cumulative_sum(k: int, depth: int) -> No
 
 def test_blocked_dot_without_vecdot(monkeypatch: pytest.MonkeyPatch) -> None:
     """numpy < 2.0 has no vecdot: the blocks are then summed by einsum, same values."""
-    v = np.random.default_rng(3).normal(size=3 * 4096 + 17)
+    v = np.random.default_rng(3).normal(size=6 * 4096 + 18)
     with_vecdot = al._dot(v)
     monkeypatch.setattr(al, "_vecdot", None)
     assert al._dot(v) == pytest.approx(with_vecdot, rel=1e-13)
