@@ -89,3 +89,39 @@ def test_interval_coverage(alpha: int) -> None:
                 bad.append(report[-1])
     print(f"\nα={alpha}: " + "; ".join(report))
     assert not bad, f"α={alpha}: " + "; ".join(bad)
+
+
+THEOBR_RECORDS = 1000
+
+
+@pytest.mark.parametrize("alpha", [0, -1, -2], ids=["WFM", "FFM", "RWFM"])
+def test_theobr_interval_coverage(alpha: int) -> None:
+    """TheoBR (TheoH's long-τ part) estimates AVAR at its effective τ = 0.75 m: its 68 % and 95 % intervals
+    (Theo1's EDF combined with that of the bias-removal factor kf) cover the AVAR of an independent ensemble at
+    nominal rates ± 3 points, pooled over the τ with median EDF ≥ 4, for FM noise. kf is common to every τ of a
+    record, so the pooled rate scatters like one τ's: 1000 records. Phase noise is not scored: TheoBR is biased
+    there (see analysis.noise.confidence.THEOBR_KF_EDF). About 3 min per noise type."""
+    rng = np.random.default_rng(200 + alpha)
+    x = kasdin_phase(alpha, N, 2 * THEOBR_RECORDS, rng)
+    truth_half, test_half = x[:, :THEOBR_RECORDS], x[:, THEOBR_RECORDS:]
+    report, bad = [], []
+    for conf in (0.683, 0.95):
+        est = stability(test_half, 1.0, ("theobr",), "octave", "phase", confidence=conf).estimates["theobr"]
+        if conf == 0.683:
+            taus = np.rint(est.tau).astype(np.int64)
+            keep = (np.abs(est.tau - taus) < 1e-9) & (taus >= 1)
+            ref = stability(truth_half, 1.0, ("oadev",), taus[keep], "phase", confidence=None).estimates["oadev"]
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                avar = np.nanmean(ref.dev**2, axis=1)
+            true = np.full(est.tau.size, np.nan)
+            true[keep] = np.sqrt(avar[np.searchsorted(ref.m, taus[keep])])
+        med = np.array([np.median(e[np.isfinite(e)]) if np.isfinite(e).any() else 0.0 for e in est.edf])
+        scored = (med >= 4) & np.isfinite(true)
+        inside = (est.lo <= true[:, None]) & (true[:, None] <= est.hi)
+        rate = float(inside[scored].mean())
+        report.append(f"theobr {conf:.0%}: {rate:.3f} over {scored.sum()} τ")
+        if abs(rate - conf) > 0.03:
+            bad.append(report[-1])
+    print(f"\nα={alpha}: " + "; ".join(report))
+    assert not bad, f"α={alpha}: " + "; ".join(bad)
