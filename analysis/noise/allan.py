@@ -14,15 +14,20 @@ They equal allantools ``adev``/``oadev``/``totdev``/``mdev`` with ``data_type='f
 
 Implementation
 --------------
-One pass per τ over the phase, in cache-sized chunks, vectorised over the channels: the second differences
-d_i = x_{i+2m} − 2x_{i+m} + x_i serve the overlapping AVAR, the central part of the total variance (whose
-remaining O(m) reflected edge terms are evaluated separately from slices) and the modified AVAR — on an
-octave grid from moving sums of the phase, doubled in place from one τ to the next (one add per sample per
-τ), otherwise from a running sum of d over each chunk; the non-overlapping AVAR is the strided subset. The
-chunk temporaries are two preallocated buffers (no allocation per chunk) and the plain sums Σd, Σs telescope to
-O(m) end sums, so a pass is two differences and one product-sum per estimator. Cost O(N) per τ; memory two
-float64 arrays of N+1 per channel (phase and moving sums) plus O(chunk) temporaries, i.e. about twice the
-record (measured in benchmarks/bench_noise.py).
+Channel by channel, in cache-sized chunks: the phase x (the detrended record integrated, in data unit ×
+samples: T_s enters only the final normalisation) gives the overlapping second differences
+d_j = x_{j+2m} − 2x_{j+m} + x_j (two subtractions per sample, the first at lag m), which serve the overlapping
+AVAR, the central part of the total variance (whose O(m) reflected edge terms are evaluated separately from
+reversed slices) and, as the strided subset j = 0, m, 2m, …, the non-overlapping AVAR. The modified AVAR's
+terms s_j (m-sums of d) are, on an octave grid, one difference of G_m(j) = S_m(j+m) − S_m(j), S_m the moving
+sums of m phase points: G_1 is the detrended record itself and G_{2m}(j) = G_m(j) + 2G_m(j+m) + G_m(j+2m) is
+formed in place, chunk by chunk (two adds per sample per τ); otherwise s comes from a running sum of d over
+each chunk. Up to :data:`_LEVELS_PER_PASS` consecutive octaves share one pass over the record, each a chunk
+behind the previous, so the chunks are reused while in cache. The plain sums Σd, Σs and the non-overlapping Σd
+telescope to O(m) end sums; sums of squares are single-threaded BLAS dot products of 4096 elements; the chunk
+temporaries are preallocated. Cost O(N) per τ (about seven vector operations per sample); memory two float64
+arrays of N+1 (phase and G, reused channel after channel) plus O(chunk), i.e. about twice one channel of the
+record (measured in benchmarks/bench_noise.py); with ``phase=…`` the caller's phase array serves as x.
 
 Precision: before integration the least-squares line (mean and rate ramp) is removed from each channel and
 its contribution is added back analytically (a ramp r adds exactly r τ² to every central second difference,
@@ -170,42 +175,104 @@ def tau_grid(
     return m
 
 
-def _detrend_and_integrate(a: NDArray, ts: float, chunk: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Phase of the detrended record and the removed ramp per sample.
+_LEVELS_PER_PASS = 8
+"""Octave levels sharing one pass over the record (:func:`_octave_levels`); tuning only."""
 
-    Returns
-    -------
-    x : ndarray (C, N+1)
-        x_0 = 0, x_j = T_s Σ_{k≤j} e_k with e the record minus its least-squares line.
-    r_s : ndarray (C,)
-        Slope of the removed line, data unit per sample.
-    """
-    n, c = a.shape
+_DOT_BLOCK = 4096
+"""Elements per BLAS dot product in :func:`_dot` (OpenBLAS spreads a dot product of more than 10 000 elements over
+threads, which on a busy machine costs far more than it saves; below that it runs on the calling thread)."""
+
+_vecdot = getattr(np, "vecdot", None)  # numpy ≥ 2.0
+_add_reduce = np.add.reduce
+
+
+def _dot(u: NDArray[np.float64], v: NDArray[np.float64] | None = None) -> float:
+    """Σ u·v (Σ u² without ``v``) of 1-D, possibly strided, float64 arrays: single-threaded BLAS dot products of
+    :data:`_DOT_BLOCK` elements (about twice as fast as ``einsum``)."""
+    k = u.shape[0]
+    q = k - k % _DOT_BLOCK
+    tot = 0.0
+    if q:
+        bu = u[:q].reshape(-1, _DOT_BLOCK)
+        bv = bu if v is None else v[:q].reshape(-1, _DOT_BLOCK)
+        tot = float(_add_reduce(_vecdot(bu, bv) if _vecdot is not None else np.einsum("ij,ij->i", bu, bv)))
+    if k > q:
+        r = u[q:]
+        tot += float(np.dot(r, r if v is None else v[q:]))
+    return tot
+
+
+def _line(col: NDArray, ks: NDArray[np.float64]) -> tuple[float, float]:
+    """Mean and least-squares slope (data unit per sample) of one channel, in chunks of ``ks.size`` samples
+    (``ks`` = 0, 1, 2, …); non-finite if the channel holds NaN or ±inf (they propagate into the sums)."""
+    n = col.shape[0]
     kbar = (n - 1) / 2.0
-    s0 = np.zeros(c)
-    s1 = np.zeros(c)
-    big = max(chunk, 1 << 16)
-    for s in range(0, n, big):
-        e = min(n, s + big)
-        blk = np.asarray(a[s:e], dtype=np.float64)
-        s0 += blk.sum(axis=0)
-        # einsum, not matmul: BLAS threads on a busy machine cost more than this O(N) reduction
-        s1 += np.einsum("i,ij->j", np.arange(s, e, dtype=np.float64) - kbar, blk)
-    mean = s0 / n
+    s0 = 0.0
+    s1 = 0.0  # Σ (k − k̄) a_k
+    for s in range(0, n, ks.size):
+        e = min(n, s + ks.size)
+        blk = np.asarray(col[s:e], dtype=np.float64)
+        t = float(blk.sum())
+        s0 += t
+        s1 += _dot(blk, ks[: e - s]) + (s - kbar) * t
     skk = n * (n * n - 1.0) / 12.0
-    r_s = s1 / skk if n > 1 else np.zeros(c)
-    x = np.empty((c, n + 1))
-    x[:, 0] = 0.0
-    carry = np.zeros(c)
+    return s0 / n, (s1 / skk if n > 1 else 0.0)
+
+
+def _prefix_sum(v: NDArray[np.float64], out: NDArray[np.float64], scratch: NDArray[np.float64], depth: int = 4) -> None:
+    """out_i = v_0 + … + v_i (1-D, ``out`` may be strided; ``scratch`` ≥ len(v) elements, not overlapping either).
+
+    numpy's cumulative sum adds one element after the other (≈ 2.7 ns per element); here the pair sums
+    p_i = v_{2i} + v_{2i+1} are summed recursively (``depth`` levels, then numpy's cumulative sum on 1/16 of the
+    elements) and the prefix sums interleaved back, out_{2i+1} = P_i and out_{2i} = P_i − v_{2i+1}: ≈ 1 ns per
+    element, and the rounding of a pairwise tree instead of a chain."""
+    k = v.shape[0]
+    if depth == 0 or k < 256:
+        np.cumsum(v, out=out)
+        return
+    if k % 2:
+        _prefix_sum(v[:-1], out[:-1], scratch, depth)
+        out[-1] = out[-2] + v[-1]
+        return
+    h = k // 2
+    p = scratch[:h]
+    np.add(v[0::2], v[1::2], out=p)
+    _prefix_sum(p, out[1::2], scratch[h:], depth - 1)
+    np.subtract(out[1::2], v[1::2], out=out[0::2])
+
+
+def _integrate(
+    col: NDArray,
+    mean: float,
+    r_s: float,
+    ks: NDArray[np.float64],
+    x: NDArray[np.float64],
+    e_out: NDArray[np.float64],
+    scratch: NDArray[np.float64],
+) -> None:
+    """Phase of one channel minus its line, in data unit × samples: x_0 = 0, x_j = Σ_{k<j} e_k with
+    e_k = a_k − mean − r_s (k − k̄), written into ``x`` (N+1,); e itself is left in ``e_out`` — (N+1,): all of
+    it, the moving-difference array G_1 of the octave passes; or a chunk-sized scratch buffer. ``scratch``: at
+    least a chunk, for :func:`_prefix_sum`."""
+    n = col.shape[0]
+    kbar = (n - 1) / 2.0
+    big = ks.size
+    ramp = r_s * ks
+    whole = e_out.shape[0] > n
+    x[0] = 0.0
+    carry = 0.0
     for s in range(0, n, big):
         e = min(n, s + big)
-        blk = np.ascontiguousarray(np.asarray(a[s:e], dtype=np.float64).T) - mean[:, None]
-        blk -= r_s[:, None] * (np.arange(s, e, dtype=np.float64) - kbar)
-        np.cumsum(blk, axis=1, out=x[:, s + 1 : e + 1])
-        x[:, s + 1 : e + 1] += carry[:, None]
-        carry = x[:, e].copy()
-    x *= ts
-    return x, r_s
+        blk = e_out[s:e] if whole else e_out[: e - s]
+        np.subtract(col[s:e], ramp[: e - s], out=blk)
+        blk -= mean + r_s * (s - kbar)
+        first = blk[0]
+        blk[0] = first + carry  # the running sum carried into the chunk's cumulative sum
+        _prefix_sum(blk, x[s + 1 : e + 1], scratch)
+        blk[0] = first
+        carry = float(x[e])
+    if whole:
+        e_out[n:] = 0.0
 
 
 def _reflected_range(x: NDArray[np.float64], a: int, b: int) -> NDArray[np.float64]:
@@ -228,131 +295,263 @@ def _reflected_range(x: NDArray[np.float64], a: int, b: int) -> NDArray[np.float
     return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
 
 
-def _edge_sum(x: NDArray[np.float64], m: int, lo: int, hi: int, half_a: NDArray[np.float64]) -> NDArray[np.float64]:
+def _edge_sum_general(x: NDArray[np.float64], m: int, lo: int, hi: int, half_a: float, chunk: int) -> float:
     """Σ over centres lo ≤ i ≤ hi of the squared reflected second differences x*_{i−m} − 2x_i + x*_{i+m},
-    plus the removed ramp's exact contribution half_a·(2m² − 2·max(m−i, 0)² − 2·max(i+m−N, 0)²)."""
-    n = x.shape[1] - 1
-    out = np.zeros(x.shape[0])
-    for a in range(lo, hi + 1, _CHUNK):
-        b = min(hi, a + _CHUNK - 1)
-        d = _reflected_range(x, a - m, b - m) + _reflected_range(x, a + m, b + m)
-        d -= 2.0 * x[:, a : b + 1]
-        if np.any(half_a != 0.0):
+    plus the removed ramp's exact contribution half_a·(2m² − 2·max(m−i, 0)² − 2·max(i+m−N, 0)²); any m ≤ N
+    (a centre may reach past both ends). ``x`` is one channel's phase, (N+1,)."""
+    n = x.shape[0] - 1
+    x2 = x[None, :]
+    out = 0.0
+    for a in range(lo, hi + 1, chunk):
+        b = min(hi, a + chunk - 1)
+        d = (_reflected_range(x2, a - m, b - m) + _reflected_range(x2, a + m, b + m))[0]
+        d -= 2.0 * x[a : b + 1]
+        if half_a != 0.0:
             i = np.arange(a, b + 1, dtype=np.float64)
-            dq = 2.0 * m * m - 2.0 * np.maximum(m - i, 0.0) ** 2 - 2.0 * np.maximum(i + m - n, 0.0) ** 2
-            d += half_a[:, None] * dq[None, :]
-        out += np.einsum("ij,ij->i", d, d)
+            d += half_a * (2.0 * m * m - 2.0 * np.maximum(m - i, 0.0) ** 2 - 2.0 * np.maximum(i + m - n, 0.0) ** 2)
+        out += _dot(d)
     return out
 
 
-def _range_sum(x: NDArray[np.float64], a: int, b: int) -> NDArray[np.float64]:
-    """Σ_{a ≤ j < b} x_j per channel (zero for an empty range)."""
-    return x[:, a:b].sum(axis=1) if b > a else np.zeros(x.shape[0])
+def _edge_sums(x: NDArray[np.float64], m: int, half_a: float, chunk: int, bufs: _Buffers) -> float:
+    """Σ of the squared reflected second differences (with the removed ramp's contribution) over the total
+    variance's edge centres, 1 ≤ i ≤ m − 1 and N − m + 1 ≤ i ≤ N − 1, of one channel's phase x (N+1,), x_0 = 0.
+
+    For 2m ≤ N each edge centre reaches past one end only: with u = i (left) or N − i (right), 1 ≤ u ≤ m − 1,
+    the terms are x_{u+m} − 2x_u − x_{m−u} and 2x_N − x_{N+u−m} − 2x_{N−u} + x_{N−u−m}, and the ramp adds
+    half_a·2u(2m − u) to both (reversed slices, no index arrays). Otherwise :func:`_edge_sum_general`."""
+    n = x.shape[0] - 1
+    if n < 3:
+        return 0.0
+    if 2 * m > n:
+        left_end = min(m - 1, n - 1)
+        out = _edge_sum_general(x, m, 1, left_end, half_a, chunk)
+        return out + _edge_sum_general(x, m, max(n - m + 1, left_end + 1), n - 1, half_a, chunk)
+    out = 0.0
+    two_xn = 2.0 * float(x[n])
+    ks = bufs.ks
+    for u0 in range(1, m, chunk):
+        u1 = min(m, u0 + chunk)
+        k = u1 - u0
+        d = bufs.b2[:k]
+        t = bufs.b3[:k]
+        if half_a != 0.0:  # q = half_a · 2u(2m − u)
+            q = bufs.b1[:k]
+            np.add(ks[:k], u0, out=t)  # u
+            np.subtract(2.0 * m, t, out=q)
+            q *= t
+            q *= 2.0 * half_a
+        np.subtract(x[u0 + m : u1 + m], x[m - u0 : m - u1 : -1], out=d)  # left: x_{u+m} − x_{m−u}
+        d -= x[u0:u1]
+        d -= x[u0:u1]
+        if half_a != 0.0:
+            d += q
+        out += _dot(d)
+        np.subtract(x[n - m - u0 : n - m - u1 : -1], x[n - m + u0 : n - m + u1], out=d)  # right
+        d -= x[n - u0 : n - u1 : -1]
+        d -= x[n - u0 : n - u1 : -1]
+        d += two_xn
+        if half_a != 0.0:
+            d += q
+        out += _dot(d)
+    return out
 
 
-def _lag2_sum(x: NDArray[np.float64], m: int, count: int) -> NDArray[np.float64]:
-    """Σ_{i<count} (x_{i+2m} − 2x_{i+m} + x_i) per channel by telescoping: O(min(count, m)) columns read."""
-
-    def lag_sum(off: int) -> NDArray[np.float64]:  # Σ_{i<count} (x_{i+off+m} − x_{i+off})
-        if count >= m:
-            return _range_sum(x, off + count, off + count + m) - _range_sum(x, off, off + m)
-        return _range_sum(x, off + m, off + m + count) - _range_sum(x, off, off + count)
-
-    return lag_sum(m) - lag_sum(0)
+def _range_sum(x: NDArray[np.float64], a: int, b: int) -> float:
+    """Σ_{a ≤ j < b} x_j (zero for an empty range)."""
+    return float(x[a:b].sum()) if b > a else 0.0
 
 
-def _sums_one_m(
-    x: NDArray[np.float64], m: int, chunk: int, msum: NDArray[np.float64] | None = None, double: bool = False
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], int, int]:
-    """Σd and Σd² of the overlapping second differences d_i = x_{i+2m} − 2x_{i+m} + x_i, and Σs and Σs² of
-    their m-sums s_j = d_j + … + d_{j+m−1} (modified AVAR).
+def _lag_sum(x: NDArray[np.float64], m: int, count: int, off: int = 0) -> float:
+    """Σ_{i<count} (x_{i+off+m} − x_{i+off}) by telescoping: O(min(count, m)) elements read."""
+    if count >= m:
+        return _range_sum(x, off + count, off + count + m) - _range_sum(x, off, off + m)
+    return _range_sum(x, off + m, off + m + count) - _range_sum(x, off, off + count)
 
-    ``msum`` (optional): the moving sums S_j = x_j + … + x_{j+m−1}, then s_j = S_{j+2m} − 2S_{j+m} + S_j;
-    otherwise s_j is formed from a running sum of d over the chunk extended by m − 1. The plain sums Σd and
-    (with ``msum``) Σs telescope to O(m) end sums; the squares are accumulated chunk by chunk in preallocated
-    buffers (no allocation per chunk).
 
-    ``double`` (with ``msum``): leave ``msum`` as the moving sums over 2m (:func:`_double_moving_sum`), each
-    chunk doubled right after its last use while it is still in cache (one pass over the record saved per τ).
+def _lag2_sum(x: NDArray[np.float64], m: int, count: int) -> float:
+    """Σ_{i<count} (x_{i+2m} − 2x_{i+m} + x_i) by telescoping."""
+    return _lag_sum(x, m, count, m) - _lag_sum(x, m, count, 0)
+
+
+class _Buffers:
+    """Chunk scratch arrays shared by the passes of one call (no allocation per chunk or per τ)."""
+
+    def __init__(self, chunk: int, width1: int) -> None:
+        self.ks = np.arange(chunk, dtype=np.float64)  # 0, 1, …: sample offsets inside a chunk
+        self.b1 = np.empty(max(width1, chunk))
+        self.b2 = np.empty(chunk)
+        self.b3 = np.empty(chunk)
+        self._b4: NDArray[np.float64] | None = None
+
+    @property
+    def b4(self) -> NDArray[np.float64]:
+        """A fourth chunk-sized buffer, allocated on first use (only the passes with m ≥ chunk need it)."""
+        if self._b4 is None:
+            self._b4 = np.empty(self.b2.size)
+        return self._b4
+
+
+def _second_diff(x: NDArray[np.float64], m: int, s: int, k: int, bufs: _Buffers) -> NDArray[np.float64]:
+    """d_j = x_{j+2m} − 2x_{j+m} + x_j for j = s … s+k−1 (k ≤ chunk), in ``bufs.b2``."""
+    d = bufs.b2[:k]
+    if k > m:  # first differences at lag m (k + m of them, in cache), then their difference
+        d1 = bufs.b1[: k + m]
+        np.subtract(x[s + m : s + k + 2 * m], x[s : s + k + m], out=d1)
+        np.subtract(d1[m:], d1[:k], out=d)
+    else:
+        t = bufs.b3[:k]
+        np.subtract(x[s + 2 * m : s + k + 2 * m], x[s + m : s + k + m], out=d)
+        np.subtract(x[s + m : s + k + m], x[s : s + k], out=t)
+        d -= t
+    return d
+
+
+def _double_g(g: NDArray[np.float64], m: int, s: int, k: int, bufs: _Buffers) -> None:
+    """In place for j = s … s+k−1: G_{2m}(j) = G_m(j) + 2G_m(j+m) + G_m(j+2m), reading G_m up to j + 2m only
+    (columns ≥ s + k are still G_m afterwards)."""
+    if k > m:
+        h = bufs.b1[: k + m]
+        np.add(g[s : s + k + m], g[s + m : s + k + 2 * m], out=h)
+        np.add(h[:k], h[m : m + k], out=g[s : s + k])
+    else:  # 2m ≥ k: the shifted slices do not overlap the written one
+        w = g[s : s + k]
+        w += g[s + 2 * m : s + k + 2 * m]
+        w += g[s + m : s + k + m]
+        w += g[s + m : s + k + m]
+
+
+def _octave_levels(
+    x: NDArray[np.float64], g: NDArray[np.float64], levels: list[tuple[int, int, bool]], chunk: int, bufs: _Buffers
+) -> list[tuple[float, float, float, float]]:
+    """One pass over the record for consecutive averaging factors m, 2m, 4m, … of the octave grid, one channel.
+
+    Per level (m, k_avar, double): Σd² over the N + 1 − 2m overlapping second differences d of the phase x,
+    Σd² over the non-overlapping subset j = 0, m, …, (k_avar − 1)m, and Σs² and Σs over the N + 2 − 3m
+    modified-AVAR terms s_j = G_m(j+m) − G_m(j) (m > 1; at m = 1 the caller takes s = d).
+
+    G_m(j) = S_m(j+m) − S_m(j), with S_m the moving sums of m phase points (G_1 is the detrended record itself):
+    s is then one difference, and ``double`` turns G_m into G_{2m} = G_m(j) + 2G_m(j+m) + G_m(j+2m) in place,
+    chunk by chunk, for the next level (the moving sums themselves are never formed). Level l works one chunk
+    behind level l − 1, whose G it needs up to 2m columns ahead (every level after the first has 2m ≤ chunk):
+    the levels of one pass share the chunks while they are still in cache instead of each streaming the record.
+    Σs telescopes to Σ G_m over the last m columns (never overwritten: later levels double only lower columns)
+    minus the first m (read before this level doubles them).
     """
-    c, n1 = x.shape
-    n = n1 - 1
+    n = x.shape[0] - 1
+    spans = [(n + 1 - 2 * m, n + 2 - 3 * m if m > 1 else 0, n + 2 - 4 * m if double else 0) for m, _, double in levels]
+    acc = [[0.0, 0.0, 0.0, 0.0] for _ in levels]  # Σd², Σd² (non-overlapping), Σs², Σs
+    nchunk = -(-max(spans[0][0], 0) // chunk)
+    for it in range(nchunk + len(levels) - 1):
+        for lv, (m, k_avar, _) in enumerate(levels):
+            s = (it - lv) * chunk
+            n_o, n_m, n_g = spans[lv]
+            if s < 0 or s >= n_o:  # n_o > n_m, n_g
+                continue
+            sums = acc[lv]
+            e = min(n_o, s + chunk)
+            d = _second_diff(x, m, s, e - s, bufs)
+            sums[0] += _dot(d)
+            if m > 1:
+                lo = (-s) % m
+                hi = min(e - s, k_avar * m - s)
+                if hi > lo:
+                    sums[1] += _dot(d[lo:hi:m])
+            if s < n_m:
+                kk = min(e, n_m) - s
+                if s == 0:  # the head of Σs's telescoped form, before G_m is doubled
+                    sums[3] = -_range_sum(g, 0, m) if n_m >= m else _range_sum(g, m, m + n_m) - _range_sum(g, 0, n_m)
+                inner = bufs.b3[:kk]
+                np.subtract(g[s + m : s + m + kk], g[s : s + kk], out=inner)
+                sums[2] += _dot(inner)
+            if s < n_g:
+                _double_g(g, m, s, min(e, n_g) - s, bufs)
+    for (m, _, _), (_, n_m, _), sums in zip(levels, spans, acc, strict=True):
+        if n_m >= m > 1:
+            sums[3] += _range_sum(g, n_m, n_m + m)
+    return [(a[0], a[1], a[2], a[3]) for a in acc]
+
+
+def _octave_far(
+    x: NDArray[np.float64], g: NDArray[np.float64], m: int, k_avar: int, double: bool, chunk: int, bufs: _Buffers
+) -> tuple[float, float, float, float]:
+    """:func:`_octave_levels` for one level with m ≥ chunk, walking the record column by column: for each offset
+    block [c, c + w) of the period m, the blocks j = c + t·m + [0, w), t = 0, 1, …, in turn. Consecutive blocks
+    then share their lag-m first differences D1(j) = x_{j+m} − x_j and pair sums h(j) = G_m(j) + G_m(j+m):
+    d = D1(j+m) − D1(j) and G_{2m}(j) = h(j) + h(j+m) cost one new operation each (three with independent
+    chunks), and each step reads one new block of x and of G. Blocks of one column never overlap those of
+    another, and G_m(j) is overwritten only after its last use (by this block's s and h)."""
+    n = x.shape[0] - 1
     n_o = n + 1 - 2 * m
     n_m = n + 2 - 3 * m
-    s2 = np.zeros(c)
-    t1 = np.zeros(c)
-    t2 = np.zeros(c)
+    n_g = n + 2 - 4 * m if double else 0
+    s2 = a2 = t2 = 0.0
+    t1 = _lag_sum(g, m, n_m) if n_m > 0 else 0.0  # Σs telescoped, before G is doubled
+    d1a, d1b = bufs.b1[:chunk], bufs.b1[chunk : 2 * chunk]
+    ha, hb = bufs.b2, bufs.b3
+    d = bufs.b4
+    for c in range(0, min(m, max(n_o, 0)), chunk):
+        w = min(chunk, m - c, n_o - c)
+        np.subtract(x[c + m : c + m + w], x[c : c + w], out=d1a[:w])
+        kg = min(w, n_g - c)
+        if kg > 0:
+            np.add(g[c : c + kg], g[c + m : c + m + kg], out=ha[:kg])
+        j0 = c
+        while j0 < n_o:
+            kd = min(w, n_o - j0)
+            nxt = d1b[:kd]
+            np.subtract(x[j0 + 2 * m : j0 + 2 * m + kd], x[j0 + m : j0 + m + kd], out=nxt)
+            dd = d[:kd]
+            np.subtract(nxt, d1a[:kd], out=dd)
+            s2 += _dot(dd)
+            if c == 0 and j0 < k_avar * m:  # the non-overlapping terms j = 0, m, 2m, …
+                a2 += float(dd[0]) ** 2
+            if j0 < n_m:
+                ki = min(w, n_m - j0)
+                inner = d[:ki]
+                np.subtract(g[j0 + m : j0 + m + ki], g[j0 : j0 + ki], out=inner)
+                t2 += _dot(inner)
+            kg = min(w, n_g - j0)
+            if kg > 0:
+                hn = hb[:kg]
+                np.add(g[j0 + m : j0 + m + kg], g[j0 + 2 * m : j0 + 2 * m + kg], out=hn)
+                np.add(ha[:kg], hn, out=g[j0 : j0 + kg])
+                ha, hb = hb, ha
+            d1a, d1b = d1b, d1a
+            j0 += m
+    return s2, a2, t2, t1
+
+
+def _general_level(x: NDArray[np.float64], m: int, k_avar: int, chunk: int) -> tuple[float, float, float, float]:
+    """Any m, one channel: Σd², the non-overlapping subset's Σd², and Σs, Σs² of the modified-AVAR terms s_j
+    (m-sums of d, from a running sum of d over each chunk extended by m − 1)."""
+    n = x.shape[0] - 1
+    n_o = n + 1 - 2 * m
+    n_m = n + 2 - 3 * m
+    s2 = a2 = t1 = t2 = 0.0
     if n_o <= 0:
-        if double and msum is not None:
-            _double_moving_sum(msum, m, chunk)
-        return np.zeros(c), s2, t1, t2, max(n_o, 0), max(n_m, 0)
-    s1 = _lag2_sum(x, m, n_o)
-    if n_m > 0 and msum is not None:
-        t1 = _lag2_sum(msum, m, n_m)  # before msum is doubled in place below
-    top = msum.shape[1] - m if msum is not None else 0
-    done = 0  # msum columns [0, done) already doubled
-    step = max(chunk, 2 * m) if msum is None else chunk
-    width = min(n_o, step) + (m - 1 if msum is None else 0)
-    buf1 = np.empty((c, 2 * width if width > m else 0))
-    buf2 = np.empty((c, width))
+        return s2, a2, t1, t2
+    step = max(chunk, 2 * m)
+    width = min(n_o, step) + m - 1
+    bufs = _Buffers(width, 2 * width)
     for s in range(0, n_o, step):
         e = min(n_o, s + step)
-        ee = min(n_o, e + m - 1) if (n_m > 0 and msum is None) else e
-        k = ee - s
-        d = buf2[:, :k]
-        if k <= m:
-            np.add(x[:, s + 2 * m : ee + 2 * m], x[:, s:ee], out=d)
-            d -= x[:, s + m : ee + m]
-            d -= x[:, s + m : ee + m]
-        else:  # first differences at lag m, then their difference: two passes instead of three
-            d1 = buf1[:, : k + m]
-            np.subtract(x[:, s + m : ee + 2 * m], x[:, s : ee + m], out=d1)
-            np.subtract(d1[:, m:], d1[:, :k], out=d)
-        dc = d[:, : e - s]
-        s2 += np.einsum("ij,ij->i", dc, dc)
+        ee = min(n_o, e + m - 1) if n_m > 0 else e
+        d = _second_diff(x, m, s, ee - s, bufs)
+        dc = d[: e - s]
+        s2 += _dot(dc)
+        lo = (-s) % m
+        hi = min(e - s, k_avar * m - s)
+        if hi > lo:
+            a2 += _dot(dc[lo:hi:m])
         if n_m > 0 and s < n_m:
             kk = min(e, n_m) - s
-            if msum is not None:
-                inner = buf2[:, :kk]
-                if m == 1 and k > m and kk <= k:  # S_1 is x itself: inner = d and g1 = d1, bit for bit
-                    g1 = d1
-                elif kk <= m:
-                    np.add(msum[:, s + 2 * m : s + 2 * m + kk], msum[:, s : s + kk], out=inner)
-                    inner -= msum[:, s + m : s + m + kk]
-                    inner -= msum[:, s + m : s + m + kk]
-                else:
-                    g1 = buf1[:, : kk + m]
-                    np.subtract(msum[:, s + m : s + 2 * m + kk], msum[:, s : s + m + kk], out=g1)
-                    np.subtract(g1[:, m:], g1[:, :kk], out=inner)
-                if double:  # columns < s + kk are not read again at this m (later chunks start at s + kk)
-                    hi = min(top, s + kk)
-                    if hi > done:
-                        if kk > m and done == s:  # S_2m(j) = 2 S_m(j) + (S_m(j+m) − S_m(j)): g1 is in cache
-                            blk = msum[:, s:hi]
-                            blk *= 2.0
-                            blk += g1[:, : hi - s]
-                        else:
-                            msum[:, done:hi] += msum[:, done + m : hi + m]
-                        done = hi
-            else:
-                cs = np.cumsum(d, axis=1)
-                inner = cs[:, m - 1 : m - 1 + kk].copy()
-                inner[:, 1:] -= cs[:, : kk - 1]
-                t1 += inner.sum(axis=1)
-            t2 += np.einsum("ij,ij->i", inner, inner)
-    if double and msum is not None:
-        _double_moving_sum(msum, m, chunk, start=done)  # the columns not doubled in the loop
-    return s1, s2, t1, t2, n_o, max(n_m, 0)
-
-
-def _double_moving_sum(msum: NDArray[np.float64], m: int, chunk: int, start: int = 0) -> None:
-    """In place: moving sums over m → over 2m (S_{2m}(j) = S_m(j) + S_m(j+m)), ascending chunks, from column
-    ``start`` on (the columns before it already doubled)."""
-    top = msum.shape[1] - m
-    for s in range(start, top, chunk):
-        e = min(top, s + chunk)
-        msum[:, s:e] += msum[:, s + m : e + m]
-    msum[:, top:] = np.nan  # windows that run past the record are undefined
+            cs = np.cumsum(d)
+            inner = cs[m - 1 : m - 1 + kk].copy()
+            inner[1:] -= cs[: kk - 1]
+            t1 += float(inner.sum())
+            t2 += _dot(inner)
+    return s2, a2, t1, t2
 
 
 def allan_variances(
@@ -362,8 +561,9 @@ def allan_variances(
     *,
     points_per_decade: int = 10,
     max_m: int | None = None,
-    confidence: float = 0.683,
+    confidence: float | None = 0.683,
     chunk: int = _CHUNK,
+    phase: NDArray[np.float64] | None = None,
 ) -> AllanResult:
     """Non-overlapping, overlapping, total and modified Allan variances with EDF and confidence intervals.
 
@@ -380,10 +580,15 @@ def allan_variances(
         Density of the ``log`` grid.
     max_m : int, optional
         Largest averaging factor (default ⌊N/3⌋).
-    confidence : float
-        Two-sided probability of the χ² intervals (default 0.683, "1σ").
+    confidence : float or None
+        Two-sided probability of the χ² intervals (default 0.683, "1σ"); None: variances only (no noise type,
+        EDF or intervals).
     chunk : int
-        Columns per chunk (tuning only).
+        Samples per chunk of the passes (tuning and tests only).
+    phase : ndarray (C, N+1), optional
+        Receives each channel's phase x_j = T_s Σ_{k<j} (Ω_k − Ω̄), x_0 = 0 (the record integrated with only its
+        mean removed, in u·s); the passes then run in it instead of in a phase array of their own, and the
+        removed ramp's phase is added back at the end (no second integration for a caller that needs it).
 
     Returns
     -------
@@ -396,71 +601,138 @@ def allan_variances(
         raise ValueError(f"sample rate must be a positive number of Hz, got {rate}")
     if n < 4:
         raise ValueError(f"record too short for Allan variance: {n} samples (need at least 4)")
-    if not np.all(np.isfinite(a)):
+    chunk = max(16, int(chunk))
+    bufs = _Buffers(chunk, 2 * chunk)
+    lines = [_line(a[:, ch], bufs.ks) for ch in range(c)]
+    if not all(math.isfinite(v) for ln in lines for v in ln) and not np.all(np.isfinite(a)):
         raise ValueError("record contains NaN or inf; remove or interpolate them before the analysis")
-    if not 0.0 < confidence < 1.0:
+    if confidence is not None and not 0.0 < confidence < 1.0:
         raise ValueError(f"confidence must be in (0, 1), got {confidence}")
     ts = 1.0 / rate
     ms = tau_grid(n, rate, taus, points_per_decade, max_m)
     if ms.size == 0:
         raise ValueError(f"no averaging time of the requested grid fits a record of {n} samples at {rate} Hz")
-    x, r_s = _detrend_and_integrate(a, ts, chunk)
-    half_a = 0.5 * ts * r_s  # x_ramp(j) = half_a (j² + j) + linear: a quadratic in the phase
     nm = ms.size
     var = {k: np.full((nm, c), np.nan) for k in ESTIMATORS}
     nterm = {k: np.zeros(nm, dtype=np.int64) for k in ESTIMATORS}
-    octave = bool(np.all(ms & (ms - 1) == 0))  # all powers of two: modified AVAR by moving-sum doubling
-    msum = x.copy() if octave and int(ms.max()) * 3 <= n + 2 else None
-    m_cur = 1
-    for j, m in enumerate(ms):
-        m = int(m)
-        tau = m * ts
-        cr = 2.0 * half_a * m * m  # exact central second difference of the removed ramp (phase units)
-        # non-overlapping: strided subset
-        k = n // m - 1
-        if k >= 1 and m > 1:  # at m = 1 the non-overlapping terms are the overlapping ones (copied below)
-            a1 = np.zeros(c)
-            a2 = np.zeros(c)
-            for k0 in range(0, k, chunk):
-                xd = x[:, k0 * m : (min(k, k0 + chunk) + 1) * m + 1 : m]
-                d = xd[:, 2:] + xd[:, :-2]
-                d -= 2.0 * xd[:, 1:-1]
-                a1 += d.sum(axis=1)
-                a2 += np.einsum("ij,ij->i", d, d)
-            tot = a2 + 2.0 * cr * a1 + k * cr * cr
-            var["avar"][j] = tot / (2.0 * tau * tau * k)
-            nterm["avar"][j] = k
-        fuse = False
-        if msum is not None:
-            while m_cur < m:
-                _double_moving_sum(msum, m_cur, chunk)
+    octave = bool(np.all(ms & (ms - 1) == 0))  # all powers of two: G doubled in place from one τ to the next
+    if phase is not None and (phase.shape != (c, n + 1) or phase.dtype != np.float64 or not phase.flags.c_contiguous):
+        raise ValueError(f"phase must be a C-contiguous float64 array of shape {(c, n + 1)}")
+    # phase of one channel at a time (and G): two record-sized arrays in all
+    x = np.empty(n + 1) if phase is None else None
+    g = np.empty(n + 1) if octave else bufs.b2
+    for ch, (mean, r_s) in enumerate(lines):
+        xc = x if phase is None else phase[ch]
+        _integrate(a[:, ch], mean, r_s, bufs.ks, xc, g, bufs.b1)
+        _channel(xc, g if octave else None, r_s, ms, chunk, bufs, var, nterm, ch)
+        if phase is not None:
+            _add_ramp_phase(xc, r_s, ts, bufs)
+    del x, g
+    res = AllanResult(ms * ts, ms, float(rate), n, var, nterm, confidence=confidence or 0.683)
+    if confidence is not None:
+        _attach_confidence(res)
+    return res
+
+
+def _add_ramp_phase(x: NDArray[np.float64], r_s: float, ts: float, bufs: _Buffers) -> None:
+    """In place: detrended phase (data unit × samples) → T_s·(x_j + r_s Σ_{k<j} (k − k̄)), the phase with only
+    the mean removed; Σ_{k<j} (k − k̄) = j ((j − 1)/2 − k̄), k̄ = (N − 1)/2."""
+    n1 = x.shape[0]
+    c0 = 1.0 + (n1 - 2)  # 1 + 2k̄
+    step = bufs.ks.size
+    for s in range(0, n1, step):
+        e = min(n1, s + step)
+        jj = bufs.b2[: e - s]
+        np.add(bufs.ks[: e - s], s, out=jj)
+        t = bufs.b3[: e - s]
+        np.subtract(jj, c0, out=t)
+        t *= jj
+        t *= 0.5 * r_s
+        seg = x[s:e]
+        seg += t
+        seg *= ts
+
+
+def _channel(
+    x: NDArray[np.float64],
+    g: NDArray[np.float64] | None,
+    r_s: float,
+    ms: NDArray[np.int64],
+    chunk: int,
+    bufs: _Buffers,
+    var: dict[str, NDArray[np.float64]],
+    nterm: dict[str, NDArray[np.int64]],
+    ch: int,
+) -> None:
+    """Fill column ``ch`` of ``var`` / ``nterm`` from one channel's detrended phase x (data unit × samples) and,
+    on an octave grid, G_1 in ``g`` (overwritten: doubled up the grid).
+
+    The removed line's slope r_s (per sample) is added back exactly: the phase of the ramp is the quadratic
+    (r_s/2) j² + linear, which adds cr = r_s m² to every central second difference and m·cr to every
+    modified-AVAR term, and a known quadratic to the reflected edge terms of the total variance. Phase units
+    are data unit × samples, so a variance is Σ (term)² / (2 m² ⋯) with no T_s.
+    """
+    n = x.shape[0] - 1
+    half_a = 0.5 * r_s
+    ml = [int(m) for m in ms]
+    sums: list[tuple[float, float, float, float]] = []  # Σd², Σd² (non-overlapping), Σs², Σs per τ
+    if g is not None:
+        m_cur = 1  # g holds G_{m_cur}
+        while len(sums) < len(ml):
+            j = len(sums)
+            while m_cur < ml[j]:  # a power of two missing from the grid: doubling only
+                top = n + 2 - 4 * m_cur
+                for s in range(0, top, chunk):
+                    _double_g(g, m_cur, s, min(top, s + chunk) - s, bufs)
                 m_cur *= 2
-            fuse = j + 1 < nm and int(ms[j + 1]) == 2 * m  # the next τ needs the sums over 2m
-        s1, s2, t1, t2, n_o, n_m = _sums_one_m(x, m, chunk, msum, double=fuse)
-        if fuse:
-            m_cur = 2 * m
+            if ml[j] >= chunk:
+                sums.append(_octave_far(x, g, ml[j], n // ml[j] - 1, j + 1 < len(ml), chunk, bufs))
+                m_cur = 2 * ml[j]
+                continue
+            group = [j]  # next levels of the same pass: consecutive octaves with 2m ≤ chunk
+            while (
+                len(group) < _LEVELS_PER_PASS
+                and group[-1] + 1 < len(ml)
+                and ml[group[-1] + 1] == 2 * ml[group[-1]]
+                and 2 * ml[group[-1] + 1] <= chunk
+            ):
+                group.append(group[-1] + 1)
+            levels = [(ml[i], n // ml[i] - 1, i + 1 < len(ml)) for i in group]
+            sums += _octave_levels(x, g, levels, chunk, bufs)
+            m_cur = 2 * ml[group[-1]]
+    else:
+        for m in ml:
+            s2, a2, t1, t2 = _general_level(x, m, n // m - 1, chunk)
+            sums.append((s2, a2, t2, t1))
+    for j, m in enumerate(ml):
+        s2, a2, t2, t1 = sums[j]
+        cr = r_s * m * m
+        n_o = n + 1 - 2 * m
+        n_m = n + 2 - 3 * m
+        k_avar = n // m - 1
         if n_o > 0:
+            s1 = _lag2_sum(x, m, n_o)
             central = s2 + 2.0 * cr * s1 + n_o * cr * cr
-            var["oavar"][j] = central / (2.0 * tau * tau * n_o)
+            var["oavar"][j, ch] = central / (2.0 * m * m * n_o)
             nterm["oavar"][j] = n_o
-            if m == 1:
-                var["avar"][j], nterm["avar"][j] = var["oavar"][j], n_o
+            if m == 1:  # the non-overlapping and modified terms are the overlapping ones
+                var["avar"][j, ch] = var["oavar"][j, ch]
+                nterm["avar"][j] = n_o
+                t1, t2 = s1, s2
         else:
-            central = np.zeros(c)
+            central = 0.0
+        if k_avar >= 1 and m > 1:  # Σ of the strided subset telescopes: (x_{(k+1)m} − x_{km}) − (x_m − x_0)
+            a1 = float((x[(k_avar + 1) * m] - x[k_avar * m]) - (x[m] - x[0]))
+            var["avar"][j, ch] = (a2 + 2.0 * cr * a1 + k_avar * cr * cr) / (2.0 * m * m * k_avar)
+            nterm["avar"][j] = k_avar
         if n_m > 0:
             tot = t2 + 2.0 * m * cr * t1 + n_m * (m * cr) ** 2
-            var["mvar"][j] = tot / (2.0 * m * m * tau * tau * n_m)
+            var["mvar"][j, ch] = tot / (2.0 * m**4 * n_m)
             nterm["mvar"][j] = n_m
         if m <= n and n >= 3:
-            left_end = min(m - 1, n - 1)
-            edge = _edge_sum(x, m, 1, left_end, half_a)
-            edge += _edge_sum(x, m, max(n - m + 1, left_end + 1), n - 1, half_a)
-            var["totvar"][j] = (central + edge) / (2.0 * tau * tau * (n - 1))
+            edge = _edge_sums(x, m, half_a, chunk, bufs)
+            var["totvar"][j, ch] = (central + edge) / (2.0 * m * m * (n - 1))
             nterm["totvar"][j] = n - 1
-    del msum
-    res = AllanResult(ms * ts, ms, float(rate), n, var, nterm, confidence=confidence)
-    _attach_confidence(res)
-    return res
 
 
 # ----------------------------------------------------------------------------------------------- EDF / χ²

@@ -61,10 +61,11 @@ def _lag1(z: NDArray[np.float64]) -> float:
 LAG1_MIN_POINTS = 30
 """Fewest decimated points for the lag-1 method (Riley & Greenhall: "at least 30")."""
 PM_TEST_MIN_POINTS = 8
-"""Fewest decimated points for the phase-noise test below the lag-1 range (see :func:`is_phase_noise`)."""
-_DECIMATION_POINTS = 1 << 18
+"""Fewest decimated points for the phase-noise test below the lag-1 range (see :func:`is_phase_noise`); below
+it the previous τ's α is kept."""
+_DECIMATION_POINTS = 1 << 16
 """The lag-1 statistics average the m decimation phases up to about this many points in all (one phase when
-the decimated record alone is longer)."""
+the decimated record alone is longer: r₁'s scatter is then ≤ 0.004, far inside the bands)."""
 
 
 def _decimations(x_phase: NDArray[np.float64], m: int) -> NDArray[np.float64]:
@@ -79,7 +80,7 @@ def lag1_alpha(x_phase: NDArray[np.float64], m: int, dmax: int = 2) -> int | Non
     Stable32: no trend removal — remove drift before the analysis); None below 30 decimated points.
 
     Where Stable32 takes one decimation (offset 0), r₁ here is the mean over the m decimation phases
-    (offsets 0 … m − 1, up to ≈ 2¹⁸ points in all): the same expectation, a smaller scatter — at N = 1024 the
+    (offsets 0 … m − 1, up to ≈ 2¹⁶ points in all): the same expectation, a smaller scatter — at N = 1024 the
     single-phase r₁ read white PM as flicker at m = 8–32 in 2–15 % of records, the averaged one in none."""
     z = _decimations(x_phase, m)
     if z.shape[0] < LAG1_MIN_POINTS:
@@ -108,13 +109,15 @@ def _expected_lag1(n: int, random_walk: bool) -> float:
 
 
 def is_phase_noise(x_phase: NDArray[np.float64], m: int) -> bool | None:
-    """Below the lag-1 range: is the noise at factor m phase noise (white or flicker PM)? None below 16 points.
+    """Below the lag-1 range: is the noise at factor m phase noise (white or flicker PM)? None below 8 points.
 
     The m-decimated phase of PM noise is white-like (r₁ ≈ −1/n; flicker PM's drifts towards it at large m),
     that of FM noise a random walk or steeper (white FM: exactly a random walk). PM when the r₁ averaged over
     the decimation phases is below the midpoint of the white and the random-walk expectations at n points
-    (0.30 at n = 16, Riley & Greenhall's 1/3 from 24 points). tablebench's addition, not Stable32's: the B1
-    ratio it replaces there read 18–35 % of white-PM records as white FM at N/m = 16–32 (N = 1024)."""
+    (0.15 at n = 8, 0.30 at n = 16, Riley & Greenhall's 1/3 from 24 points). tablebench's addition, not
+    Stable32's: the B1 ratio it replaces there read 18–35 % of white-PM records as white FM at N/m = 8–16
+    (N = 1024). Its own error: white FM is called phase noise in 9–12 % of records at 16 points and 26 % at 8
+    (a short random walk can look flat); B1 misidentified 32–60 % of white FM at those lengths."""
     z = _decimations(x_phase, m)
     n = z.shape[0]
     if n < PM_TEST_MIN_POINTS:
@@ -131,7 +134,7 @@ def pm_alpha(x_phase: NDArray[np.float64], m: int) -> int | None:
     """White (2) or flicker (1) PM from R(n) = MVAR/AVAR at factor m ≥ 2 (SP 1065 §5.6): 1/m for white PM,
     3.37/(1.04 + 3 ln(πm)) for flicker PM, split at their geometric mean. Both variances overlapping (Stable32's
     AVAR here is non-overlapping: ~N/m terms, which mis-split 25–45 % of white-PM records at N/m ≤ 16);
-    computed on the first 2¹⁸·m phase points at most; None with fewer than 3m + 2 points (MVAR needs m + 1
+    computed on the first 2¹⁶·m phase points at most; None with fewer than 3m + 2 points (MVAR needs m + 1
     terms at least to mean anything)."""
     x = np.asarray(x_phase[: _DECIMATION_POINTS * m + 2 * m], dtype=np.float64)
     if x.size < 3 * m + 2:

@@ -36,8 +36,9 @@ phase input for ``htotdev`` is differenced to frequency.
 Speed. Every estimator costs O(N) or O(N log N) per τ. ADEV/OADEV/HDEV/OHDEV/TIE rms: chunked differences;
 MDEV/TDEV: a cumulative sum of the second differences; MTIE: an O(N) running max/min filter; the classic
 ADEV/OADEV/MDEV/TOTDEV of gap-free frequency records go through :func:`analysis.noise.allan.allan_variances`
-(channel by channel, one chunked pass per τ in preallocated buffers, plain sums by telescoping, analytic ramp
-handling). MTOTDEV/TTOTDEV/HTOTDEV: the even reflection makes each subsequence's 6m terms one period of a
+(channel by channel, chunked passes shared by several octaves, plain sums by telescoping, analytic ramp
+handling; for one channel the pass also leaves the record's phase, so it is not integrated twice).
+MTOTDEV/TTOTDEV/HTOTDEV: the even reflection makes each subsequence's 6m terms one period of a
 circular filter, i.e. a quadratic form zᵀQz with Q Toeplitz + Hankel; summed over subsequences it reduces to the
 record's autocorrelation (one FFT per channel and record, :func:`_autocorr`) and FFT correlations of the 3m − 1
 end samples (:func:`_mtot_fft`: O(N) once plus O(m log m) per τ). Theo1: window sums, one lagged product, a
@@ -209,15 +210,18 @@ class _Record:
                 x[:, 0] = 0.0
                 carry = np.zeros((c, 1))
                 step = 1 << 16
+                buf = np.empty((c, min(step, n_in)))
                 for s0 in range(0, n_in, step):
                     e0 = min(n_in, s0 + step)
-                    blk = a[:, s0:e0] - mean
+                    blk = buf[:, : e0 - s0]
+                    np.subtract(a[:, s0:e0], mean, out=blk)
                     if self.has_gaps:
                         blk[np.isnan(blk)] = 0.0
-                    np.cumsum(blk, axis=1, out=x[:, s0 + 1 : e0 + 1])
-                    x[:, s0 + 1 : e0 + 1] += carry
-                    carry = x[:, e0 : e0 + 1].copy()
-                x *= self.ts
+                    seg = x[:, s0 + 1 : e0 + 1]
+                    np.cumsum(blk, axis=1, out=seg)
+                    seg += carry
+                    carry = seg[:, -1:].copy()
+                    seg *= self.ts  # while in cache (the carry stays unscaled)
             elif self.has_gaps:
                 x = np.where(self.point_ok, a, 0.0)
             else:
@@ -1650,12 +1654,15 @@ def stability(
 
             ms = grid[grid <= max(_MAX_M[e](rec.n) for e in want)]
             top = int(ms.max()) if ms.size else 1
-            # channel by channel: the pass's phase and moving sums then cost two single-channel arrays
-            parts = [allan_variances(rec.freq_raw[ch], rate, ms / rate, max_m=top) for ch in range(c)]
-            classic = parts[0]
-            if c > 1:
-                classic.var = {k: np.concatenate([p.var[k] for p in parts], axis=1) for k in classic.var}
-            del parts
+            # channel by channel inside (two single-channel arrays); its own older intervals are not wanted here.
+            # One channel: the pass also leaves the record's phase (noise identification, other estimators) in
+            # the array it ran in — no second integration, no extra memory.
+            phase = None
+            if c == 1 and (confidence is not None or len(want) < len(estimators)):
+                phase = np.empty((1, rec.n))
+            classic = allan_variances(rec.freq_raw.T, rate, ms / rate, max_m=top, confidence=None, phase=phase)
+            if phase is not None:
+                rec._x = phase
     key = {"adev": "avar", "oadev": "oavar", "mdev": "mvar", "totdev": "totvar"}
     for name in estimators:
         if name in ("theoh", "theobr"):
