@@ -203,7 +203,7 @@ def part_total_big(n: int) -> str:
         "autocorrelation's single in-place buffer (N + the grid's largest lag) and, at the largest τ (MTOT/HTOT/TTOT "
         "window 3m ≈ 0.6 N), at most two in-place FFT buffers of ≈ 6m points for the end-segment correlations (R "
         "released first); Theo1's long correlations and triangle sums are blocked (FFTs of ≤ N/8 points). "
-        "Where the record-wide closed form's rounding estimate exceeds 1e-9 (small m on "
+        "Where the record-wide closed form’s rounding estimate exceeds 1e-10 (small m on "
         "this random-walk phase) it is evaluated block by block (O(N log B) per τ).\n"
     )
 
