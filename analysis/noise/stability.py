@@ -1790,6 +1790,11 @@ def _attach_intervals(rec: _Record, res: StabilityResult) -> None:
             t_rec = (n - 1) * rec.ts
             est.bias = ci.bias_factor(name, alpha, est.m, est.tau, t_rec)
         est.lo, est.hi = ci.chi2_interval(est.unbiased(), e, res.confidence)
+        if name == "totdev":  # white PM: the reflected end terms skew the law, three cumulants (exact B)
+            for j, ch in zip(*np.nonzero((alpha == 2) & np.isfinite(est.dev)), strict=True):
+                shape = ci.totvar_wpm_shape(n, int(est.m[j]))
+                if shape is not None and shape[0] > 0:
+                    est.lo[j, ch], est.hi[j, ch] = ci.shifted_chi2_interval(est.dev[j, ch], shape, res.confidence)
 
 
 THEOBR_MAX_RATIOS = 256
