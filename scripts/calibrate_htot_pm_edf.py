@@ -6,7 +6,7 @@ EDF 2·E[σ̂²]²/Var[σ̂²] of HTOTVAR on Kasdin–Walter power-law phase noi
 Hadamard EDF of Greenhall's algorithm at the same N, m and α, and prints the geometric-mean ratio per α over
 m = 2–3 and m ≥ 4. analysis/noise/confidence.py `_HTOT_PM_RATIO` holds the result of
 
-    python -m scripts.calibrate_htot_pm_edf --n 256,4096,16384 --records 400
+    PYTHONPATH=. python scripts/calibrate_htot_pm_edf.py --n 256,4096,16384 --records 400
 
 (N = 1024, the slow coverage test's record length, is deliberately left out of the calibration).
 """
@@ -18,18 +18,8 @@ import argparse
 import numpy as np
 
 from analysis.noise import confidence as ci
+from analysis.noise.powerlaw import kasdin_phase
 from analysis.noise.stability import stability
-
-
-def kasdin_phase(alpha: int, n: int, records: int, rng: np.random.Generator) -> np.ndarray:
-    """Phase records (n, records) with S_y ∝ f^α (S_x ∝ f^(α−2)), Kasdin & Walter's causal filter."""
-    b = 2 - alpha
-    h = np.ones(n)
-    for k in range(1, n):
-        h[k] = h[k - 1] * (k - 1 + b / 2.0) / k
-    w = rng.normal(size=(n, records))
-    nfft = 2 * n
-    return np.fft.irfft(np.fft.rfft(w, nfft, axis=0) * np.fft.rfft(h, nfft)[:, None], nfft, axis=0)[:n]
 
 
 def ratios(n: int, alpha: int, records: int, seed: int) -> list[tuple[int, float, float]]:

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from analysis.noise import confidence as ci
-from tests.analysis.noise.test_stability_coverage import kasdin_phase
+from analysis.noise.powerlaw import kasdin_phase
 
 
 @pytest.mark.parametrize("n", [8, 16, 29])
