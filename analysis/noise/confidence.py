@@ -473,8 +473,10 @@ def edf_totvar_wpm(n: int, m: int) -> float:
     return tr * tr / float(b.multiply(b).sum())
 
 
-_WPM_SHAPE_MAX = 1 << 24
-"""Largest N·m for which :func:`totvar_wpm_shape` forms B² (≈ 4N·m non-zeros)."""
+_WPM_SHAPE_MAX = 1 << 22
+"""Largest N·m for which :func:`totvar_wpm_shape` forms B² (the reflected end rows make it dense in blocks:
+0.2 s and ≈ 200 MB at N = 4096, m = 1024; beyond, the interval is the χ² of the exact EDF, conservative at
+68 %)."""
 
 
 @lru_cache(maxsize=4096)
@@ -482,8 +484,7 @@ def totvar_wpm_shape(n: int, m: int) -> tuple[float, float, float] | None:
     """Three-cumulant law of TOTVAR's σ̂²/σ² for white PM: a + b·χ²_ν with the exact cumulants of S = xᵀBx
     (κ_r ∝ 2^{r−1}(r − 1)! tr B^r): b = k₃/(4k₂), ν = 8k₂³/k₃², a = 1 − bν (a = 0 is the scaled χ² of the
     EDF). The end terms sharing 2x₁ and 2x_N make S more skewed than a χ² of its EDF; the χ² interval then
-    covered 73–78 % instead of 68 % at m ≥ 64 (N = 1024). None where N·m > 2²⁴ (B² too large) or N exceeds the
-    exact EDF's range."""
+    covered 73–78 % instead of 68 % at m ≥ 64 (N = 1024). None where N·m > 2²² (B² too large)."""
     if n > _WPM_EXACT_MAX_N or n * m > _WPM_SHAPE_MAX:
         return None
     b = _totvar_wpm_b(n, m)
