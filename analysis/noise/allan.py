@@ -179,14 +179,15 @@ _LEVELS_PER_PASS = 8
 """Octave levels sharing one pass over the record (:func:`_octave_levels`); tuning only."""
 
 _DOT_BLOCK = 4096
-"""Elements per BLAS dot product in :func:`_dot` (OpenBLAS spreads a dot product of more than 10 000 elements over
-threads, which on a busy machine costs far more than it saves; below that it runs on the calling thread)."""
+"""Elements per BLAS dot product in :func:`sum_of_products` (OpenBLAS spreads a dot product of more than 10 000
+elements over threads, which on a busy machine costs far more than it saves; below that it runs on the calling
+thread)."""
 
 _vecdot = getattr(np, "vecdot", None)  # numpy ≥ 2.0
 _add_reduce = np.add.reduce
 
 
-def _dot(u: NDArray[np.float64], v: NDArray[np.float64] | None = None) -> float:
+def sum_of_products(u: NDArray[np.float64], v: NDArray[np.float64] | None = None) -> float:
     """Σ u·v (Σ u² without ``v``) of 1-D, possibly strided, float64 arrays: single-threaded BLAS dot products of
     :data:`_DOT_BLOCK` elements (about twice as fast as ``einsum``)."""
     k = u.shape[0]
@@ -214,7 +215,7 @@ def _line(col: NDArray, ks: NDArray[np.float64]) -> tuple[float, float]:
         blk = np.asarray(col[s:e], dtype=np.float64)
         t = float(blk.sum())
         s0 += t
-        s1 += _dot(blk, ks[: e - s]) + (s - kbar) * t
+        s1 += sum_of_products(blk, ks[: e - s]) + (s - kbar) * t
     skk = n * (n * n - 1.0) / 12.0
     return s0 / n, (s1 / skk if n > 1 else 0.0)
 
@@ -309,7 +310,7 @@ def _edge_sum_general(x: NDArray[np.float64], m: int, lo: int, hi: int, half_a: 
         if half_a != 0.0:
             i = np.arange(a, b + 1, dtype=np.float64)
             d += half_a * (2.0 * m * m - 2.0 * np.maximum(m - i, 0.0) ** 2 - 2.0 * np.maximum(i + m - n, 0.0) ** 2)
-        out += _dot(d)
+        out += sum_of_products(d)
     return out
 
 
@@ -346,14 +347,14 @@ def _edge_sums(x: NDArray[np.float64], m: int, half_a: float, chunk: int, bufs: 
         d -= x[u0:u1]
         if half_a != 0.0:
             d += q
-        out += _dot(d)
+        out += sum_of_products(d)
         np.subtract(x[n - m - u0 : n - m - u1 : -1], x[n - m + u0 : n - m + u1], out=d)  # right
         d -= x[n - u0 : n - u1 : -1]
         d -= x[n - u0 : n - u1 : -1]
         d += two_xn
         if half_a != 0.0:
             d += q
-        out += _dot(d)
+        out += sum_of_products(d)
     return out
 
 
@@ -451,19 +452,19 @@ def _octave_levels(
             sums = acc[lv]
             e = min(n_o, s + chunk)
             d = _second_diff(x, m, s, e - s, bufs)
-            sums[0] += _dot(d)
+            sums[0] += sum_of_products(d)
             if m > 1:
                 lo = (-s) % m
                 hi = min(e - s, k_avar * m - s)
                 if hi > lo:
-                    sums[1] += _dot(d[lo:hi:m])
+                    sums[1] += sum_of_products(d[lo:hi:m])
             if s < n_m:
                 kk = min(e, n_m) - s
                 if s == 0:  # the head of Σs's telescoped form, before G_m is doubled
                     sums[3] = -_range_sum(g, 0, m) if n_m >= m else _range_sum(g, m, m + n_m) - _range_sum(g, 0, n_m)
                 inner = bufs.b3[:kk]
                 np.subtract(g[s + m : s + m + kk], g[s : s + kk], out=inner)
-                sums[2] += _dot(inner)
+                sums[2] += sum_of_products(inner)
             if s < n_g:
                 _double_g(g, m, s, min(e, n_g) - s, bufs)
     for (m, _, _), (_, n_m, _), sums in zip(levels, spans, acc, strict=True):
@@ -503,14 +504,14 @@ def _octave_far(
             np.subtract(x[j0 + 2 * m : j0 + 2 * m + kd], x[j0 + m : j0 + m + kd], out=nxt)
             dd = d[:kd]
             np.subtract(nxt, d1a[:kd], out=dd)
-            s2 += _dot(dd)
+            s2 += sum_of_products(dd)
             if c == 0 and j0 < k_avar * m:  # the non-overlapping terms j = 0, m, 2m, …
                 a2 += float(dd[0]) ** 2
             if j0 < n_m:
                 ki = min(w, n_m - j0)
                 inner = d[:ki]
                 np.subtract(g[j0 + m : j0 + m + ki], g[j0 : j0 + ki], out=inner)
-                t2 += _dot(inner)
+                t2 += sum_of_products(inner)
             kg = min(w, n_g - j0)
             if kg > 0:
                 hn = hb[:kg]
@@ -539,18 +540,18 @@ def _general_level(x: NDArray[np.float64], m: int, k_avar: int, chunk: int) -> t
         ee = min(n_o, e + m - 1) if n_m > 0 else e
         d = _second_diff(x, m, s, ee - s, bufs)
         dc = d[: e - s]
-        s2 += _dot(dc)
+        s2 += sum_of_products(dc)
         lo = (-s) % m
         hi = min(e - s, k_avar * m - s)
         if hi > lo:
-            a2 += _dot(dc[lo:hi:m])
+            a2 += sum_of_products(dc[lo:hi:m])
         if n_m > 0 and s < n_m:
             kk = min(e, n_m) - s
             cs = np.cumsum(d)
             inner = cs[m - 1 : m - 1 + kk].copy()
             inner[1:] -= cs[: kk - 1]
             t1 += float(inner.sum())
-            t2 += _dot(inner)
+            t2 += sum_of_products(inner)
     return s2, a2, t1, t2
 
 

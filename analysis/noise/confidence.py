@@ -40,10 +40,12 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import special, stats
 
+from analysis.noise.allan import sum_of_products
+
 ONE_SIGMA = math.erf(1.0 / math.sqrt(2.0))
 """Two-sided probability of ±1σ, 0.6827 (Stable32's "0.683")."""
 
-_D_ORDER = {"adev": 2, "oadev": 2, "mdev": 2, "tdev": 2, "hdev": 3, "ohdev": 3, "totdev": 2, "mtotdev": 2,
+D_ORDER = {"adev": 2, "oadev": 2, "mdev": 2, "tdev": 2, "hdev": 3, "ohdev": 3, "totdev": 2, "mtotdev": 2,
             "ttotdev": 2, "htotdev": 3, "theo1": 2, "theoh": 2, "theobr": 2}
 """Differencing order d of each estimator (noise identification's d_max)."""
 
@@ -70,9 +72,15 @@ _DECIMATION_POINTS = 1 << 16
 the decimated record alone is longer: r₁'s scatter is then ≤ 0.004, far inside the bands)."""
 
 
+LAG1_MAX_POINTS = 1 << 18
+"""The lag-1 statistics use at most this many decimated points per phase (r₁'s standard error is then
+≈ 1/√n = 0.002, far inside its classification bands of width 0.5)."""
+
+
 def _decimations(x_phase: NDArray[np.float64], m: int) -> NDArray[np.float64]:
-    """The phase decimated by m at offsets 0 … k − 1 as the columns of an (n, k) view, n = ⌊N/m⌋."""
-    n = x_phase.size // m
+    """The phase decimated by m at offsets 0 … k − 1 as the columns of an (n, k) view, n = ⌊N/m⌋ (at most
+    :data:`LAG1_MAX_POINTS`)."""
+    n = min(x_phase.size // m, LAG1_MAX_POINTS)
     k = min(m, max(1, _DECIMATION_POINTS // max(n, 1)))
     return np.asarray(x_phase[: n * m], dtype=np.float64).reshape(n, m)[:, :k]
 
@@ -142,10 +150,10 @@ def pm_alpha(x_phase: NDArray[np.float64], m: int) -> int | None:
     if x.size < 3 * m + 2:
         return None
     dd = x[2 * m :] - 2.0 * x[m:-m] + x[: -2 * m]
-    avar = float(np.einsum("i,i->", dd, dd)) / dd.size
+    avar = sum_of_products(dd) / dd.size
     cs = np.concatenate([[0.0], np.cumsum(dd)])
     s = cs[m:] - cs[:-m]
-    mvar = float(np.einsum("i,i->", s, s)) / s.size / (m * m)
+    mvar = sum_of_products(s) / s.size / (m * m)
     if avar <= 0:
         return 2
     r_fpm = 3.37 / (1.04 + 3.0 * math.log(math.pi * m))
@@ -534,8 +542,9 @@ def edf(estimator: str, alpha: int, m: int, n: int) -> float:
         return b * n / m - c
     if estimator == "htotdev":
         if a > 0:  # phase noise: no published HTOT fit; OHDEV's EDF scaled by tablebench's calibration
-            ratio = 1.0 if m == 1 else _HTOT_PM_RATIO[min(a, 2)][0 if m < 4 else 1]
-            return ratio * edf_greenhall(a, 3, m, n, True, False)
+            if m == 1:  # HTOTVAR is OHVAR at m = 1
+                return edf("ohdev", a, m, n)
+            return _HTOT_PM_RATIO[min(a, 2)][0 if m < 4 else 1] * edf_greenhall(min(a, 2), 3, m, n, True, False)
         if m < 16:  # short τ: the OHDEV EDF (Stable32)
             return edf_greenhall(max(a, -4), 3, m, n, True, False)
         b0, b1 = _HTOT[max(-4, a)]

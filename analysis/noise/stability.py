@@ -73,6 +73,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import fft as sfft
 
+from analysis.noise.allan import allan_variances, sum_of_products
+
 ESTIMATORS: tuple[str, ...] = (
     "adev",
     "oadev",
@@ -524,11 +526,6 @@ def _reflected_sumsq(
     return total, np.full(c, count, dtype=np.int64)
 
 
-def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
-    """Σ a_i b_i of two 1-D arrays without BLAS (its thread start-up costs more than the sum on a busy machine)."""
-    return float(np.einsum("i,i->", a, b))
-
-
 def _fast_len(n: int) -> int:
     """A fast real FFT length ≥ n."""
     return int(sfft.next_fast_len(max(int(n), 2), real=True))
@@ -706,8 +703,8 @@ class _Detrended:
             t = (np.arange(a, b, dtype=np.float64) - self.c) / n
             q = t * t - self.mt2
             blk = s[a:b]
-            proj += (blk.sum(), _dot(blk, t), _dot(blk, q))
-            norm += (b - a, _dot(t, t), _dot(q, q))
+            proj += (blk.sum(), sum_of_products(blk, t), sum_of_products(blk, q))
+            norm += (b - a, sum_of_products(t, t), sum_of_products(q, q))
         self.coef = np.where(norm > 0, proj / np.where(norm > 0, norm, 1.0), 0.0)
         self.a = float(self.coef[2]) / float(n) ** 2
 
@@ -929,7 +926,7 @@ def _mtot_fft(s, m: int, R, a: float) -> tuple[float, float]:
         if d0 == 0:
             wa[0] *= 0.5
         wa += wr * np.arange(L - d0, L - d1, -1, dtype=np.float64)
-        T1 += 2.0 * _dot(Rv[d0:d1], wa)
+        T1 += 2.0 * sum_of_products(Rv[d0:d1], wa)
     E_quad = scale_quad = 0.0
     if a != 0.0:  # the removed quadratic's exact terms: r1 = k² − β_s k, Q r1, and Σ_i z_i
         kk = np.arange(L, dtype=np.float64)
@@ -941,7 +938,7 @@ def _mtot_fft(s, m: int, R, a: float) -> tuple[float, float]:
             return k * k - beta_s * k
 
         qr1 = _q_apply(m, r1)
-        square = M * a * a * sum(_dot(r1(i, min(L, i + step)), qr1[i : i + step]) for i in range(0, L, step))
+        square = M * a * a * sum(sum_of_products(r1(i, min(L, i + step)), qr1[i : i + step]) for i in range(0, L, step))
         if isinstance(s, np.ndarray):  # Σ_{i<M} s[i + k] at k = 0
             w0 = float(s[:M].sum())
         else:
@@ -958,8 +955,8 @@ def _mtot_fft(s, m: int, R, a: float) -> tuple[float, float]:
                 np.cumsum(seg(M + i - 1, M + j - 1) - seg(i - 1, j - 1), out=win)
                 win += carry
             carry = float(win[-1])
-            wq += _dot(win, qr1[i:j])
-            kq += _dot(np.arange(i, j, dtype=np.float64), qr1[i:j])
+            wq += sum_of_products(win, qr1[i:j])
+            kq += sum_of_products(np.arange(i, j, dtype=np.float64), qr1[i:j])
             w_lo += float(win[: max(0, min(j, h1) - i)].sum())
             w_hi += float(win[max(0, h2 - i) :].sum())
         del qr1
@@ -969,7 +966,9 @@ def _mtot_fft(s, m: int, R, a: float) -> tuple[float, float]:
         scale_quad = 8.0 * (abs(cross) + abs(square))
     # detrend terms: β the half-mean slope, q = Qk; Σ_{i<M} (βᵀX_i)(vᵀX_i) = Σ_d c_βv(d) R_|d| − partial windows
     q = _q_apply(m, np.arange(L, dtype=np.float64))
-    kqk = sum(_dot(np.arange(i, min(L, i + step), dtype=np.float64), q[i : i + step]) for i in range(0, L, step))
+    kqk = sum(
+        sum_of_products(np.arange(i, min(L, i + step), dtype=np.float64), q[i : i + step]) for i in range(0, L, step)
+    )
 
     def full(p: _Prefix, rv: NDArray) -> tuple[float, float]:  # Σ_d c(d) R_|d|, c = β ⋆ v, d = −(L−1) … L−1; Σ|c| R_0
         c0 = float(_beta_chunk(p, 0, 1, L, h1, D)[0])
@@ -980,7 +979,7 @@ def _mtot_fft(s, m: int, R, a: float) -> tuple[float, float]:
             cn = _beta_chunk(p, 1 - d1, 1 - d0, L, h1, D)[::-1]
             ab += float(np.abs(cp).sum() + np.abs(cn).sum())
             cp += cn
-            tot += _dot(cp, rv[d0:d1])
+            tot += sum_of_products(cp, rv[d0:d1])
         return tot, r0 * ab
 
     def beta(i: int, j: int) -> NDArray[np.float64]:
@@ -1008,9 +1007,9 @@ def _mtot_fft(s, m: int, R, a: float) -> tuple[float, float]:
             i1 = min(hi, i0 + step)
             sb = _beta_chunk(pre, i0, i1, L, h1, D)
             sq = out[i0 % nf : i0 % nf + (i1 - i0)]
-            s_bu -= _dot(sb, sq)
-            sc_bu += _dot(np.abs(sb), np.abs(sq))
-            bb = _dot(sb, sb)
+            s_bu -= sum_of_products(sb, sq)
+            sc_bu += sum_of_products(np.abs(sb), np.abs(sq))
+            bb = sum_of_products(sb, sb)
             s_bb -= bb
             sc_bb += bb
             del sb, sq
@@ -1031,7 +1030,7 @@ def _mtot_fft(s, m: int, R, a: float) -> tuple[float, float]:
         del tz
         for d0 in range(0, n, step):
             d1 = min(n, d0 + step)
-            T1 += 2.0 * sign * _dot(out[d0:d1], weights(d0, d1)[0])
+            T1 += 2.0 * sign * sum_of_products(out[d0:d1], weights(d0, d1)[0])
         np.copyto(b2, b1)
         cz = b2.view(np.complex128)
         _spec_update(cz, "sq")
@@ -1039,7 +1038,7 @@ def _mtot_fft(s, m: int, R, a: float) -> tuple[float, float]:
         del cz
         for c0 in range(0, 2 * n - 1, step):
             c1 = min(2 * n - 1, c0 + step)
-            T1 += 2.0 * sign * _dot(out[c0:c1], rc.get(3 + c0, 3 + c1))
+            T1 += 2.0 * sign * sum_of_products(out[c0:c1], rc.get(3 + c0, 3 + c1))
         del out, b2
         _spec_update(hz, "pow")
         out = _irfft_ip(hz)
@@ -1059,7 +1058,7 @@ def _mtot_fft(s, m: int, R, a: float) -> tuple[float, float]:
                     wa[0] = lo[0]
                 wa -= wr
                 wa *= 2.0
-            T1 += _dot(out[d0:d1], wa)
+            T1 += sum_of_products(out[d0:d1], wa)
         del out, b1
     E = T1 - 2.0 * s_bu + kqk * s_bb + E_quad
     scale = 4.0 * L * abs(rho0) * r0 + 2.0 * sc_bu + abs(kqk) * sc_bb + scale_quad
@@ -1298,9 +1297,9 @@ def _corr_sum(get_a, na: int, get_b, nb: int, kern, lo: int, hi: int, cap: int) 
             f *= fa
             cc = sfft.irfft(f, nf, overwrite_x=True)  # cc[δ mod nf] = Σ_u a_{j0+u} b_{k0+u+δ}
             del f
-            tot += _dot(cc[: k1 - k0], kern(base, base + k1 - k0))
+            tot += sum_of_products(cc[: k1 - k0], kern(base, base + k1 - k0))
             if j1 - j0 > 1:
-                tot += _dot(cc[nf - (j1 - j0) + 1 :], kern(base - (j1 - j0) + 1, base))
+                tot += sum_of_products(cc[nf - (j1 - j0) + 1 :], kern(base - (j1 - j0) + 1, base))
             del cc
         del fa
     return tot
@@ -1347,7 +1346,7 @@ def _tri(a: NDArray, b: NDArray, gk, off: int, n: int, cap: int) -> float:
 def _window_sum_chunks(f: NDArray[np.float64], count: int, top: int, sq: bool):
     """Yield (o₀, W[o₀ : o₁]) for W(o) = Σ_{c<count} f_{c+o} (or f²), o = 0 … top, in ascending chunks: one direct
     sum and a running cumulative sum of the O(top) end differences (no array as long as top)."""
-    w0 = _dot(f[:count], f[:count]) if sq else float(f[:count].sum())
+    w0 = sum_of_products(f[:count], f[:count]) if sq else float(f[:count].sum())
     yield 0, np.array([w0])
     carry = w0
     step = 1 << 16
@@ -1373,10 +1372,10 @@ def _fold_windows(chunks, h: int, coef) -> tuple[float, float, float]:
             w_hi = float(v[2 * h - o0])
         lo, hi = max(o0, 1), min(o1, h + 1)  # o = h − δ
         if hi > lo:
-            tot += _dot(v[lo - o0 : hi - o0][::-1], coef(h - hi + 1, h - lo + 1))
+            tot += sum_of_products(v[lo - o0 : hi - o0][::-1], coef(h - hi + 1, h - lo + 1))
         lo, hi = max(o0, h), min(o1, 2 * h)  # o = h + δ
         if hi > lo:
-            tot += _dot(v[lo - o0 : hi - o0], coef(lo - h, hi - h))
+            tot += sum_of_products(v[lo - o0 : hi - o0], coef(lo - h, hi - h))
     return tot, w_lo, w_hi
 
 
@@ -1400,7 +1399,7 @@ def _theo1_fft(x: NDArray[np.float64], m: int, r: NDArray[np.float64], a: float)
     w = 1.0 / (h - np.arange(h))
     wsum = float(w.sum())
     t3, w2_0, w2_m = _fold_windows(_window_sum_chunks(x, count, m, True), h, lambda d0, d1: w[d0:d1])
-    t1 = wsum * (w2_0 + w2_m + 2.0 * _dot(x[:count], x[m : m + count]))
+    t1 = wsum * (w2_0 + w2_m + 2.0 * sum_of_products(x[:count], x[m : m + count]))
     # Σ_c A_c (k∗x)_c, (k∗x)_c = Σ_{j<m−1} kern_j x_{c+1+j}, kern_j = w_{|j − h + 1|} (2 w_0 at j = h − 1)
     kl = m - 1
 
@@ -1430,11 +1429,11 @@ def _theo1_fft(x: NDArray[np.float64], m: int, r: NDArray[np.float64], a: float)
             f *= kf
             kc = sfft.irfft(f, nf, overwrite_x=True)[kp - 1 : kp - 1 + c1 - c0]
             del f
-            t2 += _dot(x[c0:c1] + x[c0 + m : c1 + m], kc)
+            t2 += sum_of_products(x[c0:c1] + x[c0 + m : c1 + m], kc)
             del kc
         del kf
     t2 *= 2.0
-    s4 = _dot(r[:h], w)
+    s4 = sum_of_products(r[:h], w)
 
     def gk(e0: int, e1: int) -> NDArray[np.float64]:  # G(e) = w_{e/2} at even e ∈ [0, m − 2], else 0
         out = np.zeros(e1 - e0)
@@ -1464,7 +1463,7 @@ def _theo1_fft(x: NDArray[np.float64], m: int, r: NDArray[np.float64], a: float)
             c = wq(d0, min(h, d0 + step))
             d = np.arange(d0, d0 + c.size, dtype=np.float64)
             wq_sum += float(c.sum())
-            wq_sq += _dot(c, 2.0 * (h * h - d * d))
+            wq_sq += sum_of_products(c, 2.0 * (h * h - d * d))
         cross = 2.0 * a * ((s1_0 + s1_m) * wq_sum - s1)
         square = count * a * a * wq_sq
         v += cross + square
@@ -1652,8 +1651,6 @@ def stability(
     if rec.data_type == "freq" and not rec.has_gaps:
         want = [e for e in ("adev", "oadev", "mdev", "totdev") if e in estimators]
         if want:
-            from analysis.noise.allan import allan_variances
-
             ms = grid[grid <= max(_MAX_M[e](rec.n) for e in want)]
             top = int(ms.max()) if ms.size else 1
             # channel by channel inside (two single-channel arrays); its own older intervals are not wanted here.
@@ -1700,11 +1697,6 @@ def stability(
     return res
 
 
-_ID_POINTS = 1 << 18
-"""Noise identification uses at most this many decimated points per τ (the lag-1 ACF's standard error is then
-≈ 1/√N = 0.002, far inside its classification bands of width 0.5)."""
-
-
 def _id_phase(rec: _Record, ch: int) -> NDArray[np.float64]:
     """One channel's phase for noise identification: gaps bridged (frequency gaps are zero-filled after the
     mean is removed; missing phase points are interpolated linearly)."""
@@ -1735,7 +1727,7 @@ def _attach_intervals(rec: _Record, res: StabilityResult) -> None:
         x = phases[ch]
         key = (ch, m, dmax)
         if key not in lag1_cache:
-            lag1_cache[key] = ci.lag1_alpha(x[: _ID_POINTS * m], m, dmax)
+            lag1_cache[key] = ci.lag1_alpha(x, m, dmax)
         a = lag1_cache[key]
         if a is None and (carry or x.size // m < ci.PM_TEST_MIN_POINTS):
             a = prev.get((name, ch))
@@ -1760,7 +1752,7 @@ def _attach_intervals(rec: _Record, res: StabilityResult) -> None:
         mcount, c = est.dev.shape
         alpha = np.zeros((mcount, c), dtype=np.int64)
         e = np.full((mcount, c), np.nan)
-        dmax = 3 if name in ("hdev", "ohdev", "htotdev") else 2
+        dmax = ci.D_ORDER[name]
         for j, m in enumerate(est.m):
             m = int(m)
             kind = name

@@ -141,8 +141,8 @@ def test_non_finite_sample_is_still_an_error(bad: float) -> None:
 def test_blocked_dot_equals_numpy(k: int) -> None:
     rng = np.random.default_rng(k)
     u, v = rng.normal(size=3 * k + 3), rng.normal(size=k)
-    assert al._dot(v) == pytest.approx(float(v @ v), rel=1e-13, abs=1e-300)
-    assert al._dot(u[::3][:k], v) == pytest.approx(float(u[::3][:k] @ v), rel=1e-12, abs=1e-12)
+    assert al.sum_of_products(v) == pytest.approx(float(v @ v), rel=1e-13, abs=1e-300)
+    assert al.sum_of_products(u[::3][:k], v) == pytest.approx(float(u[::3][:k] @ v), rel=1e-12, abs=1e-12)
 
 
 @pytest.mark.parametrize("half_a", [0.0, 3e-4])
@@ -210,7 +210,7 @@ def test_pairwise_prefix_sum_equals_the_cumulative_sum(k: int, depth: int) -> No
 def test_blocked_dot_without_vecdot(monkeypatch: pytest.MonkeyPatch) -> None:
     """numpy < 2.0 has no vecdot: the blocks are then summed by einsum, same values."""
     v = np.random.default_rng(3).normal(size=6 * 4096 + 18)
-    with_vecdot = al._dot(v)
+    with_vecdot = al.sum_of_products(v)
     monkeypatch.setattr(al, "_vecdot", None)
-    assert al._dot(v) == pytest.approx(with_vecdot, rel=1e-13)
-    assert al._dot(v[::2], v[1::2]) == pytest.approx(float(v[::2] @ v[1::2]), rel=1e-12, abs=1e-12)
+    assert al.sum_of_products(v) == pytest.approx(with_vecdot, rel=1e-13)
+    assert al.sum_of_products(v[::2], v[1::2]) == pytest.approx(float(v[::2] @ v[1::2]), rel=1e-12, abs=1e-12)
