@@ -45,7 +45,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import signal
 
-from drivers.imu_counts import RawFrames
+from drivers.imu_unit.counts import RawFrames
 from drivers.sim.config import CHANNELS, MISALIGNMENT_PAIRS, NoiseTruth, SimConfig
 
 _INT32_MAX = float(np.iinfo(np.int32).max)

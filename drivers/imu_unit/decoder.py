@@ -1,12 +1,12 @@
 """Vectorised decoder (and encoder) of inertial-unit frames compiled from a frame description.
 
-The frame layouts are data (:mod:`drivers.imu_frame_desc`, ``drivers/frames/*.yaml``): the project's own
+The frame layouts are data (:mod:`drivers.imu_unit.description`, ``drivers/imu_unit/frames/*.yaml``): the project's own
 frame ``tablebench-v1``, the KVH 1750/1775 formats A/B/C and the STIM300 datagrams. This module turns a
-:class:`~drivers.imu_frame_desc.FrameDescription` into
+:class:`~drivers.imu_unit.description.FrameDescription` into
 
 * a structured numpy dtype over one whole frame (every field a strided view of the frame rows; 24-bit
   fields are read as 3-byte sub-arrays and sign-extended),
-* a table-driven CRC vectorised over frames (:mod:`drivers.imu_frame_crc`), with the description's
+* a table-driven CRC vectorised over frames (:mod:`drivers.imu_unit.checksums`), with the description's
   coverage and zero padding (STIM300: the CRC covers ``(-n) mod 4`` zero bytes that are never sent),
 
 and decodes a byte stream without a per-frame Python loop: sync candidates are found with numpy comparisons
@@ -20,7 +20,7 @@ Counting (per feed and in totals): ``frames`` accepted; ``rejected`` candidate f
 failed) that do not lie inside an accepted frame or inside an earlier rejected one (so a damaged frame counts
 once even when a one-byte identifier recurs in its payload); ``garbage_bytes`` bytes not part of an accepted
 frame (an optional trailer such as STIM300's CR LF after a frame is not garbage). Counter gaps, resets and
-duplicates are judged on the decoded samples (:mod:`drivers.imu_frame_samples`).
+duplicates are judged on the decoded samples (:mod:`drivers.imu_unit.samples`).
 """
 
 from __future__ import annotations
@@ -31,8 +31,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.imu_frame_crc import CrcEngine
-from drivers.imu_frame_desc import FieldDesc, FrameDescription
+from drivers.imu_unit.checksums import CrcEngine
+from drivers.imu_unit.description import FieldDesc, FrameDescription
 
 log = logging.getLogger(__name__)
 

@@ -1,7 +1,7 @@
 """Frame descriptions as data: the YAML format that says how an inertial unit's binary frame is laid out.
 
-A description (shipped ones in ``drivers/frames/*.yaml``; the format is documented in
-``drivers/frames/README.md``) gives the sync/identifier bytes, the frame length, the fields (offset, type,
+A description (shipped ones in ``drivers/imu_unit/frames/*.yaml``; the format is documented in
+``drivers/imu_unit/frames/README.md``) gives the sync/identifier bytes, the frame length, the fields (offset, type,
 byte order, channel, scale and unit), the counter (modulus and step, or the tick rate it counts), the status
 fields and what "valid" means, the checksum (algorithm, parameters, coverage, zero padding) and the
 configuration *options* the unit's output depends on (delta angle vs rate, g vs Δv, range…). Options are not
@@ -9,7 +9,7 @@ in the frame: the bench says how its unit is configured (``unit.frame_options``)
 :func:`compile_format` resolves every scale and unit into SI factors for that configuration and sample rate.
 
 Every mistake in a description is a :class:`~core.yaml_source.ConfigError` naming the description file and
-line. The decoder itself lives in :mod:`drivers.imu_frame`.
+line. The decoder itself lives in :mod:`drivers.imu_unit.decoder`.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from core.yaml_source import (
     get_str,
     load_yaml,
 )
-from drivers.imu_frame_crc import PRESETS, CrcSpec
+from drivers.imu_unit.checksums import PRESETS, CrcSpec
 
 FRAMES_DIR = Path(__file__).resolve().parent / "frames"
 DEFAULT_FRAME = "tablebench-v1"
@@ -237,7 +237,7 @@ class FrameDescription:
 
 
 def shipped_frames() -> list[str]:
-    """Names of the shipped frame descriptions (``drivers/frames/*.yaml``)."""
+    """Names of the shipped frame descriptions (``drivers/imu_unit/frames/*.yaml``)."""
     return sorted(p.stem for p in FRAMES_DIR.glob("*.yaml"))
 
 
@@ -341,7 +341,7 @@ def _check_selectable(v: Any, smap: SourceMap, p: KeyPath, options: dict[str, Op
 def parse_description(data: Any, smap: SourceMap) -> FrameDescription:
     """Validate parsed YAML into a :class:`FrameDescription` (errors name the file and line)."""
     if data is None:
-        raise ConfigError(smap.file, None, "the frame description is empty; see drivers/frames/README.md")
+        raise ConfigError(smap.file, None, "the frame description is empty; see drivers/imu_unit/frames/README.md")
     d = get_mapping(data, smap, ())
     if "layouts" in d:
         return _parse_layouts(d, smap)
