@@ -73,7 +73,7 @@ def test_stim_counter_step_must_divide_2000_hz(tmp_path):
 
 def test_a_users_description_next_to_the_bench(tmp_path):
     (tmp_path / "my-unit.yaml").write_text(
-        (REPO_ROOT / "drivers" / "imu_unit" / "frames" / "kvh-1750-a.yaml").read_text().replace("name: kvh-1750-a", "name: mine"),
+        (REPO_ROOT / "drivers/imu_unit/frames/kvh-1750-a.yaml").read_text().replace("name: kvh-1750-a", "name: mine"),
         encoding="utf-8",
     )
     p = tmp_path / "bench.yaml"
