@@ -97,7 +97,7 @@ class EspecChamber:
         reply = self.link.read()
         m = _STATUS.match(reply)
         if m is not None:  # "OK:" / "NA:", with or without a space before the colon (EHS manual)
-            reply = f"{m.group(1).upper()}:{reply[m.end():]}"
+            reply = f"{m.group(1).upper()}:{reply[m.end() :]}"
         if reply.startswith("NA:"):
             raise ChamberError(f"{self.name}: {command!r} refused: {reply[3:].strip()}")
         return reply

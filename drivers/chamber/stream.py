@@ -75,7 +75,10 @@ class StreamReader:
                 "address and the line settings in the bench file"
             )
         try:
-            chunk = self.stream.read(256 if not self._buf else 64)
+            chunk = self.stream.read(1)  # waits at most the stream's own short time-out
+            waiting = int(getattr(self.stream, "in_waiting", 0) or 0) if chunk else 0
+            if waiting > 0:
+                chunk += self.stream.read(waiting)
         except (OSError, ValueError) as exc:
             raise ChamberLinkError(f"{self.name}: link failed while reading the reply to {what} ({exc})") from exc
         if chunk:

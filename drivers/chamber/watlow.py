@@ -218,6 +218,8 @@ class WatlowF4T:
     PROFILE_STATE = 16568
     PROFILE_ACTION = 16566
     TERMINATE = 148
+    DEVICE_STATUS = 90
+    STATUS_OK = 138
     STATES = {149: "profile running", 146: "profile paused", 1783: "timed start"}
 
     def __init__(
@@ -251,18 +253,20 @@ class WatlowF4T:
         return float(value)
 
     def read(self) -> ChamberReading:
-        """PV and constant SP of the loop, and the profile state."""
+        """PV and constant SP of the loop, the profile state and the device status (90: 138 OK, 32 fail)."""
         if self._closed:
             raise ChamberLinkError(f"{self.name}: driver is closed")
         pv = self._float(self.m.read_registers(self._reg(self.PV), 2))
         sp = self._float(self.m.read_registers(self._reg(self.CONSTANT_SP), 2))
         state = self.m.read_registers(self.PROFILE_STATE)[0]
+        status = self.m.read_registers(self.DEVICE_STATUS)[0]
         return ChamberReading(
             setpoint=from_wire_celsius(sp),
             air=from_wire_celsius(pv),
             running=None,
-            alarm=None,
-            detail=self.STATES.get(state, "constant"),
+            alarm=status != self.STATUS_OK,
+            detail=self.STATES.get(state, "constant")
+            + ("" if status == self.STATUS_OK else f", device status {status}"),
         )
 
     def set_setpoint(self, temperature: float) -> float:

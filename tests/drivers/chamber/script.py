@@ -38,6 +38,10 @@ class ScriptedStream:
             self._pending += reply
         return len(data)
 
+    @property
+    def in_waiting(self) -> int:
+        return len(self._pending)
+
     def read(self, size: int = 1) -> bytes:
         out = bytes(self._pending[:size])
         del self._pending[:size]

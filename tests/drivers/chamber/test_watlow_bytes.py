@@ -161,14 +161,18 @@ def test_f4t_read_pv_both_word_orders():
     pv = (h("01 03 0B 04 00 02 87 EE"), h("01 03 04 00 00 41 BC CB D2"))
     sp = (rtu("01 03 0A DE 00 02"), rtu("01 03 04 00 00 41 C8"))
     state = (rtu("01 03 40 B8 00 01"), rtu("01 03 02 00 95"))
-    drv, s = f4t([pv, sp, state])
+    status = (rtu("01 03 00 5A 00 01"), rtu("01 03 02 00 8A"))  # 138 = OK
+    drv, s = f4t([pv, sp, state, status])
     r = drv.read()
     assert r.air == pytest.approx(C(23.5)) and r.setpoint == pytest.approx(C(25.0)) and r.detail == "profile running"
+    assert r.alarm is False
     s.done()
     pv_hi = (rtu("01 03 0B 04 00 02"), rtu("01 03 04 41 BC 00 00"))
     sp_hi = (rtu("01 03 0A DE 00 02"), rtu("01 03 04 41 C8 00 00"))
-    drv, s = f4t([pv_hi, sp_hi, state], order="high_first")
-    assert drv.read().air == pytest.approx(C(23.5))
+    failed = (rtu("01 03 00 5A 00 01"), rtu("01 03 02 00 20"))  # 32 = fail
+    drv, s = f4t([pv_hi, sp_hi, state, failed], order="high_first")
+    r = drv.read()
+    assert r.air == pytest.approx(C(23.5)) and r.alarm is True
     s.done()
 
 
