@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from analysis.earth import normal_gravity
 from analysis.identification.model import PARAM_NAMES
 from analysis.units import ARCSEC, DEG, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MM, PPM, UG, UG_PER_G2
-from drivers.imu_counts import CountScale
+from drivers.imu_unit.counts import CountScale
 from drivers.protocols import AxisLimits, FaultCode
 from drivers.sim.thermal_config import ChamberSim, ThermalTruth
 

@@ -46,7 +46,7 @@ from numpy.typing import NDArray
 from scipy import signal
 
 from analysis.units import CELSIUS_ZERO
-from drivers.imu_counts import RawFrames
+from drivers.imu_unit.counts import RawFrames
 from drivers.sim.chamber import ChamberPhysics, ThermalEffect
 from drivers.sim.config import CHANNELS, MISALIGNMENT_PAIRS, NoiseTruth, SimConfig
 

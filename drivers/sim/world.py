@@ -40,7 +40,7 @@ from scipy import signal
 
 from analysis import gimbal
 from analysis.earth import earth_rate_enu
-from drivers.imu_counts import CountScale, RawFrames, concat_frames
+from drivers.imu_unit.counts import CountScale, RawFrames, concat_frames
 from drivers.protocols import AxisLimits, AxisMode, FaultCode, TableError, TableState, TableStatus
 from drivers.sim.chamber import ChamberPhysics
 from drivers.sim.config import ACCEL_PARAM_NAMES, SimConfig
