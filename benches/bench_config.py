@@ -44,7 +44,7 @@ from core.yaml_source import get_int as _int
 from core.yaml_source import get_list_of_maps as _list_of_maps
 from core.yaml_source import get_matrix as _matrix
 from core.yaml_source import get_section as _section
-from drivers.acutrol.settings import AclSettings, default_profile
+from drivers.acutrol.settings import AclSettings
 from drivers.imu_unit.counts import CountScale
 from drivers.imu_unit.description import (
     DEFAULT_FRAME,
@@ -56,16 +56,19 @@ from drivers.imu_unit.description import (
     shipped_frames,
 )
 from drivers.imu_unit.serial_unit import count_format
-from drivers.modbus.register_map import ModbusMap, load_modbus_map
+from drivers.modbus.register_map import ModbusMap
 from drivers.protocols import AXIS_NAMES, AxisLimits
-from drivers.sim.acl_controller import SIM_TIME_VARIABLE
 from drivers.sim.bench_section import parse_simulation
 from drivers.sim.config import (
     ACCEL_PARAM_NAMES,
     SimConfig,
 )
 
+from . import devices
+from .recording import AUX_NAME
+
 __all__ = [
+    "AuxiliarySpec",
     "BenchConfig",
     "ConfigError",
     "NoiseSpec",
@@ -144,7 +147,7 @@ class TurntableSpec:
     resource: str | None = None  # VISA resource string (driver acutrol)
     acl: AclSettings | None = None  # ACL open points (driver acutrol, or a simulated ACUTROL)
     rate_tolerance: float = 0.01 * DEG  # rad/s: at-rate / at-rest window of host-decided settling
-    sim_controller: str = "acutrol"  # simulated benches: which controller the simulator speaks
+    sim_controller: str = devices.DEFAULT_SIMULATED_CONTROLLER  # simulated benches: the simulator's controller
 
 
 @dataclass(frozen=True)
@@ -195,6 +198,17 @@ class BenchConfig:
     limits: dict[str, float]
     simulation: SimConfig | None
     reference_standards: tuple[ReferenceStandard, ...] = ()
+    auxiliary: tuple[AuxiliarySpec, ...] = ()
+    """The auxiliary devices (temperature chamber, …), in file order."""
+
+
+@dataclass(frozen=True)
+class AuxiliarySpec:
+    """One ``auxiliary.<name>`` device: its registered driver (:mod:`benches.devices`) and parsed settings."""
+
+    name: str
+    driver: str
+    settings: Any
 
 
 @dataclass(frozen=True)
@@ -268,73 +282,18 @@ def _axis(d: dict, smap: SourceMap, p: KeyPath) -> AxisLimits:
     )
 
 
-TURNTABLE_DRIVERS = ["sim", "acutrol", "modbus-tcp"]
-SIM_CONTROLLERS = ["acutrol", "modbus", "modbus-strict"]
-"""Simulated controllers: an ACUTROL (ACL), the tablebench Modbus controller, or a strict PLC (same register map
-and world, its watchdog running from power-up, not from the first heartbeat)."""
-
-
-def _acl(d: dict | None, smap: SourceMap, p: KeyPath, resource: str | None, simulated: bool) -> AclSettings:
-    """The ``turntable.acl`` section: the open points of the ACUTROL command language (spec defaults)."""
-    d = d or {}
-    check_keys(
-        d,
-        smap,
-        p,
-        [
-            "reply_profile",
-            "mode_reply",
-            "decimals",
-            "axes",
-            "full_scale_deg",
-            "time_variable",
-            "time_scale_s",
-            "error_queue",
-            "open_interlocks_at_end",
-        ],
-    )
-    profile = get_str(d, smap, p, "reply_profile", default_profile(resource or ""), choices=["gpib", "tcp"])
-    axes = (1, 2, 3)
-    if d.get("axes") is not None:
-        ad = get_mapping(d["axes"], smap, p + ("axes",))
-        check_keys(ad, smap, p + ("axes",), list(AXIS_NAMES))
-        axes = tuple(_int(ad, smap, p + ("axes",), n, i + 1, 1, 99) for i, n in enumerate(AXIS_NAMES))  # type: ignore[assignment]
-        if len(set(axes)) != 3:
-            raise smap.error(p + ("axes",), f"outer, middle and inner need three different axis numbers, got {axes}")
-    tv = d.get("time_variable")
-    if tv is None:
-        time_variable = SIM_TIME_VARIABLE if simulated else None
-    else:
-        time_variable = _int(d, smap, p, "time_variable", 0, 0, 99999)
-    oi = d.get("open_interlocks_at_end", False)
-    if not isinstance(oi, bool):
-        raise smap.error(p + ("open_interlocks_at_end",), f"expected true or false, got {oi!r}")
-    return AclSettings(
-        reply_profile=profile,  # type: ignore[arg-type]
-        mode_reply=get_str(d, smap, p, "mode_reply", "letter", choices=["letter", "word"]),  # type: ignore[arg-type]
-        decimals=_int(d, smap, p, "decimals", 4, 0, 12),
-        axes=axes,  # type: ignore[arg-type]
-        full_scale_deg=get_number(
-            d, smap, p, "full_scale_deg", 360.0, minimum=0, exclusive_minimum=True, maximum=36000
-        ),
-        time_variable=time_variable,
-        time_scale_s=get_number(d, smap, p, "time_scale_s", 0.001, minimum=0, exclusive_minimum=True),
-        error_queue=get_str(d, smap, p, "error_queue", "QERROR"),
-        open_interlocks_at_end=oi,
-    )
-
-
 def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> TurntableSpec:
     p: KeyPath = ("turntable",)
+    kinds = [devices.controller(n) for n in devices.controller_names()]
+    exclusive = [k for kind in kinds for k in (kind.settings_key, *kind.exclusive_keys) if k]
     check_keys(
         d,
         smap,
         p,
         [
             "driver",
-            "address",
-            "resource",
-            "acl",
+            *dict.fromkeys(kind.link_key for kind in kinds),
+            *dict.fromkeys(exclusive),
             "model",
             "serial_number",
             "axes",
@@ -346,47 +305,24 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
             "heartbeat_period_s",
             "watchdog_s",
             "float_word_order",
-            "modbus_map",
         ],
     )
-    driver = get_str(d, smap, p, "driver", choices=TURNTABLE_DRIVERS)
-    address = _opt_str(d, smap, p, "address")
-    resource = _opt_str(d, smap, p, "resource")
-    acl_speaker = driver == "acutrol" or (driver == "sim" and (sim_controller or "acutrol") == "acutrol")
-    if driver == "modbus-tcp" and not address:
-        raise smap.error(p + ("address",), "is required for driver 'modbus-tcp' (e.g. '192.168.0.10:502')")
-    if driver == "acutrol" and not resource:
-        raise smap.error(
-            p + ("resource",),
-            "is required for driver 'acutrol': a VISA resource string, e.g. 'TCPIP0::192.168.53.1::9878::SOCKET', "
-            "'GPIB0::1::INSTR' or 'ASRL/dev/ttyS0::INSTR'",
-        )
-    if driver != "acutrol" and resource:
-        raise smap.error(p + ("resource",), f"is only for driver 'acutrol' (this table is {driver!r})")
-    if driver == "acutrol" and address:
-        raise smap.error(p + ("address",), "is not used by driver 'acutrol'; name the controller with resource:")
-    modbus_map = None
-    if d.get("modbus_map") is not None:
-        if acl_speaker:
-            raise smap.error(p + ("modbus_map",), "is only for a Modbus table (driver 'modbus-tcp' or a simulated one)")
-
-        map_path = Path(get_str(d, smap, p, "modbus_map"))
-        if not map_path.is_absolute():
-            map_path = Path(smap.file).parent / map_path
-        if not map_path.is_file():
-            raise smap.error(
-                p + ("modbus_map",), f"register map file {map_path} not found (a path relative to the bench file)"
-            )
-        modbus_map = load_modbus_map(map_path)
-    if d.get("acl") is not None and not acl_speaker:
-        raise smap.error(p + ("acl",), "is only for an ACUTROL table (driver 'acutrol' or a simulated ACUTROL)")
-    if acl_speaker:
+    driver = get_str(d, smap, p, "driver", choices=[devices.SIMULATED, *devices.controller_names()])
+    simulated = driver == devices.SIMULATED
+    sim_controller = sim_controller or devices.DEFAULT_SIMULATED_CONTROLLER
+    kind = devices.simulated_controller(sim_controller) if simulated else devices.controller(driver)
+    links = {k.link_key: _opt_str(d, smap, p, k.link_key) for k in kinds}
+    _check_links(d, smap, p, driver, kind, kinds, links)
+    for other in kinds:
+        for key in (other.settings_key, *other.exclusive_keys):
+            if key and other is not kind and d.get(key) is not None:
+                raise smap.error(p + (key,), f"is only for {other.title}")
+    if not kind.host_watchdog:
         for key in ("heartbeat_period_s", "watchdog_s"):
             if d.get(key) is not None:
                 raise smap.error(
                     p + (key,),
-                    "the ACUTROL command language has no host heartbeat or watchdog; remove this key "
-                    "(the host stops the axes itself on every exit path)",
+                    f"{kind.no_watchdog}; remove this key (the host stops the axes itself on every exit path)",
                 )
     axes = _section(d, smap, p, "axes")
     assert axes is not None
@@ -396,51 +332,63 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
         ad = _section(axes, smap, p + ("axes",), name)
         assert ad is not None
         limits.append(_axis(ad, smap, p + ("axes", name)))
-    acl = None
-    if acl_speaker:
-        ap = p + ("acl",)
-        acl_d = get_mapping(d["acl"], smap, ap) if d.get("acl") is not None else None
-        acl = _acl(acl_d, smap, ap, resource, simulated=driver == "sim")
-        half = acl.full_scale_deg / 2.0
-        for name, lim in zip(AXIS_NAMES, limits, strict=True):
-            for key, v in (("position_min_deg", lim.position_min), ("position_max_deg", lim.position_max)):
-                if v is not None and abs(v / DEG) > half + 1e-9:
-                    raise smap.error(
-                        p + ("axes", name, key),
-                        f"{v / DEG:g}° is outside the controller's full-scale range ±{half:g}° (turntable.acl."
-                        "full_scale_deg)",
-                    )
+    settings = {"acl": None, "modbus_map": None}
+    settings.update(
+        kind.parse_settings(d, smap, p, link=links.get(kind.link_key), simulated=simulated, limits=limits)
+    )
     word_order = get_str(d, smap, p, "float_word_order", None, choices=["big", "little"])
-    if modbus_map is not None and word_order is not None and word_order != modbus_map.word_order:
-        raise smap.error(
-            p + ("float_word_order",),
-            f"{word_order!r} contradicts the register map {modbus_map.source} (word_order: {modbus_map.word_order}); "
-            "remove float_word_order (the map is the authority) or correct the map",
-        )
     wd = get_number(d, smap, p, "watchdog_s", 2.0, minimum=0)
     hb = get_number(d, smap, p, "heartbeat_period_s", 0.5, minimum=0, exclusive_minimum=True)
     if wd and hb >= wd:
         raise smap.error(p + ("heartbeat_period_s",), f"{hb:g} s must be shorter than watchdog_s ({wd:g} s)")
     return TurntableSpec(
         driver=driver,
-        address=address,
+        address=links.get("address"),
         limits=(limits[0], limits[1], limits[2]),
         position_tolerance=get_number(d, smap, p, "position_tolerance_arcsec", 2.0, minimum=0, exclusive_minimum=True)
         * ARCSEC,
         in_position_time=get_number(d, smap, p, "in_position_time_s", 0.2, minimum=0),
         attitude_accuracy=get_number(d, smap, p, "attitude_accuracy_arcsec", 1.0, minimum=0) * ARCSEC,
         heartbeat_period=hb,
-        watchdog=None if acl_speaker else (wd or None),
+        watchdog=(wd or None) if kind.host_watchdog else None,
         model=str(d.get("model") or ""),
         serial_number=str(d.get("serial_number") or ""),
         float_word_order=word_order,
         rate_accuracy=get_number(d, smap, p, "rate_accuracy_ppm", 0.0, minimum=0, maximum=1e5) * 1e-6,
-        modbus_map=modbus_map,
-        resource=resource,
-        acl=acl,
+        modbus_map=settings["modbus_map"],
+        resource=links.get("resource"),
+        acl=settings["acl"],
         rate_tolerance=get_number(d, smap, p, "rate_tolerance_dps", 0.01, minimum=0, exclusive_minimum=True) * DEG,
-        sim_controller=sim_controller or "acutrol",
+        sim_controller=sim_controller,
     )
+
+
+def _check_links(
+    d: dict,
+    smap: SourceMap,
+    p: KeyPath,
+    driver: str,
+    kind: devices.ControllerKind,
+    kinds: list[devices.ControllerKind],
+    links: dict[str, str | None],
+) -> None:
+    """The key that says where a real controller is must be given, and no other controller's key."""
+    if driver == devices.SIMULATED:
+        owners = {k.link_key: k.name for k in kinds}
+        for key, value in links.items():
+            if value and key != "address":  # a simulated table ignores an address (kept for a later real bench)
+                raise smap.error(p + (key,), f"is only for driver {owners[key]!r} (this table is {driver!r})")
+        return
+    if not links.get(kind.link_key):
+        raise smap.error(p + (kind.link_key,), kind.link_required)
+    for other in kinds:
+        key = other.link_key
+        if key != kind.link_key and links.get(key):
+            if key == "address":
+                raise smap.error(
+                    p + (key,), f"is not used by driver {driver!r}; name the controller with {kind.link_key}:"
+                )
+            raise smap.error(p + (key,), f"is only for driver {other.name!r} (this table is {driver!r})")
 
 
 def _param_map(d: dict | None, smap: SourceMap, p: KeyPath, positive: bool) -> dict[str, float]:
@@ -488,10 +436,11 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
             "keep_raw",
         ],
     )
-    driver = get_str(d, smap, p, "driver", choices=["sim", "serial"])
+    driver = get_str(d, smap, p, "driver", choices=devices.unit_names())
     address = _opt_str(d, smap, p, "address")
-    if driver == "serial" and not address:
-        raise smap.error(p + ("address",), "is required for driver 'serial' (e.g. '/dev/ttyUSB0')")
+    if driver != devices.SIMULATED and not address:
+        example = devices.unit(driver).address_example
+        raise smap.error(p + ("address",), f"is required for driver {driver!r} (e.g. '{example}')")
     frame = get_str(d, smap, p, "frame", DEFAULT_FRAME)
     sc = _section(d, smap, p, "scale", required=frame == DEFAULT_FRAME)
     if sc is None:  # another frame format carries its own scale; the simulator's internal counts are fine
@@ -613,21 +562,33 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
     if data is None:
         raise ConfigError(smap.file, None, "the bench file is empty; see benches/BENCH_FORMAT.md")
     root = get_mapping(data, smap, ())
-    check_keys(root, smap, (), ["name", "site", "turntable", "unit", "limits", "simulation", "reference_standards"])
+    check_keys(
+        root,
+        smap,
+        (),
+        ["name", "site", "turntable", "unit", "limits", "simulation", "reference_standards", "auxiliary"],
+    )
     name = get_str(root, smap, (), "name")
     site = _site(_section(root, smap, (), "site"), smap)  # type: ignore[arg-type]
     sim_raw = root.get("simulation")
     sim_controller = None
     if isinstance(sim_raw, dict):
-        sim_controller = get_str(sim_raw, smap, ("simulation",), "controller", "acutrol", choices=SIM_CONTROLLERS)
+        sim_controller = get_str(
+            sim_raw,
+            smap,
+            ("simulation",),
+            "controller",
+            devices.DEFAULT_SIMULATED_CONTROLLER,
+            choices=devices.simulated_controller_names(),
+        )
     table = _turntable(_section(root, smap, (), "turntable"), smap, sim_controller)  # type: ignore[arg-type]
     unit = _unit(_section(root, smap, (), "unit"), smap)  # type: ignore[arg-type]
     limits = _param_map(_section(root, smap, (), "limits", required=False), smap, ("limits",), positive=True)
     sim_d = _section(root, smap, (), "simulation", required=False)
-    simulated = table.driver == "sim" or unit.driver == "sim"
+    simulated = devices.SIMULATED in (table.driver, unit.driver)
     if simulated and sim_d is None:
         raise smap.error(("simulation",), "is required when a driver is 'sim' (add a simulation: section)")
-    if sim_d is not None and not (table.driver == "sim" and unit.driver == "sim"):
+    if sim_d is not None and not table.driver == unit.driver == devices.SIMULATED:
         raise smap.error(("simulation",), "is only allowed when both turntable.driver and unit.driver are 'sim'")
     sim = parse_simulation(sim_d, smap, site, table, unit) if sim_d is not None else None
     return BenchConfig(
@@ -640,7 +601,34 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
         limits=limits,
         simulation=sim,
         reference_standards=_reference_standards(root, smap),
+        auxiliary=_auxiliary(root, smap, simulated),
     )
+
+
+def _auxiliary(root: dict, smap: SourceMap, simulated: bool) -> tuple[AuxiliarySpec, ...]:
+    """``auxiliary:`` (optional): device name → ``{driver: <registered kind>, …its settings}``
+    (:mod:`benches.devices`)."""
+    d = _section(root, smap, (), "auxiliary", required=False)
+    if d is None:
+        return ()
+    out = []
+    for name, body in d.items():
+        p: KeyPath = ("auxiliary", name)
+        if not isinstance(name, str) or not AUX_NAME.fullmatch(name):
+            raise smap.error(p, f"device name {name!r}: a letter, then letters, digits, '_' or '-' (≤ 64)")
+        body = get_mapping(body, smap, p)
+        names = devices.auxiliary_names()
+        if not names:
+            raise smap.error(p, "no auxiliary device driver is installed; remove this device (docs/extending.md)")
+        driver = get_str(body, smap, p, "driver", choices=names)
+        kind = devices.auxiliary(driver)
+        if simulated and kind.twin is None:
+            raise smap.error(p + ("driver",), f"{driver!r} has no simulated twin; this bench is simulated")
+        if not simulated and kind.connect is None:
+            raise smap.error(p + ("driver",), f"{driver!r} is simulated only; this is a real bench")
+        settings = kind.parse({k: v for k, v in body.items() if k != "driver"}, smap, p)
+        out.append(AuxiliarySpec(name, driver, settings))
+    return tuple(out)
 
 
 def _reference_standards(d: dict, smap: SourceMap) -> tuple[ReferenceStandard, ...]:

@@ -40,22 +40,20 @@ from typing import Any, BinaryIO
 from core.yaml_source import ConfigError
 from drivers import connect
 from drivers.acutrol import AclTurntable
-from drivers.protocols import InertialUnit, Turntable
-from drivers.sim.acl_controller import AclController
-from drivers.sim.acl_server import AclTableServer
-from drivers.sim.inprocess import SimInertialUnit, SimTurntable
+from drivers.protocols import InertialUnit, Readable, Turntable
+from drivers.sim.inprocess import SimInertialUnit
 from drivers.sim.loopback import Loopback
-from drivers.sim.modbus_controller import ModbusTableServer
 from drivers.sim.world import SimulatedWorld
 from drivers.transport import MessageTransport
 
+from . import devices
 from .bench_config import BenchConfig, TurntableSpec, unit_frame_format
 
 log = logging.getLogger(__name__)
 
 TRANSPORTS = ("in-process", "loopback", "hardware")
 LOOPBACK_MIN_WATCHDOG_S = 10.0
-DEFAULT_TIMEOUT_S = 2.0
+DEFAULT_TIMEOUT_S = devices.DEFAULT_TIMEOUT_S
 
 
 @dataclass
@@ -68,6 +66,8 @@ class Bench:
     transport: str
     description: str
     _closers: list[Callable[[], None]] = field(default_factory=list, repr=False)
+    auxiliary: dict[str, Readable] = field(default_factory=dict)
+    """The bench's auxiliary devices by name (``auxiliary:`` of the bench file; :mod:`benches.devices`)."""
 
     def describe(self) -> str:
         """One line for logs and recordings."""
@@ -140,8 +140,35 @@ def open_bench(
     """
     transport = _transport(config, transport)
     if transport == "hardware":
-        return _open_hardware(config, run_folder)
-    return _open_simulated(config, seed, transport, run_folder)
+        bench = _open_hardware(config, run_folder)
+    else:
+        bench = _open_simulated(config, seed, transport, run_folder)
+    try:
+        _open_auxiliary(bench, config)
+    except BaseException:
+        bench.close()
+        raise
+    return bench
+
+
+def _open_auxiliary(bench: Bench, config: BenchConfig) -> None:
+    """Open the bench's auxiliary devices (their simulated twins on the bench's world, or their real links) into
+    ``bench.auxiliary``; each is closed with the bench, before the table and the unit."""
+    for spec in getattr(config, "auxiliary", ()):
+        kind = devices.auxiliary(spec.driver)
+        if bench.world is not None:
+            if kind.twin is None:
+                raise _bad(config, f"auxiliary.{spec.name}: driver {spec.driver!r} has no simulated twin")
+            dev, closers = kind.twin(bench.world, spec.settings)
+            bench._closers.extend(closers)
+        else:
+            if kind.connect is None:
+                raise _bad(config, f"auxiliary.{spec.name}: driver {spec.driver!r} is simulated only")
+            conn = kind.connect(spec.settings, DEFAULT_TIMEOUT_S)
+            bench._closers.append(conn.close)
+            dev = conn.driver
+        bench.auxiliary[spec.name] = dev
+        bench.description += f", {spec.name} ({kind.title or spec.driver})"
 
 
 def _transport(config: BenchConfig, transport: str | None) -> str:
@@ -166,15 +193,10 @@ def _open_simulated(
     config: BenchConfig, seed: int | None, transport: str, run_folder: str | Path | None = None
 ) -> Bench:
     world = SimulatedWorld.from_bench(config, seed)
-    tt = config.turntable
-    acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
+    twin = devices.simulated_twin(config.turntable, LOOPBACK_MIN_WATCHDOG_S)
     if transport == "in-process":
         unit = SimInertialUnit(world)
-        if acl:
-            table: Turntable = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
-            what = "simulated ACUTROL (ACL, in-memory)"
-        else:
-            table, what = SimTurntable(world), "in-process drivers"
+        table, what = twin.in_process(world, DEFAULT_TIMEOUT_S)
         return Bench(
             table,
             unit,
@@ -184,23 +206,11 @@ def _open_simulated(
             f"{getattr(config.unit, 'frame', 'tablebench-v1')} and unit.keep_raw apply over loopback)",
             [table.close, unit.close],
         )
-    wd = getattr(tt, "watchdog", None)
     closers: list[Callable[[], None]] = []
     raw, raw_name = _raw_sink(config, run_folder, closers)
     try:
-        lb = Loopback(
-            world,
-            dialect="acutrol" if acl else "modbus",
-            make_acl_table=(lambda transport: acl_turntable(transport, tt)) if acl else None,
-            acl=tt.acl,
-            word_order=getattr(tt, "float_word_order", None),
-            register_map=getattr(tt, "modbus_map", None),
-            watchdog_s=max(float(wd), LOOPBACK_MIN_WATCHDOG_S) if wd else None,
-            strict_watchdog=getattr(tt, "sim_controller", "") == "modbus-strict",
-            unit_frame=unit_frame_format(config.unit),
-            unit_raw=raw,
-            unit_raw_name=raw_name,
-        )
+        fmt = unit_frame_format(config.unit)
+        lb = Loopback(world, table=twin, unit_frame=fmt, unit_raw=raw, unit_raw_name=raw_name)
     except BaseException:
         for fn in closers:
             fn()
@@ -215,48 +225,21 @@ def _open_simulated(
     )
 
 
-def _acl_options(tt: TurntableSpec) -> dict[str, Any]:
-    """The ACL driver's settings and tolerances from a bench's turntable section."""
-    return {
-        "settings": tt.acl,
-        "position_tolerance": tt.position_tolerance,
-        "settle_time": tt.in_position_time,
-        "rate_tolerance": tt.rate_tolerance,
-    }
-
-
 def acl_turntable(transport: MessageTransport, tt: TurntableSpec) -> AclTurntable:
     """The ACL driver for a bench's turntable section on an open transport (settings and tolerances from the bench)."""
-    return AclTurntable(transport, tuple(tt.limits), **_acl_options(tt))  # type: ignore[arg-type]
-
-
-def _acutrol_connection(resource: str, tt: TurntableSpec) -> connect.Connection[AclTurntable]:
-    """Open the VISA ``resource`` and the ACL driver on it, with the bench's turntable settings and tolerances."""
-    return connect.acutrol_table(resource, tuple(tt.limits), timeout=DEFAULT_TIMEOUT_S, **_acl_options(tt))  # type: ignore[arg-type]
+    return AclTurntable(transport, tuple(tt.limits), **devices.acl_options(tt))  # type: ignore[arg-type]
 
 
 def _hardware_table(config: BenchConfig) -> connect.Connection[Any]:
     """Open the real turntable (its Connection, with ``.where`` describing it)."""
     tt = config.turntable
-    limits = tuple(tt.limits) if getattr(tt, "limits", None) else None
-    if tt.driver == "modbus-tcp":
-        host, port = _host_port(config, tt.address, 502)
-        conn: Any = connect.modbus_table(
-            host,
-            port,
-            word_order=tt.float_word_order,
-            register_map=getattr(tt, "modbus_map", None),
-            limits=limits,  # type: ignore[arg-type]
-            timeout=DEFAULT_TIMEOUT_S,
-            rate_tolerance=getattr(tt, "rate_tolerance", None),
-        )
-        conn.where = f"Modbus TCP {host}:{port}"
-    elif tt.driver == "acutrol":
-        conn = _acutrol_connection(tt.resource, tt)
-        conn.where = f"ACUTROL (ACL) at {tt.resource}"
-    else:
-        raise _bad(config, f"turntable.driver {tt.driver!r} needs a simulation section; real: acutrol, modbus-tcp")
-    return conn
+    real = devices.controller_names()
+    if tt.driver not in real:
+        raise _bad(config, f"turntable.driver {tt.driver!r} needs a simulation section; real: {', '.join(real)}")
+    try:
+        return devices.controller(tt.driver).connect(tt, DEFAULT_TIMEOUT_S)
+    except ValueError as exc:  # an unusable address (devices.host_port)
+        raise _bad(config, str(exc)) from None
 
 
 def open_table(config: BenchConfig, *, seed: int | None = None, transport: str | None = None) -> Bench:
@@ -275,45 +258,19 @@ def open_table(config: BenchConfig, *, seed: int | None = None, transport: str |
 
 def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str) -> Bench:
     world = SimulatedWorld.from_bench(config, seed)
-    tt = config.turntable
-    acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
+    twin = devices.simulated_twin(config.turntable, LOOPBACK_MIN_WATCHDOG_S)
     closers: list[Callable[[], None]] = []
     ok = False
     try:
         if transport == "in-process":
-            if acl:
-                table: Turntable = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
-                what = "simulated ACUTROL (ACL, in-memory)"
-            else:
-                table, what = SimTurntable(world), "simulated table, in-process driver"
+            table, what = twin.in_process(world, DEFAULT_TIMEOUT_S, alone=True)
             closers.append(table.close)
-        elif acl:
-            srv = AclTableServer(world, tt.acl)
-            closers.append(srv.close)
-            conn = _acutrol_connection(srv.resource, tt)
-            closers.insert(0, conn.close)
-            table, what = conn.driver, f"simulated ACUTROL over pyvisa-py {srv.resource}"
         else:
-            wd = getattr(tt, "watchdog", None)
-            msrv = ModbusTableServer(
-                world,
-                word_order=tt.float_word_order,
-                register_map=getattr(tt, "modbus_map", None),
-                watchdog_s=max(float(wd), LOOPBACK_MIN_WATCHDOG_S) if wd else None,
-                watchdog_from_power_up=getattr(tt, "sim_controller", "") == "modbus-strict",
-            )
-            closers.append(msrv.close)
-            mconn = connect.modbus_table(
-                "127.0.0.1",
-                msrv.port,
-                word_order=tt.float_word_order,
-                register_map=getattr(tt, "modbus_map", None),
-                timeout=DEFAULT_TIMEOUT_S,
-                retries=0,
-                rate_tolerance=getattr(tt, "rate_tolerance", None),
-            )
-            closers.insert(0, mconn.close)
-            table, what = mconn.driver, f"simulated Modbus table on 127.0.0.1:{msrv.port}"
+            srv = twin.serve(world)
+            closers.append(srv.close)
+            conn = twin.connect(srv, DEFAULT_TIMEOUT_S)
+            closers.insert(0, conn.close)
+            table, what = conn.driver, twin.describe_alone(srv)
         ok = True
         return Bench(table, None, world, transport, f"{config.name}: {what}", list(reversed(closers)))  # type: ignore[arg-type]
     finally:
@@ -325,19 +282,6 @@ def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str)
                     log.debug("close after failed open", exc_info=True)
 
 
-def _host_port(config: BenchConfig, address: str | None, default_port: int) -> tuple[str, int]:
-    if not address:
-        raise _bad(config, "turntable.address is required for a Modbus TCP table (e.g. '192.168.0.10:502')")
-    host, _, port = address.rpartition(":") if ":" in address else (address, "", str(default_port))
-    try:
-        p = int(port)
-    except ValueError:
-        raise _bad(
-            config, f"turntable.address {address!r}: port must be an integer (e.g. '192.168.0.10:502')"
-        ) from None
-    return host, p
-
-
 def _open_hardware(config: BenchConfig, run_folder: str | Path | None = None) -> Bench:
     opened: list[connect.Connection[Any]] = []
     closers: list[Callable[[], None]] = []  # the raw-stream file, closed after the drivers
@@ -346,24 +290,16 @@ def _open_hardware(config: BenchConfig, run_folder: str | Path | None = None) ->
         opened.append(_hardware_table(config))
         where = opened[0].where  # type: ignore[attr-defined]
         un = config.unit
-        if un.driver != "serial":
-            raise _bad(config, f"unit.driver {un.driver!r} needs a simulation section; a real unit uses 'serial'")
+        real = [n for n in devices.unit_names() if n != devices.SIMULATED]
+        if un.driver not in real:
+            names = " or ".join(repr(n) for n in real)
+            raise _bad(config, f"unit.driver {un.driver!r} needs a simulation section; a real unit uses {names}")
+        kind = devices.unit(un.driver)
         if not un.address:
-            raise _bad(config, "unit.address is required for a serial unit (e.g. '/dev/ttyUSB0')")
+            raise _bad(config, f"unit.address is required for {kind.title} (e.g. '{kind.address_example}')")
         fmt = unit_frame_format(un)
         raw, raw_name = _raw_sink(config, run_folder, closers)
-        baud = int(getattr(un, "baudrate", 921600) or 921600)
-        opened.append(
-            connect.serial_unit(
-                un.address,
-                fmt,
-                un.sample_rate,
-                baudrate=baud,
-                timeout=DEFAULT_TIMEOUT_S,
-                raw_sink=raw,
-                raw_name=raw_name,
-            )
-        )
+        opened.append(kind.connect(un, fmt, DEFAULT_TIMEOUT_S, raw, raw_name))
         table, unit = opened[0].driver, opened[1].driver
         where_unit = f"unit ({fmt.name}) on {un.address}"
         bench = Bench(

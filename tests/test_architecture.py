@@ -292,3 +292,32 @@ def test_no_test_skips() -> None:
         if skip.search(line)
     ]
     assert bad == [], "tests that skip: " + ", ".join(bad)
+
+
+def _docstring_nodes(tree: ast.AST) -> set[int]:
+    out: set[int] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef):
+            body = node.body
+            if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
+                out.add(id(body[0].value))
+    return out
+
+
+def test_controller_names_are_resolved_in_one_module() -> None:
+    """The names a bench file gives its turntable controller appear as code only in the device registry."""
+    from benches import devices
+
+    names = set(devices.controller_names()) | set(devices.simulated_controller_names())
+    bad = []
+    for name, path in MODULES.items():
+        if name == "benches.devices":
+            continue
+        tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+        docs = _docstring_nodes(tree)
+        bad += [
+            f"{path.relative_to(REPO_ROOT)}:{node.lineno}: {node.value!r}"
+            for node in ast.walk(tree)
+            if isinstance(node, ast.Constant) and node.value in names and id(node) not in docs
+        ]
+    assert len(names) >= 3 and bad == [], "controller names outside benches/devices.py:\n" + "\n".join(bad)

@@ -56,7 +56,6 @@ from numpy.typing import NDArray
 
 from analysis.units import DEG
 from drivers.acutrol.settings import AclSettings
-from drivers.modbus.table import check_position, check_rate
 from drivers.protocols import (
     AXIS_NAMES,
     AxisLimits,
@@ -66,6 +65,8 @@ from drivers.protocols import (
     TableError,
     TableState,
     TableStatus,
+    check_angles,
+    check_spin,
 )
 
 log = logging.getLogger(__name__)
@@ -288,7 +289,7 @@ class AclTurntable:
 
     def move_to(self, angles: NDArray[np.float64] | list[float]) -> None:
         """Command absolute (unwrapped) gimbal angles, rad: one message, one controller frame."""
-        a = check_position(angles, self._limits)  # type: ignore[arg-type]
+        a = check_angles(angles, self._limits)  # type: ignore[arg-type]
         self._check_open()
         self._ensure_enabled()
         if self._u is None:
@@ -322,7 +323,7 @@ class AclTurntable:
 
     def spin(self, axis: int, rate: float) -> None:
         """Command a constant rate (rad/s, signed) on gimbal ``axis`` (0 outer, 1 middle, 2 inner)."""
-        ax, r = check_rate(axis, rate, self._limits)  # type: ignore[arg-type]
+        ax, r = check_spin(axis, rate, self._limits)  # type: ignore[arg-type]
         self._check_open()
         self._ensure_enabled()
         a = self._ax[ax]
