@@ -28,6 +28,7 @@ from analysis.units import (
     UG_PER_G2,
     UG_PER_SQRT_HZ,
 )
+from core.declare import Section, number, text
 from core.yaml_source import (
     ConfigError,
     KeyPath,
@@ -282,31 +283,33 @@ def _axis(d: dict, smap: SourceMap, p: KeyPath) -> AxisLimits:
     )
 
 
+TURNTABLE = Section(
+    number("position_tolerance_arcsec", 2.0 * ARCSEC, unit=ARCSEC, minimum=0, exclusive_minimum=True,
+           attr="position_tolerance"),
+    number("rate_tolerance_dps", 0.01 * DEG, unit=DEG, minimum=0, exclusive_minimum=True, attr="rate_tolerance"),
+    number("in_position_time_s", 0.2, minimum=0, attr="in_position_time"),
+    number("attitude_accuracy_arcsec", 1.0 * ARCSEC, unit=ARCSEC, minimum=0, attr="attitude_accuracy"),
+    number("rate_accuracy_ppm", 0.0, unit=1e-6, minimum=0, maximum=1e5, attr="rate_accuracy"),
+    number("heartbeat_period_s", 0.5, minimum=0, exclusive_minimum=True, attr="heartbeat_period"),
+    number("watchdog_s", 2.0, minimum=0, attr="watchdog"),
+    text("float_word_order", None, choices=["big", "little"]),
+)  # fmt: skip
+"""The ``turntable`` keys every controller shares; the driver, where the controller is, its own settings
+(:mod:`benches.devices`), ``model``/``serial_number`` (any scalar, kept as text) and ``axes`` are read by
+:func:`_turntable`."""
+TURNTABLE_KEYS = (
+    "driver", "address", "resource", "acl", "model", "serial_number", "axes", "position_tolerance_arcsec",
+    "rate_tolerance_dps", "in_position_time_s", "attitude_accuracy_arcsec", "rate_accuracy_ppm", "heartbeat_period_s",
+    "watchdog_s", "float_word_order", "modbus_map",
+)  # fmt: skip
+"""The order the allowed keys are listed in messages (a registered controller's own keys are appended)."""
+
+
 def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> TurntableSpec:
     p: KeyPath = ("turntable",)
     kinds = [devices.controller(n) for n in devices.controller_names()]
-    exclusive = [k for kind in kinds for k in (kind.settings_key, *kind.exclusive_keys) if k]
-    check_keys(
-        d,
-        smap,
-        p,
-        [
-            "driver",
-            *dict.fromkeys(kind.link_key for kind in kinds),
-            *dict.fromkeys(exclusive),
-            "model",
-            "serial_number",
-            "axes",
-            "position_tolerance_arcsec",
-            "rate_tolerance_dps",
-            "in_position_time_s",
-            "attitude_accuracy_arcsec",
-            "rate_accuracy_ppm",
-            "heartbeat_period_s",
-            "watchdog_s",
-            "float_word_order",
-        ],
-    )
+    own = [k for kind in kinds for k in (kind.link_key, kind.settings_key, *kind.exclusive_keys) if k]
+    check_keys(d, smap, p, list(dict.fromkeys([*TURNTABLE_KEYS, *own])))
     driver = get_str(d, smap, p, "driver", choices=[devices.SIMULATED, *devices.controller_names()])
     simulated = driver == devices.SIMULATED
     sim_controller = sim_controller or devices.DEFAULT_SIMULATED_CONTROLLER
@@ -324,6 +327,31 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
                     p + (key,),
                     f"{kind.no_watchdog}; remove this key (the host stops the axes itself on every exit path)",
                 )
+    limits = _axes_limits(d, smap, p)
+    settings = {"acl": None, "modbus_map": None}
+    settings.update(
+        kind.parse_settings(d, smap, p, link=links.get(kind.link_key), simulated=simulated, limits=limits)
+    )
+    common = TURNTABLE.read(d, smap, p, check=False)
+    wd, hb = common["watchdog"], common["heartbeat_period"]
+    if wd and hb >= wd:
+        raise smap.error(p + ("heartbeat_period_s",), f"{hb:g} s must be shorter than watchdog_s ({wd:g} s)")
+    common["watchdog"] = (wd or None) if kind.host_watchdog else None
+    return TurntableSpec(
+        driver=driver,
+        address=links.get("address"),
+        resource=links.get("resource"),
+        limits=limits,
+        model=str(d.get("model") or ""),
+        serial_number=str(d.get("serial_number") or ""),
+        sim_controller=sim_controller,
+        **settings,
+        **common,
+    )
+
+
+def _axes_limits(d: dict, smap: SourceMap, p: KeyPath) -> tuple[AxisLimits, AxisLimits, AxisLimits]:
+    """``turntable.axes``: the outer, middle and inner axis limits (SI)."""
     axes = _section(d, smap, p, "axes")
     assert axes is not None
     check_keys(axes, smap, p + ("axes",), list(AXIS_NAMES))
@@ -332,35 +360,7 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
         ad = _section(axes, smap, p + ("axes",), name)
         assert ad is not None
         limits.append(_axis(ad, smap, p + ("axes", name)))
-    settings = {"acl": None, "modbus_map": None}
-    settings.update(
-        kind.parse_settings(d, smap, p, link=links.get(kind.link_key), simulated=simulated, limits=limits)
-    )
-    word_order = get_str(d, smap, p, "float_word_order", None, choices=["big", "little"])
-    wd = get_number(d, smap, p, "watchdog_s", 2.0, minimum=0)
-    hb = get_number(d, smap, p, "heartbeat_period_s", 0.5, minimum=0, exclusive_minimum=True)
-    if wd and hb >= wd:
-        raise smap.error(p + ("heartbeat_period_s",), f"{hb:g} s must be shorter than watchdog_s ({wd:g} s)")
-    return TurntableSpec(
-        driver=driver,
-        address=links.get("address"),
-        limits=(limits[0], limits[1], limits[2]),
-        position_tolerance=get_number(d, smap, p, "position_tolerance_arcsec", 2.0, minimum=0, exclusive_minimum=True)
-        * ARCSEC,
-        in_position_time=get_number(d, smap, p, "in_position_time_s", 0.2, minimum=0),
-        attitude_accuracy=get_number(d, smap, p, "attitude_accuracy_arcsec", 1.0, minimum=0) * ARCSEC,
-        heartbeat_period=hb,
-        watchdog=(wd or None) if kind.host_watchdog else None,
-        model=str(d.get("model") or ""),
-        serial_number=str(d.get("serial_number") or ""),
-        float_word_order=word_order,
-        rate_accuracy=get_number(d, smap, p, "rate_accuracy_ppm", 0.0, minimum=0, maximum=1e5) * 1e-6,
-        modbus_map=settings["modbus_map"],
-        resource=links.get("resource"),
-        acl=settings["acl"],
-        rate_tolerance=get_number(d, smap, p, "rate_tolerance_dps", 0.01, minimum=0, exclusive_minimum=True) * DEG,
-        sim_controller=sim_controller,
-    )
+    return limits[0], limits[1], limits[2]
 
 
 def _check_links(
