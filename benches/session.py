@@ -30,6 +30,8 @@ from procedures.steps import CompiledProcedure
 from .bench_config import BenchConfig, load_bench
 from .progress import ProgressDisplay
 from .recording import Hdf5Recorder, RecordingError, open_recording
+from .results.chain import sinks_for_run
+from .results.sink import CalibrationDocument, ResultSinks
 from .runner import Runner, RunResult, SampleObserver
 
 if TYPE_CHECKING:
@@ -287,6 +289,7 @@ def identify_and_certify(
     live: LiveIdentifier | None = None,
     say: Callable[..., None] = print,
     done: list[str] | None = None,
+    sinks: ResultSinks | None = None,
 ) -> list[str]:
     """The end of the session: identify the complete recording (calibration.json) and issue its certificate.
 
@@ -302,10 +305,14 @@ def identify_and_certify(
         ``say(text, err=True)`` for the closing lines (``err=False``: a result path for stdout).
     done : list, optional
         Appended with each finished item as it finishes (so an interruption can say what is left).
+    sinks : benches.results.ResultSinks, optional
+        Where the calibration and the certificate go (default: the run folder, then the registry;
+        :func:`benches.results.sinks_for_run`).
     """
     from benches.identify import IdentificationError, identify_run  # lazy: filterpy, scipy (--help time)
 
     done = [] if done is None else done
+    sinks = sinks if sinks is not None else sinks_for_run(folder, say=say)
     if "identification" in todo:
         try:
             result = identify_run(folder, method="kalman")
@@ -316,14 +323,14 @@ def identify_and_certify(
             # the live filter saw the same samples and readings (except replayed ones on resume)
             u_white = np.array([p.u_white for p in result.parameters.values()])
             result.extra["live_vs_offline_max_u"] = float(np.max(np.abs(live.filter.estimate - result.x) / u_white))
-        path = result.save(folder / "calibration.json")
+        path = sinks.calibration(CalibrationDocument(run=folder, result=result)).path
         done.append("identification")
         say(result.summary())
         say(f"calibration: {path}", err=False)
     if "certificate" in todo:
         from benches.certificate import issue_certificate  # lazy: fpdf, matplotlib, filterpy (--help time)
 
-        pdf, js, verdict = issue_certificate(folder)
+        pdf, js, verdict = issue_certificate(folder, sinks=sinks)
         done.append("certificate")
         say(f"certificate: {pdf} ({verdict})", err=False)
         for line in verdict_explanation(js, verdict):
