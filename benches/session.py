@@ -29,6 +29,7 @@ from procedures.steps import CompiledProcedure
 
 from .bench_config import BenchConfig, load_bench
 from .progress import ProgressDisplay
+from .recorded_run import RecordedRun, open_run
 from .recording import Hdf5Recorder, RecordingError, open_recording
 from .results.chain import sinks_for_run
 from .results.sink import CalibrationDocument, ResultSinks
@@ -289,6 +290,7 @@ def identify_and_certify(
     live: LiveIdentifier | None = None,
     say: Callable[..., None] = print,
     done: list[str] | None = None,
+    prep: Prepared | None = None,
     sinks: ResultSinks | None = None,
 ) -> list[str]:
     """The end of the session: identify the complete recording (calibration.json) and issue its certificate.
@@ -305,24 +307,53 @@ def identify_and_certify(
         ``say(text, err=True)`` for the closing lines (``err=False``: a result path for stdout).
     done : list, optional
         Appended with each finished item as it finishes (so an interruption can say what is left).
+    prep : Prepared, optional
+        The bench and procedure the run was prepared with: the recording is opened once
+        (:class:`benches.recorded_run.RecordedRun`) and its bench and procedure are not parsed again.
     sinks : benches.results.ResultSinks, optional
         Where the calibration and the certificate go (default: the run folder, then the registry;
         :func:`benches.results.sinks_for_run`).
     """
+    done = [] if done is None else done
+    try:
+        recorded = open_run(
+            folder,
+            config=None if prep is None else prep.config,
+            compiled=None if prep is None else prep.compiled,
+            overrides=None if prep is None else prep.overrides,
+        )
+    except RecordingError:
+        recorded = None  # identification and certificate name the problem themselves
+    try:
+        sinks = sinks if sinks is not None else sinks_for_run(folder, say=say)
+        return _identify_and_certify(folder, todo, recorded, live, say, done, sinks)
+    finally:
+        if recorded is not None:
+            recorded.close()
+
+
+def _identify_and_certify(
+    folder: Path,
+    todo: list[str],
+    recorded: RecordedRun | None,
+    live: LiveIdentifier | None,
+    say: Callable[..., None],
+    done: list[str],
+    sinks: ResultSinks,
+) -> list[str]:
     from benches.identify import IdentificationError, identify_run  # lazy: filterpy, scipy (--help time)
 
-    done = [] if done is None else done
-    sinks = sinks if sinks is not None else sinks_for_run(folder, say=say)
+    source: Path | RecordedRun = folder if recorded is None else recorded
     if "identification" in todo:
         try:
-            result = identify_run(folder, method="kalman")
+            result = identify_run(source, method="kalman")
         except IdentificationError as exc:
             say(f"identification not possible: {exc}")
             return done
         if live is not None and live.filter.n_samples:
             # the live filter saw the same samples and readings (except replayed ones on resume)
             u_white = np.array([p.u_white for p in result.parameters.values()])
-            result.extra["live_vs_offline_max_u"] = float(np.max(np.abs(live.filter.estimate - result.x) / u_white))
+            result.live_vs_offline_max_u = float(np.max(np.abs(live.filter.estimate - result.x) / u_white))
         path = sinks.calibration(CalibrationDocument(run=folder, result=result)).path
         done.append("identification")
         say(result.summary())
@@ -330,7 +361,7 @@ def identify_and_certify(
     if "certificate" in todo:
         from benches.certificate import issue_certificate  # lazy: fpdf, matplotlib, filterpy (--help time)
 
-        pdf, js, verdict = issue_certificate(folder, sinks=sinks)
+        pdf, js, verdict = issue_certificate(folder, recorded=recorded, sinks=sinks)
         done.append("certificate")
         say(f"certificate: {pdf} ({verdict})", err=False)
         for line in verdict_explanation(js, verdict):
