@@ -26,8 +26,8 @@ from numpy.typing import NDArray
 from analysis.identification.batch import batch_identify, information_rank, unobservable_parameters
 from analysis.identification.bias_drift import flicker_components, window_mean_covariance
 from analysis.identification.kalman import StreamingIdentifier, estimate_measurement_noise
-from analysis.identification.model import PARAM_KINDS, PARAM_NAMES, predict
 from analysis.identification.plan import IdentificationPlan, PlanStep, plan_identification
+from analysis.identification.specification import ModelSpec, get_model
 from analysis.units import DISPLAY_UNITS
 from core.errors import UserError
 from core.provenance import file_sha256
@@ -41,14 +41,11 @@ from .progress import ProgressDisplay
 from .recording import RecordingError, StepRecord, open_recording
 from .reference import reference_at, reference_for_samples
 
-MODEL_TEXT = (
-    "f_out = f + (S + T) f + b + D (f∘f) + diag(r) c(ω), body frame; c(ω) = [ω_y²+ω_z², ω_z²+ω_x², ω_x²+ω_y²]; "
-    "misalignment convention δf_i += τ_ij f_j"
-)
+ACCEL_MODEL: ModelSpec = get_model("accelerometer")
+MODEL_TEXT = ACCEL_MODEL.equation
 IDENTIFIED_STEPS: tuple[type[Step], ...] = (Hold, Spin)
 """Steps whose counted samples the identification fits (a warm-up's only estimate the noise)."""
 _IDENTIFIED_KINDS = frozenset(t.kind for t in IDENTIFIED_STEPS)  # as written in a recording's steps table
-_SI_UNITS = {"bias": "m/s^2", "scale": "1", "misalignment": "rad", "quadratic": "s^2/m", "size_effect": "m"}
 
 
 class IdentificationError(UserError, RuntimeError):
@@ -61,12 +58,12 @@ class IdentificationError(UserError, RuntimeError):
 def prior_covariance(config: BenchConfig) -> NDArray[np.float64]:
     """P0 = diag(σ²) from the bench's ``unit.prior`` (datasheet 1σ per parameter, SI)."""
     prior = config.unit.prior
-    missing = [n for n in PARAM_NAMES if n not in prior]
+    missing = [n for n in ACCEL_MODEL.names if n not in prior]
     if missing:
         raise IdentificationError(
             f"bench {config.name!r}: unit prior lacks {', '.join(missing)}; give a datasheet 1σ for all 18 parameters"
         )
-    return np.diag([float(prior[n]) ** 2 for n in PARAM_NAMES])
+    return np.diag([float(prior[n]) ** 2 for n in ACCEL_MODEL.names])
 
 
 def configured_noise_variance(config: BenchConfig) -> NDArray[np.float64]:
@@ -241,8 +238,8 @@ class LiveIdentifier:
             x, s = self.filter.estimate, self.filter.sigma
             parts = []
             for name in self.show:
-                k = PARAM_NAMES.index(name)
-                unit, one = DISPLAY_UNITS[PARAM_KINDS[k]]
+                k = ACCEL_MODEL.index(name)
+                unit, one = DISPLAY_UNITS[ACCEL_MODEL.kinds[k]]
                 parts.append(f"{name} {x[k] / one:.4g}±{s[k] / one:.2g} {unit}")
             self.progress.extra(", ".join(parts) + " (± = filter white-noise 1σ, k = 1)")
 
@@ -334,8 +331,8 @@ def load_run(run: str | Path) -> RecordedRun:
             windows.append(StepWindow(s.name, s.kind, t, fo, fr, om, ang))
         tr = rec.truth()
         truth = None
-        if tr is not None and all(n_ in tr.parameters for n_ in PARAM_NAMES):
-            truth = {n_: float(tr.parameters[n_]) for n_ in PARAM_NAMES}
+        if tr is not None and all(n_ in tr.parameters for n_ in ACCEL_MODEL.names):
+            truth = {n_: float(tr.parameters[n_]) for n_ in ACCEL_MODEL.names}
         temp = rec.samples(fields=("temperature",), index=np.arange(0, n, max(1, n // 10000))).temperature
         temp = temp if temp is not None else np.zeros(0)
     if not windows:
@@ -361,8 +358,8 @@ def _windows_as_plan_steps(windows: list[StepWindow], max_points: int = 4000) ->
     return out
 
 
-def _display(k: int, value: float) -> float:
-    return value / DISPLAY_UNITS[PARAM_KINDS[k]][1]
+def _display(model: ModelSpec, k: int, value: float) -> float:
+    return value / DISPLAY_UNITS[model.kinds[k]][1]
 
 
 def identify_run(run: str | Path, method: str = "kalman", noise: str = "configured") -> CalibrationResult:
@@ -380,6 +377,7 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
     if method not in ("kalman", "batch"):
         raise IdentificationError(f"unknown method {method!r}; use kalman or batch")
     rr = load_run(run)
+    model = ACCEL_MODEL
     config = rr.config
     p0 = prior_covariance(config)
     if noise == "configured":
@@ -419,7 +417,7 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
         x, p_white, info = res.x, res.covariance, res.information
         per_step = []
         for w in rr.windows:
-            r = w.f_out - predict(x, w.f_ref, w.omega)
+            r = w.f_out - model.predict(x, w.f_ref, w.omega)
             per_step.append(
                 {
                     "name": w.name,
@@ -447,18 +445,18 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
     rank, cond = information_rank(info, r_var)
     unobs = set(unobservable_parameters(info, r_var)) | set(actual.unidentifiable)
     params: dict[str, Any] = {}
-    for k, name in enumerate(PARAM_NAMES):
-        kind = PARAM_KINDS[k]
+    for k, name in enumerate(model.names):
+        kind = model.kinds[k]
         unit, _one = DISPLAY_UNITS[kind]
         params[name] = {
             "value": float(x[k]),
             "u": float(sigma[k]),
             "u_white": float(sigma_white[k]),
-            "unit": _SI_UNITS[kind],
+            "unit": model.si_units[kind],
             "kind": kind,
             "display_unit": unit,
-            "display_value": _display(k, x[k]),
-            "display_u": _display(k, sigma[k]),
+            "display_value": _display(model, k, x[k]),
+            "display_u": _display(model, k, sigma[k]),
             "identified": name not in unobs,
             "prior_sigma": float(math.sqrt(p0[k, k])),
         }
@@ -467,18 +465,18 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
     rms_all = np.sqrt((n_s[:, None] * ms_s).sum(0) / n_s.sum())
     truth_block = None
     if rr.truth is not None:
-        xt = np.array([rr.truth[n_] for n_ in PARAM_NAMES])
+        xt = np.array([rr.truth[n_] for n_ in model.names])
         err = x - xt
-        ident = np.array([params[n_]["identified"] for n_ in PARAM_NAMES])
+        ident = np.array([params[n_]["identified"] for n_ in model.names])
         idx = np.flatnonzero(ident)
         sub = p_total[np.ix_(idx, idx)]
         nees = float(err[idx] @ np.linalg.solve(sub, err[idx]))
         truth_block = {
             "values": rr.truth,
-            "error_over_u": {n_: float(err[k] / sigma[k]) for k, n_ in enumerate(PARAM_NAMES)},
+            "error_over_u": {n_: float(err[k] / sigma[k]) for k, n_ in enumerate(model.names)},
             "nees": nees,
             "dof": int(idx.size),
-            "nees_states": [PARAM_NAMES[i] for i in idx],
+            "nees_states": [model.names[i] for i in idx],
         }
     warnings = list(actual.warnings)
     if rr.incomplete_steps:
@@ -495,21 +493,21 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
         "software_version": str(a.get("software_version", "")),
         "method": method,
         "model": MODEL_TEXT,
-        "parameter_names": list(PARAM_NAMES),
+        "parameter_names": list(model.names),
         "parameters": params,
         "covariance": [list(map(float, row)) for row in p_total],
         "covariance_white": [list(map(float, row)) for row in p_white],
         "information": {
             "rank": int(rank),
             "condition": float(cond),
-            "unidentifiable": sorted(unobs, key=PARAM_NAMES.index),
+            "unidentifiable": sorted(unobs, key=model.names.index),
             "tolerance": "numerical rank of the noise-whitened data information, scaled per parameter kind "
             "(analysis.identification.batch.information_rank)",
         },
         "measurement_noise": {"variance": list(map(float, r_var)), "source": noise},
         "residuals": {"rms": list(map(float, rms_all)), "per_step": per_step},
         "plan": {
-            "predicted_sigma": {n_: float(actual.sigma_total[k]) for k, n_ in enumerate(PARAM_NAMES)},
+            "predicted_sigma": {n_: float(actual.sigma_total[k]) for k, n_ in enumerate(model.names)},
             "rank": int(actual.rank),
             "warnings": list(actual.warnings),
         },

@@ -50,7 +50,7 @@ from core.provenance import file_sha256, software_version
 from procedures.compiler import compile_procedure
 from procedures.loader import load_procedure_text
 
-from .budget import PARAM_KINDS, PARAM_NAMES, UncertaintyBudget, budget_for_run, default_g_uncertainty, step_geometry
+from .budget import UncertaintyBudget, budget_for_run, default_g_uncertainty, step_geometry
 from .content import (
     ANALYSES,
     BenchInfo,
@@ -316,9 +316,8 @@ def build_certificate(
                 f"{cal_path}: was identified from a different recording (SHA-256 differs from recording.h5); "
                 f"identify this recording again"
             )
-        names = list(cal.get("parameter_names") or PARAM_NAMES)
-        if tuple(names) != PARAM_NAMES:
-            raise CertificateError(f"{cal_path}: parameter_names must be the 18 names of CALIBRATION_FORMAT.md")
+        names = list(cal_result.names)  # the model's names, checked by CalibrationResult.load
+        kinds = cal_result.model.kinds
         bench_text = f.bench_text
         procedure_steps = _procedure_step_count(f.procedure_text, dict(f.header.procedure_overrides), bench_text)
         binfo = bench or bench_info(bench_text, dict(cal.get("run") or {}), attrs)
@@ -359,7 +358,7 @@ def build_certificate(
     results: list[ParameterResult] = []
     reasons: list[str] = []
     unverified: list[str] = []
-    for i, (name, kind) in enumerate(zip(names, PARAM_KINDS, strict=True)):
+    for i, (name, kind) in enumerate(zip(names, kinds, strict=True)):
         pr = cal["parameters"][name]
         ident = cal_result.parameters[name].identified
         lim = binfo.limits.get(name)
@@ -513,7 +512,7 @@ def build_certificate(
         cert.plots["residuals"] = plot_residuals(per_step, noise_var)
         if len((cal.get("history") or {}).get("time") or []) >= 2:  # a single update has nothing to converge
             cert.plots["convergence"] = plot_convergence(
-                cal["history"], names, PARAM_KINDS, x, identified=list(cal_result.identified)
+                cal["history"], names, kinds, x, identified=list(cal_result.identified)
             )
         cert.plots["coverage"] = plot_coverage(geometry)
     return cert
