@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from benches.analysis_input import InputError, add_input_arguments, load_input, output_dir
+from benches.cli.analysis_input import InputError, add_input_arguments, load_input, output_dir
 from core.errors import UsageError
 from core.jsonio import write_json
 
