@@ -149,6 +149,7 @@ class TurntableSpec:
     acl: AclSettings | None = None  # ACL open points (driver acutrol, or a simulated ACUTROL)
     rate_tolerance: float = 0.01 * DEG  # rad/s: at-rate / at-rest window of host-decided settling
     sim_controller: str = devices.DEFAULT_SIMULATED_CONTROLLER  # simulated benches: the simulator's controller
+    settings: Any = None  # a registered controller's own settings (its ControllerKind.parse_settings)
 
 
 @dataclass(frozen=True)

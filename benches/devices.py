@@ -71,7 +71,8 @@ class ControllerKind:
     no_watchdog : str
         Without one: why (the start of the message refusing those keys).
     parse_settings : callable
-        ``(section or None, smap, path, link, simulated, limits) -> settings``: this protocol's own settings.
+        ``(turntable section, smap, path, *, link, simulated, limits) -> dict``: this protocol's own settings as
+        :class:`benches.bench_config.TurntableSpec` fields (``acl``, ``modbus_map``; a new controller: ``settings``).
     connect : callable
         ``(turntable spec, timeout) -> drivers.connect.Connection`` with ``.where``: the real link.
     """

@@ -213,13 +213,16 @@ class Section:
         defaults: Mapping[str, Any] | None = None,
         *,
         check: bool = True,
+        reader: Reader | None = None,
     ) -> dict[str, Any]:
-        """Check the keys of ``d`` (absent: empty) and read every field: attribute → value (SI)."""
+        """Check the keys of ``d`` (absent: empty) and read every field: attribute → value (SI). ``reader``
+        replaces the section's own for this call (messages that name the caller's context)."""
         d = d or {}
+        r = reader or self.reader
         if check:
-            self.reader.check_keys(d, smap, path, self.keys())
+            r.check_keys(d, smap, path, self.keys())
         given = defaults or {}
-        return {f.name: self.reader.read(f, d, smap, path, given.get(f.name, f.default)) for f in self.fields}
+        return {f.name: r.read(f, d, smap, path, given.get(f.name, f.default)) for f in self.fields}
 
     def build(
         self,
