@@ -361,3 +361,20 @@ def test_the_size_allow_list_is_not_stale() -> None:
             sizes = [(n.end_lineno or n.lineno) - n.lineno + 1 for n in ast.walk(ast.parse(src))
                      if isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef) and n.name == func]  # fmt: skip
             assert sizes and max(sizes) > MAX_FUNCTION_LINES, f"{entry}: now short enough; remove it"
+
+
+def test_no_file_of_the_project_points_outside_it_for_its_methods() -> None:
+    """Methods and protocols are documented in docs/; nothing cites the session's spec folder outside the repo."""
+    import subprocess
+
+    needle = "shared" + "/spec"
+    files = subprocess.run(["git", "ls-files"], cwd=REPO_ROOT, capture_output=True, text=True, check=True).stdout
+    bad = []
+    for rel in files.split():
+        p = REPO_ROOT / rel
+        try:
+            text = p.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError):
+            continue
+        bad += [f"{rel}:{i}" for i, line in enumerate(text.splitlines(), 1) if needle in line]
+    assert bad == [], "cite docs/methods or docs/protocols instead:\n" + "\n".join(bad)

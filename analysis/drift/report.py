@@ -1,4 +1,4 @@
-"""Drift analysis of static records: the whole chain of ``shared/spec/drift-timeseries.md`` per channel.
+"""Drift analysis of static records: the whole chain of ``docs/methods/drift-timeseries.md`` per channel.
 
 For every channel (a scalar series in SI: rad/s for gyros, m/s² for accelerometers, body frame, any axis):
 

@@ -1,6 +1,6 @@
 """Turntable driver for an ACUTROL3000 controller speaking the ACUTROL command language (ACL).
 
-Facts from ``/work/shared/spec/acutrol-acl.md`` (TM-8004 sections in brackets); the open points are
+Facts from ``docs/protocols/acutrol-acl.md`` (TM-8004 sections in brackets); the open points are
 :class:`~drivers.acutrol.settings.AclSettings`. The driver receives an open
 :class:`~drivers.transport.MessageTransport` (pyvisa-py TCPIP SOCKET / GPIB / ASRL, or the simulator's
 in-memory link) and never opens it. Angles are degrees and °/s on the wire, rad and rad/s in the API
