@@ -10,7 +10,7 @@ import pytest
 
 from benches import factory
 from benches.bench_config import load_bench
-from benches.commands import table as cmd
+from benches.cli.commands import table as cmd
 from drivers.protocols import FaultCode, TableError
 from tests.simbench import SIM
 
