@@ -50,8 +50,6 @@ from benches.recording import RecordingError, StepRecord
 from core.provenance import file_sha256, software_version
 
 from .budget import (
-    PARAM_KINDS,
-    PARAM_NAMES,
     StepGeometry,
     UncertaintyBudget,
     budget_for_run,
@@ -461,22 +459,24 @@ def decide_conformity(g: Gathered) -> Decision:
     results: list[ParameterResult] = []
     reasons: list[str] = []
     unverified: list[str] = []
-    for i, (name, kind) in enumerate(zip(PARAM_NAMES, PARAM_KINDS, strict=True)):
+    model = g.cal.error_model
+    n_states = model.n_params
+    for i, (name, kind) in enumerate(zip(model.names, model.kinds, strict=True)):
         row, reason, note = _parameter_result(g, budget, i, name, kind, integrity_ok)
         results.append(row)
         reasons += [reason] if reason else []
         unverified += [note] if note else []
     info = g.cal.information
-    rank = int((info.rank if info is not None and info.rank is not None else 18) or 0)
+    rank = int((info.rank if info is not None and info.rank is not None else n_states) or 0)
     verdict = overall_verdict(
         [p.verdict for p in results],
         [p.limit is not None for p in results],
         complete=g.complete,
         integrity_ok=integrity_ok,
-        full_rank=rank == 18,
+        full_rank=rank == n_states,
     )
-    if rank != 18:
-        unverified.append(f"the identification has information rank {rank} < 18: no overall PASS is possible")
+    if rank != n_states:
+        unverified.append(f"the identification has information rank {rank} < {n_states}: no overall PASS is possible")
     reasons.extend(unverified)
     plan_warnings = (g.cal.plan.warnings if g.cal.plan is not None else None) or []
     warnings = list(dict.fromkeys([*plan_warnings, *g.cal.warnings]))
@@ -587,7 +587,7 @@ def assemble(g: Gathered, d: Decision, issue_date: str, with_plots: bool = True)
         hist = cal.history.to_mapping() if cal.history is not None else {}
         if len(hist.get("time") or []) >= 2:  # a single update has nothing to converge
             cert.plots["convergence"] = plot_convergence(
-                hist, list(PARAM_NAMES), PARAM_KINDS, cal.x, identified=list(cal.identified)
+                hist, list(cal.names), cal.error_model.kinds, cal.x, identified=list(cal.identified)
             )
         cert.plots["coverage"] = plot_coverage(g.geometry)
     return cert

@@ -18,8 +18,8 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, TextIO
 
 from analysis.units import DEG
-from benches.arguments import add_bench_argument, check_seed
 from benches.bench_config import load_bench
+from benches.cli.arguments import add_bench_argument, check_seed
 from core.errors import UsageError
 from drivers.protocols import AxisLimits, LinkError, TableError, TableState, TableStatus, Turntable
 from procedures.paths import default_bench_path, resolve_bench
