@@ -4,6 +4,10 @@ from pathlib import Path
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
+NOTES: list[str] = []
+"""Lines printed at the end of the test run (``tests/conftest.py``): tests that could not run here say so
+visibly (e.g. no browser, no PostgreSQL server) instead of passing silently."""
+
 
 def line_of(text: str, needle: str) -> int:
     """The 1-based number of the first line of ``text`` containing ``needle`` (where an error must point)."""
