@@ -90,6 +90,7 @@ class LiveObserver:
         self._n = int(start_sample)
         self._dec = MinMaxDecimator(len(CHANNELS), max(self.estimated_s / COLUMNS, 1.0 / self.rate))
         self._sent_bins = 0
+        self._pending: list[tuple[np.ndarray, np.ndarray]] = []
         self._last_pub = 0.0
         self._step: int | None = None
         self._fused = -1
@@ -130,12 +131,8 @@ class LiveObserver:
             self.feed.publish("step", {"index": step.index, "name": step.name, "state": "running",
                                        "bench_s": _r(self._n / self.rate, 3), "demand": _demand(step)})  # fmt: skip
         n = len(block)
-        if n:
-            t = (self._n + np.arange(n)) / self.rate
-            x = np.empty((n, 6))
-            x[:, :3] = block.accel / DISPLAY_UNITS["acceleration"][1]
-            x[:, 3:] = block.gyro / DISPLAY_UNITS["rate"][1]
-            self._dec.add(t, x)
+        if n:  # decimated in batches at publication: per block only a reference is kept
+            self._pending.append((block.accel, block.gyro))
         self._n += n
         self._table = table
         h = self._health
@@ -157,7 +154,21 @@ class LiveObserver:
                                    "bench_s": _r(self._n / self.rate, 3)})  # fmt: skip
 
     # ---- events ----------------------------------------------------------------------------------------------
+    def _decimate_pending(self) -> None:
+        """Min/max of the samples received since the last publication into the columns (one batch)."""
+        if not self._pending:
+            return
+        accel = np.concatenate([a for a, _g in self._pending])
+        gyro = np.concatenate([g for _a, g in self._pending])
+        self._pending.clear()
+        n = accel.shape[0]
+        x = np.empty((n, 6))
+        np.divide(accel, DISPLAY_UNITS["acceleration"][1], out=x[:, :3])
+        np.divide(gyro, DISPLAY_UNITS["rate"][1], out=x[:, 3:])
+        self._dec.add((self._n - n + np.arange(n)) / self.rate, x)
+
     def _publish(self, step: Step) -> None:
+        self._decimate_pending()
         merged = len(self._dec) < self._sent_bins
         start = 0 if merged else self._sent_bins
         _, lo, hi, _ = self._dec.closed_since(start)
@@ -219,6 +230,7 @@ class LiveObserver:
 
     def finish(self, status: str, reason: str = "") -> None:
         """The run ended (any status): close the last column and say so."""
+        self._decimate_pending()
         self._dec.flush()
         if self._step is not None:
             self._publish(self.steps.get(self._step) or next(iter(self.steps.values())))

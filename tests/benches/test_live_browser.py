@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests import NOTES, REPO_ROOT
+from tests import REPO_ROOT, not_run_here
 from tests.simbench import CLI, bench_variant, short_ten_step
 
 ARTIFACTS = REPO_ROOT / "test-artifacts"
@@ -58,18 +58,14 @@ def _chromium() -> str | None:
 
 @pytest.fixture(scope="module")
 def browser() -> Iterator[object]:
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:
-        NOTES.append("browser tests NOT RUN: Playwright for Python is not installed (bash scripts/test.sh installs it)")
-        pytest.skip("no Playwright")
+    from playwright.sync_api import sync_playwright  # a test dependency: its absence fails the suite
+
     exe = _chromium()
     if exe is None:
-        NOTES.append(
+        not_run_here(
             "browser tests NOT RUN: no Chromium on this machine (apt-get install chromium; .ci/run does it), "
             "or set TABLEBENCH_CHROMIUM to a Chromium binary"
         )
-        pytest.skip("no Chromium")
     with sync_playwright() as p:
         b = p.chromium.launch(executable_path=exe, headless=True, args=QUIET_FLAGS)
         try:

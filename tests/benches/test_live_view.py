@@ -18,8 +18,6 @@ from benches.live.server import DEFAULT_HOST, DEFAULT_PORT, build_app, check_fre
 from core.errors import UsageError
 from tests.simbench import CLI, bench_variant, short_ten_step
 
-starlette_testclient = pytest.importorskip("starlette.testclient")
-
 
 # ---- feed and decimator ------------------------------------------------------------------------------------------
 def test_feed_replays_everything_after_an_id(tmp_path: Path) -> None:
@@ -83,7 +81,9 @@ def test_a_port_in_use_is_refused_before_anything_moves() -> None:
 
 # ---- server routes ------------------------------------------------------------------------------------------------
 def _client(feed: LiveFeed, folder: Path | None = None):  # noqa: ANN202
-    return starlette_testclient.TestClient(build_app(feed, folder))
+    from starlette.testclient import TestClient
+
+    return TestClient(build_app(feed, folder))
 
 
 def test_events_resume_after_last_event_id() -> None:
