@@ -118,8 +118,8 @@ class _StopSignalsRaise:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench run`` (with its live view: RUN/live.jsonl, and the page with ``--live``)."""
-    if args.live_linger < 0 or args.live_linger != args.live_linger:
-        raise UsageError(f"--live-linger {args.live_linger}: must be 0 or more seconds")
+    if not 0 <= args.live_linger < 86400:
+        raise UsageError(f"--live-linger {args.live_linger}: must be 0 or more seconds, less than a day")
     view = RunView(parse_address(args.live) if args.live is not None else None, args.live_linger, say=_say)
     try:
         return _run(args, view)

@@ -47,15 +47,15 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench view``."""
+    if args.seconds is not None and not 0 <= args.seconds < 1e7:
+        raise UsageError(f"--seconds {args.seconds}: must be 0 or more (a finite number of seconds)")
+    host, port = parse_address(args.live)
     folder = Path(args.run)
     if folder.is_file():
         folder = folder.parent
     live_file = folder / LIVE_FILE
     if not live_file.is_file() and not (folder / "recording.h5").is_file():
         raise UsageError(f"{args.run}: neither live.jsonl nor recording.h5 there; give a run folder printed by 'run'")
-    if args.seconds is not None and not args.seconds >= 0:
-        raise UsageError(f"--seconds {args.seconds}: must be 0 or more")
-    host, port = parse_address(args.live)
     check_free(host, port)
     follower = None
     if live_file.is_file():

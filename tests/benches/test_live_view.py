@@ -7,6 +7,8 @@ import json
 import socket
 import subprocess
 import sys
+import urllib.error
+import urllib.request
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +16,7 @@ import pytest
 
 from benches.live.feed import LiveFeed, MinMaxDecimator
 from benches.live.replay import LIVE_FILE, JsonlFollower, feed_from_recording
-from benches.live.server import DEFAULT_HOST, DEFAULT_PORT, build_app, check_free, parse_address
+from benches.live.server import DEFAULT_HOST, DEFAULT_PORT, LiveServer, check_free, parse_address
 from core.errors import UsageError
 from tests.simbench import CLI, bench_variant, short_ten_step
 
@@ -80,10 +82,35 @@ def test_a_port_in_use_is_refused_before_anything_moves() -> None:
 
 
 # ---- server routes ------------------------------------------------------------------------------------------------
-def _client(feed: LiveFeed, folder: Path | None = None):  # noqa: ANN202
-    from starlette.testclient import TestClient
+class _Client:
+    """HTTP against a real LiveServer on a free port (what a browser talks to)."""
 
-    return TestClient(build_app(feed, folder))
+    def __init__(self, feed: LiveFeed, folder: Path | None = None) -> None:
+        self.server = LiveServer(feed, "127.0.0.1", 0, run_folder=folder)
+
+    def __enter__(self) -> _Client:
+        self.server.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.server.close()
+
+    def request(self, method: str, path: str, headers: dict[str, str] | None = None) -> tuple[int, bytes]:
+        req = urllib.request.Request(self.server.url.rstrip("/") + path, method=method.upper(), headers=headers or {})
+        try:
+            with urllib.request.urlopen(req, timeout=10) as r:
+                return r.status, r.read()
+        except urllib.error.HTTPError as exc:
+            return exc.code, exc.read()
+
+    def text(self, path: str, headers: dict[str, str] | None = None) -> str:
+        status, body = self.request("GET", path, headers)
+        assert status == 200, (path, status)
+        return body.decode("utf-8")
+
+
+def _ids(body: str) -> list[int]:
+    return [int(line[4:]) for line in body.splitlines() if line.startswith("id: ")]
 
 
 def test_events_resume_after_last_event_id() -> None:
@@ -91,13 +118,13 @@ def test_events_resume_after_last_event_id() -> None:
     for k in range(5):
         feed.publish("step", {"index": k})
     feed.close()
-    with _client(feed) as c:
-        body = c.get("/events", headers={"Last-Event-ID": "3"}).text
-        assert body.startswith("retry: ")
-        assert [int(line[4:]) for line in body.splitlines() if line.startswith("id: ")] == [4, 5]
-        body = c.get("/events").text
-        assert [int(line[4:]) for line in body.splitlines() if line.startswith("id: ")] == [1, 2, 3, 4, 5]
-        assert "event: step\ndata: {\"index\":0}" in body
+    with _Client(feed) as c:
+        body = c.text("/events", headers={"Last-Event-ID": "3"})
+        assert body.startswith("retry: ") and _ids(body) == [4, 5]
+        body = c.text("/events")
+        assert _ids(body) == [1, 2, 3, 4, 5]
+        assert 'event: step\ndata: {"index":0}' in body
+        assert _ids(c.text("/events?last=4")) == [5]  # a page that reconnects by itself says where it was
 
 
 def test_the_server_is_read_only_and_serves_only_results(tmp_path: Path) -> None:
@@ -105,18 +132,18 @@ def test_the_server_is_read_only_and_serves_only_results(tmp_path: Path) -> None
     feed.close()
     (tmp_path / "calibration.json").write_text("{}", encoding="utf-8")
     (tmp_path / "recording.h5").write_bytes(b"\x89HDF")
-    with _client(feed, tmp_path) as c:
-        page = c.get("/")
-        assert page.status_code == 200 and "at the bench" in page.text and "Ctrl-C" in page.text
-        assert "http" not in page.text.replace("http-equiv", "")  # every asset is local: no CDN
-        assert c.get("/static/uPlot.iife.min.js").status_code == 200
-        assert c.get("/static/../server.py").status_code == 404
-        assert c.get("/files/calibration.json").json() == {}
-        assert c.get("/files/recording.h5").status_code == 404
-        assert c.get("/files/certificate.pdf").status_code == 404  # not there yet
+    with _Client(feed, tmp_path) as c:
+        page = c.text("/")
+        assert "at the bench" in page and "Ctrl-C" in page
+        assert "http" not in page  # every asset is local: no CDN
+        assert c.request("GET", "/static/uPlot.iife.min.js")[0] == 200
+        assert c.request("GET", "/static/server.py")[0] == 404
+        assert json.loads(c.text("/files/calibration.json")) == {}
+        assert c.request("GET", "/files/recording.h5")[0] == 404
+        assert c.request("GET", "/files/certificate.pdf")[0] == 404  # not there yet
         for path in ("/", "/events", "/files/calibration.json", "/static/live.js"):
             for method in ("post", "put", "delete", "patch"):
-                assert getattr(c, method)(path).status_code == 405, (method, path)
+                assert c.request(method, path)[0] == 405, (method, path)
 
 
 def test_live_page_assets_are_vendored() -> None:
