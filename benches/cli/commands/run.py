@@ -9,7 +9,7 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from benches.arguments import add_bench_argument, add_procedure_arguments, check_seed, parse_overrides
+from benches.cli.arguments import add_bench_argument, add_procedure_arguments, check_seed, parse_overrides
 from benches.live.run_view import RunView
 from benches.live.server import DEFAULT_HOST, DEFAULT_PORT, parse_address
 from benches.progress import ProgressDisplay
