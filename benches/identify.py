@@ -227,7 +227,8 @@ class LiveIdentifier:
 
     def parameter_kinds(self) -> list[tuple[str, str]]:
         """(name, quantity kind) of every state the filter estimates, in its order (for the live view)."""
-        return list(zip(PARAM_NAMES, PARAM_KINDS, strict=True))
+        m = self.filter.model
+        return list(zip(m.names, m.kinds, strict=True))
 
     def on_step_end(self, step: Step, record: StepRecord) -> None:
         """Fuse what is buffered for the step."""
