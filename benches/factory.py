@@ -39,15 +39,13 @@ from typing import Any, BinaryIO
 
 from core.yaml_source import ConfigError
 from drivers import connect
-from drivers.acutrol import AclTurntable
 from drivers.protocols import InertialUnit, Readable, Turntable
 from drivers.sim.inprocess import SimInertialUnit
 from drivers.sim.loopback import Loopback
 from drivers.sim.world import SimulatedWorld
-from drivers.transport import MessageTransport
 
 from . import devices
-from .bench_config import BenchConfig, TurntableSpec, unit_frame_format
+from .bench_config import BenchConfig, unit_frame_format
 
 log = logging.getLogger(__name__)
 
@@ -223,11 +221,6 @@ def _open_simulated(
         f"{config.name}: simulated bench, {lb.describe()}",
         [*closers, lb.close],
     )
-
-
-def acl_turntable(transport: MessageTransport, tt: TurntableSpec) -> AclTurntable:
-    """The ACL driver for a bench's turntable section on an open transport (settings and tolerances from the bench)."""
-    return AclTurntable(transport, tuple(tt.limits), **devices.acl_options(tt))  # type: ignore[arg-type]
 
 
 def _hardware_table(config: BenchConfig) -> connect.Connection[Any]:
