@@ -11,6 +11,7 @@ if TYPE_CHECKING:  # pragma: no cover
     pass
 
 from core.errors import UsageError
+from core.outputs import check_output
 
 EXAMPLES = """examples:
   tablebench identify runs/20261121-101500-ten-step                 # writes RUN/calibration.json
@@ -50,12 +51,15 @@ def run(args: argparse.Namespace) -> int:
         write_calibration,
     )
 
+    folder = Path(args.run) if Path(args.run).is_dir() else Path(args.run).parent
+    target = check_output(args.out or folder / "calibration.json")  # before the work: never over an input
+    if not target.name.lower().endswith(".json"):
+        raise UsageError(f"--out {args.out}: give a .json file name (the calibration is JSON)")
     try:
         result = identify_run(args.run, method=args.method, noise=args.noise)
     except IdentificationError as exc:
         raise UsageError(str(exc)) from None
-    folder = Path(args.run) if Path(args.run).is_dir() else Path(args.run).parent
-    out = write_calibration(result, args.out or folder / "calibration.json")
+    out = write_calibration(result, target)
     print(result.summary())
     print(f"calibration: {out}", file=sys.stderr)
     return 0
