@@ -154,7 +154,7 @@ def budget_for_run(
     nv = cal.noise_variance
     notes: list[str] = []
     p_w = cal.covariance_white
-    per_step = list((cal.extra.get("residuals") or {}).get("per_step") or [])
+    per_step = cal.per_step
     budget = build_budget(
         p_id,
         p_w,
