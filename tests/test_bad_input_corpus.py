@@ -513,7 +513,7 @@ def _same_recording(a: Path, b: Path) -> None:
 def test_disk_full_then_resume_and_salvage_recover_the_completed_steps(short_run, monkeypatch) -> None:
     """ENOSPC injected into the recorder's chunk writes: the run stops saying so; after 'freeing space' both
     ``run --resume`` and ``runs --salvage`` + ``--resume`` give the uninterrupted recording bit for bit."""
-    import benches.recording as recording
+    import benches.recording.encoding as recording
 
     tmp, common, ref = short_run
     state = {"n": 0, "budget": 150, "full": True}

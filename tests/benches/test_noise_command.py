@@ -164,8 +164,8 @@ def test_gaps_are_reported_and_skipped(tmp_path: Path, capsys: pytest.CaptureFix
 def test_recording_is_read_in_chunks_into_one_array(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The recording loader fills one (C, N) float64 array chunk by chunk (chunk boundaries inside the step):
     values equal the file's, the channels are rows of that one array, gaps and ±inf are located exactly."""
-    import benches.analysis_input as ai
-    from benches.analysis_input import InputError, load_input
+    import benches.cli.analysis_input as ai
+    from benches.cli.analysis_input import InputError, load_input
 
     monkeypatch.setattr(ai, "READ_CHUNK_ROWS", 1000)
     rng = np.random.default_rng(4)

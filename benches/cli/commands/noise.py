@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from benches.analysis_input import InputError, add_input_arguments, load_input, output_dir
+from benches.cli.analysis_input import InputError, add_input_arguments, load_input, output_dir
 from core.errors import UsageError
 from core.jsonio import write_json
 
@@ -22,8 +22,17 @@ estimators: adev oadev mdev tdev hdev ohdev totdev mtotdev ttotdev htotdev theo1
 the published total-family/Theo1 fits, χ² intervals: analysis/noise/stability.py, analysis/noise/confidence.py).
 NaN samples are gaps: terms touching them are skipped (the count per τ is in noise.json).
 
-output: a table of noise terms per channel (weighted non-negative least squares on --fit-estimator, each with
-its standard uncertainty 1σ), and with --out DIR: noise.json (per estimator and τ: value, term count, EDF,
+output: a table of noise terms per channel, read two ways:
+  fit         weighted non-negative least squares of σ²(τ) = 3Q²/τ² + N²/τ + (2 ln2/π)B² + K²τ/3 + R²τ²/2 on
+              --fit-estimator over every τ, each term with its standard uncertainty 1σ;
+  slope-line  IEEE Std 952 Annex C: a line of the term's slope (−1, −½, 0, +½, +1 in log-log for Q, N, B, K,
+              R) moved up until it touches the curve, the term read off it (N = σ√τ, B = σ/0.664, K = σ√(3/τ)…).
+              Each term's line lies under the curve, so the reading is an UPPER BOUND. Read only at τ where the
+              deviation is known well whatever the noise type (≥ 200 degrees of freedom for every plausible type);
+              "≤ value (≤ hi)" gives the reading and the top of its 95 % interval (Bonferroni over the points
+              read); "(observed)": the curve's slope there matches the term's, the term dominates at that τ;
+              "BELOW FIT": even the top of the interval is under the fitted term — check the fit.
+and with --out DIR: noise.json (per estimator and τ: value, term count, EDF,
 interval, noise type α; SI, deviations in the data's rate unit) and noise.png (every chosen estimator with its
 intervals, fitted terms). Gyro terms are shown in arcsec, deg/√h, deg/h, deg/h/√h, deg/h²; accelerometer
 terms in mm/s, µg/√Hz, µg, µg/√s, µg/s.
@@ -106,7 +115,9 @@ def format_table(result: dict) -> str:
             slope = ""
             if s:
                 sv = to_display_value(t, s["value"], ch["unit"])
-                slope = f"   slope-line ≤ {_fmt(sv)}{' (observed)' if s.get('observed') else ''}"
+                hv = to_display_value(t, s["hi"], ch["unit"])
+                flags = (" (observed)" if s.get("observed") else "") + (" BELOW FIT" if s.get("below_fit") else "")
+                slope = f"   slope-line ≤ {_fmt(sv)} (≤ {_fmt(hv)} at 95 %, τ = {s['tau']:.3g} s){flags}"
             lines.append(f"  {t}  {_fmt(d['value']):>10} ± {_fmt(d['sigma']):<9} {d['unit']:<10}{slope}")
     return "\n".join(lines)
 

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from analysis.identification.model import correct
-from benches.analysis_input import InputError, read_npy, recording_path
 from benches.calibration_result import CalibrationResult
+from benches.cli.analysis_input import InputError, read_npy, recording_path
 from core.errors import UsageError
 from core.outputs import check_output, save_npy
 

@@ -9,7 +9,7 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from benches.arguments import add_bench_argument, add_procedure_arguments, check_seed, parse_overrides
+from benches.cli.arguments import add_bench_argument, add_procedure_arguments, check_seed, parse_overrides
 from benches.progress import ProgressDisplay
 from benches.session import (
     Prepared,
