@@ -289,6 +289,8 @@ def analyse_noise(
     estimators: tuple[str, ...] = ("adev", "oadev", "mdev", "totdev"),
     data_type: str = "freq",
     fit_estimator: str = "oadev",
+    noise_type: int | list[tuple[float, float, int]] | None = None,
+    remove_drift: str | None = None,
 ) -> dict:
     """Stability deviations with intervals and fitted noise terms of named channels (the ``noise.json`` data).
 
@@ -318,6 +320,11 @@ def analyse_noise(
         What the records hold.
     fit_estimator : str
         Estimator for the NNLS and slope-line term reading, one of :data:`FIT_ESTIMATORS`.
+    noise_type : int or list of (τ_lo, τ_hi, α), optional
+        Noise type set by hand for the intervals and the fit (:func:`analysis.noise.stability.stability`).
+    remove_drift : {"linear", "quadratic"}, optional
+        Frequency drift removed from each channel first (:func:`analysis.noise.drift_removal.remove_drift`);
+        the removed polynomial is reported per channel under ``"drift_removed"``.
 
     Returns
     -------
@@ -337,11 +344,17 @@ def analyse_noise(
             f"({', '.join(FIT_ESTIMATORS)}), got {fit_estimator!r}"
         )
     names, arrays, unit_of = _checked_channels(channels, units)
+    removed = {}
+    if remove_drift is not None:
+        from analysis.noise.drift_removal import remove_drift as _remove
+
+        for i, k in enumerate(names):
+            arrays[i], removed[k] = _remove(arrays[i], rate, remove_drift, data_type)
     n = arrays[0].size
     data = _rows(arrays).T  # (N, C) view of a (C, N) array: stability reads its rows without a copy
     del arrays
     ests = tuple(dict.fromkeys((*estimators, fit_estimator)))
-    res = stability(data, rate, ests, taus, data_type, confidence=confidence)
+    res = stability(data, rate, ests, taus, data_type, confidence=confidence, noise_type=noise_type)
     itot = None
     if published_itotvar:
         if data_type != "freq" or np.isnan(data).any():
@@ -363,6 +376,13 @@ def analyse_noise(
         if itot is not None:
             ch["itotdev_published"] = np.sqrt(itot.var["itotvar"][:, j])
         ch.update(fitted)
+        if remove_drift is not None:
+            ch["drift_removed"] = {
+                "model": remove_drift,
+                "data_type": data_type,
+                "coefficients": removed[name],
+                "powers_of_t_s": list(range(removed[name].size)),
+            }
         out_channels[name] = ch
     return {
         "rate_hz": float(rate),
@@ -370,6 +390,8 @@ def analyse_noise(
         "data_type": data_type,
         "confidence": confidence,
         "estimators": list(res.estimates),
+        "noise_type": "identified" if noise_type is None else noise_type,
+        "remove_drift": remove_drift,
         "channels": out_channels,
     }
 

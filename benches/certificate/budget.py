@@ -24,7 +24,6 @@ from analysis.identification.budget import (
     build_budget,
     default_g_uncertainty,
 )
-from analysis.identification.model import PARAM_KINDS, PARAM_NAMES
 from benches.calibration_result import CalibrationResult
 from benches.identify import acquisition_span
 from benches.reference import reference_for_samples
@@ -33,8 +32,6 @@ if TYPE_CHECKING:  # pragma: no cover
     from benches.recording import Recording
 
 __all__ = [
-    "PARAM_KINDS",
-    "PARAM_NAMES",
     "BudgetComponent",
     "StepGeometry",
     "UncertaintyBudget",
@@ -168,6 +165,7 @@ def budget_for_run(
         rate_accuracy=rate_accuracy,
         flicker_step_variance=None if bias_instability is None else flicker_step_variance(geometry, bias_instability),
         residuals_per_step=per_step,
+        model=cal.error_model,
     )
     budget.notes.extend(notes)
     return budget

@@ -94,6 +94,22 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="two-sided probability of the confidence intervals (default 0.683)",
     )
     p.add_argument(
+        "--noise-type",
+        default=None,
+        metavar="TYPE[@LO:HI],…",
+        help="set the power-law noise type by hand instead of identifying it (as Stable32 allows); the intervals "
+        "and the fit use it: one type for every τ (e.g. wfm or 0), or types per τ range in seconds "
+        "(e.g. wpm@0.01:0.5,wfm@0.5:20,rwfm@20:1e4; τ outside every range keep the identified type). Types: "
+        "wpm (α=2), fpm (1), wfm (0), ffm (-1), rwfm (-2)",
+    )
+    p.add_argument(
+        "--remove-drift",
+        default=None,
+        choices=("linear", "quadratic"),
+        help="remove a least-squares linear or quadratic frequency drift from each channel first (phase data: the "
+        "quadratic or cubic phase it means); the removed coefficients are written to noise.json",
+    )
+    p.add_argument(
         "--published-itotvar",
         action="store_true",
         help="also report the published 'improved total variance' (paper reproduction; no better than ADEV)",
@@ -146,6 +162,50 @@ def _parse_taus(text: str) -> str | list[float]:
     return vals
 
 
+NOISE_TYPES = {"wpm": 2, "fpm": 1, "wfm": 0, "ffm": -1, "rwfm": -2}
+"""``--noise-type`` names → α (S_y ∝ f^α)."""
+
+
+def _alpha(text: str, whole: str) -> int:
+    t = text.strip().lower()
+    if t in NOISE_TYPES:
+        return NOISE_TYPES[t]
+    try:
+        a = int(t)
+    except ValueError:
+        a = None
+    if a is None or not -2 <= a <= 2:
+        raise UsageError(
+            f"--noise-type {whole!r}: {text!r} is not a noise type; use wpm, fpm, wfm, ffm, rwfm or α from -2 to 2"
+        )
+    return a
+
+
+def parse_noise_type(text: str | None) -> int | list[tuple[float, float, int]] | None:
+    """``--noise-type``: one type for every τ, or TYPE@LO:HI per τ range (s), comma-separated."""
+    if text is None:
+        return None
+    parts = [s.strip() for s in text.split(",") if s.strip()]
+    if not parts:
+        raise UsageError("--noise-type is empty; e.g. --noise-type wfm or --noise-type wpm@0.01:1,wfm@1:100")
+    if len(parts) == 1 and "@" not in parts[0]:
+        return _alpha(parts[0], text)
+    ranges = []
+    for s in parts:
+        kind, sep, span = s.partition("@")
+        lo, sep2, hi = span.partition(":")
+        try:
+            tau_lo, tau_hi = float(lo), float(hi)
+        except ValueError:
+            tau_lo = tau_hi = math.nan
+        if not sep or not sep2 or not (math.isfinite(tau_lo) and math.isfinite(tau_hi) and 0 <= tau_lo <= tau_hi):
+            raise UsageError(
+                f"--noise-type {text!r}: {s!r} needs TYPE@LO:HI with 0 ≤ LO ≤ HI in seconds (e.g. wfm@0.5:20)"
+            )
+        ranges.append((tau_lo, tau_hi, _alpha(kind, text)))
+    return ranges
+
+
 def _parse_estimators(text: str) -> tuple[str, ...]:
     from analysis.noise.stability import ESTIMATORS  # lazy: scipy (--help time)
 
@@ -191,6 +251,7 @@ def run(args: argparse.Namespace) -> int:
     taus = _parse_taus(args.taus)
     estimators = _parse_estimators(args.estimators)
     fit_estimator = _parse_fit_estimator(args.fit_estimator)
+    noise_type = parse_noise_type(args.noise_type)
     data = load_input(
         args.input, rate=args.rate, channels=args.channels, step=args.step, min_samples=MIN_SAMPLES, allow_gaps=True
     )
@@ -214,6 +275,8 @@ def run(args: argparse.Namespace) -> int:
             estimators=estimators,
             data_type=args.data_type,
             fit_estimator=fit_estimator,
+            noise_type=noise_type,
+            remove_drift=args.remove_drift,
         )
     except ValueError as exc:
         raise InputError(f"{data.source}: {exc}") from None
