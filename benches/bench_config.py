@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -45,6 +45,7 @@ from core.yaml_source import get_list_of_maps as _list_of_maps
 from core.yaml_source import get_matrix as _matrix
 from core.yaml_source import get_section as _section
 from drivers.acutrol.settings import AclSettings, default_profile
+from drivers.chamber.bench_section import ChamberSection, parse_chamber
 from drivers.imu_unit.counts import CountScale
 from drivers.imu_unit.description import (
     DEFAULT_FRAME,
@@ -64,6 +65,7 @@ from drivers.sim.config import (
     ACCEL_PARAM_NAMES,
     SimConfig,
 )
+from drivers.sim.thermal_config import ChamberSim
 
 __all__ = [
     "BenchConfig",
@@ -195,6 +197,8 @@ class BenchConfig:
     limits: dict[str, float]
     simulation: SimConfig | None
     reference_standards: tuple[ReferenceStandard, ...] = ()
+    chamber: ChamberSection | None = None
+    """The temperature chamber (``chamber:`` section, docs/protocols/chambers.md), None without one."""
 
 
 @dataclass(frozen=True)
@@ -618,7 +622,9 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
     if data is None:
         raise ConfigError(smap.file, None, "the bench file is empty; see benches/BENCH_FORMAT.md")
     root = get_mapping(data, smap, ())
-    check_keys(root, smap, (), ["name", "site", "turntable", "unit", "limits", "simulation", "reference_standards"])
+    check_keys(
+        root, smap, (), ["name", "site", "turntable", "unit", "limits", "simulation", "reference_standards", "chamber"]
+    )
     name = get_str(root, smap, (), "name")
     site = _site(_section(root, smap, (), "site"), smap)  # type: ignore[arg-type]
     sim_raw = root.get("simulation")
@@ -635,6 +641,14 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
     if sim_d is not None and not (table.driver == "sim" and unit.driver == "sim"):
         raise smap.error(("simulation",), "is only allowed when both turntable.driver and unit.driver are 'sim'")
     sim = parse_simulation(sim_d, smap, site, table, unit) if sim_d is not None else None
+    chamber = parse_chamber(root["chamber"], smap) if root.get("chamber") is not None else None
+    if chamber is not None and chamber.simulated:
+        if sim is None:
+            raise smap.error(("chamber", "driver"), "sim is only allowed on a simulated bench (simulation: section)")
+        s = chamber.config.settings
+        sim = replace(sim, chamber=ChamberSim(setpoint_min=s.setpoint_min, setpoint_max=s.setpoint_max))
+    elif chamber is not None and sim is not None:
+        raise smap.error(("chamber", "driver"), "a simulated bench needs driver: sim for its chamber")
     return BenchConfig(
         name=name,
         path=path,
@@ -645,7 +659,17 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
         limits=limits,
         simulation=sim,
         reference_standards=_reference_standards(root, smap),
+        chamber=chamber,
     )
+
+
+def chamber_limits(config: Any) -> tuple[float, float] | None:
+    """A bench's chamber set-point limits (K) for the procedure compiler; None without a chamber."""
+    chamber = getattr(config, "chamber", None)
+    if chamber is None:
+        return None
+    s = chamber.config.settings
+    return s.setpoint_min, s.setpoint_max
 
 
 def _reference_standards(d: dict, smap: SourceMap) -> tuple[ReferenceStandard, ...]:
