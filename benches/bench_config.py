@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -46,6 +46,7 @@ from core.yaml_source import get_matrix as _matrix
 from core.yaml_source import get_section as _section
 from drivers.acutrol.settings import AclSettings, default_profile
 from drivers.aerosmith.settings import AerosmithSettings
+from drivers.chamber.bench_section import ChamberSection, parse_chamber
 from drivers.imu_unit.counts import CountScale
 from drivers.imu_unit.description import (
     DEFAULT_FRAME,
@@ -65,6 +66,7 @@ from drivers.sim.config import (
     ACCEL_PARAM_NAMES,
     SimConfig,
 )
+from drivers.sim.thermal_config import ChamberSim
 
 __all__ = [
     "BenchConfig",
@@ -197,6 +199,8 @@ class BenchConfig:
     limits: dict[str, float]
     simulation: SimConfig | None
     reference_standards: tuple[ReferenceStandard, ...] = ()
+    chamber: ChamberSection | None = None
+    """The temperature chamber (``chamber:`` section, docs/protocols/chambers.md), None without one."""
 
 
 @dataclass(frozen=True)
@@ -662,7 +666,9 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
     if data is None:
         raise ConfigError(smap.file, None, "the bench file is empty; see benches/BENCH_FORMAT.md")
     root = get_mapping(data, smap, ())
-    check_keys(root, smap, (), ["name", "site", "turntable", "unit", "limits", "simulation", "reference_standards"])
+    check_keys(
+        root, smap, (), ["name", "site", "turntable", "unit", "limits", "simulation", "reference_standards", "chamber"]
+    )
     name = get_str(root, smap, (), "name")
     site = _site(_section(root, smap, (), "site"), smap)  # type: ignore[arg-type]
     sim_raw = root.get("simulation")
@@ -679,6 +685,14 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
     if sim_d is not None and not (table.driver == "sim" and unit.driver == "sim"):
         raise smap.error(("simulation",), "is only allowed when both turntable.driver and unit.driver are 'sim'")
     sim = parse_simulation(sim_d, smap, site, table, unit) if sim_d is not None else None
+    chamber = parse_chamber(root["chamber"], smap) if root.get("chamber") is not None else None
+    if chamber is not None and chamber.simulated:
+        if sim is None:
+            raise smap.error(("chamber", "driver"), "sim is only allowed on a simulated bench (simulation: section)")
+        s = chamber.config.settings
+        sim = replace(sim, chamber=ChamberSim(setpoint_min=s.setpoint_min, setpoint_max=s.setpoint_max))
+    elif chamber is not None and sim is not None:
+        raise smap.error(("chamber", "driver"), "a simulated bench needs driver: sim for its chamber")
     return BenchConfig(
         name=name,
         path=path,
@@ -689,7 +703,17 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
         limits=limits,
         simulation=sim,
         reference_standards=_reference_standards(root, smap),
+        chamber=chamber,
     )
+
+
+def chamber_limits(config: Any) -> tuple[float, float] | None:
+    """A bench's chamber set-point limits (K) for the procedure compiler; None without a chamber."""
+    chamber = getattr(config, "chamber", None)
+    if chamber is None:
+        return None
+    s = chamber.config.settings
+    return s.setpoint_min, s.setpoint_max
 
 
 def _reference_standards(d: dict, smap: SourceMap) -> tuple[ReferenceStandard, ...]:
