@@ -350,6 +350,44 @@ def _acl(d: dict | None, smap: SourceMap, p: KeyPath, resource: str | None, simu
     )
 
 
+def _modbus_map(d: dict, smap: SourceMap, p: KeyPath, not_modbus: bool) -> ModbusMap | None:
+    """``turntable.modbus_map``: the register map file (a path relative to the bench file), or None."""
+    if d.get("modbus_map") is None:
+        return None
+    if not_modbus:
+        raise smap.error(p + ("modbus_map",), "is only for a Modbus table (driver 'modbus-tcp' or a simulated one)")
+    map_path = Path(get_str(d, smap, p, "modbus_map"))
+    if not map_path.is_absolute():
+        map_path = Path(smap.file).parent / map_path
+    if not map_path.is_file():
+        raise smap.error(
+            p + ("modbus_map",), f"register map file {map_path} not found (a path relative to the bench file)"
+        )
+    return load_modbus_map(map_path)
+
+
+def _table_axes(d: dict, smap: SourceMap, p: KeyPath, aerosmith: AerosmithSettings | None) -> list[AxisLimits]:
+    """``turntable.axes``: the limits of each gimbal, or ``absent`` for one the table does not have."""
+    axes = _section(d, smap, p, "axes")
+    assert axes is not None
+    check_keys(axes, smap, p + ("axes",), list(AXIS_NAMES))
+    limits = []
+    for name in AXIS_NAMES:
+        if axes.get(name) == "absent":  # a gimbal the table does not have (a single-axis table's other two)
+            limits.append(AxisLimits.absent_axis())
+            continue
+        if aerosmith is not None and name != aerosmith.axis:
+            raise smap.error(
+                p + ("axes", name),
+                f"an Ideal Aerosmith table has one axis ({aerosmith.axis}, turntable.aerosmith.axis); write "
+                f"'{name}: absent'",
+            )
+        ad = _section(axes, smap, p + ("axes",), name)
+        assert ad is not None
+        limits.append(_axis(ad, smap, p + ("axes", name)))
+    return limits
+
+
 def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> TurntableSpec:
     p: KeyPath = ("turntable",)
     check_keys(
@@ -403,19 +441,7 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
         raise smap.error(p + ("resource",), f"is only for driver 'acutrol' (this table is {driver!r})")
     if driver == "acutrol" and address:
         raise smap.error(p + ("address",), "is not used by driver 'acutrol'; name the controller with resource:")
-    modbus_map = None
-    if d.get("modbus_map") is not None:
-        if acl_speaker:
-            raise smap.error(p + ("modbus_map",), "is only for a Modbus table (driver 'modbus-tcp' or a simulated one)")
-
-        map_path = Path(get_str(d, smap, p, "modbus_map"))
-        if not map_path.is_absolute():
-            map_path = Path(smap.file).parent / map_path
-        if not map_path.is_file():
-            raise smap.error(
-                p + ("modbus_map",), f"register map file {map_path} not found (a path relative to the bench file)"
-            )
-        modbus_map = load_modbus_map(map_path)
+    modbus_map = _modbus_map(d, smap, p, acl_speaker or aero)
     if d.get("acl") is not None and not acl_speaker:
         raise smap.error(p + ("acl",), "is only for an ACUTROL table (driver 'acutrol' or a simulated ACUTROL)")
     if acl_speaker or aero:
@@ -430,23 +456,7 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
     if aero:
         ap = p + ("aerosmith",)
         aerosmith = _aerosmith(get_mapping(d["aerosmith"], smap, ap) if d.get("aerosmith") else None, smap, ap)
-    axes = _section(d, smap, p, "axes")
-    assert axes is not None
-    check_keys(axes, smap, p + ("axes",), list(AXIS_NAMES))
-    limits = []
-    for name in AXIS_NAMES:
-        if axes.get(name) == "absent":  # a gimbal the table does not have (a single-axis table's other two)
-            limits.append(AxisLimits.absent_axis())
-            continue
-        if aerosmith is not None and name != aerosmith.axis:
-            raise smap.error(
-                p + ("axes", name),
-                f"an Ideal Aerosmith table has one axis ({aerosmith.axis}, turntable.aerosmith.axis); write "
-                f"'{name}: absent'",
-            )
-        ad = _section(axes, smap, p + ("axes",), name)
-        assert ad is not None
-        limits.append(_axis(ad, smap, p + ("axes", name)))
+    limits = _table_axes(d, smap, p, aerosmith)
     acl = None
     if acl_speaker:
         ap = p + ("acl",)
