@@ -180,6 +180,7 @@ class UnitSpec:
     frame_options: dict[str, Any] = field(default_factory=dict)  # the unit's output configuration
     frame_desc: FrameDescription | None = None
     keep_raw: bool = False  # keep the raw serial stream as RUN_DIR/unit-raw.bin
+    time_reference: str | None = None  # hardware timing: "pps" or "time_tag" (one clock); None: estimated
 
 
 @dataclass(frozen=True)
@@ -477,6 +478,7 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
             "frame",
             "frame_options",
             "keep_raw",
+            "time_reference",
         ],
     )
     driver = get_str(d, smap, p, "driver", choices=["sim", "serial"])
@@ -536,6 +538,7 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
         frame_options=frame_options,
         frame_desc=frame_desc,
         keep_raw=keep_raw,
+        time_reference=get_str(d, smap, p, "time_reference", None, choices=["pps", "time_tag"]),
     )
 
 

@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from analysis.identification.model import PARAM_KINDS, PARAM_NAMES
+from analysis.timebase import TimeBase
 from analysis.units import DISPLAY_UNITS
 from core.errors import UserError
 from core.jsonio import write_json
@@ -98,6 +99,17 @@ class CalibrationResult:
         """Identification state per parameter (18,)."""
         return np.array([self.parameters[n].identified for n in PARAM_NAMES])
 
+    @property
+    def time_base(self) -> TimeBase | None:
+        """The run's time base (t_table = t₀ + (1 + ε) t_unit with u), or None (a file from before it existed)."""
+        d = self.extra.get("time_base")
+        if not isinstance(d, Mapping):
+            return None
+        clean = {k: (math.nan if v is None else v) for k, v in d.items()}
+        cov = d.get("covariance") or [[0.0, 0.0], [0.0, 0.0]]
+        clean["covariance"] = [[math.nan if x is None else x for x in row] for row in cov]
+        return TimeBase.from_dict(clean)
+
     def compensation_vector(self) -> tuple[NDArray[np.float64], list[str]]:
         """The vector to apply (not-identified parameters set to 0) and the names left out."""
         x = self.x
@@ -125,6 +137,9 @@ class CalibrationResult:
             "u = the identification's combined standard uncertainty (white noise ⊕ correlated bias instability, "
             "k = 1); the certificate adds table, gravity and model components and states U = 2u"
         )
+        tb = self.time_base
+        if tb is not None:
+            lines.append(tb.summary())
         if truth:
             lines.append(f"NEES {truth['nees']:.2f} over {truth['dof']} identified states (simulator truth)")
         else:

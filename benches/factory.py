@@ -171,7 +171,9 @@ def _open_simulated(
     if transport == "in-process":
         unit = SimInertialUnit(world)
         if acl:
-            table: Turntable = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
+            table: Turntable = acl_turntable(
+                AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt, clock=world.host_time
+            )
             what = "simulated ACUTROL (ACL, in-memory)"
         else:
             table, what = SimTurntable(world), "in-process drivers"
@@ -191,7 +193,7 @@ def _open_simulated(
         lb = Loopback(
             world,
             dialect="acutrol" if acl else "modbus",
-            make_acl_table=(lambda transport: acl_turntable(transport, tt)) if acl else None,
+            make_acl_table=(lambda transport: acl_turntable(transport, tt, clock=world.host_time)) if acl else None,
             acl=tt.acl,
             word_order=getattr(tt, "float_word_order", None),
             register_map=getattr(tt, "modbus_map", None),
@@ -224,9 +226,13 @@ def _acl_options(tt: TurntableSpec) -> dict[str, Any]:
     }
 
 
-def acl_turntable(transport: MessageTransport, tt: TurntableSpec) -> AclTurntable:
-    """The ACL driver for a bench's turntable section on an open transport (settings and tolerances from the bench)."""
-    return AclTurntable(transport, tuple(tt.limits), **_acl_options(tt))  # type: ignore[arg-type]
+def acl_turntable(
+    transport: MessageTransport, tt: TurntableSpec, clock: Callable[[], float] | None = None
+) -> AclTurntable:
+    """The ACL driver for a bench's turntable section on an open transport (settings and tolerances from the bench);
+    ``clock``: the host clock (a simulated bench's world clock; None: the host's monotonic clock)."""
+    extra = {} if clock is None else {"clock": clock}
+    return AclTurntable(transport, tuple(tt.limits), **_acl_options(tt), **extra)  # type: ignore[arg-type]
 
 
 def _acutrol_connection(resource: str, tt: TurntableSpec) -> connect.Connection[AclTurntable]:
@@ -280,7 +286,9 @@ def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str)
     try:
         if transport == "in-process":
             if acl:
-                table: Turntable = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
+                table: Turntable = acl_turntable(
+                    AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt, clock=world.host_time
+                )
                 what = "simulated ACUTROL (ACL, in-memory)"
             else:
                 table, what = SimTurntable(world), "simulated table, in-process driver"

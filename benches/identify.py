@@ -28,6 +28,7 @@ from analysis.identification.bias_drift import flicker_components, window_mean_c
 from analysis.identification.kalman import StreamingIdentifier, estimate_measurement_noise
 from analysis.identification.model import PARAM_KINDS, PARAM_NAMES, predict
 from analysis.identification.plan import IdentificationPlan, PlanStep, plan_identification
+from analysis.timebase import IDENTITY, TimeBase
 from analysis.units import DISPLAY_UNITS
 from core.errors import UserError
 from core.provenance import file_sha256
@@ -40,6 +41,7 @@ from .calibration_result import CalibrationResult
 from .progress import ProgressDisplay
 from .recording import RecordingError, StepRecord, open_recording
 from .reference import reference_at, reference_for_samples
+from .timebase import run_time_base, table_in_unit_time, time_base_sensitivity
 
 MODEL_TEXT = (
     "f_out = f + (S + T) f + b + D (f∘f) + diag(r) c(ω), body frame; c(ω) = [ω_y²+ω_z², ω_z²+ω_x², ω_x²+ω_y²]; "
@@ -169,7 +171,9 @@ class LiveIdentifier:
     step end (one exact information-form update per batch: with Q = 0 grouping samples changes nothing).
     The reference for the buffered samples interpolates the table readings taken during (and just before)
     the buffer at the sample times less the unit's latency — the same readings offline identification
-    interpolates, so the live result equals the offline one.
+    interpolates. The live filter cannot know the run's time base before its motions are over, so it takes
+    the table's and the unit's clocks as one: it equals offline identification with ``time_base="none"``;
+    the result written (calibration.json) maps the clocks with the estimated time base.
     """
 
     def __init__(
@@ -275,6 +279,8 @@ class RecordedRun:
     truth: dict[str, float] | None
     incomplete_steps: list[str]
     temperature: NDArray[np.float64]
+    time_base: TimeBase = IDENTITY
+    table: Any = None  # the readings on the unit's clock (benches.recording.TableReadings)
 
 
 ACCEL_INVALID = 0b111
@@ -282,7 +288,7 @@ ACCEL_INVALID = 0b111
 flagged samples are left out of the identification, never silently used."""
 
 
-def load_run(run: str | Path) -> RecordedRun:
+def load_run(run: str | Path, time_base: str = "estimate") -> RecordedRun:
     """Read a recording's acquisition windows and reference; clear errors for unusable recordings.
 
     The recording is verified first (every checksum): identification never runs on damaged data.
@@ -305,8 +311,15 @@ def load_run(run: str | Path) -> RecordedRun:
         if not steps:
             raise IdentificationError(f"{path}: no completed step in the recording (was the run stopped at once?)")
         n = rec.n_samples
-        table = rec.table()
         latency = unit_latency(config)
+        if time_base == "none":
+            tb = TimeBase(method="none (not estimated: table and unit times taken as one clock)")
+        else:
+            tb = run_time_base(
+                rec, rec.table(), g=config.site.g, mounting=config.unit.mounting, latency=latency,
+                declared=getattr(config.unit, "time_reference", None),
+            )  # fmt: skip
+        table = table_in_unit_time(rec.table(), tb)  # every reference on the unit's clock
         windows: list[StepWindow] = []
         warm: NDArray[np.float64] | None = None
         incomplete = [s.name for s in steps if s.status != "complete"]
@@ -343,7 +356,7 @@ def load_run(run: str | Path) -> RecordedRun:
             f"{path}: no complete hold or spin step to identify from (procedure {attrs.get('procedure_name')!r}); "
             "run a calibration procedure such as ten-step"
         )
-    return RecordedRun(path, attrs, config, windows, warm, truth, incomplete, temp)
+    return RecordedRun(path, attrs, config, windows, warm, truth, incomplete, temp, tb, table)
 
 
 def _windows_as_plan_steps(windows: list[StepWindow], max_points: int = 4000) -> list[PlanStep]:
@@ -365,7 +378,38 @@ def _display(k: int, value: float) -> float:
     return value / DISPLAY_UNITS[PARAM_KINDS[k]][1]
 
 
-def identify_run(run: str | Path, method: str = "kalman", noise: str = "configured") -> CalibrationResult:
+def _time_base_covariance(rr: RecordedRun, r_var: NDArray[np.float64], p0: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The identified parameters' covariance from the time base's uncertainty: J Σ Jᵀ, J = ∂x/∂(t₀, ε) (18, 2)."""
+    tb = rr.time_base
+    cov = np.asarray(tb.covariance, dtype=float)
+    if rr.table is None or not np.all(np.isfinite(cov)) or not np.any(cov):
+        return np.zeros((len(PARAM_NAMES), len(PARAM_NAMES)))
+    cfg = rr.config
+    lat = unit_latency(cfg)
+    fs = float(cfg.unit.sample_rate)
+    wins = [(w.t, w.f_out, acquisition_span(float(w.t[0]), float(w.t[-1]), lat, fs)) for w in rr.windows]
+    jac = time_base_sensitivity(
+        wins, rr.table, g=cfg.site.g, mounting=cfg.unit.mounting, latency=lat, r_var=r_var, p0=p0
+    )
+    return jac @ cov @ jac.T
+
+
+def _time_base_block(tb: TimeBase, p_time: NDArray[np.float64]) -> dict[str, Any]:
+    """calibration.json's ``time_base``: the estimate, its u, the method, its effect on each parameter (u, SI,
+    included in the covariance) and on a gyro scale factor (ε 1:1)."""
+    d = tb.as_dict()
+    d["effect_u"] = {n: float(math.sqrt(max(p_time[k, k], 0.0))) for k, n in enumerate(PARAM_NAMES)}
+    for k in ("u_offset_s", "u_rate", "misfit"):
+        if not math.isfinite(d[k]):
+            d[k] = None
+    d["covariance"] = [[x if math.isfinite(x) else None for x in row] for row in d["covariance"]]
+    d["gyro_scale_factor_u"] = d["u_rate"]  # a gyro scale factor measured as angle over time inherits ε 1:1
+    return d
+
+
+def identify_run(
+    run: str | Path, method: str = "kalman", noise: str = "configured", time_base: str = "estimate"
+) -> CalibrationResult:
     """Identify the 18 parameters from a recording; returns the typed calibration result.
 
     Parameters
@@ -376,10 +420,15 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
         The streaming filter over all windows in order, or batch least squares (same prior, same model).
     noise : {"configured", "warm-up"}
         R from the bench's configured VRW, or estimated from the run's warm-up record.
+    time_base : {"estimate", "none"}
+        Map the table's clock to the unit's with the run's estimated time base (benches.timebase), or take
+        them as one clock (what the live filter during the run does; for comparisons).
     """
     if method not in ("kalman", "batch"):
         raise IdentificationError(f"unknown method {method!r}; use kalman or batch")
-    rr = load_run(run)
+    if time_base not in ("estimate", "none"):
+        raise IdentificationError(f"unknown time base {time_base!r}; use estimate or none")
+    rr = load_run(run, time_base)
     config = rr.config
     p0 = prior_covariance(config)
     if noise == "configured":
@@ -441,6 +490,8 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
         offset_covariance=offset_covariance([(float(w.t[0]), float(w.t[-1])) for w in rr.windows], b),
     )
     p_total = p_white + (actual.covariance_total - actual.covariance_white)
+    p_time = _time_base_covariance(rr, r_var, p0)
+    p_total = p_total + p_time
     p_total = 0.5 * (p_total + p_total.T)
     sigma = np.sqrt(np.diag(p_total))
     sigma_white = np.sqrt(np.diag(p_white))
@@ -514,6 +565,7 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
             "warnings": list(actual.warnings),
         },
         "truth": truth_block,
+        "time_base": _time_base_block(rr.time_base, p_time),
         "history": history,
         "run": {
             "status": str(a.get("status", "")),

@@ -63,6 +63,12 @@ _TABLE_DTYPES = {"time": np.float64, "angles": np.float64, "rates": np.float64, 
 _WIDTH = {"accel": 3, "gyro": 3, "angles": 3, "rates": 3}
 QUANTISED_FIELDS = ("time", "accel", "gyro")
 
+TIMING_TABLE = {"table_sample_index": np.int64, "table_controller_time": np.float64,
+                "table_host_request": np.float64, "table_host_answer": np.float64}  # fmt: skip
+"""``/timing`` datasets with one row per table reading (RECORDING.md, time sources)."""
+TIMING_BLOCK = {"block_end_sample": np.int64, "block_host_time": np.float64}
+"""``/timing`` datasets with one row per block of unit samples received."""
+
 IMU_CHUNK = 16384
 TABLE_CHUNK = 1024
 READ_CHUNK = 1 << 18
@@ -222,6 +228,20 @@ class TableReadings:
 
     def __len__(self) -> int:
         return int(self.time.shape[0])
+
+
+@dataclass(frozen=True)
+class TimeSources:
+    """Every time source of a run, raw (RECORDING.md): per table reading (rows as ``/table``) the number of unit
+    samples recorded before it, the controller's clock (NaN: not reported) and the host's request and answer
+    times; per block of unit samples its end (samples recorded after it) and the host's receive time. Seconds."""
+
+    table_sample_index: NDArray[np.int64]
+    table_controller_time: NDArray[np.float64]
+    table_host_request: NDArray[np.float64]
+    table_host_answer: NDArray[np.float64]
+    block_end_sample: NDArray[np.int64]
+    block_host_time: NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -582,6 +602,8 @@ class Hdf5Recorder:
         self.checkpoint_samples = int(checkpoint_samples)
         self._buf_imu: list[ImuBlock] = []
         self._buf_table: list[TableState] = []
+        self._buf_timing: list[tuple[int, float, float, float]] = []  # per reading: sample index, controller, host
+        self._buf_blocks: list[tuple[int, float]] = []  # per block: end sample, host receive time
         self._buf_events: list[tuple[float, str, str, str]] = []
         self._buffered = 0
         self._closed = False
@@ -680,6 +702,7 @@ class Hdf5Recorder:
         tab = _group(f, "table")
         for name in TABLE_FIELDS:
             self._dataset(tab, name, _TABLE_DTYPES[name], _WIDTH.get(name), TABLE_CHUNK)
+        self._timing_datasets(f)
         f.create_dataset("steps", shape=(0,), maxshape=(None,), dtype=STEP_DTYPE, chunks=(64,), fletcher32=True)
         f.create_dataset("events", shape=(0,), maxshape=(None,), dtype=EVENT_DTYPE, chunks=(64,), fletcher32=True)
         if truth is not None:
@@ -689,6 +712,13 @@ class Hdf5Recorder:
                 g.attrs[k] = float(arr) if arr.ndim == 0 else arr  # attributes: in the checksummed header
         f.flush()
         return f
+
+    def _timing_datasets(self, f: h5py.File) -> None:
+        """The raw time sources (``/timing``), created if missing (a recording made before they existed)."""
+        g = f["timing"] if "timing" in f else _group(f, "timing")
+        for name, dt in {**TIMING_TABLE, **TIMING_BLOCK}.items():
+            if name not in g:
+                self._dataset(g, name, dt, None, TABLE_CHUNK)
 
     def _open_resume(self) -> h5py.File:
         if not self.path.exists():
@@ -721,6 +751,14 @@ class Hdf5Recorder:
                 d.resize(int(np.searchsorted(rows, cut)), axis=0)
             for d in f["table"].values():
                 d.resize(min(keep_t, d.shape[0]), axis=0)
+            self._timing_datasets(f)
+            tg = f["timing"]
+            for name in TIMING_TABLE:
+                tg[name].resize(min(keep_t, tg[name].shape[0]), axis=0)
+            ends = tg["block_end_sample"][()]
+            n_keep = int(np.searchsorted(ends, cut, side="right"))
+            for name in TIMING_BLOCK:
+                tg[name].resize(min(n_keep, tg[name].shape[0]), axis=0)
             f["steps"].resize(len(complete), axis=0)
             _set_attr(f, "status", "running")
             f.flush()
@@ -741,6 +779,7 @@ class Hdf5Recorder:
             return
         self._buf_imu.append(block)
         self._buffered += len(block)
+        self._buf_blocks.append((self.n_samples, float(getattr(block, "host_time", math.nan))))
         if self._buffered >= self.checkpoint_samples:
             self.checkpoint(full=False)
         elif self._chunks is not None and self._chunks.pending:
@@ -748,8 +787,17 @@ class Hdf5Recorder:
                 self._chunks.drain(wait=False)  # chunks (and step rows) the encoder has finished
 
     def add_table(self, state: TableState) -> None:
-        """Buffer one table reading (hashed and written at the next step-boundary checkpoint)."""
+        """Buffer one table reading (hashed and written at the next step-boundary checkpoint), with its raw time
+        sources (the samples recorded before it, the controller's and the host's clocks)."""
         self._buf_table.append(state)
+        self._buf_timing.append(
+            (
+                self.n_samples,
+                float(getattr(state, "controller_time", math.nan)),
+                float(getattr(state, "host_request", math.nan)),
+                float(getattr(state, "host_answer", math.nan)),
+            )
+        )
 
     def event(self, time: float, level: str, message: str) -> None:
         """Buffer an event-log line."""
@@ -822,6 +870,15 @@ class Hdf5Recorder:
                 _append_rows(f["table"][name], data)
             self._table_written += len(b)
             self._buf_table.clear()
+            tim = np.array(self._buf_timing, dtype=np.float64).reshape(-1, 4)
+            for j, name in enumerate(TIMING_TABLE):
+                _append_rows(f["timing"][name], tim[:, j].astype(TIMING_TABLE[name]))
+            self._buf_timing.clear()
+        if self._buf_blocks:
+            blk = np.array(self._buf_blocks, dtype=np.float64).reshape(-1, 2)
+            for j, name in enumerate(TIMING_BLOCK):
+                _append_rows(f["timing"][name], blk[:, j].astype(TIMING_BLOCK[name]))
+            self._buf_blocks.clear()
         if self._buf_events:
             rows = np.array(
                 [
@@ -1388,6 +1445,20 @@ class Recording:
         stop = self.n_table if stop is None else min(int(stop), self.n_table)
         with self._guard("/table"):
             return self._table_rows(max(0, int(start)), stop)
+
+    def timing(self) -> TimeSources | None:
+        """The raw time sources (``/timing``; RECORDING.md), or None for a recording made before they existed."""
+        if "timing" not in self._f:
+            return None
+        with self._guard("/timing"):
+            g = self._f["timing"]
+            cols = {name: g[name][()] for name in (*TIMING_TABLE, *TIMING_BLOCK)}
+        n = min(self.n_table, cols["table_sample_index"].shape[0])
+        return TimeSources(
+            **{k: v[:n] for k, v in cols.items() if k in TIMING_TABLE},
+            block_end_sample=cols["block_end_sample"],
+            block_host_time=cols["block_host_time"],
+        )
 
     def events(self) -> list[Event]:
         """The event log."""

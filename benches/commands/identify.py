@@ -38,6 +38,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="configured",
         help="measurement noise R: the bench's configured VRW, or estimated from the warm-up",
     )
+    p.add_argument(
+        "--time-base",
+        choices=("estimate", "none"),
+        default="estimate",
+        help="map the table's clock to the unit's with the time base estimated from the run's motions (default; "
+        "docs/methods/time-base.md), or take them as one clock (none: for comparisons)",
+    )
     p.add_argument("--out", default=None, metavar="FILE.json", help="default: RUN/calibration.json")
     p.set_defaults(func=run)
 
@@ -51,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     )
 
     try:
-        result = identify_run(args.run, method=args.method, noise=args.noise)
+        result = identify_run(args.run, method=args.method, noise=args.noise, time_base=args.time_base)
     except IdentificationError as exc:
         raise UsageError(str(exc)) from None
     folder = Path(args.run) if Path(args.run).is_dir() else Path(args.run).parent

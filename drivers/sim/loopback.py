@@ -115,7 +115,9 @@ class Loopback:
                     driver = (
                         make_acl_table(transport)
                         if make_acl_table is not None
-                        else connect.AclTurntable(transport, world.table_limits(), settings=self.table_server.settings)
+                        else connect.AclTurntable(
+                            transport, world.table_limits(), settings=self.table_server.settings, clock=world.host_time
+                        )
                     )
                 except BaseException:
                     res.close()
@@ -135,6 +137,7 @@ class Loopback:
                 name="simulated unit",
                 raw_sink=unit_raw,
                 raw_name=unit_raw_name,
+                clock=world.host_time,
             )
             self._closers.insert(0, unit.close)
             self.unit_port = unit.transport
