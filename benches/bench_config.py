@@ -302,7 +302,8 @@ def _acl(d: dict | None, smap: SourceMap, p: KeyPath, resource: str | None, simu
             raise smap.error(p + ("axes",), f"outer, middle and inner need three different axis numbers, got {axes}")
     tv = d.get("time_variable")
     if tv is None:
-        time_variable = SIM_TIME_VARIABLE if simulated else None
+        # absent: a simulated controller serves its clock; an explicit null: readings stamped by the host
+        time_variable = SIM_TIME_VARIABLE if simulated and "time_variable" not in d else None
     else:
         time_variable = _int(d, smap, p, "time_variable", 0, 0, 99999)
     oi = d.get("open_interlocks_at_end", False)

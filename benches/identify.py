@@ -28,7 +28,7 @@ from analysis.identification.bias_drift import flicker_components, window_mean_c
 from analysis.identification.kalman import StreamingIdentifier, estimate_measurement_noise
 from analysis.identification.model import PARAM_KINDS, PARAM_NAMES, predict
 from analysis.identification.plan import IdentificationPlan, PlanStep, plan_identification
-from analysis.timebase import IDENTITY, TimeBase
+from analysis.timebase import IDENTITY, TimeBase, misfit_cause
 from analysis.units import DISPLAY_UNITS
 from core.errors import UserError
 from core.provenance import file_sha256
@@ -378,12 +378,15 @@ def _display(k: int, value: float) -> float:
     return value / DISPLAY_UNITS[PARAM_KINDS[k]][1]
 
 
-def _time_base_covariance(rr: RecordedRun, r_var: NDArray[np.float64], p0: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The identified parameters' covariance from the time base's uncertainty: J Σ Jᵀ, J = ∂x/∂(t₀, ε) (18, 2)."""
+def _time_base_covariance(
+    rr: RecordedRun, r_var: NDArray[np.float64], p0: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The identified parameters' covariance from the time base's uncertainty, J Σ Jᵀ, and J = ∂x/∂(t₀, ε) (18, 2)."""
     tb = rr.time_base
     cov = np.asarray(tb.covariance, dtype=float)
+    n = len(PARAM_NAMES)
     if rr.table is None or not np.all(np.isfinite(cov)) or not np.any(cov):
-        return np.zeros((len(PARAM_NAMES), len(PARAM_NAMES)))
+        return np.zeros((n, n)), np.zeros((n, 2))
     cfg = rr.config
     lat = unit_latency(cfg)
     fs = float(cfg.unit.sample_rate)
@@ -391,14 +394,32 @@ def _time_base_covariance(rr: RecordedRun, r_var: NDArray[np.float64], p0: NDArr
     jac = time_base_sensitivity(
         wins, rr.table, g=cfg.site.g, mounting=cfg.unit.mounting, latency=lat, r_var=r_var, p0=p0
     )
-    return jac @ cov @ jac.T
+    return jac @ cov @ jac.T, jac
 
 
-def _time_base_block(tb: TimeBase, p_time: NDArray[np.float64]) -> dict[str, Any]:
+def _time_base_warnings(rr: RecordedRun) -> list[str]:
+    """Lines for calibration.json's warnings: a timing misfit beyond what the budget carries (naming its cause),
+    a host-clock check that disagrees, a time base that could not be measured.
+
+    Within a motion the budget carries a reading's timing error up to the table's attitude accuracy (its
+    rectangular u) over the run's fastest rate (analysis.timebase.misfit_cause)."""
+    tb = rr.time_base
+    out = [n for n in tb.notes if "disagrees" in n or "without a stated uncertainty" in n]
+    host = tb.check.get("table_stamped_by") == "host"
+    w_max = float(np.max(np.abs(rr.table.rates))) if rr.table is not None and len(rr.table) else 0.0
+    att = float(rr.config.turntable.attitude_accuracy) / math.sqrt(3.0)
+    cause = misfit_cause(tb, host_stamped=host, carried=att / w_max if w_max > 0 else math.inf)
+    if cause:
+        out.append(cause)
+    return out
+
+
+def _time_base_block(tb: TimeBase, p_time: NDArray[np.float64], jac: NDArray[np.float64]) -> dict[str, Any]:
     """calibration.json's ``time_base``: the estimate, its u, the method, its effect on each parameter (u, SI,
     included in the covariance) and on a gyro scale factor (ε 1:1)."""
     d = tb.as_dict()
     d["effect_u"] = {n: float(math.sqrt(max(p_time[k, k], 0.0))) for k, n in enumerate(PARAM_NAMES)}
+    d["sensitivity"] = {n: [float(jac[k, 0]), float(jac[k, 1])] for k, n in enumerate(PARAM_NAMES)}
     for k in ("u_offset_s", "u_rate", "misfit"):
         if not math.isfinite(d[k]):
             d[k] = None
@@ -490,7 +511,7 @@ def identify_run(
         offset_covariance=offset_covariance([(float(w.t[0]), float(w.t[-1])) for w in rr.windows], b),
     )
     p_total = p_white + (actual.covariance_total - actual.covariance_white)
-    p_time = _time_base_covariance(rr, r_var, p0)
+    p_time, jac_time = _time_base_covariance(rr, r_var, p0)
     p_total = p_total + p_time
     p_total = 0.5 * (p_total + p_total.T)
     sigma = np.sqrt(np.diag(p_total))
@@ -532,6 +553,7 @@ def identify_run(
             "nees_states": [PARAM_NAMES[i] for i in idx],
         }
     warnings = list(actual.warnings)
+    warnings += _time_base_warnings(rr)
     if rr.incomplete_steps:
         warnings.insert(0, f"recording incomplete: step(s) {', '.join(rr.incomplete_steps)} not completed")
     if not rr.attrs.get("integrity_verified", False):
@@ -565,7 +587,7 @@ def identify_run(
             "warnings": list(actual.warnings),
         },
         "truth": truth_block,
-        "time_base": _time_base_block(rr.time_base, p_time),
+        "time_base": _time_base_block(rr.time_base, p_time, jac_time),
         "history": history,
         "run": {
             "status": str(a.get("status", "")),

@@ -84,33 +84,43 @@ def clock_check(
     return out
 
 
-def misfit_cause(estimate: TimeBase, host_stamped: bool, budget_offset: float) -> str | None:
+def misfit_cause(estimate: TimeBase, host_stamped: bool, carried: float) -> str | None:
     """One line naming the cause when the timing misfit around motions exceeds what the budget carries, else None.
 
-    The misfit is the scatter of the per-motion offsets about the fitted line, compared with
-    ``budget_offset`` (s: the offset uncertainty the budget propagates). Causes named from the recorded clocks:
-    host-stamped readings whose answer latency jitters, a unit link whose frames arrive in bursts, or a clock
-    that drifts during the run (residuals with a trend the straight line does not follow).
+    Two misfits are tested. Within a motion: the typical residual of an event's fit expressed as time (a
+    reading's time stamp that jitters turns the reference by ω·jitter); the budget carries ``carried`` (s; the
+    caller's: the table's attitude accuracy over the fastest rate), and 3 × that is the limit. Between motions:
+    the per-motion offsets scatter about the fitted line by more than 3 × their own σ (Birge ratio > 3; the
+    offset's u is already scaled by it, but a scatter that large means the model t₀ + (1 + ε) t does not hold).
+    The cause is named from the recorded clocks: host-stamped readings whose answer latency jitters, a unit link
+    whose frames arrive in bursts, or a drifting clock.
     """
-    if len(estimate.events) < 3 or not math.isfinite(estimate.misfit):
+    if not estimate.events:
         return None
     r = np.array([e.residual for e in estimate.events])
-    scatter = float(np.sqrt(np.mean(r * r)))
-    if estimate.misfit <= 3.0 or scatter <= 3.0 * max(budget_offset, 1e-9):
+    scatter = float(np.sqrt(np.mean(r * r))) if len(estimate.events) >= 3 else 0.0
+    inside = np.array([e.rms_time for e in estimate.events])
+    inside = inside[np.isfinite(inside)]
+    within = float(np.median(inside)) if inside.size else 0.0
+    bad_within = within > 3.0 * max(carried, 1e-9)
+    bad_between = math.isfinite(estimate.misfit) and estimate.misfit > 3.0 and len(estimate.events) >= 3
+    if not (bad_within or bad_between):
         return None
+    worst = within if bad_within else scatter
+    what = "within motions" if bad_within else "between motions"
+    base = (
+        f"timing misfit around the motions: {worst * 1e3:.3f} ms {what} (limit {3 * carried * 1e3:.3f} ms "
+        f"within, Birge ratio {estimate.misfit:.1f} between), beyond what the uncertainty budget carries"
+    )
     ck = estimate.check
     rl = ck.get("reading_latency_spread_s")
     ll = ck.get("link_latency_spread_s")
-    base = (
-        f"timing misfit around the motions: the per-motion clock offsets scatter by {scatter * 1e3:.3f} ms "
-        f"(Birge ratio {estimate.misfit:.1f}), beyond the {budget_offset * 1e3:.3f} ms the budget carries"
-    )
-    if host_stamped and rl is not None and rl > 0.3 * scatter:
+    if host_stamped and rl is not None and rl > 0.3 * worst:
         return (
             f"{base}: the table's readings are stamped by the host when they arrive and their latency jitters "
             f"by {rl * 1e3:.2f} ms; configure the controller's time variable (turntable.acl.time_variable)"
         )
-    if ll is not None and ll > 0.3 * scatter:
+    if ll is not None and ll > 0.3 * worst:
         return (
             f"{base}: the unit's frames arrive in bursts (arrival scatter {ll * 1e3:.2f} ms about a steady "
             "clock); check the serial link / device-server buffering"

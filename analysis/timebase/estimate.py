@@ -159,9 +159,7 @@ def _local_quadratic(
     return val, der
 
 
-def _accel_event(
-    sig: RunSignals, w: MotionWindow, t0: float, eps: float, half_window: float
-) -> TimingEvent | None:
+def _accel_event(sig: RunSignals, w: MotionWindow, t0: float, eps: float, half_window: float) -> TimingEvent | None:
     idx = w.readings
     if idx.size < 8:
         return None

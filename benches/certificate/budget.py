@@ -25,9 +25,11 @@ from analysis.identification.budget import (
     default_g_uncertainty,
 )
 from analysis.identification.model import PARAM_KINDS, PARAM_NAMES
+from analysis.timebase import TimeBase
 from benches.calibration_result import CalibrationResult
 from benches.identify import acquisition_span
 from benches.reference import reference_for_samples
+from benches.timebase import table_in_unit_time
 
 if TYPE_CHECKING:  # pragma: no cover
     from benches.recording import Recording
@@ -53,6 +55,7 @@ def step_geometry(
     latency: float = 0.0,
     names: Sequence[str] | None = None,
     max_points: int = 400,
+    time_base: TimeBase | None = None,
 ) -> list[StepGeometry]:
     """Decimated reference geometry of the complete hold/spin steps of an open recording.
 
@@ -70,9 +73,12 @@ def step_geometry(
         Only these steps (the ones the identification used); default every complete hold and spin.
     max_points : int
         Reference points per step (evenly spaced sample centres).
+    time_base : analysis.timebase.TimeBase, optional
+        The run's time base (calibration.json): the readings are put on the unit's clock with it, as the
+        identification did (benches.timebase.table_in_unit_time).
     """
     wanted = set(names) if names is not None else None
-    table = f.table()
+    table = f.table() if time_base is None else table_in_unit_time(f.table(), time_base)
     tt, ta, tr = table.time, table.angles, table.rates
     fs = float(f.header.sample_rate_hz)
     out: list[StepGeometry] = []
@@ -155,8 +161,9 @@ def budget_for_run(
     notes: list[str] = []
     p_w = cal.covariance_white
     per_step = list((cal.extra.get("residuals") or {}).get("per_step") or [])
+    p_tb, tb_source = time_base_covariance(cal)
     budget = build_budget(
-        p_id,
+        p_id - p_tb,
         p_w,
         geometry,
         nv,
@@ -169,5 +176,29 @@ def budget_for_run(
         flicker_step_variance=None if bias_instability is None else flicker_step_variance(geometry, bias_instability),
         residuals_per_step=per_step,
     )
+    if tb_source:
+        budget.components.append(
+            BudgetComponent("time_base", "Time base (unit clock vs table clock)", tb_source, "A", p_tb)
+        )
     budget.notes.extend(notes)
     return budget
+
+
+def time_base_covariance(cal: CalibrationResult) -> tuple[NDArray[np.float64], str]:
+    """The parameters' covariance from the run's estimated time base (J Σ Jᵀ, J = ∂x/∂(t₀, ε) from
+    calibration.json), included in its covariance, and the budget line's source text ("" if none)."""
+    z = np.zeros((len(PARAM_NAMES), len(PARAM_NAMES)))
+    d = cal.extra.get("time_base")
+    tb = cal.time_base
+    if tb is None or not isinstance(d, dict) or not d.get("sensitivity"):
+        return z, ""
+    cov = np.asarray(tb.covariance, dtype=float)
+    if not np.all(np.isfinite(cov)):
+        return z, ""
+    jac = np.array([d["sensitivity"][n] for n in PARAM_NAMES], dtype=float)
+    src = (
+        f"t_table = t0 + (1 + eps) t_unit estimated from the run ({tb.method}, {len(tb.events)} motions): "
+        f"t0 = {tb.offset * 1e3:.4f} ms, u = {tb.u_offset * 1e6:.3g} µs; eps = {tb.rate * 1e6:+.3f} ppm, "
+        f"u = {tb.u_rate * 1e6:.3g} ppm; offset → misalignment and size effect through the spins"
+    )
+    return jac @ cov @ jac.T, src

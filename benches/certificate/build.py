@@ -324,7 +324,7 @@ def build_certificate(
         binfo = bench or bench_info(bench_text, dict(cal.get("run") or {}), attrs)
         used = [str(p.get("name")) for p in (cal.get("residuals") or {}).get("per_step", [])]
         geometry = step_geometry(f, binfo.g, None if binfo.mounting is None else np.asarray(binfo.mounting),
-                                 latency=binfo.latency, names=used or None)  # fmt: skip
+                                 latency=binfo.latency, names=used or None, time_base=cal_result.time_base)  # fmt: skip
         temp = f.temperature_stats()
         n_samples = f.n_samples
         ends = f.samples(fields=("time",), index=[0, n_samples - 1]).time if n_samples > 1 else None

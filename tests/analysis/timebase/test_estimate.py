@@ -148,8 +148,16 @@ def test_clock_check_recovers_the_rate_from_host_times_and_flags_a_disagreement(
 def test_misfit_cause_names_host_stamped_readings():
     from analysis.timebase import TimingEvent
 
-    evs = [TimingEvent(float(i), 0.0, 1e-5, 2, 10, 1e-5, r) for i, r in enumerate([2e-3, -2e-3, 1.5e-3, -1e-3])]
-    tb = TimeBase(events=evs, misfit=50.0, check={"reading_latency_spread_s": 1.5e-3})
-    line = misfit_cause(tb, host_stamped=True, budget_offset=1e-5)
-    assert line is not None and "stamped by the host" in line and "time_variable" in line
-    assert misfit_cause(tb, host_stamped=True, budget_offset=1.0) is None
+    res = [2e-3, -2e-3, 1.5e-3, -1e-3]
+    between = [TimingEvent(float(i), 0.0, 1e-5, 2, 10, 1e-5, r) for i, r in enumerate(res)]
+    tb = TimeBase(events=between, misfit=50.0, check={"reading_latency_spread_s": 1.5e-3})
+    line = misfit_cause(tb, host_stamped=True, carried=1e-5)
+    assert line is not None and "between motions" in line and "stamped by the host" in line
+    assert "time_variable" in line
+    # consistent events (Birge ratio ≤ 3) whose in-motion misfit the budget carries: nothing to say
+    assert misfit_cause(TimeBase(events=between, misfit=1.0), host_stamped=True, carried=1e-3) is None
+    # readings jittering within each motion by 1 ms, beyond the 10 µs the budget carries; the unit's link bursts
+    within = [TimingEvent(float(i), 0.0, 1e-5, 2, 10, 1e-3, 0.0) for i in range(4)]
+    tb = TimeBase(events=within, misfit=1.0, check={"link_latency_spread_s": 2e-3})
+    line = misfit_cause(tb, host_stamped=False, carried=1e-5)
+    assert line is not None and "within motions" in line and "bursts" in line
