@@ -45,8 +45,8 @@ from core.yaml_source import get_list_of_maps as _list_of_maps
 from core.yaml_source import get_matrix as _matrix
 from core.yaml_source import get_section as _section
 from drivers.acutrol.settings import AclSettings, default_profile
-from drivers.imu_counts import CountScale
-from drivers.imu_frame_desc import (
+from drivers.imu_unit.counts import CountScale
+from drivers.imu_unit.description import (
     DEFAULT_FRAME,
     FrameDescription,
     FrameFormat,
@@ -55,9 +55,9 @@ from drivers.imu_frame_desc import (
     load_frame,
     shipped_frames,
 )
-from drivers.modbus_map import ModbusMap, load_modbus_map
+from drivers.imu_unit.serial_unit import count_format
+from drivers.modbus.register_map import ModbusMap, load_modbus_map
 from drivers.protocols import AXIS_NAMES, AxisLimits
-from drivers.serial_imu import count_format
 from drivers.sim.acl_controller import SIM_TIME_VARIABLE
 from drivers.sim.bench_section import parse_simulation
 from drivers.sim.config import (
@@ -176,7 +176,7 @@ class UnitSpec:
     noise: NoiseSpec
     prior: dict[str, float] = field(default_factory=dict)
     latency: float = 0.0  # s: output latency (anti-alias group delay) from the datasheet
-    frame: str = "tablebench-v1"  # frame format: shipped name or description path (drivers/frames/README.md)
+    frame: str = "tablebench-v1"  # frame format: shipped name or description path (drivers/imu_unit/frames/README.md)
     frame_options: dict[str, Any] = field(default_factory=dict)  # the unit's output configuration
     frame_desc: FrameDescription | None = None
     keep_raw: bool = False  # keep the raw serial stream as RUN_DIR/unit-raw.bin

@@ -284,8 +284,8 @@ class RecordedRun:
 
 
 ACCEL_INVALID = 0b111
-"""``/imu/status`` bits of the accelerometer channels (bit set = sample invalid, drivers.imu_frame_desc.FLAG_BITS):
-flagged samples are left out of the identification, never silently used."""
+"""``/imu/status`` bits of the accelerometer channels (bit set = sample invalid,
+drivers.imu_unit.description.FLAG_BITS): flagged samples are left out of the identification, never silently used."""
 
 
 def load_run(run: str | Path, time_base: str = "estimate") -> RecordedRun:

@@ -1,10 +1,10 @@
 """Benchmark: decoding every shipped frame format, as multiples of real time at 1 kHz.
 
-For each description in ``drivers/frames/`` a stream of ``seconds`` × 1000 frames is encoded once (SI
+For each description in ``drivers/imu_unit/frames/`` a stream of ``seconds`` × 1000 frames is encoded once (SI
 samples in range; 1 % of frames preceded by garbage and 0.1 % with a flipped bit, so the resynchronisation
 path runs too), then decoded the way the serial driver does it: fed in chunks of 0.2 s of data (the
 runner's block) and of 1 s, checksums verified, fields extracted and converted to SI samples with counter checks
-(:class:`drivers.imu_frame.FrameDecoder` + :class:`drivers.imu_frame_samples.SampleConverter`). The figure
+(:class:`drivers.imu_unit.decoder.FrameDecoder` + :class:`drivers.imu_unit.samples.SampleConverter`). The figure
 is bench seconds decoded per wall second (× real time), the reference being real time itself; the decoded
 count is checked against the frames sent. Also: one 60-s feed (a capture file decoded by ``tablebench
 decode``). Full size: 60 s per format; ``--quick``: 10 s.
@@ -20,9 +20,9 @@ import numpy as np
 
 from analysis.units import CELSIUS_ZERO, DEG, G0
 from benchmarks._results import write_section
-from drivers.imu_frame import FrameCodec, FrameDecoder
-from drivers.imu_frame_desc import compile_format, load_frame, shipped_frames
-from drivers.imu_frame_samples import SampleConverter, encode_samples
+from drivers.imu_unit.decoder import FrameCodec, FrameDecoder
+from drivers.imu_unit.description import compile_format, load_frame, shipped_frames
+from drivers.imu_unit.samples import SampleConverter, encode_samples
 
 RATE = 1000.0
 

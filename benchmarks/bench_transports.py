@@ -35,8 +35,8 @@ import numpy as np
 from benches.bench_config import load_bench
 from benches.factory import open_bench
 from benchmarks._results import write_section
-from drivers.imu_frame import FrameDecoder
-from drivers.imu_frame_desc import load_frame
+from drivers.imu_unit.decoder import FrameDecoder
+from drivers.imu_unit.description import load_frame
 from drivers.sim.serial_unit import encode_frames
 
 BENCH = Path(__file__).resolve().parents[1] / "benches" / "sim.yaml"

@@ -17,12 +17,12 @@ import serial
 from pymodbus.client import ModbusTcpClient
 
 from drivers.acutrol import AclSettings, AclTurntable
-from drivers.imu_counts import CountScale
-from drivers.imu_frame_desc import FrameFormat
-from drivers.modbus_map import ModbusMap
-from drivers.modbus_table import ModbusTurntable
+from drivers.imu_unit.counts import CountScale
+from drivers.imu_unit.description import FrameFormat
+from drivers.imu_unit.serial_unit import SerialInertialUnit
+from drivers.modbus.register_map import ModbusMap
+from drivers.modbus.table import ModbusTurntable
 from drivers.protocols import AxisLimits, LinkError
-from drivers.serial_imu import SerialInertialUnit
 from drivers.transport import VisaTransport, open_visa
 
 D = TypeVar("D")
@@ -63,7 +63,7 @@ def modbus_table(
     retries: int = 1,
     wrap: Wrap = _same,
 ) -> Connection[ModbusTurntable]:
-    """A Modbus TCP turntable controller at ``host:port`` with its register map (:mod:`drivers.modbus_map`)."""
+    """A Modbus TCP turntable controller at ``host:port`` with its register map (:mod:`drivers.modbus.register_map`)."""
     client = ModbusTcpClient(host, port=port, timeout=timeout, retries=retries)
     if not client.connect():
         client.close()
@@ -141,7 +141,7 @@ def serial_unit(
 ) -> Connection[SerialInertialUnit]:
     """A serial inertial unit on a device or URL: free-running stream, or polled bursts (``polled``); ``frame``
     is its frame format (a bare count scale means the project's own ``tablebench-v1`` frame); ``raw_sink``
-    keeps the raw byte stream (see :class:`~drivers.serial_imu.SerialInertialUnit`)."""
+    keeps the raw byte stream (see :class:`~drivers.imu_unit.serial_unit.SerialInertialUnit`)."""
     kw: dict[str, Any] = {"timeout": 0.02}
     if baudrate is not None:
         kw["baudrate"] = int(baudrate)

@@ -216,7 +216,7 @@ class ImuBlock:
         Unit temperature, K.
     status : ndarray (n,) uint16
         Per-sample flags, bit set = invalid: bits 0–2 accel x/y/z, 3–5 gyro x/y/z, 6 temperature, 7 a
-        unit-level problem (``drivers.imu_frame_desc.FLAG_BITS``); 0 = every channel valid.
+        unit-level problem (``drivers.imu_unit.description.FLAG_BITS``); 0 = every channel valid.
     dropped : int
         Frames missing in this block (from counter gaps, including the gap from the previous block).
     rejected : int

@@ -31,8 +31,8 @@ import pytest
 
 from analysis.units import G0
 from benches.cli import build_parser, main
-from drivers.imu_frame_desc import compile_format, load_frame
-from drivers.imu_frame_samples import encode_samples
+from drivers.imu_unit.description import compile_format, load_frame
+from drivers.imu_unit.samples import encode_samples
 from tests import REPO_ROOT
 from tests.certificate_fixtures import make_run_folder
 

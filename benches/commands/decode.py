@@ -17,10 +17,10 @@ from benches.arguments import bounded
 from benches.bench_config import load_bench, unit_frame_format
 from benches.recording import write_decoded_samples
 from core.errors import UsageError
-from drivers.imu_frame import DecodeStats, FrameDecoder
-from drivers.imu_frame_desc import FrameFormat, compile_format, load_frame, shipped_frames
-from drivers.imu_frame_samples import SampleConverter, Samples
-from drivers.serial_imu import concat_samples
+from drivers.imu_unit.decoder import DecodeStats, FrameDecoder
+from drivers.imu_unit.description import FrameFormat, compile_format, load_frame, shipped_frames
+from drivers.imu_unit.samples import SampleConverter, Samples
+from drivers.imu_unit.serial_unit import concat_samples
 
 EXAMPLES = """examples:
   tablebench decode --frame kvh-1750-a capture.bin --out samples.csv
@@ -39,9 +39,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "decode",
         help="decode a raw unit capture (frames → SI samples) and summarise the link",
         description="Decode a raw byte capture of an inertial unit's serial stream with a frame description "
-        "(shipped name or .yaml; see drivers/frames/README.md) into one row per frame: time (s), sample index, "
-        "counter as sent, accel x/y/z (m/s²), gyro x/y/z (rad/s), temperature (K), status flags (bit set = "
-        "invalid), then the format's other channels (SI) and raw status fields. Prints frames, rejects, "
+        "(shipped name or .yaml; see drivers/imu_unit/frames/README.md) into one row per frame: time (s), "
+        "sample index, counter as sent, accel x/y/z (m/s²), gyro x/y/z (rad/s), temperature (K), status flags "
+        "(bit set = invalid), then the format's other channels (SI) and raw status fields. Prints frames, rejects, "
         "garbage bytes, counter gaps, resets and duplicates.",
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,

@@ -56,7 +56,7 @@ from numpy.typing import NDArray
 
 from analysis.units import DEG
 from drivers.acutrol.settings import AclSettings
-from drivers.modbus_table import check_position, check_rate
+from drivers.modbus.table import check_position, check_rate
 from drivers.protocols import (
     AXIS_NAMES,
     AxisLimits,

@@ -39,7 +39,7 @@ from core.yaml_source import get_int as _int
 from core.yaml_source import get_list_of_maps as _list_of_maps
 from core.yaml_source import get_matrix as _matrix
 from core.yaml_source import get_section as _section
-from drivers.imu_counts import CountScale
+from drivers.imu_unit.counts import CountScale
 from drivers.protocols import AxisLimits, FaultCode
 from drivers.sim.config import (
     CHANNELS,

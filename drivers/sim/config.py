@@ -17,8 +17,9 @@ from dataclasses import dataclass, field
 from analysis.earth import normal_gravity
 from analysis.identification.model import PARAM_NAMES
 from analysis.units import ARCSEC, DEG, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MM, PPM, UG, UG_PER_G2
-from drivers.imu_counts import CountScale
+from drivers.imu_unit.counts import CountScale
 from drivers.protocols import AxisLimits, FaultCode
+from drivers.sim.thermal_config import ChamberSim, ThermalTruth
 
 Vec3 = tuple[float, float, float]
 Mat3 = tuple[Vec3, Vec3, Vec3]
@@ -297,6 +298,9 @@ class SimConfig:
     table : TableModel. faults : scheduled faults.
     seed : default seed. transport : "in-process" or "loopback".
     clocks : ClockModel (the dataclass default is one ideal clock; a bench file's default is separate clocks).
+    chamber : ChamberSim or None — a simulated temperature chamber around the unit (its temperature then
+        follows the chamber; ``temperature`` is ignored). thermal : ThermalTruth or None — the unit's errors
+        as functions of its own temperature (:mod:`drivers.sim.thermal_config`).
     """
 
     latitude: float = 48.0 * DEG
@@ -321,6 +325,8 @@ class SimConfig:
     transport: str = "in-process"
     budget_inputs: BudgetInputs | None = None
     clocks: ClockModel = field(default_factory=ClockModel)
+    chamber: ChamberSim | None = None
+    thermal: ThermalTruth | None = None
 
     @property
     def local_g(self) -> float:

@@ -45,7 +45,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import signal
 
-from drivers.imu_counts import RawFrames
+from analysis.units import CELSIUS_ZERO
+from drivers.imu_unit.counts import RawFrames
+from drivers.sim.chamber import ChamberPhysics, ThermalEffect
 from drivers.sim.config import CHANNELS, MISALIGNMENT_PAIRS, NoiseTruth, SimConfig
 
 _INT32_MAX = float(np.iinfo(np.int32).max)
@@ -172,6 +174,9 @@ class InertialModel:
         self.m_gyr = np.eye(3) + np.diag(gy.scale) + misalignment_matrix(gy.misalignment)
         self.b_gyr = np.asarray(gy.bias, dtype=float)
         self.g_sens = np.asarray(gy.g_sensitivity, dtype=float)
+        # temperature: a simulated chamber (set by the world) and the temperature-dependent truth
+        self.chamber: ChamberPhysics | None = None
+        self.thermal = ThermalEffect(config.thermal) if config.thermal is not None else None
         # ARMA drifts
         self._arma = []
         for term, rng in zip(config.arma, rngs[N_FIXED_STREAMS:], strict=True):
@@ -192,6 +197,8 @@ class InertialModel:
     # ---- temperature ---------------------------------------------------------------------------------
     def temperature_c(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
         """Unit temperature, °C, at bench times ``t`` (s)."""
+        if self.chamber is not None:
+            return self.chamber.unit_temperature(t) - CELSIUS_ZERO
         tm = self.cfg.temperature
         if tm is None:
             return np.full(t.shape, 23.0)
@@ -234,14 +241,27 @@ class InertialModel:
         u = f_all + b_acc + self.d_acc * f_ii**2
         if dtemp is not None:
             u += np.asarray(tm.accel_bias_tc) * dtemp[:, None] + np.asarray(tm.accel_scale_tc) * dtemp[:, None] * f_ii  # type: ignore[union-attr]
+        thermal = self._thermal_state(t)
+        if thermal is not None:
+            u = u + self.thermal.apply("accel", thermal[0], thermal[1], f0)  # type: ignore[union-attr]
         out[:, :3] = u
         w_s = omega + earth_b
         g = w_s @ m_gyr.T + b_gyr + f0 @ self.g_sens.T
         if dtemp is not None:
             g = g + np.asarray(tm.gyro_bias_tc)[None, :] * dtemp[:, None]  # type: ignore[union-attr]
             g = g + np.asarray(tm.gyro_scale_tc)[None, :] * dtemp[:, None] * w_s  # type: ignore[union-attr]
+        if thermal is not None:
+            g = g + self.thermal.apply("gyro", thermal[0], thermal[1], w_s)  # type: ignore[union-attr]
         out[:, 3:] = g
         return out
+
+    def _thermal_state(self, t: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        """(unit temperature K, its rate K/s) at ``t`` when the truth depends on temperature, else None."""
+        if self.thermal is None:
+            return None
+        if self.chamber is not None:
+            return self.chamber.unit_temperature(t), self.chamber.unit_rate(t)
+        return self.temperature_c(t) + CELSIUS_ZERO, np.zeros(t.shape)
 
     def _generate(self, k0: int, n: int) -> NDArray[np.float64]:
         """Motion-independent streams for samples k0…k0+n−1: (n, 8) = 6 output-referred noise channels

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.imu_counts import counter_gaps, frames_to_block
+from drivers.imu_unit.counts import counter_gaps, frames_to_block
 from drivers.protocols import AxisLimits, ImuBlock, LinkError, TableState
 from drivers.sim.world import SimulatedWorld
 

@@ -9,8 +9,8 @@
 
 then connects the real drivers to them exactly as on hardware (:mod:`drivers.connect`):
 :class:`~drivers.acutrol.AclTurntable` through pyvisa with the pyvisa-py backend (VISA resource
-``TCPIP0::127.0.0.1::PORT::SOCKET``) or :class:`~drivers.modbus_table.ModbusTurntable` through a pymodbus
-``ModbusTcpClient``, and :class:`~drivers.serial_imu.SerialInertialUnit` in polled (burst) mode through
+``TCPIP0::127.0.0.1::PORT::SOCKET``) or :class:`~drivers.modbus.table.ModbusTurntable` through a pymodbus
+``ModbusTcpClient``, and :class:`~drivers.imu_unit.serial_unit.SerialInertialUnit` in polled (burst) mode through
 ``serial.serial_for_url``, so the simulated clock advances exactly with the samples the host reads: a loopback
 run equals the in-process run with the same seed and commands (Modbus: bit for bit; ACL: the in-process bench
 runs the same driver against the same controller without the wire, so the two are identical too).
@@ -24,8 +24,8 @@ from typing import Any, BinaryIO, Literal
 
 from drivers import connect
 from drivers.acutrol import AclSettings, AclTurntable
-from drivers.imu_frame_desc import FrameFormat
-from drivers.modbus_map import ModbusMap
+from drivers.imu_unit.description import FrameFormat
+from drivers.modbus.register_map import ModbusMap
 from drivers.protocols import InertialUnit, Turntable
 from drivers.sim.acl_server import AclTableServer
 from drivers.sim.modbus_controller import ModbusTableServer
@@ -62,7 +62,7 @@ class Loopback:
         Driver timeouts, s.
     unit_id : int
         Modbus unit id used by the driver.
-    unit_frame : drivers.imu_frame_desc.FrameFormat or None
+    unit_frame : drivers.imu_unit.description.FrameFormat or None
         The frame format the simulated unit speaks and the driver decodes (None: ``tablebench-v1``).
     unit_raw : binary file or None
         Where the unit driver keeps the raw byte stream; ``unit_raw_name`` names it in events.

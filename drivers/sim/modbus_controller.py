@@ -2,7 +2,7 @@
 
 :class:`ModbusTableServer` runs a real pymodbus 3.16 asyncio ``ModbusTcpServer`` in a background thread
 with its own event loop. The datastore is a ``pymodbus.simulator.SimDevice`` with separate holding and input
-register blocks laid out as a register-map file says (:mod:`drivers.modbus_map`; default: the shipped
+register blocks laid out as a register-map file says (:mod:`drivers.modbus.register_map`; default: the shipped
 tablebench map), and an ``action`` hook that
 
 * refreshes the state input registers from ``world.table_state()`` when they are read,
@@ -33,8 +33,8 @@ import threading
 import time
 from typing import TYPE_CHECKING, Any
 
-from drivers.modbus_map import ModbusMap, map_with_word_order
-from drivers.modbus_table import check_position, check_rate
+from drivers.modbus.register_map import ModbusMap, map_with_word_order
+from drivers.modbus.table import check_position, check_rate
 from drivers.protocols import AxisMode, FaultCode, TableError, TableStatus
 
 if TYPE_CHECKING:

@@ -32,11 +32,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from drivers.imu_counts import CountScale, RawFrames, frames_to_block
-from drivers.imu_frame import FrameCodec
-from drivers.imu_frame_desc import DEFAULT_FRAME, FrameFormat, load_frame
-from drivers.imu_frame_samples import encode_samples
-from drivers.serial_imu import MAX_BURST, count_format
+from drivers.imu_unit.counts import CountScale, RawFrames, frames_to_block
+from drivers.imu_unit.decoder import FrameCodec
+from drivers.imu_unit.description import DEFAULT_FRAME, FrameFormat, load_frame
+from drivers.imu_unit.samples import encode_samples
+from drivers.imu_unit.serial_unit import MAX_BURST, count_format
 from drivers.sim.tcp_server import SingleClientServer
 
 if TYPE_CHECKING:

@@ -48,8 +48,9 @@ from scipy import signal
 
 from analysis import gimbal
 from analysis.earth import earth_rate_enu
-from drivers.imu_counts import CountScale, RawFrames, concat_frames
+from drivers.imu_unit.counts import CountScale, RawFrames, concat_frames
 from drivers.protocols import AxisLimits, AxisMode, FaultCode, TableError, TableState, TableStatus
+from drivers.sim.chamber import ChamberPhysics
 from drivers.sim.config import ACCEL_PARAM_NAMES, SimConfig
 from drivers.sim.imu_model import InertialModel, misalignment_matrix
 from drivers.sim.motion import AxisPlan, plan_hold, plan_position, plan_rate, plan_stop
@@ -114,8 +115,8 @@ class SimulatedWorld:
         )
         root = np.random.SeedSequence(self._seed)
         # a 4th child leaves the first three streams unchanged (spawn keys are indices)
-        unit_ss, table_ss, reading_ss, budget_ss = root.spawn(4)
-        (clock_ss,) = root.spawn(1)  # a 5th child: the first four streams are unchanged
+        unit_ss, table_ss, reading_ss, budget_ss, chamber_ss = root.spawn(5)
+        (clock_ss,) = root.spawn(1)  # a 6th child: the first five streams are unchanged
         self._init_clocks(config, clock_ss)
         bi = config.budget_inputs
         self._rng_budget = np.random.default_rng(budget_ss)
@@ -126,6 +127,10 @@ class SimulatedWorld:
         rb = float(bi.rate_error_bound) if bi is not None else 0.0
         self._rate_error = self._rng_budget.uniform(-rb, rb, 3) if rb > 0 else np.zeros(3)
         self._model = InertialModel(config, unit_ss)
+        self.chamber: ChamberPhysics | None = None
+        if config.chamber is not None:
+            self.chamber = ChamberPhysics(config.chamber, np.random.default_rng(chamber_ss))
+            self._model.chamber = self.chamber
         self._rng_jitter = np.random.default_rng(table_ss)
         self._reading_entropy = int(reading_ss.generate_state(1)[0])
         self._jit_a = math.exp(-1.0 / (self._fs * tb.rate_jitter_tau)) if tb.rate_jitter_tau > 0 else 0.0
@@ -431,6 +436,39 @@ class SimulatedWorld:
             st |= TableStatus.FAULT
         return st
 
+    # ---- temperature chamber (docs/methods/thermal.md) --------------------------------------------------
+    def _need_chamber(self) -> ChamberPhysics:
+        if self.chamber is None:
+            raise ValueError("this simulated bench has no chamber (simulation: chamber: section)")
+        return self.chamber
+
+    def chamber_setpoint(self, temperature: float) -> bool:
+        """Command the chamber's set point (K) now; False (nothing changed) outside the controller's range."""
+        with self._lock:
+            ch = self._need_chamber()
+            if not ch.allows(float(temperature)):
+                return False
+            ch.command_setpoint(self._k / self._fs, float(temperature))
+            return True
+
+    def chamber_run(self, on: bool) -> None:
+        """Start or stop the chamber now."""
+        with self._lock:
+            self._need_chamber().command_run(self._k / self._fs, on)
+
+    def chamber_reading(self) -> tuple[float, float, bool, bool]:
+        """(set point K, air reading K, running, alarm) now, as the controller reports them."""
+        with self._lock:
+            ch = self._need_chamber()
+            return ch.setpoint, ch.air_reading(self._k / self._fs), ch.running, ch.alarm
+
+    def chamber_truth(self) -> tuple[float, float, float]:
+        """(true air K, true unit temperature K, its rate K/s) now (scoring and tests only)."""
+        with self._lock:
+            ch = self._need_chamber()
+            t = np.array([self._k / self._fs])
+            return ch.air_temperature(float(t[0])), float(ch.unit_temperature(t)[0]), float(ch.unit_rate(t)[0])
+
     # ---- sample generation ---------------------------------------------------------------------------
     def produce(self, n: int) -> RawFrames:
         """Advance the clock by ``n`` sample periods; return the frames emitted (fewer if frames drop)."""
@@ -461,6 +499,8 @@ class SimulatedWorld:
                     self._limit_fault(hit[1], k1)
             if n > 0:
                 self._delivered(k_end - 1)
+            if self.chamber is not None:
+                self.chamber.forget_before(self._k / self._fs)
             return concat_frames(parts)
 
     def _evaluate(self, t: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:

@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from drivers.imu_frame import FrameDecoder
-from drivers.imu_frame_desc import FrameFormat
-from drivers.imu_frame_samples import SampleConverter, Samples
-from drivers.serial_imu import concat_samples
+from drivers.imu_unit.decoder import FrameDecoder
+from drivers.imu_unit.description import FrameFormat
+from drivers.imu_unit.samples import SampleConverter, Samples
+from drivers.imu_unit.serial_unit import concat_samples
 
 KVH_MANUAL = bytes.fromhex("fe81ff5537a96a6e38586c1fb75bf862bf803e78bb650d283b0a37ac773d00284bfa34d8")
 KVH_BUILT = bytes.fromhex("fe81ff55339c1f3f00000000b58637bd3a83126fbb03126f3f800000772a001f4db75c56")

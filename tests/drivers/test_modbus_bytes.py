@@ -1,5 +1,5 @@
 """Exact register traffic of the Modbus table driver, written from the shipped register map
-(drivers/modbus_maps/tablebench.yaml), not from the simulator: every write and read is scripted with the
+(drivers/modbus/maps/tablebench.yaml), not from the simulator: every write and read is scripted with the
 registers the map prescribes, floats packed here with struct (IEEE-754 float64, 16-bit words big-endian,
 word order big or little)."""
 
@@ -11,7 +11,7 @@ import struct
 import numpy as np
 import pytest
 
-from drivers.modbus_table import ModbusTurntable
+from drivers.modbus.table import ModbusTurntable
 from drivers.protocols import AxisLimits, AxisMode, FaultCode, LinkError, TableError, TableStatus
 
 LIMITS = tuple(AxisLimits(rate_max=math.radians(200), accel_max=math.radians(50)) for _ in range(3))

@@ -10,8 +10,8 @@ import pytest
 from pymodbus.client import ModbusTcpClient
 
 from core.yaml_source import ConfigError
-from drivers.modbus_map import DEFAULT_MAP, load_modbus_map
-from drivers.modbus_table import ModbusTurntable
+from drivers.modbus.register_map import DEFAULT_MAP, load_modbus_map
+from drivers.modbus.table import ModbusTurntable
 from drivers.protocols import AxisMode, FaultCode, TableError, TableStatus
 from drivers.sim.modbus_controller import ModbusTableServer
 from tests import REPO_ROOT

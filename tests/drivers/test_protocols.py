@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from drivers.modbus_table import check_position, check_rate
+from drivers.modbus.table import check_position, check_rate
 from drivers.protocols import LIMIT_TOLERANCE, AxisLimits, TableError
 from procedures.steps import Hold, Spin, limit_problems
 from tests.drivers.wire_support import LIMITS, make_world

@@ -16,10 +16,10 @@ import pytest
 
 from analysis.units import CELSIUS_ZERO, DEG, G0
 from core.yaml_source import ConfigError, load_yaml_text
-from drivers.imu_counts import CounterTracker, counter_gaps
-from drivers.imu_frame import FrameCodec, FrameDecoder
-from drivers.imu_frame_crc import CrcEngine, CrcSpec
-from drivers.imu_frame_desc import (
+from drivers.imu_unit.checksums import CrcEngine, CrcSpec
+from drivers.imu_unit.counts import CounterTracker, counter_gaps
+from drivers.imu_unit.decoder import FrameCodec, FrameDecoder
+from drivers.imu_unit.description import (
     FLAG_BITS,
     TYPES,
     compile_format,
@@ -27,7 +27,7 @@ from drivers.imu_frame_desc import (
     parse_description,
     shipped_frames,
 )
-from drivers.imu_frame_samples import SampleConverter, encode_samples
+from drivers.imu_unit.samples import SampleConverter, encode_samples
 from tests.drivers.frame_support import (
     KVH_BUILT,
     KVH_MANUAL,

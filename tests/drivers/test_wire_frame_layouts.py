@@ -17,9 +17,9 @@ import pytest
 from analysis.units import CELSIUS_ZERO, DEG, G0
 from benches.cli import main
 from core.yaml_source import ConfigError, load_yaml_text
-from drivers.imu_frame import FrameDecoder
-from drivers.imu_frame_desc import FLAG_BITS, compile_format, load_frame, parse_description
-from drivers.imu_frame_samples import SampleConverter, encode_samples
+from drivers.imu_unit.decoder import FrameDecoder
+from drivers.imu_unit.description import FLAG_BITS, compile_format, load_frame, parse_description
+from drivers.imu_unit.samples import SampleConverter, encode_samples
 from tests.drivers.frame_support import (
     KVH_BUILT,
     KVH_MANUAL,
@@ -244,7 +244,7 @@ class _BytesPort:
 
 
 def test_serial_driver_keeps_bit_frames_for_the_caller_and_reports_them():
-    from drivers.serial_imu import SerialInertialUnit
+    from drivers.imu_unit.serial_unit import SerialInertialUnit
 
     fmt = compile_format(load_frame("kvh-1750-a"), None, 1000.0)
     unit = SerialInertialUnit(_BytesPort(KVH_MANUAL + BIT_AA + KVH_BUILT), fmt, 1000.0, timeout=0.5)

@@ -11,9 +11,9 @@ import pytest
 import serial
 
 from drivers import connect
-from drivers.imu_counts import frames_to_block
+from drivers.imu_unit.counts import frames_to_block
+from drivers.imu_unit.serial_unit import SerialInertialUnit
 from drivers.protocols import InertialUnit, LinkError
-from drivers.serial_imu import SerialInertialUnit
 from drivers.sim.serial_unit import Corruption, SerialUnitServer
 from tests.drivers.wire_support import make_world
 
@@ -113,7 +113,7 @@ def test_silent_device_times_out_with_a_clear_message():
     t.start()
     port = serial.serial_for_url(f"socket://127.0.0.1:{lst.getsockname()[1]}", timeout=0.02)
     try:
-        from drivers.imu_counts import CountScale
+        from drivers.imu_unit.counts import CountScale
 
         unit = SerialInertialUnit(port, CountScale(1e-6, 1e-7), 1000.0, timeout=0.3, polled=True)
         t0 = time.monotonic()
@@ -128,7 +128,7 @@ def test_silent_device_times_out_with_a_clear_message():
 
 
 def test_bad_arguments():
-    from drivers.imu_counts import CountScale
+    from drivers.imu_unit.counts import CountScale
 
     with pytest.raises(ValueError, match="sample_rate"):
         SerialInertialUnit(object(), CountScale(1, 1), 0.0)

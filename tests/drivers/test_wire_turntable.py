@@ -11,8 +11,8 @@ import pytest
 from pymodbus.client import ModbusTcpClient
 
 from drivers import connect
-from drivers import modbus_registers as reg
-from drivers.modbus_table import ModbusTurntable
+from drivers.modbus import registers as reg
+from drivers.modbus.table import ModbusTurntable
 from drivers.protocols import AxisLimits, AxisMode, FaultCode, LinkError, TableError, TableStatus, Turntable
 from drivers.sim.inprocess import SimTurntable
 from drivers.sim.modbus_controller import ModbusTableServer

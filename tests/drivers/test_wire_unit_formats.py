@@ -15,10 +15,10 @@ from analysis.units import G0
 from benches.bench_config import load_bench, load_bench_text, unit_frame_format
 from benches.cli import main
 from core.yaml_source import ConfigError
-from drivers.imu_counts import frames_to_block
-from drivers.imu_frame_desc import compile_format, load_frame
-from drivers.imu_frame_samples import encode_samples
-from drivers.serial_imu import SerialInertialUnit
+from drivers.imu_unit.counts import frames_to_block
+from drivers.imu_unit.description import compile_format, load_frame
+from drivers.imu_unit.samples import encode_samples
+from drivers.imu_unit.serial_unit import SerialInertialUnit
 from drivers.sim.serial_unit import Corruption, SerialUnitServer
 from tests import REPO_ROOT, line_of
 from tests.drivers.wire_support import make_world
@@ -73,7 +73,7 @@ def test_stim_counter_step_must_divide_2000_hz(tmp_path):
 
 def test_a_users_description_next_to_the_bench(tmp_path):
     (tmp_path / "my-unit.yaml").write_text(
-        (REPO_ROOT / "drivers" / "frames" / "kvh-1750-a.yaml").read_text().replace("name: kvh-1750-a", "name: mine"),
+        (REPO_ROOT / "drivers/imu_unit/frames/kvh-1750-a.yaml").read_text().replace("name: kvh-1750-a", "name: mine"),
         encoding="utf-8",
     )
     p = tmp_path / "bench.yaml"

@@ -12,7 +12,7 @@ from statsmodels.tsa.arima_process import ArmaProcess
 from statsmodels.tsa.stattools import acf
 
 from analysis.units import DEG, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, UG
-from drivers.imu_counts import frames_to_block
+from drivers.imu_unit.counts import frames_to_block
 from drivers.protocols import FaultCode
 from drivers.sim.config import (
     ArmaDrift,

@@ -11,7 +11,7 @@ import pytest
 from analysis import gimbal
 from analysis.earth import EARTH_RATE, normal_gravity
 from analysis.units import DEG, MM, UG
-from drivers.imu_counts import frames_to_block
+from drivers.imu_unit.counts import frames_to_block
 from drivers.sim.config import AccelTruth, NoiseTruth, SimConfig, TableModel, example_navigation_grade
 from drivers.sim.inprocess import SimInertialUnit, SimTurntable
 from drivers.sim.world import SimulatedWorld

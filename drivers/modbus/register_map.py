@@ -1,6 +1,6 @@
 """A Modbus turntable's register map as data: a YAML file, validated, used by the driver and the simulator.
 
-The shipped map (``drivers/modbus_maps/tablebench.yaml``) is the tablebench controller's; a PLC table with
+The shipped map (``drivers/modbus/maps/tablebench.yaml``) is the tablebench controller's; a PLC table with
 another layout is described by another file named in the bench (``turntable.modbus_map``), not by code.
 Every mistake in a map file is a :class:`~core.yaml_source.ConfigError` naming file, line and key.
 
@@ -42,7 +42,7 @@ from typing import Any
 from core.yaml_source import ConfigError, KeyPath, SourceMap, check_keys, get_mapping, get_number, get_str, load_yaml
 from drivers.protocols import AxisMode, FaultCode, TableStatus
 
-DEFAULT_MAP = Path(__file__).resolve().parent / "modbus_maps" / "tablebench.yaml"
+DEFAULT_MAP = Path(__file__).resolve().parent / "maps" / "tablebench.yaml"
 VALUE_TYPES = {"float64": 4, "float32": 2, "int32": 2}
 HOLDING_FIELDS = {
     "position_setpoint": 3,
@@ -205,7 +205,7 @@ def load_modbus_map(path: str | Path = DEFAULT_MAP) -> ModbusMap:
     """Load and validate a register-map file (ConfigError with file:line and key on any mistake)."""
     data, smap, _ = load_yaml(path)
     if data is None:
-        raise ConfigError(str(path), None, "the register map file is empty; see drivers/modbus_map.py")
+        raise ConfigError(str(path), None, "the register map file is empty; see drivers/modbus/register_map.py")
     root = get_mapping(data, smap, ())
     keys = [
         "name",

@@ -15,7 +15,21 @@ crc-16/ccitt-false     16     0x1021      0xFFFF      no     0           0x29B1
 crc-32 (zlib)          32     0x04C11DB7  0xFFFFFFFF  yes    0xFFFFFFFF  0xCBF43926
 =====================  =====  ==========  ==========  =====  ==========  ==========
 
-``sum8`` is the 8-bit sum of the covered bytes modulo 256 (KVH built-in-test frames).
+Simple sums (:data:`SUM_KINDS`), for units that use no CRC:
+
+=================  =====  ===============================================================================
+name               bytes  value
+=================  =====  ===============================================================================
+``sum8``           1      sum of the covered bytes mod 256 (KVH built-in-test frames)
+``sum8-neg``       1      (−sum of the covered bytes) mod 256: the covered bytes plus the checksum sum to 0
+                          (Xsens Xbus)
+``sum16``          2      sum of the covered bytes mod 65536
+``sum16-words``    2      sum of the covered bytes taken as big-endian 16-bit words, mod 65536
+                          (Epson M-G3xx UART burst, Honeywell HG4930 with ``-le``)
+``sum16-words-le`` 2      the same with little-endian words
+=================  =====  ===============================================================================
+
+A word sum over an odd number of covered bytes is an error of the description (the reader refuses it).
 """
 
 from __future__ import annotations
@@ -48,13 +62,17 @@ PRESETS: dict[str, dict[str, int | bool]] = {
 }
 
 
+SUM_KINDS: dict[str, int] = {"sum8": 8, "sum8-neg": 8, "sum16": 16, "sum16-words": 16, "sum16-words-le": 16}
+"""The simple sums by name → width in bits (see the module docstring)."""
+
+
 def _reflect(v: int, width: int) -> int:
     return int(f"{v:0{width}b}"[::-1], 2)
 
 
 @dataclass(frozen=True)
 class CrcSpec:
-    """A parametrised CRC (catalogue model) or ``algorithm == "sum8"``."""
+    """A parametrised CRC (catalogue model) or one of the simple sums (:data:`SUM_KINDS`)."""
 
     algorithm: str
     width: int = 0
@@ -67,8 +85,8 @@ class CrcSpec:
     @classmethod
     def named(cls, name: str) -> CrcSpec:
         """A preset by catalogue name (``crc-32/mpeg-2``, ``crc-16/ccitt-false``, ``sum8``, …)."""
-        if name == "sum8":
-            return cls("sum8", width=8)
+        if name in SUM_KINDS:
+            return cls(name, width=SUM_KINDS[name])
         p = PRESETS[name]
         return cls(
             name, int(p["width"]), int(p["poly"]), int(p["init"]), bool(p["refin"]), bool(p["refout"]), int(p["xorout"])
@@ -90,13 +108,13 @@ class CrcEngine:
     def __init__(self, spec: CrcSpec) -> None:
         self.spec = spec
         w = spec.width
-        if spec.algorithm != "sum8" and (w not in (8, 16, 32) or not 0 <= spec.poly < (1 << w)):
+        if spec.algorithm not in SUM_KINDS and (w not in (8, 16, 32) or not 0 <= spec.poly < (1 << w)):
             raise ValueError(f"CRC width must be 8, 16 or 32 and poly < 2^width (got width {w}, poly {spec.poly:#x})")
         self._dtype = {8: np.uint8, 16: np.uint16, 32: np.uint32}.get(w, np.uint32)
         self._fixed: dict[int, tuple[NDArray[np.unsignedinteger], int]] = {}
         self._offsets: dict[int, NDArray[np.intp]] = {}
         self._flat: dict[int, NDArray[np.unsignedinteger]] = {}
-        if spec.algorithm == "sum8":
+        if spec.algorithm in SUM_KINDS:
             return
         top = 1 << (w - 1)
         mask = (1 << w) - 1
@@ -148,8 +166,8 @@ class CrcEngine:
         """
         d = np.atleast_2d(np.asarray(data, dtype=np.uint8))
         s = self.spec
-        if s.algorithm == "sum8":
-            return (d.sum(axis=1, dtype=np.uint64) & 0xFF).astype(np.uint8)
+        if s.algorithm in SUM_KINDS:
+            return _simple_sum(s.algorithm, d)
         if d.shape[1] <= 512:
             tables, const = self._position_tables(d.shape[1])
             flat, offs = self._flat[d.shape[1]], self._offsets[d.shape[1]]
@@ -186,6 +204,22 @@ class CrcEngine:
         if s.xorout:
             crc = crc ^ dt(s.xorout)
         return crc
+
+
+def _simple_sum(kind: str, d: NDArray[np.uint8]) -> NDArray[np.unsignedinteger]:
+    """One of :data:`SUM_KINDS` of every row of ``d`` (k, m)."""
+    if kind.startswith("sum16-words"):
+        if d.shape[1] % 2:
+            raise ValueError(f"{kind} needs an even number of covered bytes, got {d.shape[1]}")
+        w = d.astype(np.uint64)
+        hi, lo = (w[:, 0::2], w[:, 1::2]) if kind == "sum16-words" else (w[:, 1::2], w[:, 0::2])
+        return ((hi * 256 + lo).sum(axis=1, dtype=np.uint64) & 0xFFFF).astype(np.uint16)
+    total = d.sum(axis=1, dtype=np.uint64)
+    if kind == "sum16":
+        return (total & 0xFFFF).astype(np.uint16)
+    if kind == "sum8-neg":
+        total = np.uint64(0x100) - (total & np.uint64(0xFF))
+    return (total & 0xFF).astype(np.uint8)
 
 
 def _reflect_vec(v: NDArray[np.unsignedinteger], width: int) -> NDArray[np.unsignedinteger]:

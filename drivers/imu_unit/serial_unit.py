@@ -1,9 +1,9 @@
-"""Inertial-unit driver for a binary serial frame stream in any described format (:mod:`drivers.imu_frame`).
+"""Inertial-unit driver for a binary serial frame stream in any described format (:mod:`drivers.imu_unit.decoder`).
 
 :class:`SerialInertialUnit` implements :class:`drivers.protocols.InertialUnit` over any pyserial-like port
 (``serial.Serial`` for a real RS-232/RS-422/USB line, ``serial.serial_for_url("socket://127.0.0.1:PORT")``
 for the simulated unit on loopback). The frame format is a compiled description
-(:class:`~drivers.imu_frame_desc.FrameFormat`: the project's ``tablebench-v1``, KVH 1750/1775 A/B/C, STIM300
+(:class:`~drivers.imu_unit.description.FrameFormat`: the project's ``tablebench-v1``, KVH 1750/1775 A/B/C, STIM300
 datagrams, or a user's own). The driver never opens or closes the port; it sets the port's read ``timeout``
 to a short poll interval.
 
@@ -39,10 +39,10 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
-from drivers.imu_counts import CountScale
-from drivers.imu_frame import DecodeStats, FrameDecoder
-from drivers.imu_frame_desc import FrameFormat, compile_format, load_frame
-from drivers.imu_frame_samples import SampleConverter, Samples
+from drivers.imu_unit.counts import CountScale
+from drivers.imu_unit.decoder import DecodeStats, FrameDecoder
+from drivers.imu_unit.description import FrameFormat, compile_format, load_frame
+from drivers.imu_unit.samples import SampleConverter, Samples
 from drivers.protocols import ImuBlock, LinkError
 
 log = logging.getLogger(__name__)
@@ -112,7 +112,7 @@ class SerialInertialUnit:
     port : pyserial-like object
         Already open; needs ``read(n)``, ``write(b)`` and a writable ``timeout`` attribute.
     frame : FrameFormat or CountScale
-        The unit's compiled frame format; a :class:`~drivers.imu_counts.CountScale` means the project's
+        The unit's compiled frame format; a :class:`~drivers.imu_unit.counts.CountScale` means the project's
         own frame ``tablebench-v1`` with that count scale.
     sample_rate : float
         Nominal sample rate, Hz.

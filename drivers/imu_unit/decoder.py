@@ -1,12 +1,12 @@
 """Vectorised decoder (and encoder) of inertial-unit frames compiled from a frame description.
 
-The frame layouts are data (:mod:`drivers.imu_frame_desc`, ``drivers/frames/*.yaml``): the project's own
+The frame layouts are data (:mod:`drivers.imu_unit.description`, ``drivers/imu_unit/frames/*.yaml``): the project's own
 frame ``tablebench-v1``, the KVH 1750/1775 formats A/B/C and the STIM300 datagrams. This module turns a
-:class:`~drivers.imu_frame_desc.FrameDescription` into
+:class:`~drivers.imu_unit.description.FrameDescription` into
 
 * a structured numpy dtype over one whole frame (every field a strided view of the frame rows; 24-bit
   fields are read as 3-byte sub-arrays and sign-extended),
-* a table-driven CRC vectorised over frames (:mod:`drivers.imu_frame_crc`), with the description's
+* a table-driven CRC vectorised over frames (:mod:`drivers.imu_unit.checksums`), with the description's
   coverage and zero padding (STIM300: the CRC covers ``(-n) mod 4`` zero bytes that are never sent),
 
 and decodes a byte stream without a per-frame Python loop: sync candidates are found with numpy comparisons
@@ -20,7 +20,7 @@ Counting (per feed and in totals): ``frames`` accepted; ``rejected`` candidate f
 failed) that do not lie inside an accepted frame or inside an earlier rejected one (so a damaged frame counts
 once even when a one-byte identifier recurs in its payload); ``garbage_bytes`` bytes not part of an accepted
 frame (an optional trailer such as STIM300's CR LF after a frame is not garbage). Counter gaps, resets and
-duplicates are judged on the decoded samples (:mod:`drivers.imu_frame_samples`).
+duplicates are judged on the decoded samples (:mod:`drivers.imu_unit.samples`).
 """
 
 from __future__ import annotations
@@ -31,8 +31,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.imu_frame_crc import CrcEngine
-from drivers.imu_frame_desc import FieldDesc, FrameDescription
+from drivers.imu_unit.checksums import CrcEngine
+from drivers.imu_unit.description import FieldDesc, FrameDescription
 
 log = logging.getLogger(__name__)
 
@@ -279,7 +279,6 @@ class FrameDecoder:
         self.total.add(stats)
         return batch, stats
 
-
     def _trailers(
         self, buf: NDArray[np.uint8], good: NDArray[np.intp], ends: NDArray[np.intp], decided_end: int
     ) -> tuple[int, int]:
@@ -318,18 +317,43 @@ class FrameDecoder:
         """
         n = buf.size
         stats = DecodeStats()
-        lmax = int(self._lens.max())
-        m = n if final else max(n - lmax + 1, 0)
-        nl = len(self._syncs)
-        starts = np.zeros(0, np.intp)
-        pos_l: list[NDArray[np.intp]] = [starts[:0]] * nl
-        ok_l: list[NDArray[np.bool_]] = [np.zeros(0, bool)] * nl
-        rows_l: dict[int, NDArray[np.uint8]] = {}
+        m = n if final else max(n - int(self._lens.max()) + 1, 0)
+        cands = self._multi_candidates(buf)
+        ks = [k for k in cands.checked if cands.pos[k].size]
+        seen = [k for k in ks if cands.ok[k].any()]
+        if seen:
+            self._recent = seen
+        pos, lay, ok, within = _merge_in_stream_order(cands, ks)
+        lens = self._lens[lay]
+        g = np.flatnonzero(ok) if not ok.all() else np.arange(ok.size)
+        if g.size > 1 and (pos[g[1:]] < pos[g[:-1]] + lens[g[:-1]]).any():
+            g = g[_non_overlapping_var(pos[g], lens[g])]
+        good, glen = pos[g], lens[g]
+        gend = good + glen
+        decided_end = max(int(gend[-1]), m) if good.size else m
+        if g.size < ok.size:  # failed candidates
+            stats.rejected = self._count_rejects(pos[~ok], lens[~ok], good, gend, decided_end)
+        trailer_bytes, decided_end = self._trailers(buf, good, gend, decided_end)
+        stats.garbage_bytes = int(decided_end - int(glen.sum()) - trailer_bytes)
+        batch = self._multi_batch(cands, seen, lay[g], within[g], good.size, stats)
+        self._carry = buf[decided_end:].copy()
+        self._pos += decided_end
+        self.total.add(stats)
+        return batch, stats
 
-        checked: list[int] = []
+    def _multi_candidates(self, buf: NDArray[np.uint8]) -> _Candidates:
+        """Every layout's candidate frames in ``buf`` with their checksum verdicts (see :meth:`_feed_multi`).
+
+        1. the layouts the stream used lately (usually one): all their candidates, as a single layout would;
+        2. the other layouts, only where no frame was accepted in 1 (identifier bytes inside accepted frames
+           are payload: not checked), and only the layouts whose first sync byte occurs there (garbage).
+        """
+        n = buf.size
+        nl = len(self._syncs)
+        cands = _Candidates(pos=[np.zeros(0, np.intp)] * nl, ok=[np.zeros(0, bool)] * nl, rows={}, checked=[])
 
         def check(k: int, pool: NDArray[np.intp] | None) -> None:
-            checked.append(k)
+            cands.checked.append(k)
             sync, L = self._syncs[k], int(self._lens[k])
             if pool is None:  # the whole buffer
                 c = np.flatnonzero(buf[: max(n - L + 1, 0)] == sync[0])
@@ -341,15 +365,26 @@ class FrameDecoder:
                     break
                 c = c[buf[c + j] == sync[j]]
             if c.size:
-                rows_l[k] = buf[c[:, None] + np.arange(L)]
-                ok_l[k] = self._codecs[k].checksums_ok(rows_l[k])
-                pos_l[k] = c
+                cands.rows[k] = buf[c[:, None] + np.arange(L)]
+                cands.ok[k] = self._codecs[k].checksums_ok(cands.rows[k])
+                cands.pos[k] = c
 
-        # 1. the layouts the stream used lately (usually one): all their candidates, as a single layout would
         for k in self._recent:
             check(k, None)
-        # 2. the other layouts, only where no frame was accepted in 1 (identifier bytes inside accepted frames
-        #    are payload: not checked), and only the layouts whose first sync byte occurs there (garbage)
+        rest = self._outside_accepted(buf, cands)
+        if rest.size:
+            present = np.zeros(256, bool)
+            present[buf[rest]] = True
+            for k in range(nl):
+                if k not in self._recent and present[self._syncs[k][0]]:
+                    check(k, rest)
+        return cands
+
+    def _outside_accepted(self, buf: NDArray[np.uint8], cands: _Candidates) -> NDArray[np.intp]:
+        """Positions outside the frames accepted so far (garbage, trailers, a damaged frame, the tail) that
+        hold some layout's first sync byte, gathered at once."""
+        n = buf.size
+        pos_l, ok_l = cands.pos, cands.ok
         if len(self._recent) == 1:
             k0 = self._recent[0]
             acc = pos_l[k0] if ok_l[k0].all() else pos_l[k0][ok_l[k0]]
@@ -359,65 +394,51 @@ class FrameDecoder:
             acc_end = np.concatenate([pos_l[k][ok_l[k]] + self._lens[k] for k in self._recent])
             o = np.argsort(acc, kind="stable")
             acc, acc_end = acc[o], np.maximum.accumulate(acc_end[o])
-        # the bytes outside accepted frames (gaps: garbage, trailers, a damaged frame, the tail), gathered at once
         seg_start = np.concatenate([[0], acc_end])
         seg_len = np.maximum(np.concatenate([acc, [n]]) - seg_start, 0)
         total = int(seg_len.sum())
         if total == n:
-            rest = np.flatnonzero(self._first[buf])
-        elif total:
+            return np.flatnonzero(self._first[buf])
+        if total:
             offs = np.cumsum(seg_len) - seg_len
             idx = np.repeat(seg_start - offs, seg_len) + np.arange(total)
-            rest = idx[self._first[buf[idx]]]
-        else:
-            rest = starts
-        if rest.size:
-            present = np.zeros(256, bool)
-            present[buf[rest]] = True
-            for k in range(nl):
-                if k not in self._recent and present[self._syncs[k][0]]:
-                    check(k, rest)
-        ks = [k for k in checked if pos_l[k].size]
-        seen = [k for k in ks if ok_l[k].any()]
-        if seen:
-            self._recent = seen
-        if len(ks) == 1:  # one layout had candidates: already in stream order
-            k = ks[0]
-            pos, ok = pos_l[k], ok_l[k]
-            lay = np.full(pos.size, k, np.intp)
-            within = np.arange(pos.size)
-        else:
-            pos = np.concatenate([pos_l[k] for k in ks]) if ks else starts[:0]
-            lay = np.concatenate([np.full(pos_l[k].size, k, np.intp) for k in ks]) if ks else starts[:0]
-            ok = np.concatenate([ok_l[k] for k in ks]) if ks else np.zeros(0, bool)
-            within = np.concatenate([np.arange(pos_l[k].size) for k in ks]) if ks else starts[:0]
-            order = np.argsort(pos, kind="stable")
-            pos, lay, ok, within = pos[order], lay[order], ok[order], within[order]
-        lens = self._lens[lay]
-        g = np.flatnonzero(ok) if not ok.all() else np.arange(ok.size)
-        if g.size > 1 and (pos[g[1:]] < pos[g[:-1]] + lens[g[:-1]]).any():
-            g = g[_non_overlapping_var(pos[g], lens[g])]
-        good, glen = pos[g], lens[g]
-        gend = good + glen
-        decided_end = max(int(gend[-1]), m) if good.size else m
-        if g.size < ok.size:  # failed candidates
-            b = np.flatnonzero(~ok)
-            bad, blen = pos[b], lens[b]
-            keepb = bad < decided_end  # a failed candidate beyond the decided region is judged again next feed
-            if good.size and bad.size:
-                inside = np.searchsorted(good, bad, side="right") - 1
-                keepb &= ~((inside >= 0) & (bad < gend[np.maximum(inside, 0)]))  # payload of an accepted frame
-            keepb &= bad + self._pos >= self._reject_end
-            bad, blen = bad[keepb], blen[keepb]
-            if bad.size > 1 and (bad[1:] < bad[:-1] + blen[:-1]).any():
-                kb = _non_overlapping_var(bad, blen)
-                bad, blen = bad[kb], blen[kb]
-            if bad.size:
-                self._reject_end = max(self._reject_end, int((bad + blen).max()) + self._pos)
-            stats.rejected = int(bad.size)
-        trailer_bytes, decided_end = self._trailers(buf, good, gend, decided_end)
-        stats.garbage_bytes = int(decided_end - int(glen.sum()) - trailer_bytes)
-        glay, gwithin = lay[g], within[g]
+            return idx[self._first[buf[idx]]]
+        return np.zeros(0, np.intp)
+
+    def _count_rejects(
+        self,
+        bad: NDArray[np.intp],
+        blen: NDArray[np.int64],
+        good: NDArray[np.intp],
+        gend: NDArray[np.intp],
+        decided_end: int,
+    ) -> int:
+        """Rejected candidates among the failed ones ``bad`` (lengths ``blen``): those in the decided region,
+        not payload of an accepted frame, not already counted, not overlapping one another."""
+        keepb = bad < decided_end  # a failed candidate beyond the decided region is judged again next feed
+        if good.size and bad.size:
+            inside = np.searchsorted(good, bad, side="right") - 1
+            keepb &= ~((inside >= 0) & (bad < gend[np.maximum(inside, 0)]))  # payload of an accepted frame
+        keepb &= bad + self._pos >= self._reject_end
+        bad, blen = bad[keepb], blen[keepb]
+        if bad.size > 1 and (bad[1:] < bad[:-1] + blen[:-1]).any():
+            kb = _non_overlapping_var(bad, blen)
+            bad, blen = bad[kb], blen[kb]
+        if bad.size:
+            self._reject_end = max(self._reject_end, int((bad + blen).max()) + self._pos)
+        return int(bad.size)
+
+    def _multi_batch(
+        self,
+        cands: _Candidates,
+        seen: list[int],
+        glay: NDArray[np.intp],
+        gwithin: NDArray[np.intp],
+        n_good: int,
+        stats: DecodeStats,
+    ) -> FrameBatch:
+        """The accepted frames (layout ``glay``, index ``gwithin`` among their layout's candidates) as a
+        :class:`FrameBatch`: data layouts in groups, built-in-test frames apart, common fields merged."""
         if self._has_bit:
             is_bit = self._is_bit[glay]
             data = ~is_bit
@@ -426,11 +447,11 @@ class FrameDecoder:
         else:
             batch = FrameBatch(layout=glay)
             stats.frames = int(glay.size)
-        for k in seen if len(seen) > 1 else seen[:1] if good.size else []:
-            if len(seen) == 1 and good.size == pos_l[k].size:  # every candidate accepted: rows as gathered
-                rows = rows_l[k]
+        for k in seen if len(seen) > 1 else seen[:1] if n_good else []:
+            if len(seen) == 1 and n_good == cands.pos[k].size:  # every candidate accepted: rows as gathered
+                rows = cands.rows[k]
             else:
-                rows = rows_l[k][gwithin[glay == k]]
+                rows = cands.rows[k][gwithin[glay == k]]
                 if not rows.shape[0]:
                     continue
             fb = FrameBatch(self._codecs[k].values(rows), rows)
@@ -449,10 +470,37 @@ class FrameDecoder:
                 for k, gb in batch.groups.items():
                     out[lay_d == k] = gb.values[name]
                 batch.values[name] = out
-        self._carry = buf[decided_end:].copy()
-        self._pos += decided_end
-        self.total.add(stats)
-        return batch, stats
+        return batch
+
+
+@dataclass
+class _Candidates:
+    """Per layout: candidate positions, checksum verdicts and gathered rows; the layouts checked, in order."""
+
+    pos: list[NDArray[np.intp]]
+    ok: list[NDArray[np.bool_]]
+    rows: dict[int, NDArray[np.uint8]]
+    checked: list[int]
+
+
+def _merge_in_stream_order(
+    cands: _Candidates, ks: list[int]
+) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.bool_], NDArray[np.intp]]:
+    """(position, layout, checksum ok, index within its layout) of the candidates of layouts ``ks``, in
+    stream order."""
+    if len(ks) == 1:  # one layout had candidates: already in stream order
+        k = ks[0]
+        pos, ok = cands.pos[k], cands.ok[k]
+        return pos, np.full(pos.size, k, np.intp), ok, np.arange(pos.size)
+    if not ks:
+        e = np.zeros(0, np.intp)
+        return e, e, np.zeros(0, bool), e
+    pos = np.concatenate([cands.pos[k] for k in ks])
+    lay = np.concatenate([np.full(cands.pos[k].size, k, np.intp) for k in ks])
+    ok = np.concatenate([cands.ok[k] for k in ks])
+    within = np.concatenate([np.arange(cands.pos[k].size) for k in ks])
+    order = np.argsort(pos, kind="stable")
+    return pos[order], lay[order], ok[order], within[order]
 
 
 def _non_overlapping_var(pos: NDArray[np.intp], lengths: NDArray[np.int64]) -> NDArray[np.intp]:

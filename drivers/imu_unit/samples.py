@@ -1,14 +1,14 @@
 """Decoded frames → the recording's SI samples (and back, for the simulated unit).
 
 :class:`SampleConverter` is stateful across feeds: the counter tracker (gaps, resets and duplicates counted
-separately, :class:`drivers.imu_counts.CounterTracker`), the unwrapped sample index, the last multiplexed
+separately, :class:`drivers.imu_unit.counts.CounterTracker`), the unwrapped sample index, the last multiplexed
 temperature (KVH format C sends it every 4th frame), and a wrapping time stamp.
 
-Conversions (per :class:`~drivers.imu_frame_desc.Conversion`): ``si = raw × scale × unit`` (+ offset for
+Conversions (per :class:`~drivers.imu_unit.description.Conversion`): ``si = raw × scale × unit`` (+ offset for
 temperatures, which end in K); increments (Δθ, Δv) are divided by the nominal sample interval into rate and
 specific force, since the identification needs rates; g is 9.80665 m/s². Several temperature fields
 (STIM300: one per sensor) are averaged. Per-sample status is normalised into flag bits
-(:data:`drivers.imu_frame_desc.FLAG_BITS`, bit set = channel invalid); a non-finite decoded value (float
+(:data:`drivers.imu_unit.description.FLAG_BITS`, bit set = channel invalid); a non-finite decoded value (float
 frames) also flags its channel. Invalid samples are kept and flagged, never silently used: the recorder
 stores the flags (``/imu/status``) and the identification skips flagged samples.
 
@@ -23,9 +23,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.imu_counts import CounterCheck, CounterTracker
-from drivers.imu_frame import FrameBatch, FrameCodec
-from drivers.imu_frame_desc import FLAG_BITS, RECORDED, TYPES, Conversion, FrameFormat
+from drivers.imu_unit.counts import CounterCheck, CounterTracker
+from drivers.imu_unit.decoder import FrameBatch, FrameCodec
+from drivers.imu_unit.description import FLAG_BITS, RECORDED, TYPES, Conversion, FrameFormat
 
 _TEMP_FLAG = np.uint16(1 << FLAG_BITS["temperature"])
 
@@ -71,7 +71,7 @@ def _si(raw: NDArray, c: Conversion, rate: float) -> NDArray[np.float64]:
 
 
 class SampleConverter:
-    """Stateful conversion of :class:`~drivers.imu_frame.FrameBatch` es into :class:`Samples`.
+    """Stateful conversion of :class:`~drivers.imu_unit.decoder.FrameBatch` es into :class:`Samples`.
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 """Frame descriptions as data: the YAML format that says how an inertial unit's binary frame is laid out.
 
-A description (shipped ones in ``drivers/frames/*.yaml``; the format is documented in
-``drivers/frames/README.md``) gives the sync/identifier bytes, the frame length, the fields (offset, type,
+A description (shipped ones in ``drivers/imu_unit/frames/*.yaml``; the format is documented in
+``drivers/imu_unit/frames/README.md``) gives the sync/identifier bytes, the frame length, the fields (offset, type,
 byte order, channel, scale and unit), the counter (modulus and step, or the tick rate it counts), the status
 fields and what "valid" means, the checksum (algorithm, parameters, coverage, zero padding) and the
 configuration *options* the unit's output depends on (delta angle vs rate, g vs Δv, range…). Options are not
@@ -9,7 +9,7 @@ in the frame: the bench says how its unit is configured (``unit.frame_options``)
 :func:`compile_format` resolves every scale and unit into SI factors for that configuration and sample rate.
 
 Every mistake in a description is a :class:`~core.yaml_source.ConfigError` naming the description file and
-line. The decoder itself lives in :mod:`drivers.imu_frame`.
+line. The decoder itself lives in :mod:`drivers.imu_unit.decoder`.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from analysis.units import CELSIUS_ZERO, DEG, DEG_PER_HOUR, FOOT, G0, GAUSS, UG
 from core.yaml_source import (
@@ -32,7 +33,7 @@ from core.yaml_source import (
     get_str,
     load_yaml,
 )
-from drivers.imu_frame_crc import PRESETS, CrcSpec
+from drivers.imu_unit.checksums import PRESETS, SUM_KINDS, CrcSpec
 
 FRAMES_DIR = Path(__file__).resolve().parent / "frames"
 DEFAULT_FRAME = "tablebench-v1"
@@ -237,7 +238,7 @@ class FrameDescription:
 
 
 def shipped_frames() -> list[str]:
-    """Names of the shipped frame descriptions (``drivers/frames/*.yaml``)."""
+    """Names of the shipped frame descriptions (``drivers/imu_unit/frames/*.yaml``)."""
     return sorted(p.stem for p in FRAMES_DIR.glob("*.yaml"))
 
 
@@ -270,8 +271,7 @@ def load_frame(name_or_path: str, base_dir: str | Path | None = None) -> FrameDe
         raise ConfigError(
             str(name_or_path),
             None,
-            f"unknown frame format; shipped: {', '.join(shipped_frames())} "
-            "(or give a path to a .yaml description)",
+            f"unknown frame format; shipped: {', '.join(shipped_frames())} (or give a path to a .yaml description)",
         ) from None
     data, smap, _text = load_yaml(path)
     return parse_description(data, smap)
@@ -341,23 +341,45 @@ def _check_selectable(v: Any, smap: SourceMap, p: KeyPath, options: dict[str, Op
 def parse_description(data: Any, smap: SourceMap) -> FrameDescription:
     """Validate parsed YAML into a :class:`FrameDescription` (errors name the file and line)."""
     if data is None:
-        raise ConfigError(smap.file, None, "the frame description is empty; see drivers/frames/README.md")
+        raise ConfigError(smap.file, None, "the frame description is empty; see drivers/imu_unit/frames/README.md")
     d = get_mapping(data, smap, ())
     if "layouts" in d:
         return _parse_layouts(d, smap)
-    check_keys(
-        d,
-        smap,
-        (),
-        DESCRIPTION_KEYS,
-    )
+    check_keys(d, smap, (), DESCRIPTION_KEYS)
     name = get_str(d, smap, (), "name")
     order = get_str(d, smap, (), "byte_order", "big", choices=["big", "little"])
     sync = _bytes(d, smap, (), "sync", True)
     length = _int(d, smap, (), "length", None, 2, 4096)
     if len(sync) >= length:
         raise smap.error(("sync",), f"{len(sync)} sync bytes leave nothing of a {length}-byte frame")
-    # options
+    options = _parse_options(d, smap)
+    occupied = np.zeros(length, dtype=bool)
+    occupied[: len(sync)] = True
+    fields = _parse_fields(d, smap, length, order, options, occupied)
+    names = {f.name for f in fields}
+    time_field, time_mod = _parse_time(d, smap, fields)
+    return FrameDescription(
+        name=name,
+        title=str(d.get("title", name)),
+        path=smap.file,
+        sync=sync,
+        length=length,
+        byte_order=order,
+        fields=tuple(fields),
+        counter=_parse_counter(d, smap, names),
+        status=_parse_status(d, smap, names),
+        checksum=_parse_checksum(d, smap, length, order, occupied),
+        options=tuple(options.values()),
+        time_field=time_field,
+        time_modulus=time_mod,
+        trailer=_bytes(d, smap, (), "trailer", False),
+        notes=str(d.get("notes", "")),
+        smap=smap,
+    )
+
+
+def _parse_options(d: dict, smap: SourceMap) -> dict[str, OptionDesc]:
+    """``options``: the unit's configuration the output depends on (choices, or a positive number)."""
     options: dict[str, OptionDesc] = {}
     od = d.get("options") or {}
     if not isinstance(od, dict):
@@ -380,95 +402,121 @@ def parse_description(data: Any, smap: SourceMap) -> FrameDescription:
         if default not in choices:
             raise smap.error(p + ("default",), f"{default!r} is not one of the choices {', '.join(choices)}")
         options[str(oname)] = OptionDesc(str(oname), default, choices, str(spec.get("help", "")))
-    # fields
+    return options
+
+
+def _parse_fields(
+    d: dict, smap: SourceMap, length: int, order: str, options: dict[str, OptionDesc], occupied: NDArray[np.bool_]
+) -> list[FieldDesc]:
+    """``fields``: each field inside the frame, none overlapping (``occupied`` is updated)."""
     fl = d.get("fields")
     if not isinstance(fl, list) or not fl:
         raise smap.error(("fields",), "is required (a list of {name, offset, type, …})")
     fields: list[FieldDesc] = []
     names: set[str] = set()
-    occupied = np.zeros(length, dtype=bool)
-    occupied[: len(sync)] = True
     for i, fd in enumerate(fl):
-        p: KeyPath = ("fields", i)
-        fd = get_mapping(fd, smap, p)
-        check_keys(
-            fd, smap, p, ["name", "offset", "type", "byte_order", "channel", "scale", "unit", "mux", "sim_value"]
-        )
-        fname = get_str(fd, smap, p, "name")
-        if fname in names:
-            raise smap.error(p + ("name",), f"field name {fname!r} is used twice")
-        names.add(fname)
-        ftype = get_str(fd, smap, p, "type", choices=list(TYPES))
-        off = _int(fd, smap, p, "offset", None, 0, length - 1)
-        size = TYPES[ftype][1]
-        if off + size > length:
-            raise smap.error(p + ("offset",), f"{fname} ({ftype}) at {off} runs past the {length}-byte frame")
-        if occupied[off : off + size].any():
-            raise smap.error(
-                p + ("offset",), f"{fname} at bytes {off}…{off + size - 1} overlaps the sync or another field"
-            )
-        occupied[off : off + size] = True
-        forder = get_str(fd, smap, p, "byte_order", order, choices=["big", "little"])
-        channel = fd.get("channel")
-        if channel is not None and channel not in CHANNEL_KINDS:
-            raise smap.error(p + ("channel",), f"unknown channel {channel!r}; known: {', '.join(CHANNEL_KINDS)}")
-        scale = fd.get("scale", 1)
-        unit = fd.get("unit", "1")
-        mux: list[tuple[int, str, Any, Any]] = []
-        selector, modulus = None, 0
-        if fd.get("mux") is not None:
-            mp = p + ("mux",)
-            md = get_mapping(fd["mux"], smap, mp)
-            check_keys(md, smap, mp, ["selector", "modulus", "slots"])
-            selector = get_str(md, smap, mp, "selector")
-            modulus = _int(md, smap, mp, "modulus", None, 1, 256)
-            slots = get_mapping(md.get("slots"), smap, mp + ("slots",))
-            for k, sd in slots.items():
-                sp = mp + ("slots", str(k))
-                sd = get_mapping(sd, smap, sp)
-                check_keys(sd, smap, sp, ["channel", "scale", "unit"])
-                try:
-                    slot = int(k)
-                except ValueError:
-                    raise smap.error(sp, f"slot {k!r} must be an integer 0…{modulus - 1}") from None
-                sch = get_str(sd, smap, sp, "channel", choices=list(CHANNEL_KINDS))
-                mux.append((slot, sch, sd.get("scale", 1), sd.get("unit", "1")))
-                _check_selectable(sd.get("scale", 1), smap, sp + ("scale",), options, "scale")
-                _check_selectable(sd.get("unit", "1"), smap, sp + ("unit",), options, "unit")
-        else:
-            _check_selectable(scale, smap, p + ("scale",), options, "scale")
-            _check_selectable(unit, smap, p + ("unit",), options, "unit")
-        sim_value = parse_number(fd.get("sim_value", 0))
-        if sim_value is None:
-            raise smap.error(p + ("sim_value",), "expected a number")
-        fields.append(
-            FieldDesc(fname, off, ftype, forder, channel, scale, unit, tuple(mux), selector, modulus, sim_value, p)
-        )
+        f = _parse_field(fd, smap, ("fields", i), length, order, options, occupied)
+        if f.name in names:
+            raise smap.error(f.path + ("name",), f"field name {f.name!r} is used twice")
+        names.add(f.name)
+        fields.append(f)
     for f in fields:
         if f.mux_selector is not None and f.mux_selector not in names:
             raise smap.error(f.path + ("mux", "selector"), f"no field named {f.mux_selector!r}")
-    # counter
-    counter = None
-    if d.get("counter") is not None:
-        p = ("counter",)
-        cd = get_mapping(d["counter"], smap, p)
-        check_keys(cd, smap, p, ["field", "modulus", "step", "tick_hz"])
-        cf = get_str(cd, smap, p, "field", choices=sorted(names))
-        modulus = _int(cd, smap, p, "modulus", None, 2, 1 << 64)
-        if "step" in cd and "tick_hz" in cd:
-            raise smap.error(p, "give step or tick_hz, not both")
-        step = _int(cd, smap, p, "step", 1, 1, modulus // 2) if "tick_hz" not in cd else None
-        tick = parse_number(cd.get("tick_hz")) if "tick_hz" in cd else None
-        if "tick_hz" in cd and (tick is None or tick <= 0):
-            raise smap.error(p + ("tick_hz",), "expected a positive number of Hz")
-        counter = CounterDesc(cf, modulus, step, tick)
-    # status
+    return fields
+
+
+def _parse_field(
+    fd: Any,
+    smap: SourceMap,
+    p: KeyPath,
+    length: int,
+    order: str,
+    options: dict[str, OptionDesc],
+    occupied: NDArray[np.bool_],
+) -> FieldDesc:
+    """One entry of ``fields``."""
+    fd = get_mapping(fd, smap, p)
+    check_keys(fd, smap, p, ["name", "offset", "type", "byte_order", "channel", "scale", "unit", "mux", "sim_value"])
+    fname = get_str(fd, smap, p, "name")
+    ftype = get_str(fd, smap, p, "type", choices=list(TYPES))
+    off = _int(fd, smap, p, "offset", None, 0, length - 1)
+    size = TYPES[ftype][1]
+    if off + size > length:
+        raise smap.error(p + ("offset",), f"{fname} ({ftype}) at {off} runs past the {length}-byte frame")
+    if occupied[off : off + size].any():
+        raise smap.error(p + ("offset",), f"{fname} at bytes {off}…{off + size - 1} overlaps the sync or another field")
+    occupied[off : off + size] = True
+    forder = get_str(fd, smap, p, "byte_order", order, choices=["big", "little"])
+    channel = fd.get("channel")
+    if channel is not None and channel not in CHANNEL_KINDS:
+        raise smap.error(p + ("channel",), f"unknown channel {channel!r}; known: {', '.join(CHANNEL_KINDS)}")
+    scale = fd.get("scale", 1)
+    unit = fd.get("unit", "1")
+    mux: list[tuple[int, str, Any, Any]] = []
+    selector, modulus = None, 0
+    if fd.get("mux") is not None:
+        selector, modulus, mux = _parse_mux(fd["mux"], smap, p + ("mux",), options)
+    else:
+        _check_selectable(scale, smap, p + ("scale",), options, "scale")
+        _check_selectable(unit, smap, p + ("unit",), options, "unit")
+    sim_value = parse_number(fd.get("sim_value", 0))
+    if sim_value is None:
+        raise smap.error(p + ("sim_value",), "expected a number")
+    return FieldDesc(fname, off, ftype, forder, channel, scale, unit, tuple(mux), selector, modulus, sim_value, p)
+
+
+def _parse_mux(
+    m: Any, smap: SourceMap, mp: KeyPath, options: dict[str, OptionDesc]
+) -> tuple[str, int, list[tuple[int, str, Any, Any]]]:
+    """A multiplexed field's ``mux``: (selector field, modulus, [(slot, channel, scale, unit)])."""
+    md = get_mapping(m, smap, mp)
+    check_keys(md, smap, mp, ["selector", "modulus", "slots"])
+    selector = get_str(md, smap, mp, "selector")
+    modulus = _int(md, smap, mp, "modulus", None, 1, 256)
+    slots = get_mapping(md.get("slots"), smap, mp + ("slots",))
+    mux: list[tuple[int, str, Any, Any]] = []
+    for k, sd in slots.items():
+        sp = mp + ("slots", str(k))
+        sd = get_mapping(sd, smap, sp)
+        check_keys(sd, smap, sp, ["channel", "scale", "unit"])
+        try:
+            slot = int(k)
+        except ValueError:
+            raise smap.error(sp, f"slot {k!r} must be an integer 0…{modulus - 1}") from None
+        sch = get_str(sd, smap, sp, "channel", choices=list(CHANNEL_KINDS))
+        mux.append((slot, sch, sd.get("scale", 1), sd.get("unit", "1")))
+        _check_selectable(sd.get("scale", 1), smap, sp + ("scale",), options, "scale")
+        _check_selectable(sd.get("unit", "1"), smap, sp + ("unit",), options, "unit")
+    return selector, modulus, mux
+
+
+def _parse_counter(d: dict, smap: SourceMap, names: set[str]) -> CounterDesc | None:
+    """``counter``: {field, modulus, step} or {field, modulus, tick_hz}."""
+    if d.get("counter") is None:
+        return None
+    p: KeyPath = ("counter",)
+    cd = get_mapping(d["counter"], smap, p)
+    check_keys(cd, smap, p, ["field", "modulus", "step", "tick_hz"])
+    cf = get_str(cd, smap, p, "field", choices=sorted(names))
+    modulus = _int(cd, smap, p, "modulus", None, 2, 1 << 64)
+    if "step" in cd and "tick_hz" in cd:
+        raise smap.error(p, "give step or tick_hz, not both")
+    step = _int(cd, smap, p, "step", 1, 1, modulus // 2) if "tick_hz" not in cd else None
+    tick = parse_number(cd.get("tick_hz")) if "tick_hz" in cd else None
+    if "tick_hz" in cd and (tick is None or tick <= 0):
+        raise smap.error(p + ("tick_hz",), "expected a positive number of Hz")
+    return CounterDesc(cf, modulus, step, tick)
+
+
+def _parse_status(d: dict, smap: SourceMap, names: set[str]) -> tuple[StatusDesc, ...]:
+    """``status``: list of {field, valid: bits_set|zero|flags, bits, channels}."""
     status: list[StatusDesc] = []
     sl = d.get("status") or []
     if not isinstance(sl, list):
         raise smap.error(("status",), "expected a list of {field, valid, …}")
     for i, sd in enumerate(sl):
-        p = ("status", i)
+        p: KeyPath = ("status", i)
         sd = get_mapping(sd, smap, p)
         check_keys(sd, smap, p, ["field", "valid", "bits", "channels"])
         sf = get_str(sd, smap, p, "field", choices=sorted(names))
@@ -489,99 +537,95 @@ def parse_description(data: Any, smap: SourceMap) -> FrameDescription:
                 )
             chans = tuple(cl)
         status.append(StatusDesc(sf, valid, tuple(bits), chans))
-    # checksum
-    checksum = None
-    if d.get("checksum") is not None:
-        p = ("checksum",)
-        cd = get_mapping(d["checksum"], smap, p)
-        check_keys(
-            cd,
-            smap,
-            p,
-            [
-                "algorithm",
-                "width",
-                "poly",
-                "init",
-                "refin",
-                "refout",
-                "xorout",
-                "offset",
-                "covers",
-                "pad_to",
-                "byte_order",
-            ],
-        )
-        algo = get_str(cd, smap, p, "algorithm", "custom")
-        if algo == "sum8" or algo in PRESETS:
-            spec = CrcSpec.named(algo)
-        elif algo == "custom":
-            spec = CrcSpec(
-                "custom",
-                _int(cd, smap, p, "width", None, 8, 32),
-                _int(cd, smap, p, "poly", None, 1, (1 << 32) - 1),
-                _int(cd, smap, p, "init", 0, 0, (1 << 32) - 1),
-                bool(cd.get("refin", False)),
-                bool(cd.get("refout", False)),
-                _int(cd, smap, p, "xorout", 0, 0, (1 << 32) - 1),
-            )
-            if spec.width not in (8, 16, 32) or spec.poly >= (1 << spec.width):
-                raise smap.error(p + ("width",), "width must be 8, 16 or 32 with poly < 2^width")
-        else:
-            raise smap.error(
-                p + ("algorithm",), f"unknown algorithm {algo!r}; known: sum8, custom, {', '.join(PRESETS)}"
-            )
-        off = _int(cd, smap, p, "offset", None, 0, length - 1)
-        if off + spec.nbytes > length:
-            raise smap.error(p + ("offset",), f"the {spec.nbytes}-byte checksum at {off} runs past the frame")
-        if occupied[off : off + spec.nbytes].any():
-            raise smap.error(p + ("offset",), "the checksum overlaps a field or the sync bytes")
-        cov = cd.get("covers")
-        if not (
-            isinstance(cov, list) and len(cov) == 2 and all(isinstance(x, int) and not isinstance(x, bool) for x in cov)
-        ):
-            raise smap.error(p + ("covers",), "expected [first, end) byte offsets like [0, 32]")
-        start, end = int(cov[0]), int(cov[1])
-        if not 0 <= start < end <= length or (start < off + spec.nbytes and end > off):
-            raise smap.error(p + ("covers",), f"[{start}, {end}) must lie inside the frame and exclude the checksum")
-        pad_to = _int(cd, smap, p, "pad_to", 1, 1, 64)
-        checksum = ChecksumDesc(
-            spec,
-            off,
-            start,
-            end,
-            (-(end - start)) % pad_to,
-            get_str(cd, smap, p, "byte_order", order, choices=["big", "little"]),
-        )
-    # time
-    time_field, time_mod = None, 0
-    if d.get("time") is not None:
-        p = ("time",)
-        td = get_mapping(d["time"], smap, p)
-        check_keys(td, smap, p, ["field", "modulus"])
-        time_field = get_str(td, smap, p, "field", choices=sorted(names))
-        if dict((f.name, f.channel) for f in fields)[time_field] != "time":
-            raise smap.error(p + ("field",), f"field {time_field!r} must have channel: time")
-        time_mod = _int(td, smap, p, "modulus", 0, 0, 1 << 64)
-    trailer = _bytes(d, smap, (), "trailer", False)
-    return FrameDescription(
-        name=name,
-        title=str(d.get("title", name)),
-        path=smap.file,
-        sync=sync,
-        length=length,
-        byte_order=order,
-        fields=tuple(fields),
-        counter=counter,
-        status=tuple(status),
-        checksum=checksum,
-        options=tuple(options.values()),
-        time_field=time_field,
-        time_modulus=time_mod,
-        trailer=trailer,
-        notes=str(d.get("notes", "")),
-        smap=smap,
+    return tuple(status)
+
+
+CHECKSUM_KEYS = [
+    "algorithm",
+    "width",
+    "poly",
+    "init",
+    "refin",
+    "refout",
+    "xorout",
+    "offset",
+    "covers",
+    "pad_to",
+    "byte_order",
+]
+
+
+def _checksum_spec(cd: dict, smap: SourceMap, p: KeyPath) -> CrcSpec:
+    """The checksum algorithm: a preset name, or ``custom`` with its CRC parameters."""
+    algo = get_str(cd, smap, p, "algorithm", "custom")
+    if algo in SUM_KINDS or algo in PRESETS:
+        return CrcSpec.named(algo)
+    if algo != "custom":
+        known = ", ".join([*SUM_KINDS, "custom", *PRESETS])
+        raise smap.error(p + ("algorithm",), f"unknown algorithm {algo!r}; known: {known}")
+    spec = CrcSpec(
+        "custom",
+        _int(cd, smap, p, "width", None, 8, 32),
+        _int(cd, smap, p, "poly", None, 1, (1 << 32) - 1),
+        _int(cd, smap, p, "init", 0, 0, (1 << 32) - 1),
+        bool(cd.get("refin", False)),
+        bool(cd.get("refout", False)),
+        _int(cd, smap, p, "xorout", 0, 0, (1 << 32) - 1),
     )
+    if spec.width not in (8, 16, 32) or spec.poly >= (1 << spec.width):
+        raise smap.error(p + ("width",), "width must be 8, 16 or 32 with poly < 2^width")
+    return spec
+
+
+def _parse_checksum(
+    d: dict, smap: SourceMap, length: int, order: str, occupied: NDArray[np.bool_]
+) -> ChecksumDesc | None:
+    """``checksum``: {algorithm, offset, covers: [first, end), pad_to, byte_order}."""
+    if d.get("checksum") is None:
+        return None
+    p: KeyPath = ("checksum",)
+    cd = get_mapping(d["checksum"], smap, p)
+    check_keys(cd, smap, p, CHECKSUM_KEYS)
+    spec = _checksum_spec(cd, smap, p)
+    off = _int(cd, smap, p, "offset", None, 0, length - 1)
+    if off + spec.nbytes > length:
+        raise smap.error(p + ("offset",), f"the {spec.nbytes}-byte checksum at {off} runs past the frame")
+    if occupied[off : off + spec.nbytes].any():
+        raise smap.error(p + ("offset",), "the checksum overlaps a field or the sync bytes")
+    cov = cd.get("covers")
+    if not (
+        isinstance(cov, list) and len(cov) == 2 and all(isinstance(x, int) and not isinstance(x, bool) for x in cov)
+    ):
+        raise smap.error(p + ("covers",), "expected [first, end) byte offsets like [0, 32]")
+    start, end = int(cov[0]), int(cov[1])
+    if not 0 <= start < end <= length or (start < off + spec.nbytes and end > off):
+        raise smap.error(p + ("covers",), f"[{start}, {end}) must lie inside the frame and exclude the checksum")
+    pad_to = _int(cd, smap, p, "pad_to", 1, 1, 64)
+    if spec.algorithm.startswith("sum16-words") and (end - start + (-(end - start)) % pad_to) % 2:
+        raise smap.error(
+            p + ("covers",), f"{spec.algorithm} sums 16-bit words: [{start}, {end}) must cover an even count"
+        )
+    return ChecksumDesc(
+        spec,
+        off,
+        start,
+        end,
+        (-(end - start)) % pad_to,
+        get_str(cd, smap, p, "byte_order", order, choices=["big", "little"]),
+    )
+
+
+def _parse_time(d: dict, smap: SourceMap, fields: list[FieldDesc]) -> tuple[str | None, int]:
+    """``time``: {field, modulus}, a time-stamp field used as bench time."""
+    if d.get("time") is None:
+        return None, 0
+    p: KeyPath = ("time",)
+    td = get_mapping(d["time"], smap, p)
+    check_keys(td, smap, p, ["field", "modulus"])
+    time_field = get_str(td, smap, p, "field", choices=sorted(f.name for f in fields))
+    if dict((f.name, f.channel) for f in fields)[time_field] != "time":
+        raise smap.error(p + ("field",), f"field {time_field!r} must have channel: time")
+    return time_field, _int(td, smap, p, "modulus", 0, 0, 1 << 64)
 
 
 def _parse_layouts(d: dict, smap: SourceMap) -> FrameDescription:
@@ -647,10 +691,16 @@ def _parse_layouts(d: dict, smap: SourceMap) -> FrameDescription:
         c, c0 = sub.counter, primary.counter
         if role == "data" and (c is None) != (c0 is None):
             raise smap.error(p, f"{sub.name}: every data layout needs a counter, or none")
-        if role == "data" and c is not None and c0 is not None and (c.modulus, c.step, c.tick_hz) != (
-            c0.modulus,
-            c0.step,
-            c0.tick_hz,
+        if (
+            role == "data"
+            and c is not None
+            and c0 is not None
+            and (c.modulus, c.step, c.tick_hz)
+            != (
+                c0.modulus,
+                c0.step,
+                c0.tick_hz,
+            )
         ):
             raise smap.error(p, f"{sub.name}: its counter (modulus, step) differs from {primary.name}'s")
     trailer = _bytes(d, smap, (), "trailer", False) or primary.trailer

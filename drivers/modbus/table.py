@@ -1,5 +1,5 @@
-"""Turntable driver for Modbus TCP tables whose register map is data (:mod:`drivers.modbus_map`; the default
-is the tablebench controller's map, ``drivers/modbus_maps/tablebench.yaml``).
+"""Turntable driver for Modbus TCP tables whose register map is data (:mod:`drivers.modbus.register_map`; the default
+is the tablebench controller's map, ``drivers/modbus/maps/tablebench.yaml``).
 
 :class:`ModbusTurntable` implements :class:`drivers.protocols.Turntable` with an already-connected pymodbus
 3.x **synchronous** client (``pymodbus.client.ModbusTcpClient``); the driver never opens or closes it.
@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.modbus_map import ModbusMap, map_with_word_order
+from drivers.modbus.register_map import ModbusMap, map_with_word_order
 from drivers.protocols import (
     AXIS_NAMES,
     AxisLimits,

@@ -1,7 +1,7 @@
 """Register codecs for Modbus devices: IEEE-754 floats across 16-bit registers, in either word order.
 
-The turntable's register *map* is data, not code: ``drivers/modbus_maps/tablebench.yaml`` (the shipped
-tablebench controller map, loaded and validated by :mod:`drivers.modbus_map`; a PLC with another layout
+The turntable's register *map* is data, not code: ``drivers/modbus/maps/tablebench.yaml`` (the shipped
+tablebench controller map, loaded and validated by :mod:`drivers.modbus.register_map`; a PLC with another layout
 gets another file). This module keeps the float codecs shared by peripherals (e.g. thermal chambers, which
 commonly use two-register float32).
 
