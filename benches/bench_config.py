@@ -489,7 +489,9 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
     frame = get_str(d, smap, p, "frame", DEFAULT_FRAME)
     sc = _section(d, smap, p, "scale", required=frame == DEFAULT_FRAME)
     if sc is None:  # another frame format carries its own scale; the simulator's internal counts are fine
-        scale = CountScale(accel_lsb=0.01 * UG, gyro_lsb=1e-4 * DEG_PER_HOUR, temperature_lsb=0.01)
+        # internal counts are int32: 1e-3 °/h per count reaches ±596 °/s (a KVH 1750 ±490 °/s, a STIM300
+        # ±400 °/s); 1e-4 °/h clipped every rate above 59.65 °/s (a 90° step peaks at 85 °/s)
+        scale = CountScale(accel_lsb=0.01 * UG, gyro_lsb=1e-3 * DEG_PER_HOUR, temperature_lsb=0.01)
     else:
         sp = p + ("scale",)
         check_keys(sc, smap, sp, ["accel_ug_per_count", "gyro_dph_per_count", "temperature_c_per_count"])

@@ -187,13 +187,18 @@ def _open_simulated(
             [table.close, unit.close],
         )
     wd = getattr(tt, "watchdog", None)
+    realtime = bool(getattr(config.simulation, "realtime", False))
     closers: list[Callable[[], None]] = []
     raw, raw_name = _raw_sink(config, run_folder, closers)
     try:
         lb = Loopback(
             world,
             dialect="acutrol" if acl else "modbus",
-            make_acl_table=(lambda transport: acl_turntable(transport, tt, clock=world.host_time)) if acl else None,
+            make_acl_table=(
+                (lambda transport: acl_turntable(transport, tt, clock=None if realtime else world.host_time))
+                if acl
+                else None
+            ),
             acl=tt.acl,
             word_order=getattr(tt, "float_word_order", None),
             register_map=getattr(tt, "modbus_map", None),
@@ -201,6 +206,7 @@ def _open_simulated(
             unit_frame=unit_frame_format(config.unit),
             unit_raw=raw,
             unit_raw_name=raw_name,
+            realtime=realtime,
         )
     except BaseException:
         for fn in closers:

@@ -1446,6 +1446,21 @@ class Recording:
         with self._guard("/table"):
             return self._table_rows(max(0, int(start)), stop)
 
+    def storage_bytes(self, name: str = "/") -> int:
+        """Bytes stored for a dataset or (recursively) a group, e.g. ``"timing"`` (benchmarks: size shares)."""
+        obj = self._f[name]
+        if isinstance(obj, h5py.Dataset):
+            return int(obj.id.get_storage_size())
+        total = 0
+
+        def add(_n: str, o: Any) -> None:
+            nonlocal total
+            if isinstance(o, h5py.Dataset):
+                total += int(o.id.get_storage_size())
+
+        obj.visititems(add)
+        return total
+
     def timing(self) -> TimeSources | None:
         """The raw time sources (``/timing``; RECORDING.md), or None for a recording made before they existed."""
         if "timing" not in self._f:

@@ -37,6 +37,10 @@ from analysis.gimbal import body_rate, gravity_in_body
 from analysis.timebase.events import MotionWindow, motion_windows
 from analysis.timebase.model import TimeBase, TimingEvent
 
+MAX_SCALE_MISMATCH = 0.01
+"""A motion whose gyro angle differs from the table's by more than this fraction is not used (saturated gyros,
+a wrong output configuration): its shape, not only its size, would be wrong."""
+
 
 @dataclass(frozen=True)
 class RunSignals:
@@ -127,8 +131,8 @@ def _gyro_event(sig: RunSignals, w: MotionWindow, t0: float, eps: float) -> Timi
         delta += float(p[3])
         if abs(p[3]) < 1e-9:
             break
-    if not math.isfinite(sd):
-        return None
+    if not math.isfinite(sd) or abs(float(p[1])) > MAX_SCALE_MISMATCH:
+        return None  # the gyros' angle disagrees with the table's: saturated, or a misconfigured output
     speed = float(np.sqrt(np.mean(grad[w.moving] ** 2))) if np.any(w.moving) else 0.0
     return TimingEvent(
         t_unit=float(np.mean(s0[w.moving] if np.any(w.moving) else s0)),
@@ -251,6 +255,7 @@ def estimate_time_base(
             ev = _gyro_event(sig, w, t0, eps) if use_gyro else _accel_event(sig, w, t0, eps, accel_half_window)
             if ev is not None and math.isfinite(ev.u) and ev.u > 0:
                 events.append(ev)
+        unused = len(wins) - len(events)
         if not events:
             break
         p, cov, birge, resid = _line_fit(events)
@@ -264,6 +269,11 @@ def estimate_time_base(
         return TimeBase(t0, eps, math.nan, math.nan, np.full((2, 2), math.nan), "coarse", [], math.nan, {}, notes)
     if skipped:
         notes.append(f"{skipped} multi-axis motion(s) not used")
+    if unused:
+        notes.append(
+            f"{unused} motion window(s) not used: too few readings, or the unit's signal does not follow the "
+            "table's (a gyro angle off by more than 1 %: a saturated or misconfigured output?)"
+        )
     if len(events) == 1:
         notes.append("one motion only: the rate is taken from the reading times, without a stated uncertainty")
     evs = [TimingEvent(e.t_unit, e.offset, e.u, e.axis, e.readings, e.rms_time, float(r))

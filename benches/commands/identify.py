@@ -64,5 +64,12 @@ def run(args: argparse.Namespace) -> int:
     folder = Path(args.run) if Path(args.run).is_dir() else Path(args.run).parent
     out = write_calibration(result, args.out or folder / "calibration.json")
     print(result.summary())
+    tb = result.time_base
+    if tb is not None and tb.events:
+        from analysis.timebase.plot import plot_timing_residuals  # lazy: matplotlib (--help time)
+
+        png = out.parent / "time-base.png"
+        plot_timing_residuals(tb).savefig(png, dpi=110)
+        print(f"timing residual around the motions: {png}", file=sys.stderr)
     print(f"calibration: {out}", file=sys.stderr)
     return 0

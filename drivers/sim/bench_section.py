@@ -137,6 +137,7 @@ def parse_simulation(d: dict, smap: SourceMap, site: Site, table: Table, unit: U
             "faults",
             "realise_uncertainty_inputs",
             "clocks",
+            "realtime",
         ],
     )
     fs = unit.sample_rate
@@ -330,7 +331,17 @@ def parse_simulation(d: dict, smap: SourceMap, site: Site, table: Table, unit: U
         transport=get_str(d, smap, p, "transport", "in-process", choices=["in-process", "loopback"]),
         budget_inputs=_budget_inputs(d, smap, p, site, table),
         clocks=parse_clocks(d, smap, p),
+        realtime=_realtime(d, smap, p),
     )
+
+
+def _realtime(d: dict, smap: SourceMap, p: KeyPath) -> bool:
+    v = d.get("realtime", False)
+    if not isinstance(v, bool):
+        raise smap.error(p + ("realtime",), f"expected true or false, got {v!r}")
+    if v and d.get("transport", "in-process") != "loopback":
+        raise smap.error(p + ("realtime",), "a real-time unit needs transport: loopback (it streams over a socket)")
+    return v
 
 
 CLOCK_KEYS: dict[str, tuple[str, float, float]] = {
@@ -358,13 +369,19 @@ def parse_clocks(d: dict, smap: SourceMap, p: KeyPath) -> ClockModel:
         v = {"mode": v}
     if not isinstance(v, dict):
         raise smap.error(cp, f"expected ideal, separate or a mapping, got {v!r}")
-    check_keys(v, smap, cp, ["mode", "batch_frames", *CLOCK_KEYS])
+    check_keys(v, smap, cp, ["mode", "batch_frames", "unit_rate_value_ppm", *CLOCK_KEYS])
     mode = get_str(v, smap, cp, "mode", "separate", choices=["ideal", "separate"])
     values = {
         fname: get_number(v, smap, cp, key, default, minimum=0, maximum=1e4) * si
         for key, (fname, si, default) in CLOCK_KEYS.items()
     }
-    return ClockModel(mode=mode, batch_frames=_int(v, smap, cp, "batch_frames", 8, 1, 100000), **values)
+    exact = get_number(v, smap, cp, "unit_rate_value_ppm", None, minimum=-1e4, maximum=1e4)
+    return ClockModel(
+        mode=mode,
+        batch_frames=_int(v, smap, cp, "batch_frames", 8, 1, 100000),
+        unit_rate=None if exact is None else exact * PPM,
+        **values,
+    )
 
 
 def _budget_inputs(d: dict, smap: SourceMap, p: KeyPath, site: Site, table: Table) -> BudgetInputs | None:

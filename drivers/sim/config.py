@@ -260,6 +260,7 @@ class ClockModel:
     batch_frames : frames the link delivers at once (serial buffering, a device server).
     reading_latency, reading_jitter : s; host request → controller latch.
     answer_latency, answer_jitter : s; controller latch → host receives the answer.
+    unit_rate : relative or None; the unit's oscillator error exactly (None: drawn within ±unit_rate_bound).
     """
 
     mode: str = "ideal"
@@ -273,6 +274,7 @@ class ClockModel:
     reading_jitter: float = 0.0003
     answer_latency: float = 0.001
     answer_jitter: float = 0.0003
+    unit_rate: float | None = None
 
     @property
     def separate(self) -> bool:
@@ -298,6 +300,8 @@ class SimConfig:
     table : TableModel. faults : scheduled faults.
     seed : default seed. transport : "in-process" or "loopback".
     clocks : ClockModel (the dataclass default is one ideal clock; a bench file's default is separate clocks).
+    realtime : loopback only: the unit streams from its own thread in real time at its own clock's rate, in
+        batches (``clocks.batch_frames``); the drivers use the host's real clock (not deterministic).
     chamber : ChamberSim or None — a simulated temperature chamber around the unit (its temperature then
         follows the chamber; ``temperature`` is ignored). thermal : ThermalTruth or None — the unit's errors
         as functions of its own temperature (:mod:`drivers.sim.thermal_config`).
@@ -325,6 +329,7 @@ class SimConfig:
     transport: str = "in-process"
     budget_inputs: BudgetInputs | None = None
     clocks: ClockModel = field(default_factory=ClockModel)
+    realtime: bool = False
     chamber: ChamberSim | None = None
     thermal: ThermalTruth | None = None
 

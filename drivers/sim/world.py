@@ -148,6 +148,8 @@ class SimulatedWorld:
         rng = np.random.default_rng(ss)
         draws = rng.uniform(-1.0, 1.0, 3)  # drawn even for ideal clocks: the latency stream stays the same
         self._eps_u = float(draws[0] * ck.unit_rate_bound) if self._sep else 0.0
+        if self._sep and ck.unit_rate is not None:
+            self._eps_u = float(ck.unit_rate)
         self._eps_c = float(draws[1] * ck.controller_rate_bound) if self._sep else 0.0
         self._c0 = float(draws[2] * ck.controller_offset_bound) if self._sep else 0.0
         self._fs_true = self._fs * (1.0 + self._eps_u)
@@ -187,6 +189,11 @@ class SimulatedWorld:
         batch_end = (k_last // b + 1) * b - 1
         arrival = float(self._tau(batch_end)) + ck.link_latency + self._jitter(ck.link_jitter)
         self._host = max(self._host, arrival)
+
+    @property
+    def unit_clock_factor(self) -> float:
+        """Samples the unit takes per nominal sample period of true time: 1 + ε_u (a real-time stream's speed)."""
+        return 1.0 + self._eps_u
 
     def host_time(self) -> float:
         """The host's clock now, s (the simulated host clock: true time; ideal clocks: the unit's time)."""
