@@ -26,10 +26,11 @@ def _slope(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[float, float
     if x.size < 3 or np.ptp(x) <= 0:
         return math.nan, math.nan, math.nan
     xc = x - x.mean()
-    b = float(xc @ (y - y.mean()) / (xc @ xc))
+    sxx = float(np.sum(xc * xc))  # element-wise sums: a BLAS dot can stall on a loaded machine
+    b = float(np.sum(xc * (y - y.mean()))) / sxx
     r = y - y.mean() - b * xc
-    s = float(np.sqrt(r @ r / (x.size - 2)))
-    return b, s / math.sqrt(float(xc @ xc)), s
+    s = math.sqrt(float(np.sum(r * r)) / (x.size - 2))
+    return b, s / math.sqrt(sxx), s
 
 
 def clock_check(

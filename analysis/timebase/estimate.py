@@ -247,7 +247,7 @@ def estimate_time_base(
     cov = np.full((2, 2), math.nan)
     birge = math.nan
     resid = np.zeros(0)
-    for _ in range(3):
+    for _ in range(2):  # the second pass re-measures every motion on the corrected mapping
         tw = (sig.table_time - t0) / (1.0 + eps)  # windows found on the unit's time axis
         wins, skipped = motion_windows(tw, sig.angles, sig.rates, window=window)
         events = []
