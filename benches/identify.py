@@ -15,10 +15,12 @@ the plan does. The live display shows the filter's white-noise 1σ. Results: :cl
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -31,15 +33,26 @@ from analysis.identification.plan import IdentificationPlan, PlanStep, plan_iden
 from analysis.timebase import IDENTITY, TimeBase, misfit_cause
 from analysis.units import DISPLAY_UNITS
 from core.errors import UserError
-from core.provenance import file_sha256
 from drivers.protocols import ImuBlock, TableState
 from procedures.steps import CompiledProcedure, Hold, Spin, Step, Warmup
 from procedures.trajectory import nominal_samples
 
-from .bench_config import BenchConfig, load_bench_text
-from .calibration_result import CalibrationResult
+from .bench_config import BenchConfig
+from .calibration_result import (
+    CalibrationResult,
+    FilterHistory,
+    InformationSummary,
+    ParameterEstimate,
+    PlanSummary,
+    Residuals,
+    RunInfo,
+    StepResiduals,
+    TimeBaseBlock,
+    TruthCheck,
+)
 from .progress import ProgressDisplay
-from .recording import RecordingError, StepRecord, open_recording
+from .recorded_run import RecordedRun, run_of
+from .recording import RecordingError, StepRecord, TableReadings
 from .reference import reference_at, reference_for_samples
 from .timebase import run_time_base, table_in_unit_time, time_base_sensitivity
 
@@ -50,7 +63,6 @@ MODEL_TEXT = (
 IDENTIFIED_STEPS: tuple[type[Step], ...] = (Hold, Spin)
 """Steps whose counted samples the identification fits (a warm-up's only estimate the noise)."""
 _IDENTIFIED_KINDS = frozenset(t.kind for t in IDENTIFIED_STEPS)  # as written in a recording's steps table
-_SI_UNITS = {"bias": "m/s^2", "scale": "1", "misalignment": "rad", "quadratic": "s^2/m", "size_effect": "m"}
 
 
 class IdentificationError(UserError, RuntimeError):
@@ -172,8 +184,8 @@ class LiveIdentifier:
     The reference for the buffered samples interpolates the table readings taken during (and just before)
     the buffer at the sample times less the unit's latency — the same readings offline identification
     interpolates. The live filter cannot know the run's time base before its motions are over, so it takes
-    the table's and the unit's clocks as one: it equals offline identification with ``time_base="none"``;
-    the result written (calibration.json) maps the clocks with the estimated time base.
+    the table's and the unit's clocks as one: on a one-clock bench it equals offline identification with
+    ``time_base="none"``; calibration.json maps the clocks with the estimated time base.
     """
 
     def __init__(
@@ -268,19 +280,27 @@ class StepWindow:
 
 
 @dataclass
-class RecordedRun:
-    """What identification needs from a recording."""
+class IdentificationData:
+    """What identification needs from a recorded run: the acquisition windows with their reference."""
 
-    path: Path
-    attrs: dict[str, Any]
-    config: BenchConfig
+    run: RecordedRun
     windows: list[StepWindow]
     warmup_accel: NDArray[np.float64] | None
     truth: dict[str, float] | None
     incomplete_steps: list[str]
     temperature: NDArray[np.float64]
     time_base: TimeBase = IDENTITY
-    table: Any = None  # the readings on the unit's clock (benches.recording.TableReadings)
+    table: TableReadings | None = None  # the readings on the unit's clock (benches.recording.TableReadings)
+
+    @property
+    def path(self) -> Path:
+        """The recording file."""
+        return self.run.path
+
+    @property
+    def config(self) -> BenchConfig:
+        """The recorded bench, parsed once (:attr:`RecordedRun.config`)."""
+        return self.run.config
 
 
 ACCEL_INVALID = 0b111
@@ -288,75 +308,86 @@ ACCEL_INVALID = 0b111
 drivers.imu_unit.description.FLAG_BITS): flagged samples are left out of the identification, never silently used."""
 
 
-def load_run(run: str | Path, time_base: str = "estimate") -> RecordedRun:
+def load_run(run: str | Path | RecordedRun, time_base: str = "estimate") -> IdentificationData:
     """Read a recording's acquisition windows and reference; clear errors for unusable recordings.
 
-    The recording is verified first (every checksum): identification never runs on damaged data.
+    ``run`` is a run folder, a recording file or an open :class:`RecordedRun` (left open). The recording is
+    verified when it is opened (every checksum): identification never runs on damaged data. ``time_base``:
+    "estimate" puts the table's readings on the unit's clock with the run's estimated time base
+    (benches.timebase), "none" takes the two clocks as one.
     """
-    try:
-        rec = open_recording(run)
-    except RecordingError as exc:
-        raise IdentificationError(str(exc)) from None
-    path = rec.path
-    with rec:
-        hdr = rec.header
-        attrs = hdr.as_dict()
-        attrs["integrity_verified"] = rec.integrity_verified
-        attrs["integrity_note"] = rec.integrity_note
-        bench_text = rec.bench_text
-        if not bench_text or rec.n_table == 0:
-            raise IdentificationError(f"{path}: the recording lacks its bench text, samples or table readings")
-        config = load_bench_text(bench_text, f"{path}:/bench_yaml")
-        steps = rec.steps
-        if not steps:
-            raise IdentificationError(f"{path}: no completed step in the recording (was the run stopped at once?)")
-        n = rec.n_samples
-        latency = unit_latency(config)
-        if time_base == "none":
-            tb = TimeBase(method="none (not estimated: table and unit times taken as one clock)")
-        else:
-            tb = run_time_base(
-                rec, rec.table(), g=config.site.g, mounting=config.unit.mounting, latency=latency,
-                declared=getattr(config.unit, "time_reference", None),
-            )  # fmt: skip
-        table = table_in_unit_time(rec.table(), tb)  # every reference on the unit's clock
-        windows: list[StepWindow] = []
-        warm: NDArray[np.float64] | None = None
-        incomplete = [s.name for s in steps if s.status != "complete"]
-        for s in steps:
-            if s.status != "complete" or s.acq_end <= s.acq_start:
+    with _opened(run) as rr:
+        return _identification_data(rr, time_base)
+
+
+@contextlib.contextmanager
+def _opened(run: str | Path | RecordedRun) -> Iterator[RecordedRun]:
+    """:func:`benches.recorded_run.run_of` with a recording that cannot be opened as IdentificationError."""
+    with contextlib.ExitStack() as stack:
+        try:
+            rr = stack.enter_context(run_of(run))
+        except RecordingError as exc:
+            raise IdentificationError(str(exc)) from None
+        yield rr
+
+
+def _identification_data(rr: RecordedRun, time_base: str = "estimate") -> IdentificationData:
+    path, rec = rr.path, rr.recording
+    if not rr.bench_text or rec.n_table == 0:
+        raise IdentificationError(f"{path}: the recording lacks its bench text, samples or table readings")
+    config = rr.config
+    steps = rr.steps
+    if not steps:
+        raise IdentificationError(f"{path}: no completed step in the recording (was the run stopped at once?)")
+    n = rec.n_samples
+    latency = unit_latency(config)
+    if time_base == "none":
+        tb = TimeBase(method="none (not estimated: table and unit times taken as one clock)")
+    elif time_base == "estimate":
+        tb = run_time_base(
+            rec, rec.table(), g=config.site.g, mounting=config.unit.mounting, latency=latency,
+            declared=getattr(config.unit, "time_reference", None),
+        )  # fmt: skip
+    else:
+        raise IdentificationError(f"unknown time base {time_base!r}; use estimate or none")
+    table = table_in_unit_time(rec.table(), tb)  # every reference on the unit's clock
+    windows: list[StepWindow] = []
+    warm: NDArray[np.float64] | None = None
+    incomplete = [s.name for s in rr.incomplete_steps()]
+    for s in steps:
+        if s.status != "complete" or s.acq_end <= s.acq_start:
+            continue
+        if s.kind == Warmup.kind:
+            warm = rec.samples(s.acq_start, s.acq_end, ("accel",)).accel
+            continue
+        if s.kind not in _IDENTIFIED_KINDS:
+            continue
+        smp = rec.samples(s.acq_start, s.acq_end, ("time", "accel", "status"))
+        t, fo, st = smp.time, smp.accel, smp.status
+        assert t is not None and fo is not None and st is not None
+        valid = (st & ACCEL_INVALID) == 0  # flagged by the unit
+        if not valid.all():
+            t, fo = t[valid], fo[valid]
+            if t.size == 0:
                 continue
-            if s.kind == Warmup.kind:
-                warm = rec.samples(s.acq_start, s.acq_end, ("accel",)).accel
-                continue
-            if s.kind not in _IDENTIFIED_KINDS:
-                continue
-            smp = rec.samples(s.acq_start, s.acq_end, ("time", "accel", "status"))
-            t, fo, st = smp.time, smp.accel, smp.status
-            assert t is not None and fo is not None and st is not None
-            valid = (st & ACCEL_INVALID) == 0  # flagged by the unit
-            if not valid.all():
-                t, fo = t[valid], fo[valid]
-                if t.size == 0:
-                    continue
-            span = acquisition_span(float(t[0]), float(t[-1]), latency, float(config.unit.sample_rate))
-            fr, om, ang = reference_for_samples(
-                t, table.time, table.angles, table.rates, g=config.site.g, mounting=config.unit.mounting,
-                latency=latency, span=span,
-            )  # fmt: skip
-            windows.append(StepWindow(s.name, s.kind, t, fo, fr, om, ang))
-        tr = rec.truth()
-        truth = None
-        if tr is not None and all(n_ in tr.parameters for n_ in PARAM_NAMES):
-            truth = {n_: float(tr.parameters[n_]) for n_ in PARAM_NAMES}
-        temp = rec.samples(fields=("temperature",), index=np.arange(0, n, max(1, n // 10000))).temperature
-        temp = temp if temp is not None else np.zeros(0)
+        span = acquisition_span(float(t[0]), float(t[-1]), latency, float(config.unit.sample_rate))
+        fr, om, ang = reference_for_samples(
+            t, table.time, table.angles, table.rates, g=config.site.g, mounting=config.unit.mounting,
+            latency=latency, span=span,
+        )  # fmt: skip
+        windows.append(StepWindow(s.name, s.kind, t, fo, fr, om, ang))
+    tr = rec.truth()
+    truth = None
+    if tr is not None and all(n_ in tr.parameters for n_ in PARAM_NAMES):
+        truth = {n_: float(tr.parameters[n_]) for n_ in PARAM_NAMES}
+    temp = rec.samples(fields=("temperature",), index=np.arange(0, n, max(1, n // 10000))).temperature
+    temp = temp if temp is not None else np.zeros(0)
     if not windows:
         raise IdentificationError(
-            f"{path}: no complete hold or spin step to identify from (procedure {attrs.get('procedure_name')!r}); "
+            f"{path}: no complete hold or spin step to identify from (procedure {rr.header.procedure_name!r}); "
             "run a calibration procedure such as ten-step"
         )
-    return RecordedRun(path, attrs, config, windows, warm, truth, incomplete, temp, tb, table)
+    return IdentificationData(rr, windows, warm, truth, incomplete, temp, tb, table)
 
 
 def _windows_as_plan_steps(windows: list[StepWindow], max_points: int = 4000) -> list[PlanStep]:
@@ -374,69 +405,297 @@ def _windows_as_plan_steps(windows: list[StepWindow], max_points: int = 4000) ->
     return out
 
 
-def _display(k: int, value: float) -> float:
-    return value / DISPLAY_UNITS[PARAM_KINDS[k]][1]
+# ---- offline identification: estimate / residual statistics / truth check / result --------------------------------
+
+
+@dataclass
+class Estimate:
+    """The estimator's output on the recorded windows (SI, ``PARAM_NAMES`` order).
+
+    ``filter_residuals``: the streaming filter's own per-step residual statistics (Kalman), None for batch.
+    """
+
+    method: str
+    noise_variance: NDArray[np.float64]
+    noise_source: str
+    prior: NDArray[np.float64]
+    x: NDArray[np.float64]
+    covariance_white: NDArray[np.float64]
+    information: NDArray[np.float64]
+    filter_residuals: list[StepResiduals] | None = None
+    history: FilterHistory | None = None
+
+
+@dataclass
+class Uncertainty:
+    """The combined covariance (white ⊕ bias instability on the actual geometry) and what is identifiable."""
+
+    covariance: NDArray[np.float64]
+    plan: IdentificationPlan
+    rank: int
+    condition: float
+    unidentifiable: set[str]
+    time_covariance: NDArray[np.float64] | None = None  # J Σ Jᵀ of the time base (included in ``covariance``)
+    time_sensitivity: NDArray[np.float64] | None = None  # J = ∂x/∂(t₀, ε), (18, 2)
+
+
+def measurement_noise(data: IdentificationData, noise: str) -> NDArray[np.float64]:
+    """Per-sample white-noise variance per axis, (m/s²)²: from the bench ("configured") or the warm-up."""
+    if noise == "configured":
+        return configured_noise_variance(data.config)
+    if noise == "warm-up":
+        if data.warmup_accel is None or data.warmup_accel.shape[0] < 100:
+            raise IdentificationError(f"{data.path}: no warm-up record to estimate R from; use --noise configured")
+        return estimate_measurement_noise(data.warmup_accel)
+    raise IdentificationError(f"unknown noise source {noise!r}; use configured or warm-up")
+
+
+def estimate(data: IdentificationData, method: str, noise: str = "configured") -> Estimate:
+    """Run the estimator (streaming Kalman filter over the windows in order, or batch least squares)."""
+    p0 = prior_covariance(data.config)
+    r_var = measurement_noise(data, noise)
+    if method == "kalman":
+        kf = StreamingIdentifier(r_var, p0, sample_rate=data.config.unit.sample_rate)
+        for w in data.windows:
+            kf.update(w.f_out, w.f_ref, w.omega, w.name, t=w.t)
+        rows = [
+            StepResiduals(name=name, samples=int(st.count), mean=list(map(float, st.mean)),
+                          rms=list(map(float, st.rms)))
+            for name, st in kf.residual_statistics().items()
+        ]  # fmt: skip
+        history = FilterHistory(
+            time=[h.time for h in kf.history],
+            step=[h.step for h in kf.history],
+            estimate=[list(map(float, h.x)) for h in kf.history],
+            sigma=[list(map(float, h.sigma)) for h in kf.history],
+        )
+        return Estimate(method, r_var, noise, p0, kf.estimate, kf.covariance, kf.information, rows, history)
+    if method == "batch":
+        res = batch_identify(
+            np.concatenate([w.f_out for w in data.windows]),
+            np.concatenate([w.f_ref for w in data.windows]),
+            np.concatenate([w.omega for w in data.windows]),
+            r_var,
+            None,
+            p0,
+        )
+        return Estimate(method, r_var, noise, p0, res.x, res.covariance, res.information)
+    raise IdentificationError(f"unknown method {method!r}; use kalman or batch")
+
+
+def residual_statistics(data: IdentificationData, est: Estimate) -> Residuals:
+    """Per-step residual mean and RMS per body axis (m/s²) and the overall RMS (sample-weighted)."""
+    rows = est.filter_residuals
+    if rows is None:
+        rows = []
+        for w in data.windows:
+            r = w.f_out - predict(est.x, w.f_ref, w.omega)
+            rows.append(
+                StepResiduals(name=w.name, samples=int(r.shape[0]), mean=list(map(float, r.mean(0))),
+                              rms=list(map(float, np.sqrt((r**2).mean(0)))))
+            )  # fmt: skip
+    kinds = {w.name: w.kind for w in data.windows}
+    rows = [dataclasses.replace(r, kind=kinds.get(str(r.name), "")) for r in rows]
+    n_s = np.array([r.samples for r in rows], dtype=float)
+    ms_s = np.array([r.rms for r in rows]) ** 2
+    rms_all = np.sqrt((n_s[:, None] * ms_s).sum(0) / n_s.sum())
+    return Residuals(rms=list(map(float, rms_all)), per_step=tuple(rows))
+
+
+def combined_uncertainty(data: IdentificationData, est: Estimate) -> Uncertainty:
+    """White covariance ⊕ the bias instability's systematic term, on the actual data geometry; rank."""
+    b = bias_stability(data.config)
+    actual = plan_identification(
+        _windows_as_plan_steps(data.windows),
+        est.noise_variance,
+        est.prior,
+        b,
+        offset_covariance=offset_covariance([(float(w.t[0]), float(w.t[-1])) for w in data.windows], b),
+    )
+    p_time, jac = _time_base_covariance(data, est.noise_variance, est.prior)
+    p_total = est.covariance_white + (actual.covariance_total - actual.covariance_white) + p_time
+    p_total = 0.5 * (p_total + p_total.T)
+    rank, cond = information_rank(est.information, est.noise_variance)
+    unobs = set(unobservable_parameters(est.information, est.noise_variance)) | set(actual.unidentifiable)
+    return Uncertainty(p_total, actual, int(rank), float(cond), unobs, p_time, jac)
 
 
 def _time_base_covariance(
-    rr: RecordedRun, r_var: NDArray[np.float64], p0: NDArray[np.float64]
+    data: IdentificationData, r_var: NDArray[np.float64], p0: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The identified parameters' covariance from the time base's uncertainty, J Σ Jᵀ, and J = ∂x/∂(t₀, ε) (18, 2)."""
-    tb = rr.time_base
+    tb = data.time_base
     cov = np.asarray(tb.covariance, dtype=float)
     n = len(PARAM_NAMES)
-    if rr.table is None or not np.all(np.isfinite(cov)) or not np.any(cov):
+    if data.table is None or not np.all(np.isfinite(cov)) or not np.any(cov):
         return np.zeros((n, n)), np.zeros((n, 2))
-    cfg = rr.config
+    cfg = data.config
     lat = unit_latency(cfg)
     fs = float(cfg.unit.sample_rate)
-    wins = [(w.t, w.f_out, acquisition_span(float(w.t[0]), float(w.t[-1]), lat, fs)) for w in rr.windows]
+    wins = [(w.t, w.f_out, acquisition_span(float(w.t[0]), float(w.t[-1]), lat, fs)) for w in data.windows]
     jac = time_base_sensitivity(
-        wins, rr.table, g=cfg.site.g, mounting=cfg.unit.mounting, latency=lat, r_var=r_var, p0=p0
+        wins, data.table, g=cfg.site.g, mounting=cfg.unit.mounting, latency=lat, r_var=r_var, p0=p0
     )
     return jac @ cov @ jac.T, jac
 
 
-def _time_base_warnings(rr: RecordedRun) -> list[str]:
+def _time_base_warnings(data: IdentificationData) -> list[str]:
     """Lines for calibration.json's warnings: a timing misfit beyond what the budget carries (naming its cause),
     a host-clock check that disagrees, a time base that could not be measured.
 
     Within a motion the budget carries a reading's timing error up to the table's attitude accuracy (its
     rectangular u) over the run's fastest rate (analysis.timebase.misfit_cause)."""
-    tb = rr.time_base
+    tb = data.time_base
     out = [n for n in tb.notes if "disagrees" in n or "without a stated uncertainty" in n]
     host = tb.check.get("table_stamped_by") == "host"
-    w_max = float(np.max(np.abs(rr.table.rates))) if rr.table is not None and len(rr.table) else 0.0
-    att = float(rr.config.turntable.attitude_accuracy) / math.sqrt(3.0)
+    w_max = float(np.max(np.abs(data.table.rates))) if data.table is not None and len(data.table) else 0.0
+    att = float(data.config.turntable.attitude_accuracy) / math.sqrt(3.0)
     cause = misfit_cause(tb, host_stamped=host, carried=att / w_max if w_max > 0 else math.inf)
     if cause:
         out.append(cause)
     return out
 
 
-def _time_base_block(tb: TimeBase, p_time: NDArray[np.float64], jac: NDArray[np.float64]) -> dict[str, Any]:
+def _time_base_block(data: IdentificationData, unc: Uncertainty) -> TimeBaseBlock:
     """calibration.json's ``time_base``: the estimate, its u, the method, its effect on each parameter (u, SI,
-    included in the covariance) and on a gyro scale factor (ε 1:1)."""
-    d = tb.as_dict()
-    d["effect_u"] = {n: float(math.sqrt(max(p_time[k, k], 0.0))) for k, n in enumerate(PARAM_NAMES)}
-    d["sensitivity"] = {n: [float(jac[k, 0]), float(jac[k, 1])] for k, n in enumerate(PARAM_NAMES)}
+    included in the covariance; sensitivities) and on a gyro scale factor (ε 1:1)."""
+    d = data.time_base.as_dict()
     for k in ("u_offset_s", "u_rate", "misfit"):
         if not math.isfinite(d[k]):
             d[k] = None
     d["covariance"] = [[x if math.isfinite(x) else None for x in row] for row in d["covariance"]]
+    n = len(PARAM_NAMES)
+    p_time = unc.time_covariance if unc.time_covariance is not None else np.zeros((n, n))
+    jac = unc.time_sensitivity if unc.time_sensitivity is not None else np.zeros((n, 2))
+    d["effect_u"] = {nm: float(math.sqrt(max(p_time[k, k], 0.0))) for k, nm in enumerate(PARAM_NAMES)}
+    d["sensitivity"] = {nm: [float(jac[k, 0]), float(jac[k, 1])] for k, nm in enumerate(PARAM_NAMES)}
     d["gyro_scale_factor_u"] = d["u_rate"]  # a gyro scale factor measured as angle over time inherits ε 1:1
-    return d
+    return TimeBaseBlock.from_mapping(d)
+
+
+def truth_check(truth: dict[str, float] | None, x: NDArray[np.float64], unc: Uncertainty) -> TruthCheck | None:
+    """Errors against a simulated bench's truth: error/u per parameter and the NEES over the identified states."""
+    if truth is None:
+        return None
+    sigma = np.sqrt(np.diag(unc.covariance))
+    err = x - np.array([truth[n_] for n_ in PARAM_NAMES])
+    idx = np.array([k for k, n_ in enumerate(PARAM_NAMES) if n_ not in unc.unidentifiable], dtype=int)
+    sub = unc.covariance[np.ix_(idx, idx)]
+    return TruthCheck(
+        values=truth,
+        error_over_u={n_: float(err[k] / sigma[k]) for k, n_ in enumerate(PARAM_NAMES)},
+        nees=float(err[idx] @ np.linalg.solve(sub, err[idx])),
+        dof=int(idx.size),
+        nees_states=[PARAM_NAMES[i] for i in idx],
+    )
+
+
+def _run_info(data: IdentificationData) -> RunInfo:
+    a = data.run.attrs()
+    config, temp = data.config, data.temperature
+    return RunInfo(
+        status=str(a.get("status", "")),
+        bench_name=str(a.get("bench_name", "")),
+        procedure_name=str(a.get("procedure_name", "")),
+        procedure_sha256=str(a.get("procedure_sha256", "")),
+        procedure_overrides=dict(a.get("procedure_overrides") or {}),
+        integrity_verified=bool(a.get("integrity_verified", False)),
+        integrity_note=str(a.get("integrity_note", "")),
+        seed=-1 if a.get("seed") is None else int(a["seed"]),
+        created_utc=str(a.get("created_utc", "")),
+        transport=str(a.get("transport", "")),
+        site={
+            "name": config.site.name,
+            "latitude_deg": math.degrees(config.site.latitude),
+            "height_m": config.site.height,
+            "g": config.site.g,
+            "g_source": config.site.g_source,
+        },
+        unit={"model": config.unit.model, "serial_number": config.unit.serial_number},
+        table={
+            "model": config.turntable.model,
+            "serial_number": config.turntable.serial_number,
+            "attitude_accuracy": config.turntable.attitude_accuracy,
+        },
+        temperature_k={
+            "mean": float(temp.mean()) if temp.size else None,
+            "min": float(temp.min()) if temp.size else None,
+            "max": float(temp.max()) if temp.size else None,
+        },
+    )
+
+
+def calibration_result(
+    data: IdentificationData, est: Estimate, residuals: Residuals, unc: Uncertainty, truth: TruthCheck | None
+) -> CalibrationResult:
+    """Assemble the typed calibration result (refused when anything is non-finite: nothing is written)."""
+    x, p_total, p_white = est.x, unc.covariance, est.covariance_white
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(p_total)) and np.all(np.isfinite(p_white))):
+        raise IdentificationError(
+            f"{data.path}: the identification produced non-finite estimates or covariance (damaged data?); "
+            "nothing was written"
+        )
+    sigma, sigma_white = np.sqrt(np.diag(p_total)), np.sqrt(np.diag(p_white))
+    params = {
+        name: ParameterEstimate(
+            name=name,
+            kind=PARAM_KINDS[k],
+            value=float(x[k]),
+            u=float(sigma[k]),
+            u_white=float(sigma_white[k]),
+            prior_sigma=float(math.sqrt(est.prior[k, k])),
+            identified=name not in unc.unidentifiable,
+        )
+        for k, name in enumerate(PARAM_NAMES)
+    }
+    actual = unc.plan
+    warnings = list(actual.warnings)
+    warnings += _time_base_warnings(data)
+    if data.incomplete_steps:
+        warnings.insert(0, f"recording incomplete: step(s) {', '.join(data.incomplete_steps)} not completed")
+    if not data.run.integrity_verified:
+        warnings.insert(0, data.run.integrity_note or "recording integrity cannot be verified")
+    return CalibrationResult(
+        parameters=params,
+        covariance=np.array([list(map(float, row)) for row in p_total]),
+        covariance_white=np.array([list(map(float, row)) for row in p_white]),
+        noise_variance=np.array(list(map(float, est.noise_variance))),
+        method=est.method,
+        recording=data.path.name,
+        recording_sha256=data.run.sha256,
+        noise_source=est.noise_source,
+        software_version=str(data.run.header.software_version or ""),
+        model=MODEL_TEXT,
+        information=InformationSummary(
+            rank=unc.rank,
+            condition=unc.condition,
+            unidentifiable=sorted(unc.unidentifiable, key=PARAM_NAMES.index),
+            tolerance="numerical rank of the noise-whitened data information, scaled per parameter kind "
+            "(analysis.identification.batch.information_rank)",
+        ),
+        residuals=residuals,
+        plan=PlanSummary(
+            predicted_sigma={n_: float(actual.sigma_total[k]) for k, n_ in enumerate(PARAM_NAMES)},
+            rank=int(actual.rank),
+            warnings=list(actual.warnings),
+        ),
+        truth=truth,
+        history=est.history,
+        run=_run_info(data),
+        warnings=warnings,
+        time_base=_time_base_block(data, unc),
+    )
 
 
 def identify_run(
-    run: str | Path, method: str = "kalman", noise: str = "configured", time_base: str = "estimate"
+    run: str | Path | RecordedRun, method: str = "kalman", noise: str = "configured", time_base: str = "estimate"
 ) -> CalibrationResult:
     """Identify the 18 parameters from a recording; returns the typed calibration result.
 
     Parameters
     ----------
-    run : path
-        Run folder or recording file.
+    run : path or RecordedRun
+        Run folder, recording file, or an open :class:`RecordedRun` (``tablebench run`` passes its own).
     method : {"kalman", "batch"}
         The streaming filter over all windows in order, or batch least squares (same prior, same model).
     noise : {"configured", "warm-up"}
@@ -447,186 +706,14 @@ def identify_run(
     """
     if method not in ("kalman", "batch"):
         raise IdentificationError(f"unknown method {method!r}; use kalman or batch")
-    if time_base not in ("estimate", "none"):
-        raise IdentificationError(f"unknown time base {time_base!r}; use estimate or none")
-    rr = load_run(run, time_base)
-    config = rr.config
-    p0 = prior_covariance(config)
-    if noise == "configured":
-        r_var = configured_noise_variance(config)
-    elif noise == "warm-up":
-        if rr.warmup_accel is None or rr.warmup_accel.shape[0] < 100:
-            raise IdentificationError(f"{rr.path}: no warm-up record to estimate R from; use --noise configured")
-        r_var = estimate_measurement_noise(rr.warmup_accel)
-    else:
-        raise IdentificationError(f"unknown noise source {noise!r}; use configured or warm-up")
-    history = None
-    if method == "kalman":
-        kf = StreamingIdentifier(r_var, p0, sample_rate=config.unit.sample_rate)
-        for w in rr.windows:
-            kf.update(w.f_out, w.f_ref, w.omega, w.name, t=w.t)
-        x, p_white, info = kf.estimate, kf.covariance, kf.information
-        resid = kf.residual_statistics()
-        per_step = [
-            {"name": name, "samples": int(st.count), "mean": list(map(float, st.mean)), "rms": list(map(float, st.rms))}
-            for name, st in resid.items()
-        ]
-        history = {
-            "time": [h.time for h in kf.history],
-            "step": [h.step for h in kf.history],
-            "estimate": [list(map(float, h.x)) for h in kf.history],
-            "sigma": [list(map(float, h.sigma)) for h in kf.history],
-        }
-    else:
-        res = batch_identify(
-            np.concatenate([w.f_out for w in rr.windows]),
-            np.concatenate([w.f_ref for w in rr.windows]),
-            np.concatenate([w.omega for w in rr.windows]),
-            r_var,
-            None,
-            p0,
-        )
-        x, p_white, info = res.x, res.covariance, res.information
-        per_step = []
-        for w in rr.windows:
-            r = w.f_out - predict(x, w.f_ref, w.omega)
-            per_step.append(
-                {
-                    "name": w.name,
-                    "samples": int(r.shape[0]),
-                    "mean": list(map(float, r.mean(0))),
-                    "rms": list(map(float, np.sqrt((r**2).mean(0)))),
-                }
-            )
-    kinds = {w.name: w.kind for w in rr.windows}
-    for s in per_step:
-        s["kind"] = kinds.get(s["name"], "")
-    # honest total uncertainty: white + bias-instability systematic term, on the actual data geometry
-    b = bias_stability(config)
-    actual = plan_identification(
-        _windows_as_plan_steps(rr.windows),
-        r_var,
-        p0,
-        b,
-        offset_covariance=offset_covariance([(float(w.t[0]), float(w.t[-1])) for w in rr.windows], b),
-    )
-    p_total = p_white + (actual.covariance_total - actual.covariance_white)
-    p_time, jac_time = _time_base_covariance(rr, r_var, p0)
-    p_total = p_total + p_time
-    p_total = 0.5 * (p_total + p_total.T)
-    sigma = np.sqrt(np.diag(p_total))
-    sigma_white = np.sqrt(np.diag(p_white))
-    rank, cond = information_rank(info, r_var)
-    unobs = set(unobservable_parameters(info, r_var)) | set(actual.unidentifiable)
-    params: dict[str, Any] = {}
-    for k, name in enumerate(PARAM_NAMES):
-        kind = PARAM_KINDS[k]
-        unit, _one = DISPLAY_UNITS[kind]
-        params[name] = {
-            "value": float(x[k]),
-            "u": float(sigma[k]),
-            "u_white": float(sigma_white[k]),
-            "unit": _SI_UNITS[kind],
-            "kind": kind,
-            "display_unit": unit,
-            "display_value": _display(k, x[k]),
-            "display_u": _display(k, sigma[k]),
-            "identified": name not in unobs,
-            "prior_sigma": float(math.sqrt(p0[k, k])),
-        }
-    n_s = np.array([st["samples"] for st in per_step], dtype=float)
-    ms_s = np.array([st["rms"] for st in per_step]) ** 2
-    rms_all = np.sqrt((n_s[:, None] * ms_s).sum(0) / n_s.sum())
-    truth_block = None
-    if rr.truth is not None:
-        xt = np.array([rr.truth[n_] for n_ in PARAM_NAMES])
-        err = x - xt
-        ident = np.array([params[n_]["identified"] for n_ in PARAM_NAMES])
-        idx = np.flatnonzero(ident)
-        sub = p_total[np.ix_(idx, idx)]
-        nees = float(err[idx] @ np.linalg.solve(sub, err[idx]))
-        truth_block = {
-            "values": rr.truth,
-            "error_over_u": {n_: float(err[k] / sigma[k]) for k, n_ in enumerate(PARAM_NAMES)},
-            "nees": nees,
-            "dof": int(idx.size),
-            "nees_states": [PARAM_NAMES[i] for i in idx],
-        }
-    warnings = list(actual.warnings)
-    warnings += _time_base_warnings(rr)
-    if rr.incomplete_steps:
-        warnings.insert(0, f"recording incomplete: step(s) {', '.join(rr.incomplete_steps)} not completed")
-    if not rr.attrs.get("integrity_verified", False):
-        warnings.insert(0, str(rr.attrs.get("integrity_note") or "recording integrity cannot be verified"))
-    a = rr.attrs
-    temp = rr.temperature
-    result = {
-        "format": "tablebench-calibration",
-        "format_version": 2,
-        "recording": rr.path.name,
-        "recording_sha256": file_sha256(rr.path),
-        "software_version": str(a.get("software_version", "")),
-        "method": method,
-        "model": MODEL_TEXT,
-        "parameter_names": list(PARAM_NAMES),
-        "parameters": params,
-        "covariance": [list(map(float, row)) for row in p_total],
-        "covariance_white": [list(map(float, row)) for row in p_white],
-        "information": {
-            "rank": int(rank),
-            "condition": float(cond),
-            "unidentifiable": sorted(unobs, key=PARAM_NAMES.index),
-            "tolerance": "numerical rank of the noise-whitened data information, scaled per parameter kind "
-            "(analysis.identification.batch.information_rank)",
-        },
-        "measurement_noise": {"variance": list(map(float, r_var)), "source": noise},
-        "residuals": {"rms": list(map(float, rms_all)), "per_step": per_step},
-        "plan": {
-            "predicted_sigma": {n_: float(actual.sigma_total[k]) for k, n_ in enumerate(PARAM_NAMES)},
-            "rank": int(actual.rank),
-            "warnings": list(actual.warnings),
-        },
-        "truth": truth_block,
-        "time_base": _time_base_block(rr.time_base, p_time, jac_time),
-        "history": history,
-        "run": {
-            "status": str(a.get("status", "")),
-            "bench_name": str(a.get("bench_name", "")),
-            "procedure_name": str(a.get("procedure_name", "")),
-            "procedure_sha256": str(a.get("procedure_sha256", "")),
-            "procedure_overrides": dict(a.get("procedure_overrides") or {}),
-            "integrity_verified": bool(a.get("integrity_verified", False)),
-            "integrity_note": str(a.get("integrity_note", "")),
-            "seed": -1 if a.get("seed") is None else int(a["seed"]),
-            "created_utc": str(a.get("created_utc", "")),
-            "transport": str(a.get("transport", "")),
-            "site": {
-                "name": config.site.name,
-                "latitude_deg": math.degrees(config.site.latitude),
-                "height_m": config.site.height,
-                "g": config.site.g,
-                "g_source": config.site.g_source,
-            },
-            "unit": {"model": config.unit.model, "serial_number": config.unit.serial_number},
-            "table": {
-                "model": config.turntable.model,
-                "serial_number": config.turntable.serial_number,
-                "attitude_accuracy": config.turntable.attitude_accuracy,
-            },
-            "temperature_k": {
-                "mean": float(temp.mean()) if temp.size else None,
-                "min": float(temp.min()) if temp.size else None,
-                "max": float(temp.max()) if temp.size else None,
-            },
-        },
-        "warnings": warnings,
-    }
-    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(p_total)) and np.all(np.isfinite(p_white))):
-        raise IdentificationError(
-            f"{rr.path}: the identification produced non-finite estimates or covariance (damaged data?); "
-            "nothing was written"
-        )
-    return CalibrationResult.from_dict(result, str(rr.path))
+    with _opened(run) as rr:
+        data = _identification_data(rr, time_base)
+        est = estimate(data, method, noise)
+        residuals = residual_statistics(data, est)
+        unc = combined_uncertainty(data, est)
+        truth = truth_check(data.truth, est.x, unc)
+        result = calibration_result(data, est, residuals, unc, truth)
+    return CalibrationResult.from_dict(result.to_dict(), str(data.path))  # the checks every reader applies
 
 
 def write_calibration(result: CalibrationResult, out: str | Path) -> Path:

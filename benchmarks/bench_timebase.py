@@ -73,7 +73,7 @@ def main(argv: list[str] | None = None) -> None:
             truth = rec.truth().parameters
         t_none = _best(lambda: identify_run(folder, time_base="none"), args.repeat)
         t_est = _best(lambda: identify_run(folder, time_base="estimate"), args.repeat)
-        tb = identify_run(folder, time_base="estimate").time_base
+        tb = identify_run(folder, time_base="estimate").time_base.estimate
     ratio = t_est / t_none
     growth = timing / (total - timing)
     body = f"""\

@@ -405,23 +405,8 @@ def analyse_noise(
             f"the noise-term fit needs an estimator with a fixed gain per noise term "
             f"({', '.join(FIT_ESTIMATORS)}), got {fit_estimator!r}"
         )
-    gains = FIT_GAINS[fit_estimator]
-    if not channels:
-        raise ValueError("no channels to analyse")
-    names = list(channels)
-    arrays = [np.asarray(channels[k], dtype=np.float64).ravel() for k in names]
+    names, arrays, unit_of = _checked_channels(channels, units)
     n = arrays[0].size
-    bad = [k for k, a in zip(names, arrays, strict=True) if a.size != n]
-    if bad:
-        raise ValueError(f"channels {', '.join(bad)} differ in length from {names[0]} ({n} samples)")
-    for k, a in zip(names, arrays, strict=True):
-        too_large = magnitude_problem(a, "variance")
-        if too_large:
-            raise ValueError(f"channel {k!r}: {too_large}")
-    if isinstance(units, str) or units is None:
-        unit_of = {k: units or "SI" for k in names}
-    else:
-        unit_of = {k: units.get(k, "SI") for k in names}
     data = _rows(arrays).T  # (N, C) view of a (C, N) array: stability reads its rows without a copy
     del arrays
     ests = tuple(dict.fromkeys((*estimators, fit_estimator)))
@@ -438,73 +423,15 @@ def analyse_noise(
     fe = res.estimates[fit_estimator]
     out_channels: dict[str, dict] = {}
     for j, name in enumerate(names):
-        unit = unit_of[name]
-        fit_dev = fe.unbiased()[:, j]
         try:
-            fit = fit_noise_terms(
-                fe.tau, fit_dev**2, record_time, fe.edf[:, j] if fe.edf is not None else None, terms, gains=gains
-            )
+            fitted = _channel_terms(fe, j, unit_of[name], record_time, terms, fit_estimator)
         except ValueError as exc:
             raise ValueError(f"channel {name!r}: {exc} (is the channel constant?)") from None
-        ch: dict = {
-            "unit": unit,
-            "gaps": {"samples": int(res.gap_samples[j]), "runs": int(res.gap_runs[j])},
-            "deviations": {},
-        }
-        for est_name, est in res.estimates.items():
-            d = {
-                "tau": est.tau,
-                "m": est.m,
-                "value": est.dev[:, j],
-                "n_terms": est.n_terms[:, j],
-            }
-            if est.edf is not None:
-                d.update(edf=est.edf[:, j], lo=est.lo[:, j], hi=est.hi[:, j], alpha=est.alpha[:, j])
-            if est.bias is not None:
-                d["value_unbiased"] = est.unbiased()[:, j]
-            ch["deviations"][est_name] = d
-        # the classic flat keys (τ grid of the fit estimator) for existing readers
-        ch["tau"] = fe.tau
-        for est_name in ("adev", "oadev", "mdev", "totdev"):
-            if est_name in res.estimates:
-                e = res.estimates[est_name]
-                flat = np.full(fe.m.size, np.nan)
-                hit = np.isin(fe.m, e.m)
-                flat[hit] = e.dev[np.searchsorted(e.m, fe.m[hit]), j]
-                ch[est_name] = flat
+        ch = _channel_deviations(res, j, unit_of[name])
+        ch.update(_flat_keys(res, fe, j))
         if itot is not None:
             ch["itotdev_published"] = np.sqrt(itot.var["itotvar"][:, j])
-        ch["terms"] = {
-            t: {"value": v, "sigma": s, "uncertainty": "standard (1σ)", "unit": term_unit(t, unit)}
-            for t, (v, s) in fit.terms.items()
-        }
-        disp = {}
-        for t, (v, s) in fit.terms.items():
-            dv, du = to_display(t, v, unit)
-            ds, _ = to_display(t, s, unit)
-            disp[t] = {"value": dv, "sigma": ds, "uncertainty": "standard (1σ)", "unit": du}
-        ch["terms_display"] = disp
-        lo = fe.lo[:, j] if fe.lo is not None else None
-        hi = fe.hi[:, j] if fe.hi is not None else None
-        slope = slope_terms(fe.tau, fit_dev, lo, hi, gains=gains)
-        ch["slope_terms"] = {
-            t: {
-                "value": d["value"],
-                "sigma": d["sigma"],
-                "unit": term_unit(t, unit),
-                "tau": d["tau"],
-                "observed": d["observed"],
-            }
-            for t, d in slope.items()
-        }
-        ch["fit"] = {
-            "estimator": fit_estimator,
-            "model": "hadamard" if gains is HADAMARD_GAINS else "allan",
-            "coefficients": fit.coefficients,
-            "powers": list(POWERS),
-            "chi2_red": fit.chi2_red,
-            "tau_used": fit.tau_used,
-        }
+        ch.update(fitted)
         out_channels[name] = ch
     return {
         "rate_hz": float(rate),
@@ -514,3 +441,103 @@ def analyse_noise(
         "estimators": list(res.estimates),
         "channels": out_channels,
     }
+
+
+def _checked_channels(
+    channels: dict[str, ArrayLike], units: dict[str, str] | str | None
+) -> tuple[list[str], list[NDArray[np.float64]], dict[str, str]]:
+    """Names, 1-D float64 records (equal lengths, magnitudes a variance can hold) and unit label per channel."""
+    if not channels:
+        raise ValueError("no channels to analyse")
+    names = list(channels)
+    arrays = [np.asarray(channels[k], dtype=np.float64).ravel() for k in names]
+    n = arrays[0].size
+    bad = [k for k, a in zip(names, arrays, strict=True) if a.size != n]
+    if bad:
+        raise ValueError(f"channels {', '.join(bad)} differ in length from {names[0]} ({n} samples)")
+    for k, a in zip(names, arrays, strict=True):
+        too_large = magnitude_problem(a, "variance")
+        if too_large:
+            raise ValueError(f"channel {k!r}: {too_large}")
+    if isinstance(units, str) or units is None:
+        unit_of = {k: units or "SI" for k in names}
+    else:
+        unit_of = {k: units.get(k, "SI") for k in names}
+    return names, arrays, unit_of
+
+
+def _channel_deviations(res, j: int, unit: str) -> dict:
+    """Channel j's unit, gaps and deviations of every estimator (with intervals where computed)."""
+    ch: dict = {
+        "unit": unit,
+        "gaps": {"samples": int(res.gap_samples[j]), "runs": int(res.gap_runs[j])},
+        "deviations": {},
+    }
+    for est_name, est in res.estimates.items():
+        d = {
+            "tau": est.tau,
+            "m": est.m,
+            "value": est.dev[:, j],
+            "n_terms": est.n_terms[:, j],
+        }
+        if est.edf is not None:
+            d.update(edf=est.edf[:, j], lo=est.lo[:, j], hi=est.hi[:, j], alpha=est.alpha[:, j])
+        if est.bias is not None:
+            d["value_unbiased"] = est.unbiased()[:, j]
+        ch["deviations"][est_name] = d
+    return ch
+
+
+def _flat_keys(res, fe, j: int) -> dict:
+    """The classic flat keys (τ grid of the fit estimator ``fe``) for existing readers."""
+    flat_keys: dict = {"tau": fe.tau}
+    for est_name in ("adev", "oadev", "mdev", "totdev"):
+        if est_name in res.estimates:
+            e = res.estimates[est_name]
+            flat = np.full(fe.m.size, np.nan)
+            hit = np.isin(fe.m, e.m)
+            flat[hit] = e.dev[np.searchsorted(e.m, fe.m[hit]), j]
+            flat_keys[est_name] = flat
+    return flat_keys
+
+
+def _channel_terms(fe, j: int, unit: str, record_time: float, terms: tuple[str, ...], fit_estimator: str) -> dict:
+    """Channel j's fitted noise terms (SI and display), slope-line readings and fit facts from estimate ``fe``."""
+    gains = FIT_GAINS[fit_estimator]
+    fit_dev = fe.unbiased()[:, j]
+    fit = fit_noise_terms(
+        fe.tau, fit_dev**2, record_time, fe.edf[:, j] if fe.edf is not None else None, terms, gains=gains
+    )
+    out: dict = {}
+    out["terms"] = {
+        t: {"value": v, "sigma": s, "uncertainty": "standard (1σ)", "unit": term_unit(t, unit)}
+        for t, (v, s) in fit.terms.items()
+    }
+    disp = {}
+    for t, (v, s) in fit.terms.items():
+        dv, du = to_display(t, v, unit)
+        ds, _ = to_display(t, s, unit)
+        disp[t] = {"value": dv, "sigma": ds, "uncertainty": "standard (1σ)", "unit": du}
+    out["terms_display"] = disp
+    lo = fe.lo[:, j] if fe.lo is not None else None
+    hi = fe.hi[:, j] if fe.hi is not None else None
+    slope = slope_terms(fe.tau, fit_dev, lo, hi, gains=gains)
+    out["slope_terms"] = {
+        t: {
+            "value": d["value"],
+            "sigma": d["sigma"],
+            "unit": term_unit(t, unit),
+            "tau": d["tau"],
+            "observed": d["observed"],
+        }
+        for t, d in slope.items()
+    }
+    out["fit"] = {
+        "estimator": fit_estimator,
+        "model": "hadamard" if gains is HADAMARD_GAINS else "allan",
+        "coefficients": fit.coefficients,
+        "powers": list(POWERS),
+        "chi2_red": fit.chi2_red,
+        "tau_used": fit.tau_used,
+    }
+    return out

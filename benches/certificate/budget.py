@@ -160,7 +160,7 @@ def budget_for_run(
     nv = cal.noise_variance
     notes: list[str] = []
     p_w = cal.covariance_white
-    per_step = list((cal.extra.get("residuals") or {}).get("per_step") or [])
+    per_step = cal.per_step
     p_tb, tb_source = time_base_covariance(cal)
     budget = build_budget(
         p_id - p_tb,
@@ -177,25 +177,25 @@ def budget_for_run(
         residuals_per_step=per_step,
     )
     if tb_source:
-        budget.components.append(
-            BudgetComponent("time_base", "Time base (unit clock vs table clock)", tb_source, "A", p_tb)
-        )
+        label = "Time base (unit clock vs table clock)"
+        budget.components.append(BudgetComponent("time_base", label, tb_source, "A", p_tb))
     budget.notes.extend(notes)
     return budget
 
 
 def time_base_covariance(cal: CalibrationResult) -> tuple[NDArray[np.float64], str]:
     """The parameters' covariance from the run's estimated time base (J Σ Jᵀ, J = ∂x/∂(t₀, ε) from
-    calibration.json), included in its covariance, and the budget line's source text ("" if none)."""
+    calibration.json's ``time_base.sensitivity``; included in its covariance) and the budget line's source text
+    ("" when the file has none)."""
     z = np.zeros((len(PARAM_NAMES), len(PARAM_NAMES)))
-    d = cal.extra.get("time_base")
-    tb = cal.time_base
-    if tb is None or not isinstance(d, dict) or not d.get("sensitivity"):
+    blk = cal.time_base
+    if blk is None or not blk.sensitivity:
         return z, ""
+    tb = blk.estimate
     cov = np.asarray(tb.covariance, dtype=float)
     if not np.all(np.isfinite(cov)):
         return z, ""
-    jac = np.array([d["sensitivity"][n] for n in PARAM_NAMES], dtype=float)
+    jac = np.array([blk.sensitivity[n] for n in PARAM_NAMES], dtype=float)
     src = (
         f"t_table = t0 + (1 + eps) t_unit estimated from the run ({tb.method}, {len(tb.events)} motions): "
         f"t0 = {tb.offset * 1e3:.4f} ms, u = {tb.u_offset * 1e6:.3g} µs; eps = {tb.rate * 1e6:+.3f} ppm, "

@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     folder = Path(args.run) if Path(args.run).is_dir() else Path(args.run).parent
     out = write_calibration(result, args.out or folder / "calibration.json")
     print(result.summary())
-    tb = result.time_base
+    tb = result.time_base.estimate if result.time_base is not None else None
     if tb is not None and tb.events:
         from analysis.timebase.plot import plot_timing_residuals  # lazy: matplotlib (--help time)
 

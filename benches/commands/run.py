@@ -194,7 +194,7 @@ def _finish(
     done: list[str] = []
     try:
         with _StopSignalsRaise():
-            identify_and_certify(folder, todo, live=live[0] if live else None, say=_say, done=done)
+            identify_and_certify(folder, todo, live=live[0] if live else None, say=_say, done=done, prep=prep)
     except KeyboardInterrupt:
         left = [t for t in todo if t not in done]
         _say(

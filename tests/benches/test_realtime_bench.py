@@ -54,11 +54,11 @@ def test_real_time_bench_with_its_own_unit_clock_identifies_within_4_u(tmp_path)
     # the unit really streamed on its own: blocks arrived in bursts, timed by the host's real clock
     assert np.all(np.isfinite(timing.block_host_time)) and np.all(np.isfinite(timing.table_host_answer))
     assert truth["unit_clock_rate"] == pytest.approx(40e-6)
-    tb = res.time_base
+    tb = res.time_base.estimate
     assert tb is not None and tb.method == "gyro" and len(tb.events) >= 4
     assert abs(tb.offset - truth["clock_offset"]) < 4 * tb.u_offset, tb.summary()
     assert abs(tb.rate - truth["clock_rate"]) < 4 * tb.u_rate, tb.summary()
-    err = res.extra["truth"]["error_over_u"]
+    err = res.truth.error_over_u
     ident = [n for n, p in res.parameters.items() if p.identified]
     assert ident, "nothing identified"
     assert all(abs(err[n]) < 4 for n in ident), {n: round(err[n], 2) for n in ident}

@@ -58,7 +58,7 @@ def clock_bench(tmp_path_factory):
 def _check_seed(tmp, bench, proc, seed):
     run = run_procedure(tmp, bench, str(proc), seed=seed, out=f"s{seed}")
     res = identify_run(run, method="batch")
-    tb = res.time_base
+    tb = res.time_base.estimate
     with open_recording(run / "recording.h5") as rec:
         truth = rec.truth().parameters
     off, rate = truth["clock_offset"], truth["clock_rate"]
@@ -74,11 +74,11 @@ def test_estimated_offset_and_rate_within_3_sigma_of_the_realised(clock_bench, s
     assert abs(z_off) < 3 and abs(z_rate) < 3, (z_off, z_rate, tb.summary())
     assert tb.check.get("consistent") is True, tb.check  # the host's clock agrees with the motions
     # identification on the corrected clock: every identified parameter within 4 u of the truth
-    err = res.extra["truth"]["error_over_u"]
+    err = res.truth.error_over_u
     ident = [n for n, p in res.parameters.items() if p.identified]
     assert all(abs(err[n]) < 4 for n in ident), err
     # calibration.json carries it with its u and method
-    d = res.to_dict()["time_base"]
+    d = res.to_dict()["time_base"]  # calibration.json
     assert d["method"] == "gyro" and d["u_offset_s"] > 0 and d["u_rate"] > 0
     assert set(d["effect_u"]) == set(res.parameters)
 
@@ -100,7 +100,7 @@ def test_ideal_clocks_keep_one_clock(tmp_path):
     # one clock: each reading is stamped at the time of the next sample (the unit's clock)
     np.testing.assert_allclose(table.time, k / 200.0, atol=1e-9)
     assert ts.size > 0
-    tb = identify_run(run, method="batch").time_base
+    tb = identify_run(run, method="batch").time_base.estimate
     assert abs(tb.offset) < 3 * tb.u_offset + 1e-9 and abs(tb.rate) < 3 * tb.u_rate + 1e-12
 
 

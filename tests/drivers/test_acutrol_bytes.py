@@ -1,7 +1,8 @@
-"""Exact messages of the ACL driver, written from the spec (/work/shared/spec/acutrol-acl.md), not from the
-simulator: each test scripts (message the driver must send → reply the controller gives), in the style of
-PyMeasure's protocol tests. Replies follow the spec: GPIB answers only queries; TCP answers a plain command
-with an empty line; errors show in the status byte and the error queue, never as text."""
+"""Exact messages of the ACL driver, written from the spec (docs/protocols/acutrol-acl.md), not from the
+simulator: each test scripts (message the driver must send → reply the controller gives) with the one
+transcript helper (tests/drivers/transcript.py, after PyMeasure's expected_protocol). Replies follow the
+spec: GPIB answers only queries; TCP answers a plain command with an empty line; errors show in the status
+byte and the error queue, never as text."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import pytest
 
 from drivers.acutrol import AclSettings, AclTurntable
 from drivers.protocols import AxisLimits, AxisMode, FaultCode, LinkError, TableError, TableStatus
+from tests.drivers.transcript import MessageTranscript
 
 R = math.radians
 LIMITS = (
@@ -25,43 +27,13 @@ STB = ":Status:STB?"
 NO_REPLY = None
 
 
-class Scripted:
-    """A MessageTransport that checks every message against a script and answers with the scripted reply."""
-
-    def __init__(self, script: list[tuple[str, str | None]]) -> None:
-        self.script = list(script)
-        self.timeout = 1.0
-        self._pending: list[str] = []
-        self.sent: list[str] = []
-
-    def write(self, message: str) -> None:
-        assert self.script, f"unexpected message {message!r}"
-        expected, reply = self.script.pop(0)
-        assert message == expected, f"sent {message!r}, the spec says {expected!r}"
-        self.sent.append(message)
-        if reply is not None:
-            self._pending.append(reply)
-
-    def read(self) -> str:
-        if not self._pending:
-            raise LinkError("scripted controller: no reply within 1 s")
-        return self._pending.pop(0)
-
-    def query(self, message: str) -> str:
-        self.write(message)
-        return self.read()
-
-    def done(self) -> None:
-        assert not self.script, f"messages never sent: {self.script}"
-
-
 def ack(profile: str) -> str | None:
     """What a plain command gets back: nothing on GPIB, an empty line on TCP."""
     return "" if profile == "tcp" else NO_REPLY
 
 
-def table(script, profile="tcp", clock=None, **settings) -> tuple[AclTurntable, Scripted]:
-    t = Scripted(script)
+def table(script, profile="tcp", clock=None, **settings) -> tuple[AclTurntable, MessageTranscript]:
+    t = MessageTranscript(script)
     times = iter(clock or [0.0] * 100)
     drv = AclTurntable(
         t,

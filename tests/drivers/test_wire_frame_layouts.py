@@ -229,26 +229,16 @@ def test_decode_command_counts_bit_frames(tmp_path):
     assert "built-in-test frames 2 " in text
 
 
-class _BytesPort:
-    """A pyserial-like port that returns a fixed byte string (then nothing)."""
-
-    def __init__(self, data: bytes) -> None:
-        self.data, self.timeout = data, 0.02
-
-    def read(self, n: int) -> bytes:
-        out, self.data = self.data[:n], self.data[n:]
-        return out
-
-    def write(self, b: bytes) -> int:
-        return len(b)
-
-
 def test_serial_driver_keeps_bit_frames_for_the_caller_and_reports_them():
     from drivers.imu_unit.serial_unit import SerialInertialUnit
 
     fmt = compile_format(load_frame("kvh-1750-a"), None, 1000.0)
-    unit = SerialInertialUnit(_BytesPort(KVH_MANUAL + BIT_AA + KVH_BUILT), fmt, 1000.0, timeout=0.5)
+    from tests.drivers.transcript import ByteTranscript
+
+    port = ByteTranscript([], initial=KVH_MANUAL + BIT_AA + KVH_BUILT)  # free-running: the host sends nothing
+    unit = SerialInertialUnit(port, fmt, 1000.0, timeout=0.5)
     block = unit.read(2)
     assert len(block.time) == 2 and block.rejected == 0
     assert unit.bit_frames == [("kvh-1750-bit-aa", BIT_AA)] and unit.bit_total == 1
     assert any("1 built-in-test frame(s) received" in e for e in block.events)
+    port.done()

@@ -6,10 +6,9 @@ from __future__ import annotations
 
 import struct
 
+from tests.drivers.transcript import ByteTranscript, h
 
-def h(text: str) -> bytes:
-    """Bytes from spaced hex, e.g. ``h("01 03 00 64")``."""
-    return bytes.fromhex(text)
+__all__ = ["FakeClock", "ScriptedStream", "h", "rtu"]
 
 
 def rtu(body: str) -> bytes:
@@ -20,35 +19,9 @@ def rtu(body: str) -> bytes:
     return data + struct.pack(">H", FramerRTU.compute_CRC(data))
 
 
-class ScriptedStream:
-    """A ByteStream (``write``/``read``/``timeout``) that checks requests against a script."""
-
-    def __init__(self, script: list[tuple[bytes, bytes | None]]) -> None:
-        self.script = list(script)
-        self.timeout = 0.01
-        self._pending = bytearray()
-        self.sent: list[bytes] = []
-
-    def write(self, data: bytes) -> int:
-        assert self.script, f"unexpected request {data.hex(' ')}"
-        expected, reply = self.script.pop(0)
-        assert data == expected, f"sent {data.hex(' ')}, the spec says {expected.hex(' ')}"
-        self.sent.append(data)
-        if reply is not None:
-            self._pending += reply
-        return len(data)
-
-    @property
-    def in_waiting(self) -> int:
-        return len(self._pending)
-
-    def read(self, size: int = 1) -> bytes:
-        out = bytes(self._pending[:size])
-        del self._pending[:size]
-        return out
-
-    def done(self) -> None:
-        assert not self.script, f"requests never sent: {[q.hex(' ') for q, _ in self.script]}"
+ScriptedStream = ByteTranscript
+"""A ByteStream (``write``/``read``/``timeout``) that checks requests against a script: the one transcript
+helper of the driver tests (tests/drivers/transcript.py)."""
 
 
 class FakeClock:
