@@ -19,10 +19,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from analysis.identification.batch import batch_identify
 from analysis.timebase import RunSignals, TimeBase, clock_check, coarse_mapping, estimate_time_base
 from analysis.timebase.events import moving_readings
 
 from .recording import Recording, TableReadings, TimeSources
+from .reference import reference_for_samples
 
 WINDOW_S = 1.5
 """Event window before and after each motion, s (analysis.timebase.events)."""
@@ -150,10 +152,6 @@ def time_base_sensitivity(
     ``windows``: per acquisition window (sample times t (unit clock, s), specific force f_out (n, 3) m/s² body
     frame, reading span). ``table``: the readings already on the unit's clock.
     """
-    from analysis.identification.batch import batch_identify  # lazy: scipy
-
-    from .reference import reference_for_samples
-
     ts, fo, wt, spans = [], [], [], []
     for t, f, span in windows:
         k = max(1, math.ceil(t.size / max_points))

@@ -141,11 +141,12 @@ class TimeBase:
             )
             for e in d.get("events", [])
         ]
+        nan = math.nan
         return cls(
-            float(d["offset_s"]),
-            float(d["rate"]),
-            float(d["u_offset_s"]),
-            float(d["u_rate"]),
+            float(d.get("offset_s", 0.0)),
+            float(d.get("rate", 0.0)),
+            float(d.get("u_offset_s", nan)),
+            float(d.get("u_rate", nan)),
             cov,
             str(d.get("method", "")),
             events,
