@@ -128,3 +128,22 @@ def test_twenty_seeds_offset_and_rate_within_3_sigma(clock_bench):
     print("z offset", np.round(z[:, 0], 2), "z rate", np.round(z[:, 1], 2))
     assert np.all(np.abs(z) < 3), z
     assert math.sqrt(np.mean(z**2)) < 1.5, z  # the stated σ is not grossly inflated or deflated
+
+
+def test_declared_hardware_timing_is_used_and_checked(tmp_path):
+    """A bench declaring a PPS line: one clock is used (identity), the estimate from the motions checks it."""
+    bench = bench_variant(
+        tmp_path,
+        rate=200.0,
+        clocks=("  seed: 20261122\n", "  seed: 20261122\n  clocks: ideal\n"),
+        pps=("  latency_ms:", "  time_reference: pps\n  latency_ms:"),
+    )
+    assert load_bench(bench).unit.time_reference == "pps"
+    proc = tmp_path / "p.yaml"
+    proc.write_text(SHORT, encoding="utf-8")
+    run = run_procedure(tmp_path, bench, str(proc), seed=6)
+    res = identify_run(run, method="batch")
+    tb = res.time_base.estimate
+    assert tb.method == "hardware" and tb.offset == 0.0 and tb.rate == 0.0
+    assert tb.check["hardware"]["consistent"] is True  # one clock really: the motions agree
+    assert any("hardware timing declared (pps)" in n for n in tb.notes)
