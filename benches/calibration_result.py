@@ -24,7 +24,7 @@ from typing import Any, ClassVar, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-from analysis.identification.model import PARAM_KINDS, PARAM_NAMES
+from analysis.identification.specification import ModelSpec, get_model, model_for_names
 from analysis.timebase import TimeBase
 from analysis.units import DISPLAY_UNITS
 from core.errors import UserError
@@ -36,7 +36,7 @@ FORMAT_VERSION = 2
 ``covariance_white``, and "not identified" instead of null for an infinite predicted σ."""
 READABLE_VERSIONS = (1, 2)
 NOT_IDENTIFIED = "not identified"
-SI_UNITS = {"bias": "m/s^2", "scale": "1", "misalignment": "rad", "quadratic": "s^2/m", "size_effect": "m"}
+SI_UNITS = {k: v for m in ("accelerometer", "gyro") for k, v in get_model(m).si_units.items()}
 """The SI unit written for each parameter kind."""
 
 
@@ -250,7 +250,7 @@ class ParameterEstimate:
     Attributes
     ----------
     name, kind : str
-        Name (``PARAM_NAMES``) and quantity kind.
+        Name (the model's ``names``) and quantity kind.
     value : float
         Estimate (for a not-identified parameter: the prior-dominated value, never applied).
     u, u_white : float
@@ -272,7 +272,8 @@ class ParameterEstimate:
 
 @dataclass
 class CalibrationResult:
-    """What an identification produces (calibration.json), typed. Arrays SI in ``PARAM_NAMES`` order.
+    """What an identification produces (calibration.json), typed. Arrays SI in the identified model's name order
+    (:attr:`error_model`: the accelerometer's 18, or the whole unit's with the gyro).
 
     The blocks of the file are typed members (``information``, ``residuals``, ``plan``, ``truth``,
     ``history``, ``run``, ``warnings``, …; None when a file lacks them); ``extra`` keeps only keys this version
@@ -331,32 +332,44 @@ class CalibrationResult:
 
     # ---- access ------------------------------------------------------------------------------------------
     @property
+    def error_model(self) -> ModelSpec:
+        """The identified error model (:mod:`analysis.identification.specification`), from the parameter names."""
+        return model_for_names(tuple(self.parameters))
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """State names, in order."""
+        return tuple(self.parameters)
+
+    @property
     def x(self) -> NDArray[np.float64]:
-        """Estimates (18,), SI."""
-        return np.array([self.parameters[n].value for n in PARAM_NAMES])
+        """Estimates (n,), SI."""
+        return np.array([p.value for p in self.parameters.values()])
 
     @property
     def u(self) -> NDArray[np.float64]:
-        """Combined standard uncertainties of the identification (18,), SI."""
-        return np.array([self.parameters[n].u for n in PARAM_NAMES])
+        """Combined standard uncertainties of the identification (n,), SI."""
+        return np.array([p.u for p in self.parameters.values()])
 
     @property
     def identified(self) -> NDArray[np.bool_]:
-        """Identification state per parameter (18,)."""
-        return np.array([self.parameters[n].identified for n in PARAM_NAMES])
+        """Identification state per parameter (n,)."""
+        return np.array([p.identified for p in self.parameters.values()])
 
     def compensation_vector(self) -> tuple[NDArray[np.float64], list[str]]:
         """The vector to apply (not-identified parameters set to 0) and the names left out."""
         x = self.x
-        skipped = [n for n in PARAM_NAMES if not self.parameters[n].identified]
+        names = self.names
+        skipped = [n for n in names if not self.parameters[n].identified]
         for n in skipped:
-            x[PARAM_NAMES.index(n)] = 0.0
+            x[names.index(n)] = 0.0
         return x, skipped
 
     def summary(self) -> str:
         """A readable table (display units; u = the identification's combined standard uncertainty, k = 1)."""
         result = self
-        lines = [f"{'param':8s} {'value':>12s} {'u (k=1)':>10s} {'unit':7s} {'err/u':>7s}  note"]
+        w = max(8, *(len(n) for n in result.parameters))
+        lines = [f"{'param':{w}s} {'value':>12s} {'u (k=1)':>10s} {'unit':7s} {'err/u':>7s}  note"]
         truth = result.truth
         err_u = (truth.error_over_u or {}) if truth is not None else {}
         for name, p in result.parameters.items():
@@ -364,11 +377,13 @@ class CalibrationResult:
             e = err_u.get(name)
             note = "" if p.identified else "NOT IDENTIFIED (prior-dominated; not applied)"
             e_txt = "" if e is None else f"{e:7.2f}"
-            lines.append(f"{name:8s} {p.value / one:12.4f} {p.u / one:10.4f} {unit:7s} {e_txt:>7s}  {note}")
+            lines.append(f"{name:{w}s} {p.value / one:12.4f} {p.u / one:10.4f} {unit:7s} {e_txt:>7s}  {note}")
         info = result.information or InformationSummary()
         cond = info.condition
         cond_txt = f"{cond:.3g}" if isinstance(cond, float) else str(cond)
-        lines.append(f"information rank {info.rank}/18, condition {cond_txt}; method {result.method}")
+        lines.append(
+            f"information rank {info.rank}/{len(result.parameters)}, condition {cond_txt}; method {result.method}"
+        )
         lines.append(
             "u = the identification's combined standard uncertainty (white noise ⊕ correlated bias instability, "
             "k = 1); the certificate adds table, gravity and model components and states U = 2u"
@@ -386,7 +401,7 @@ class CalibrationResult:
     def to_dict(self) -> dict[str, Any]:
         """calibration.json content (format version :data:`FORMAT_VERSION`)."""
         params = {}
-        for n in PARAM_NAMES:
+        for n in self.names:
             p = self.parameters[n]
             unit, one = DISPLAY_UNITS[p.kind]
             params[n] = {
@@ -444,7 +459,7 @@ class CalibrationResult:
             "method": self.method,
             "uncertainty": "u = the identification's combined standard uncertainty (white noise ⊕ correlated bias "
             "instability), k = 1; the certificate's u adds the type-B components and states U = 2u",
-            "parameter_names": list(PARAM_NAMES),
+            "parameter_names": list(self.names),
             "parameters": params,
             "covariance": self.covariance.tolist(),
             "covariance_white": self.covariance_white.tolist(),
@@ -470,10 +485,16 @@ class CalibrationResult:
             )
         key = "parameter_names"
         try:
-            if tuple(d.get("parameter_names") or PARAM_NAMES) != PARAM_NAMES:
-                raise ValueError("must be the 18 names of CALIBRATION_FORMAT.md in order")
+            names = tuple(d.get("parameter_names") or get_model("accelerometer").names)
+            try:
+                model = model_for_names(names)
+            except ValueError:
+                raise ValueError(
+                    "must be the names of a registered model in order (the accelerometer's 18, optionally followed "
+                    "by the gyro's), see CALIBRATION_FORMAT.md"
+                ) from None
             params = {}
-            for n, kind in zip(PARAM_NAMES, PARAM_KINDS, strict=True):
+            for n, kind in zip(model.names, model.kinds, strict=True):
                 key = f"parameters.{n}"
                 p = d["parameters"][n]
                 u_key, uw_key, id_key = ("u", "u_white", "identified") if ver >= 2 else (
@@ -493,13 +514,15 @@ class CalibrationResult:
                     identified=_bool(p.get(id_key, True), f"{key}.{id_key}"),
                 )  # fmt: skip
             key = "covariance"
-            cov = _matrix(d["covariance"], key)
+            cov = _matrix(d["covariance"], key, model.n_params)
             key = "covariance_white"
-            cov_w = _matrix(d["covariance_white"], key) if d.get("covariance_white") is not None else None
+            cov_w = None
+            if d.get("covariance_white") is not None:
+                cov_w = _matrix(d["covariance_white"], key, model.n_params)
             key = "measurement_noise.variance"
             nv = np.asarray(d["measurement_noise"]["variance"], dtype=float)
-            if nv.shape != (3,) or not np.all(np.isfinite(nv)) or np.any(nv <= 0):
-                raise ValueError("must be 3 finite positive variances, (m/s²)²")
+            if nv.shape != (model.n_axes,) or not np.all(np.isfinite(nv)) or np.any(nv <= 0):
+                raise ValueError(f"must be {model.n_axes} finite positive variances, SI² (one per axis)")
         except CalibrationFormatError:
             raise
         except (KeyError, TypeError, ValueError) as exc:
@@ -508,7 +531,7 @@ class CalibrationResult:
                 "benches/CALIBRATION_FORMAT.md, or identify the run again"
             ) from None
         if cov_w is None:  # version 1 without the white part: diag of sigma_white, correlations of the total
-            s_w = np.array([params[n].u_white for n in PARAM_NAMES])
+            s_w = np.array([params[n].u_white for n in model.names])
             s_t = np.sqrt(np.diag(cov))
             cov_w = cov * np.outer(s_w / s_t, s_w / s_t)
         known = {"format", "format_version", "recording", "recording_sha256", "method", "uncertainty",
@@ -573,10 +596,10 @@ def _bool(v: Any, key: str) -> bool:
     return v
 
 
-def _matrix(v: Any, key: str) -> NDArray[np.float64]:
+def _matrix(v: Any, key: str, n: int = 18) -> NDArray[np.float64]:
     m = np.asarray(v, dtype=float)
-    if m.shape != (18, 18) or not np.all(np.isfinite(m)):
-        raise ValueError(f"{key} must be a finite 18 × 18 matrix")
+    if m.shape != (n, n) or not np.all(np.isfinite(m)):
+        raise ValueError(f"{key} must be a finite {n} × {n} matrix")
     if not np.allclose(m, m.T, rtol=1e-9, atol=0.0) or np.any(np.diag(m) <= 0):
         raise ValueError(f"{key} must be symmetric with positive variances")
     return m

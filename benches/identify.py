@@ -28,8 +28,8 @@ from numpy.typing import NDArray
 from analysis.identification.batch import batch_identify, information_rank, unobservable_parameters
 from analysis.identification.bias_drift import flicker_components, window_mean_covariance
 from analysis.identification.kalman import StreamingIdentifier, estimate_measurement_noise
-from analysis.identification.model import PARAM_KINDS, PARAM_NAMES, predict
 from analysis.identification.plan import IdentificationPlan, PlanStep, plan_identification
+from analysis.identification.specification import ModelSpec, get_model
 from analysis.timebase import IDENTITY, TimeBase, misfit_cause
 from analysis.units import DISPLAY_UNITS
 from core.errors import UserError
@@ -60,6 +60,8 @@ MODEL_TEXT = (
     "f_out = f + (S + T) f + b + D (f∘f) + diag(r) c(ω), body frame; c(ω) = [ω_y²+ω_z², ω_z²+ω_x², ω_x²+ω_y²]; "
     "misalignment convention δf_i += τ_ij f_j"
 )
+ACCEL_MODEL: ModelSpec = get_model("accelerometer")
+"""The accelerometer model (:mod:`analysis.identification.specification` registry)."""
 IDENTIFIED_STEPS: tuple[type[Step], ...] = (Hold, Spin)
 """Steps whose counted samples the identification fits (a warm-up's only estimate the noise)."""
 _IDENTIFIED_KINDS = frozenset(t.kind for t in IDENTIFIED_STEPS)  # as written in a recording's steps table
@@ -75,12 +77,12 @@ class IdentificationError(UserError, RuntimeError):
 def prior_covariance(config: BenchConfig) -> NDArray[np.float64]:
     """P0 = diag(σ²) from the bench's ``unit.prior`` (datasheet 1σ per parameter, SI)."""
     prior = config.unit.prior
-    missing = [n for n in PARAM_NAMES if n not in prior]
+    missing = [n for n in ACCEL_MODEL.names if n not in prior]
     if missing:
         raise IdentificationError(
             f"bench {config.name!r}: unit prior lacks {', '.join(missing)}; give a datasheet 1σ for all 18 parameters"
         )
-    return np.diag([float(prior[n]) ** 2 for n in PARAM_NAMES])
+    return np.diag([float(prior[n]) ** 2 for n in ACCEL_MODEL.names])
 
 
 def configured_noise_variance(config: BenchConfig) -> NDArray[np.float64]:
@@ -228,6 +230,11 @@ class LiveIdentifier:
         if self._n >= self._flush_n:
             self.flush()
 
+    def parameter_kinds(self) -> list[tuple[str, str]]:
+        """(name, quantity kind) of every state the filter estimates, in its order (for the live view)."""
+        m = self.filter.model
+        return list(zip(m.names, m.kinds, strict=True))
+
     def on_step_end(self, step: Step, record: StepRecord) -> None:
         """Fuse what is buffered for the step."""
         self.flush()
@@ -257,8 +264,8 @@ class LiveIdentifier:
             x, s = self.filter.estimate, self.filter.sigma
             parts = []
             for name in self.show:
-                k = PARAM_NAMES.index(name)
-                unit, one = DISPLAY_UNITS[PARAM_KINDS[k]]
+                k = ACCEL_MODEL.names.index(name)
+                unit, one = DISPLAY_UNITS[ACCEL_MODEL.kinds[k]]
                 parts.append(f"{name} {x[k] / one:.4g}±{s[k] / one:.2g} {unit}")
             self.progress.extra(", ".join(parts) + " (± = filter white-noise 1σ, k = 1)")
 
@@ -378,8 +385,8 @@ def _identification_data(rr: RecordedRun, time_base: str = "estimate") -> Identi
         windows.append(StepWindow(s.name, s.kind, t, fo, fr, om, ang))
     tr = rec.truth()
     truth = None
-    if tr is not None and all(n_ in tr.parameters for n_ in PARAM_NAMES):
-        truth = {n_: float(tr.parameters[n_]) for n_ in PARAM_NAMES}
+    if tr is not None and all(n_ in tr.parameters for n_ in ACCEL_MODEL.names):
+        truth = {n_: float(tr.parameters[n_]) for n_ in ACCEL_MODEL.names}
     temp = rec.samples(fields=("temperature",), index=np.arange(0, n, max(1, n // 10000))).temperature
     temp = temp if temp is not None else np.zeros(0)
     if not windows:
@@ -410,7 +417,7 @@ def _windows_as_plan_steps(windows: list[StepWindow], max_points: int = 4000) ->
 
 @dataclass
 class Estimate:
-    """The estimator's output on the recorded windows (SI, ``PARAM_NAMES`` order).
+    """The estimator's output on the recorded windows (SI, model name order).
 
     ``filter_residuals``: the streaming filter's own per-step residual statistics (Kalman), None for batch.
     """
@@ -489,7 +496,7 @@ def residual_statistics(data: IdentificationData, est: Estimate) -> Residuals:
     if rows is None:
         rows = []
         for w in data.windows:
-            r = w.f_out - predict(est.x, w.f_ref, w.omega)
+            r = w.f_out - ACCEL_MODEL.predict(est.x, w.f_ref, w.omega)
             rows.append(
                 StepResiduals(name=w.name, samples=int(r.shape[0]), mean=list(map(float, r.mean(0))),
                               rms=list(map(float, np.sqrt((r**2).mean(0)))))
@@ -526,7 +533,7 @@ def _time_base_covariance(
     """The identified parameters' covariance from the time base's uncertainty, J Σ Jᵀ, and J = ∂x/∂(t₀, ε) (18, 2)."""
     tb = data.time_base
     cov = np.asarray(tb.covariance, dtype=float)
-    n = len(PARAM_NAMES)
+    n = len(ACCEL_MODEL.names)
     if data.table is None or not np.all(np.isfinite(cov)) or not np.any(cov):
         return np.zeros((n, n)), np.zeros((n, 2))
     cfg = data.config
@@ -564,11 +571,11 @@ def _time_base_block(data: IdentificationData, unc: Uncertainty) -> TimeBaseBloc
         if not math.isfinite(d[k]):
             d[k] = None
     d["covariance"] = [[x if math.isfinite(x) else None for x in row] for row in d["covariance"]]
-    n = len(PARAM_NAMES)
+    n = len(ACCEL_MODEL.names)
     p_time = unc.time_covariance if unc.time_covariance is not None else np.zeros((n, n))
     jac = unc.time_sensitivity if unc.time_sensitivity is not None else np.zeros((n, 2))
-    d["effect_u"] = {nm: float(math.sqrt(max(p_time[k, k], 0.0))) for k, nm in enumerate(PARAM_NAMES)}
-    d["sensitivity"] = {nm: [float(jac[k, 0]), float(jac[k, 1])] for k, nm in enumerate(PARAM_NAMES)}
+    d["effect_u"] = {nm: float(math.sqrt(max(p_time[k, k], 0.0))) for k, nm in enumerate(ACCEL_MODEL.names)}
+    d["sensitivity"] = {nm: [float(jac[k, 0]), float(jac[k, 1])] for k, nm in enumerate(ACCEL_MODEL.names)}
     d["gyro_scale_factor_u"] = d["u_rate"]  # a gyro scale factor measured as angle over time inherits ε 1:1
     return TimeBaseBlock.from_mapping(d)
 
@@ -578,15 +585,15 @@ def truth_check(truth: dict[str, float] | None, x: NDArray[np.float64], unc: Unc
     if truth is None:
         return None
     sigma = np.sqrt(np.diag(unc.covariance))
-    err = x - np.array([truth[n_] for n_ in PARAM_NAMES])
-    idx = np.array([k for k, n_ in enumerate(PARAM_NAMES) if n_ not in unc.unidentifiable], dtype=int)
+    err = x - np.array([truth[n_] for n_ in ACCEL_MODEL.names])
+    idx = np.array([k for k, n_ in enumerate(ACCEL_MODEL.names) if n_ not in unc.unidentifiable], dtype=int)
     sub = unc.covariance[np.ix_(idx, idx)]
     return TruthCheck(
         values=truth,
-        error_over_u={n_: float(err[k] / sigma[k]) for k, n_ in enumerate(PARAM_NAMES)},
+        error_over_u={n_: float(err[k] / sigma[k]) for k, n_ in enumerate(ACCEL_MODEL.names)},
         nees=float(err[idx] @ np.linalg.solve(sub, err[idx])),
         dof=int(idx.size),
-        nees_states=[PARAM_NAMES[i] for i in idx],
+        nees_states=[ACCEL_MODEL.names[i] for i in idx],
     )
 
 
@@ -639,14 +646,14 @@ def calibration_result(
     params = {
         name: ParameterEstimate(
             name=name,
-            kind=PARAM_KINDS[k],
+            kind=ACCEL_MODEL.kinds[k],
             value=float(x[k]),
             u=float(sigma[k]),
             u_white=float(sigma_white[k]),
             prior_sigma=float(math.sqrt(est.prior[k, k])),
             identified=name not in unc.unidentifiable,
         )
-        for k, name in enumerate(PARAM_NAMES)
+        for k, name in enumerate(ACCEL_MODEL.names)
     }
     actual = unc.plan
     warnings = list(actual.warnings)
@@ -669,13 +676,13 @@ def calibration_result(
         information=InformationSummary(
             rank=unc.rank,
             condition=unc.condition,
-            unidentifiable=sorted(unc.unidentifiable, key=PARAM_NAMES.index),
+            unidentifiable=sorted(unc.unidentifiable, key=ACCEL_MODEL.names.index),
             tolerance="numerical rank of the noise-whitened data information, scaled per parameter kind "
             "(analysis.identification.batch.information_rank)",
         ),
         residuals=residuals,
         plan=PlanSummary(
-            predicted_sigma={n_: float(actual.sigma_total[k]) for k, n_ in enumerate(PARAM_NAMES)},
+            predicted_sigma={n_: float(actual.sigma_total[k]) for k, n_ in enumerate(ACCEL_MODEL.names)},
             rank=int(actual.rank),
             warnings=list(actual.warnings),
         ),

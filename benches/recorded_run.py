@@ -1,7 +1,7 @@
 """One recorded run, typed and opened once: the recording, its header, the parsed bench, the compiled procedure.
 
 Identification (:mod:`benches.identify`), the certificate (:mod:`benches.certificate`) and the analyses
-(:mod:`benches.analysis_input`) take a :class:`RecordedRun` instead of each opening the recording and parsing
+(:mod:`benches.cli.analysis_input`) take a :class:`RecordedRun` instead of each opening the recording and parsing
 its copies of the bench and procedure files again. ``tablebench run`` builds it once at the end of the run and
 hands it the bench and procedure it already parsed and compiled (:func:`open_run` reuses them when they are
 exactly the recorded texts), so one run parses the bench once and compiles the procedure once.

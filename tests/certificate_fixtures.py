@@ -18,9 +18,10 @@ from pathlib import Path
 import numpy as np
 
 from analysis.identification.budget import data_information
+from analysis.identification.model import PARAM_KINDS, PARAM_NAMES
 from analysis.units import ARCSEC, MM, PPM, UG, UG_PER_G2, display_unit, to_display
 from benches.bench_config import load_bench
-from benches.certificate.budget import PARAM_KINDS, PARAM_NAMES, step_geometry
+from benches.certificate.budget import step_geometry
 from benches.recording import Hdf5Recorder, open_recording
 from benches.runner import Runner
 from tests import REPO_ROOT

@@ -4,12 +4,14 @@ Method (GUM, JCGM 100:2008, law of propagation of uncertainty for the linear est
 -----------------------------------------------------------------------------------------
 The identification solves, in the body frame b, z = f_out − f_ref = H(f, ω) x + v with a Gaussian prior,
 x̂ = A⁻¹ (P0⁻¹ x0 + Σ_k H_kᵀ R⁻¹ z_k), A = P0⁻¹ + Σ_k H_kᵀ R⁻¹ H_k, H from the ONE model
-(:func:`analysis.identification.model.design_matrix`). An error e_k of the measurement equation (a
-reference error, an unmodelled term) moves the estimate by δx̂ = A⁻¹ Σ_k H_kᵀ R⁻¹ e_k. Each type-B input
-is a quantity u with a standard uncertainty and a shape e_k = G_k u; its contribution is C Cov(u) Cᵀ with
-the sensitivity C = A⁻¹ Σ_k H_kᵀ R⁻¹ G_k.
+(the model specification's ``design_matrix``, :mod:`analysis.identification.specification`). An error e_k
+of the measurement equation (a reference error, an unmodelled term) moves the estimate by
+δx̂ = A⁻¹ Σ_k H_kᵀ R⁻¹ e_k. Each type-B input is a quantity u with a standard uncertainty and a shape
+e_k = G_k u; its contribution is C Cov(u) Cᵀ with the sensitivity C = A⁻¹ Σ_k H_kᵀ R⁻¹ G_k.
 
-Components (all SI, 18 × 18 covariances):
+Components (all SI, n × n covariances, n the model's state count; each type-B input is a
+:class:`BudgetInput` — a shape per step and a covariance — so a model of several triads and inputs fed in
+from elsewhere, e.g. the time base, enter the same way):
 
 1. **Identification, white noise** (type A): A⁻¹, the identification's own posterior covariance.
 2. **Identification, bias instability** (type B, the unit's datasheet): the correlated flicker between the
@@ -38,13 +40,14 @@ method follows IEEE Std 1293.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
-from analysis.identification.model import N_PARAMS, SIZE_EFFECT, design_matrix
+from analysis.identification.specification import ModelSpec, resolve
+from analysis.units import DISPLAY_UNITS
 
 COVERAGE_FACTOR: float = 2.0
 """k of the expanded uncertainty U = k·u."""
@@ -80,6 +83,8 @@ class StepGeometry:
         Gimbal axis (0 outer, 1 middle, 2 inner) spinning during the step, None for a hold.
     window : (float, float)
         Acquisition window in bench time, s (for the flicker correlation).
+    earth : (m, 3) array or None
+        Earth rate in the body frame, rad/s (gyro models; None = 0).
     """
 
     name: str
@@ -90,6 +95,7 @@ class StepGeometry:
     c_bn: NDArray[np.float64] | None = None
     spin_axis: int | None = None
     window: tuple[float, float] = (0.0, 0.0)
+    earth: NDArray[np.float64] | None = None
 
     @property
     def samples(self) -> int:
@@ -99,7 +105,7 @@ class StepGeometry:
 
 @dataclass(frozen=True)
 class BudgetComponent:
-    """One line of the budget: an input quantity propagated to the 18 parameters.
+    """One line of the budget: an input quantity propagated to the model's parameters.
 
     Attributes
     ----------
@@ -109,7 +115,7 @@ class BudgetComponent:
         How the input's standard uncertainty was obtained (plain words, with its value).
     type : str
         "A" (statistical) or "B" (other means), GUM 4.2 / 4.3.
-    covariance : (18, 18) array
+    covariance : (n, n) array
         Contribution to the parameters' covariance, SI.
     """
 
@@ -135,7 +141,7 @@ class UncertaintyBudget:
 
     @property
     def covariance(self) -> NDArray[np.float64]:
-        """Combined covariance of the 18 parameters, SI."""
+        """Combined covariance of the parameters, SI."""
         return np.sum([c.covariance for c in self.components], axis=0)
 
     @property
@@ -149,6 +155,24 @@ class UncertaintyBudget:
         return self.coverage_factor * self.combined
 
 
+@dataclass(frozen=True)
+class BudgetInput:
+    """A type-B input quantity u: its error shape in the measurement equation per step, and Cov(u).
+
+    ``shape(geo)`` returns e_k per unit input, (m, n_axes, k) for the step's m points (or None when the
+    step does not see it); the component is C Cov(u) Cᵀ with C = A⁻¹ Σ_k Hᵀ R⁻¹ e_k. With ``per_step`` the
+    input is an independent realisation per step (each step its own u, same Cov), otherwise one for the run.
+    """
+
+    key: str
+    label: str
+    source: str
+    covariance: NDArray[np.float64]
+    shape: Callable[[StepGeometry], NDArray[np.float64] | None]
+    per_step: bool = False
+    type: str = "B"
+
+
 def _cross_matrices(v: NDArray[np.float64]) -> NDArray[np.float64]:
     """[v×] for rows of v (n, 3) → (n, 3, 3)."""
     x, y, z = v[:, 0], v[:, 1], v[:, 2]
@@ -156,82 +180,113 @@ def _cross_matrices(v: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.stack([np.stack([o, -z, y], -1), np.stack([z, o, -x], -1), np.stack([-y, x, o], -1)], -2)
 
 
-def _ht_rinv(geo: StepGeometry, r_inv: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Per-point weighted Hᵀ R⁻¹ (m, 18, 3) and H (m, 3, 18) from the model's design matrix."""
-    h = design_matrix(geo.f, geo.omega)
+def _ht_rinv(
+    geo: StepGeometry, r_inv: NDArray[np.float64], model: ModelSpec | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Per-point weighted Hᵀ R⁻¹ (m, n, n_axes) and H (m, n_axes, n) from the model's design matrix."""
+    h = resolve(model).design_matrix(geo.f, geo.omega, geo.earth)
     return np.transpose(h, (0, 2, 1)) * r_inv[None, None, :] * geo.weight[:, None, None], h
 
 
-def data_information(geometry: Sequence[StepGeometry], noise_var: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Σ_k Hᵀ R⁻¹ H over the (decimated, weighted) geometry, (18, 18) SI."""
+def data_information(
+    geometry: Sequence[StepGeometry], noise_var: NDArray[np.float64], model: ModelSpec | None = None
+) -> NDArray[np.float64]:
+    """Σ_k Hᵀ R⁻¹ H over the (decimated, weighted) geometry, (n, n) SI."""
+    m = resolve(model)
     r_inv = 1.0 / np.asarray(noise_var, dtype=float)
-    info = np.zeros((N_PARAMS, N_PARAMS))
+    info = np.zeros((m.n_params, m.n_params))
     for geo in geometry:
-        ht_ri, h = _ht_rinv(geo, r_inv)
+        ht_ri, h = _ht_rinv(geo, r_inv, m)
         info += np.einsum("kpa,kaq->pq", ht_ri, h)
     return info
 
 
-def attitude_sensitivity(
-    a_inv: NDArray[np.float64], geometry: Sequence[StepGeometry], noise_var: NDArray[np.float64]
-) -> list[NDArray[np.float64]]:
-    """∂x̂/∂δφ_s per step, (18, 3) each (SI per rad): A⁻¹ Σ_k Hᵀ R⁻¹ [f_k×] C_n^b,k."""
+def input_sensitivity(
+    a_inv: NDArray[np.float64],
+    geometry: Sequence[StepGeometry],
+    noise_var: NDArray[np.float64],
+    shape: Callable[[StepGeometry], NDArray[np.float64] | None],
+    model: ModelSpec | None = None,
+) -> list[NDArray[np.float64] | None]:
+    """Per step, ∂x̂/∂u = A⁻¹ Σ_k Hᵀ R⁻¹ e_k, (n, k), for an input of error shape e_k = ``shape(geo)``."""
     r_inv = 1.0 / np.asarray(noise_var, dtype=float)
-    out = []
+    out: list[NDArray[np.float64] | None] = []
     for geo in geometry:
-        ht_ri, _ = _ht_rinv(geo, r_inv)
-        shape = _cross_matrices(geo.f)
-        if geo.c_bn is not None:
-            shape = shape @ np.transpose(np.asarray(geo.c_bn, dtype=float), (0, 2, 1))
-        out.append(a_inv @ np.einsum("kpa,kab->pb", ht_ri, shape))
+        e = shape(geo)
+        out.append(None if e is None else a_inv @ np.einsum("kpa,kab->pb", _ht_rinv(geo, r_inv, model)[0], e))
     return out
 
 
+def attitude_shape(geo: StepGeometry, model: ModelSpec | None = None) -> NDArray[np.float64]:
+    """e_k per nav-frame tilt δφ (m, n_axes, 3): the model's reference vectors v turned, [v×] C_n^b.
+
+    C_b^n,true = (I + [δφ×]) C_b^n,rep moves a body-frame vector v = C_n^b v_n by [v×] C_n^b δφ. The
+    accelerometer's v is f, the gyro's the Earth rate (the table rate is measured in the body frame).
+    """
+    m = resolve(model)
+    vecs = m.attitude_vectors(geo.f, geo.omega, geo.earth)  # (m, n_axes // 3, 3)
+    rot = None if geo.c_bn is None else np.transpose(np.asarray(geo.c_bn, dtype=float), (0, 2, 1))
+    blocks = []
+    for t in range(vecs.shape[1]):
+        sh = _cross_matrices(vecs[:, t, :])
+        blocks.append(sh if rot is None else sh @ rot)
+    return np.concatenate(blocks, axis=1)
+
+
+def attitude_sensitivity(
+    a_inv: NDArray[np.float64],
+    geometry: Sequence[StepGeometry],
+    noise_var: NDArray[np.float64],
+    model: ModelSpec | None = None,
+) -> list[NDArray[np.float64]]:
+    """∂x̂/∂δφ_s per step, (n, 3) each (SI per rad): A⁻¹ Σ_k Hᵀ R⁻¹ [v_k×] C_n^b,k."""
+    return input_sensitivity(a_inv, geometry, noise_var, lambda g: attitude_shape(g, model), model)  # type: ignore[return-value]
+
+
 def gravity_sensitivity(
-    a_inv: NDArray[np.float64], geometry: Sequence[StepGeometry], noise_var: NDArray[np.float64], g: float
+    a_inv: NDArray[np.float64],
+    geometry: Sequence[StepGeometry],
+    noise_var: NDArray[np.float64],
+    g: float,
+    model: ModelSpec | None = None,
 ) -> NDArray[np.float64]:
-    """∂x̂/∂g = A⁻¹ Σ_k Hᵀ R⁻¹ f_k / g, (18,) SI per m/s²."""
-    r_inv = 1.0 / np.asarray(noise_var, dtype=float)
-    acc = np.zeros(N_PARAMS)
-    for geo in geometry:
-        ht_ri, _ = _ht_rinv(geo, r_inv)
-        acc += np.einsum("kpa,ka->p", ht_ri, geo.f)
-    return (a_inv @ acc) / g
+    """∂x̂/∂g = A⁻¹ Σ_k Hᵀ R⁻¹ ∂y_ref/∂g, (n,) SI per m/s² (the accelerometer's f/g; 0 for a gyro)."""
+    m = resolve(model)
+    sens = input_sensitivity(a_inv, geometry, noise_var, lambda geo: m.gravity_shape(geo.f, geo.omega, g), m)
+    return sum((c[:, 0] for c in sens if c is not None), np.zeros(m.n_params))
 
 
 def rate_sensitivity(
     a_inv: NDArray[np.float64],
     geometry: Sequence[StepGeometry],
     noise_var: NDArray[np.float64],
-    r_hat: NDArray[np.float64],
+    x_hat: NDArray[np.float64],
+    model: ModelSpec | None = None,
 ) -> NDArray[np.float64]:
-    """∂x̂/∂ε_j for a relative rate error ε_j of gimbal axis j, (18, 3): −2 A⁻¹ Σ_{spins about j} Hᵀ R⁻¹ (r̂∘c_k)."""
-    from analysis.identification.model import centripetal
-
-    r_inv = 1.0 / np.asarray(noise_var, dtype=float)
-    out = np.zeros((N_PARAMS, 3))
-    for geo in geometry:
-        if geo.spin_axis is None:
-            continue
-        ht_ri, _ = _ht_rinv(geo, r_inv)
-        e = -2.0 * np.asarray(r_hat, dtype=float)[None, :] * centripetal(geo.omega)
-        out[:, geo.spin_axis] += a_inv @ np.einsum("kpa,ka->p", ht_ri, e)
+    """∂x̂/∂ε_j for a relative reported-rate error ε_j of gimbal axis j, (n, 3) (the size effect's c ∝ ω²)."""
+    m = resolve(model)
+    out = np.zeros((m.n_params, 3))
+    sens = input_sensitivity(a_inv, geometry, noise_var, lambda geo: m.rate_shape(geo.f, geo.omega, x_hat), m)
+    for geo, c in zip(geometry, sens, strict=True):
+        if geo.spin_axis is not None and c is not None:
+            out[:, geo.spin_axis] += c[:, 0]
     return out
 
 
 def step_offset_sensitivity(
-    a_inv: NDArray[np.float64], geometry: Sequence[StepGeometry], noise_var: NDArray[np.float64]
+    a_inv: NDArray[np.float64],
+    geometry: Sequence[StepGeometry],
+    noise_var: NDArray[np.float64],
+    model: ModelSpec | None = None,
 ) -> list[NDArray[np.float64]]:
-    """∂x̂/∂β_s for a constant error β_s of z per step and axis: A⁻¹ Σ_k Hᵀ R⁻¹, (18, 3) each."""
+    """∂x̂/∂β_s for a constant error β_s of z per step and axis: A⁻¹ Σ_k Hᵀ R⁻¹, (n, n_axes) each."""
     r_inv = 1.0 / np.asarray(noise_var, dtype=float)
-    return [a_inv @ _ht_rinv(geo, r_inv)[0].sum(axis=0) for geo in geometry]
+    return [a_inv @ _ht_rinv(geo, r_inv, model)[0].sum(axis=0) for geo in geometry]
 
 
-def attitude_step_variance(geo: StepGeometry, u_att: float) -> NDArray[np.float64]:
-    """Variance (3,) of the step-mean reference error per body axis from an attitude error of u per axis."""
-    shape = _cross_matrices(geo.f)
-    if geo.c_bn is not None:
-        shape = shape @ np.transpose(np.asarray(geo.c_bn, dtype=float), (0, 2, 1))
+def attitude_step_variance(geo: StepGeometry, u_att: float, model: ModelSpec | None = None) -> NDArray[np.float64]:
+    """Variance (n_axes,) of the step-mean reference error per axis from an attitude error of u per axis."""
+    shape = attitude_shape(geo, model)
     mean_shape = np.einsum("k,kab->ab", geo.weight, shape) / max(float(geo.weight.sum()), 1.0)
     return u_att**2 * np.sum(mean_shape**2, axis=1)
 
@@ -241,31 +296,94 @@ def mismatch_variance(
     per_step: Sequence[Mapping[str, object]],
     noise_var: NDArray[np.float64],
     expected_extra: Mapping[str, NDArray[np.float64]],
-    n_params_per_axis: int = 6,
+    n_params_per_axis: int | Sequence[int] = 6,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Observed per-step DC residual variance (3,) and its excess (3,) over what the budget already claims.
+    """Observed per-step DC residual variance (n_axes,) and its excess over what the budget already claims.
 
-    ``per_step`` rows as in ``calibration.json`` ``residuals.per_step`` (name, samples, mean (3), SI);
-    ``expected_extra`` per step name: the claimed variance (3,) of the step mean beyond white noise
-    (flicker share, attitude error).
+    ``per_step`` rows as in ``calibration.json`` ``residuals.per_step`` (name, samples, mean (n_axes), SI);
+    ``expected_extra`` per step name: the claimed variance of the step mean beyond white noise (flicker
+    share, attitude error). ``n_params_per_axis``: the fitted parameters per axis (a K-step fit removes
+    that many of the K degrees of freedom of the step means).
     """
-    r = np.asarray(noise_var, dtype=float)
+    r = np.asarray(noise_var, dtype=float).reshape(-1)
+    n_ax = r.size
+    npa = np.broadcast_to(np.asarray(n_params_per_axis, dtype=float), (n_ax,))
     names = {g.name for g in geometry}
     rows = [p for p in per_step if int(p.get("samples", 0)) > 0 and str(p.get("name")) in names]  # type: ignore[call-overload]
-    if len(rows) <= n_params_per_axis:
-        return np.zeros(3), np.zeros(3)
-    dof = len(rows) - n_params_per_axis
-    obs = np.zeros(3)
-    exp = np.zeros(3)
+    if len(rows) <= npa.max():
+        return np.zeros(n_ax), np.zeros(n_ax)
+    dof = len(rows) - npa
+    obs = np.zeros(n_ax)
+    exp = np.zeros(n_ax)
     for p in rows:
         n = float(p["samples"])  # type: ignore[arg-type]
-        m = np.asarray(p["mean"], dtype=float).reshape(3)
+        m = np.asarray(p["mean"], dtype=float).reshape(n_ax)
         obs += m**2
-        exp += r / n + np.asarray(expected_extra.get(str(p["name"]), np.zeros(3)), dtype=float)
-    # a K-step fit removes 6 of K degrees of freedom: the residual means carry (K−6)/K of the variance
+        exp += r / n + np.asarray(expected_extra.get(str(p["name"]), np.zeros(n_ax)), dtype=float)
     obs_var = obs / dof
     exp_var = exp / len(rows)
     return obs_var, np.clip(obs_var - exp_var, 0.0, None)
+
+
+def reference_inputs(
+    model: ModelSpec,
+    geometry: Sequence[StepGeometry],
+    *,
+    x_hat: NDArray[np.float64],
+    g: float,
+    g_uncertainty: float,
+    g_source: str,
+    attitude_accuracy: float,
+    rate_accuracy: float = 0.0,
+) -> list[BudgetInput]:
+    """The bench's type-B inputs common to every model: table attitude, local g and table rate accuracy."""
+    from analysis.units import ARCSEC, PPM
+
+    u_att = attitude_accuracy / math.sqrt(3.0)
+    out = [
+        BudgetInput(
+            "attitude", "Table attitude accuracy",
+            f"±{attitude_accuracy / ARCSEC:.3g}″ per axis (bench file), rectangular, u = {u_att / ARCSEC:.3g}″, "
+            "independent per step",
+            np.eye(3) * u_att**2, lambda geo: attitude_shape(geo, model), per_step=True,
+        ),
+        BudgetInput(
+            "local_g", "Local gravity",
+            f"g = {g:.6f} m/s² ({g_source}), u(g) = {g_uncertainty:.2g} m/s² ({g_uncertainty / 1e-5:.3g} mGal)",
+            np.array([[g_uncertainty**2]]), lambda geo: model.gravity_shape(geo.f, geo.omega, g),
+        ),
+    ]  # fmt: skip
+    if rate_accuracy > 0 and any(geo.spin_axis is not None for geo in geometry):
+        u_rate = rate_accuracy / math.sqrt(3.0)
+        for j in range(3):
+            out.append(
+                BudgetInput(
+                    f"rate_{j}", "Table rate accuracy (size effect)",
+                    f"±{rate_accuracy / PPM:.3g} ppm of rate per gimbal axis (bench file), rectangular, "
+                    f"u = {u_rate / PPM:.3g} ppm, one per axis and run",
+                    np.array([[u_rate**2]]),
+                    lambda geo, j=j: model.rate_shape(geo.f, geo.omega, x_hat) if geo.spin_axis == j else None,
+                )
+            )  # fmt: skip
+    return out
+
+
+def input_component(
+    inp: BudgetInput,
+    a_inv: NDArray[np.float64],
+    geometry: Sequence[StepGeometry],
+    noise_var: NDArray[np.float64],
+    model: ModelSpec | None = None,
+) -> BudgetComponent:
+    """The covariance contribution of one type-B input (module docstring: C Cov(u) Cᵀ)."""
+    sens = [c for c in input_sensitivity(a_inv, geometry, noise_var, inp.shape, model) if c is not None]
+    n = a_inv.shape[0]
+    if inp.per_step:
+        cov = sum((c @ inp.covariance @ c.T for c in sens), np.zeros((n, n)))
+    else:
+        c = sum(sens, np.zeros((n, inp.covariance.shape[0])))
+        cov = c @ inp.covariance @ c.T
+    return BudgetComponent(inp.key, inp.label, inp.source, inp.type, cov)
 
 
 def build_budget(
@@ -283,126 +401,107 @@ def build_budget(
     flicker_step_variance: Mapping[str, NDArray[np.float64]] | None = None,
     residuals_per_step: Sequence[Mapping[str, object]] = (),
     coverage_factor: float = COVERAGE_FACTOR,
+    model: ModelSpec | None = None,
+    extra_inputs: Sequence[BudgetInput] = (),
 ) -> UncertaintyBudget:
-    """The GUM budget of the 18 parameters (module docstring).
+    """The GUM budget of the model's parameters (module docstring).
 
     Parameters
     ----------
-    ident_covariance : (18, 18)
-        The identification's covariance (white noise + correlated bias instability), SI.
-    white_covariance : (18, 18)
-        Its white-noise part A⁻¹ (the estimator's gain; used for every sensitivity).
+    ident_covariance, white_covariance : (n, n)
+        The identification's covariance (white noise + correlated bias instability) and its white-noise
+        part A⁻¹ (the estimator's gain; used for every sensitivity), SI.
     geometry : sequence of StepGeometry
         Reference points of the steps the identification used.
-    noise_var : (3,)
-        Per-sample white-noise variance per body axis used by the identification, (m/s²)².
-    x_hat : (18,)
+    noise_var : (n_axes,)
+        Per-sample white-noise variance per axis used by the identification, SI².
+    x_hat : (n,)
         The identified parameters, SI (the rate component needs r̂).
-    g, g_uncertainty : float
-        Local gravity and its standard uncertainty, m/s².
-    g_source : str
-        How g was obtained (wording).
-    attitude_accuracy : float
-        Table attitude accuracy bound a, rad (rectangular, u = a/√3 per axis).
-    rate_accuracy : float
-        Table rate accuracy bound, relative (rectangular, u = a/√3 per gimbal axis); 0: not claimed.
+    g, g_uncertainty, g_source
+        Local gravity and its standard uncertainty, m/s², and how g was obtained (wording).
+    attitude_accuracy, rate_accuracy : float
+        Table attitude accuracy bound, rad, and rate accuracy bound, relative (rectangular; 0: not claimed).
     flicker_step_variance : mapping, optional
-        Per step name, the flicker variance (3,) of its mean not common to all steps ((m/s²)²), for the
+        Per step name, the flicker variance (n_axes,) of its mean not common to all steps, for the
         model-mismatch test.
     residuals_per_step : sequence of mapping
         ``calibration.json`` ``residuals.per_step``.
+    model : ModelSpec, optional
+        The identified model (default: the accelerometer model).
+    extra_inputs : sequence of BudgetInput
+        Further type-B inputs (the gyro's Earth-rate and time-base inputs, :func:`gyro_inputs`-style).
     """
-    from analysis.units import ARCSEC, PPM, UG
-
+    m = resolve(model)
     p_id = np.asarray(ident_covariance, dtype=float)
     a_inv = np.asarray(white_covariance, dtype=float)
-    for nm, m in (("identification covariance", p_id), ("white-noise covariance", a_inv)):
-        if m.shape != (N_PARAMS, N_PARAMS) or not np.all(np.isfinite(m)):
-            raise ValueError(f"the {nm} must be a finite 18 × 18 matrix")
-    nv = np.asarray(noise_var, dtype=float).reshape(3)
-    if np.any(nv <= 0) or not np.all(np.isfinite(nv)):
-        raise ValueError("the measurement noise variances must be positive and finite")
-    flick = p_id - a_inv
-    flick = 0.5 * (flick + flick.T)
+    n = m.n_params
+    for nm, mat in (("identification covariance", p_id), ("white-noise covariance", a_inv)):
+        if mat.shape != (n, n) or not np.all(np.isfinite(mat)):
+            raise ValueError(f"the {nm} must be a finite {n} × {n} matrix")
+    nv = m.as_noise_variance(noise_var)
+    flick = 0.5 * ((p_id - a_inv) + (p_id - a_inv).T)
     comps = [
         BudgetComponent(
-            "white_noise",
-            "Identification: white measurement noise",
-            "the identification's posterior covariance (Kalman/least squares, prior included)",
-            "A",
-            a_inv,
+            "white_noise", "Identification: white measurement noise",
+            "the identification's posterior covariance (Kalman/least squares, prior included)", "A", a_inv,
         ),
         BudgetComponent(
-            "bias_instability",
-            "Identification: unit bias instability (correlated flicker)",
+            "bias_instability", "Identification: unit bias instability (correlated flicker)",
             "the unit's datasheet bias instability as flicker noise, correlated between the steps, exactly as "
-            "the identification propagated it",
-            "B",
-            flick,
+            "the identification propagated it", "B", flick,
         ),
-    ]
-    u_att = attitude_accuracy / math.sqrt(3.0)
-    c_att = attitude_sensitivity(a_inv, geometry, nv)
-    comps.append(
-        BudgetComponent(
-            "attitude",
-            "Table attitude accuracy",
-            f"±{attitude_accuracy / ARCSEC:.3g}″ per axis (bench file), rectangular, u = {u_att / ARCSEC:.3g}″, "
-            "independent per step",
-            "B",
-            sum((c @ c.T for c in c_att), np.zeros((N_PARAMS, N_PARAMS))) * u_att**2,
-        )
-    )
-    s_g = gravity_sensitivity(a_inv, geometry, nv, g)
-    comps.append(
-        BudgetComponent(
-            "local_g",
-            "Local gravity",
-            f"g = {g:.6f} m/s² ({g_source}), u(g) = {g_uncertainty:.2g} m/s² ({g_uncertainty / 1e-5:.3g} mGal)",
-            "B",
-            np.outer(s_g, s_g) * g_uncertainty**2,
-        )
-    )
-    if rate_accuracy > 0 and any(geo.spin_axis is not None for geo in geometry):
-        u_rate = rate_accuracy / math.sqrt(3.0)
-        s_r = rate_sensitivity(a_inv, geometry, nv, np.asarray(x_hat, dtype=float)[SIZE_EFFECT])
-        comps.append(
-            BudgetComponent(
-                "rate",
-                "Table rate accuracy (size effect)",
-                f"±{rate_accuracy / PPM:.3g} ppm of rate per gimbal axis (bench file), rectangular, "
-                f"u = {u_rate / PPM:.3g} ppm, one per axis and run",
-                "B",
-                (s_r @ s_r.T) * u_rate**2,
-            )
-        )
+    ]  # fmt: skip
+    inputs = reference_inputs(
+        m, geometry, x_hat=np.asarray(x_hat, dtype=float), g=g, g_uncertainty=g_uncertainty, g_source=g_source,
+        attitude_accuracy=attitude_accuracy, rate_accuracy=rate_accuracy,
+    )  # fmt: skip
+    rate_parts = [input_component(i, a_inv, geometry, nv, m) for i in inputs if i.key.startswith("rate_")]
+    comps += [input_component(i, a_inv, geometry, nv, m) for i in inputs if not i.key.startswith("rate_")]
+    if rate_parts:
+        cov_rate = sum((c.covariance for c in rate_parts), np.zeros((n, n)))
+        comps.append(BudgetComponent("rate", rate_parts[0].label, rate_parts[0].source, "B", cov_rate))
+    comps += [input_component(i, a_inv, geometry, nv, m) for i in extra_inputs]
     notes: list[str] = []
-    fl = dict(flicker_step_variance or {})
-    expected = {geo.name: attitude_step_variance(geo, u_att) + fl.get(geo.name, np.zeros(3)) for geo in geometry}
-    obs, excess = mismatch_variance(geometry, residuals_per_step, nv, expected)
-    b_s = step_offset_sensitivity(a_inv, geometry, nv)
-    cov_mm = sum((b @ np.diag(excess) @ b.T for b in b_s), np.zeros((N_PARAMS, N_PARAMS)))
     comps.append(
-        BudgetComponent(
-            "model_mismatch",
-            "Model mismatch (from residuals)",
-            "per-step mean residual scatter ["
-            + ", ".join(f"{math.sqrt(v) / UG:.2f}" for v in obs)
-            + "] µg per axis, beyond noise, flicker and attitude ["
-            + ", ".join(f"{math.sqrt(v) / UG:.2f}" for v in excess)
-            + "] µg, an unknown constant per step",
-            "A",
-            cov_mm,
-        )
+        _mismatch_component(m, a_inv, geometry, nv, attitude_accuracy, flicker_step_variance, residuals_per_step)
     )
     if not residuals_per_step:
         notes.append("no per-step residual statistics: the model-mismatch component is zero (not evaluated)")
     return UncertaintyBudget(comps, coverage_factor, notes)
 
 
+def _mismatch_component(
+    m: ModelSpec,
+    a_inv: NDArray[np.float64],
+    geometry: Sequence[StepGeometry],
+    nv: NDArray[np.float64],
+    attitude_accuracy: float,
+    flicker_step_variance: Mapping[str, NDArray[np.float64]] | None,
+    residuals_per_step: Sequence[Mapping[str, object]],
+) -> BudgetComponent:
+    """Model mismatch: per-step residual scatter beyond noise, flicker and attitude, as a constant per step."""
+    u_att = attitude_accuracy / math.sqrt(3.0)
+    fl = dict(flicker_step_variance or {})
+    zero = np.zeros(m.n_axes)
+    expected = {geo.name: attitude_step_variance(geo, u_att, m) + fl.get(geo.name, zero) for geo in geometry}
+    npa = [len(ax) for ax in m.axis_params]
+    obs, excess = mismatch_variance(geometry, residuals_per_step, nv, expected, npa)
+    b_s = step_offset_sensitivity(a_inv, geometry, nv, m)
+    cov_mm = sum((b @ np.diag(excess) @ b.T for b in b_s), np.zeros((m.n_params, m.n_params)))
+    scale = [DISPLAY_UNITS[m.kinds[ax[0]]] for ax in m.axis_params]  # the axis's bias kind
+    fmt = ", ".join(f"{math.sqrt(v) / one:.2f} {u}" for v, (u, one) in zip(obs, scale, strict=True))
+    fmt_x = ", ".join(f"{math.sqrt(v) / one:.2f} {u}" for v, (u, one) in zip(excess, scale, strict=True))
+    return BudgetComponent(
+        "model_mismatch", "Model mismatch (from residuals)",
+        f"per-step mean residual scatter [{fmt}] per axis, beyond noise, flicker and attitude [{fmt_x}], "
+        "an unknown constant per step", "A", cov_mm,
+    )  # fmt: skip
+
+
 __all__ = [
     "COVERAGE_FACTOR",
     "BudgetComponent",
+    "BudgetInput",
     "StepGeometry",
     "UncertaintyBudget",
     "attitude_sensitivity",
@@ -410,6 +509,9 @@ __all__ = [
     "data_information",
     "default_g_uncertainty",
     "gravity_sensitivity",
+    "input_component",
+    "input_sensitivity",
     "rate_sensitivity",
+    "reference_inputs",
     "step_offset_sensitivity",
 ]

@@ -1,15 +1,17 @@
-"""Streaming Kalman identification of the 18 accelerometer parameters over a whole turntable sequence.
+"""Streaming Kalman identification of a sensor-error model over a whole turntable sequence.
 
-One filter (filterpy ``KalmanFilter``, dim_x = 18) carries **all** states across every step of the
-procedure (a single position has rank 3 of 18; separate per-step filters, as published, cannot work —
-see ``shared/spec/accelerometer-calibration.md``). Model and frames: :mod:`analysis.identification.model`
-(body frame, z = f_out − f_ref = H x + v, per-axis white noise of variance R_i per sample).
+One filter (filterpy ``KalmanFilter``, dim_x = the model's state count: 18 for the accelerometer triad,
+33 or more for the whole unit) carries **all** states across every step of the procedure (a single
+position has rank 3 of 18; separate per-step filters, as published, cannot work — see
+``docs/methods/accelerometer-calibration.md``). The model is a
+:class:`analysis.identification.specification.ModelSpec` (default: the accelerometer model); frames:
+body frame, z = y − y_ref = H x + v, per-axis white noise of variance R_i per sample.
 
 Block updates (exact)
 ---------------------
 Each :meth:`StreamingIdentifier.update` call condenses its n samples into the information pair
-Λ = Σ HᵀR⁻¹H, η = Σ HᵀR⁻¹z (via :func:`analysis.identification.model.regressor_gram`, chunked, one matrix product
-per chunk) and then applies **one** filterpy update with an 18-dimensional whitened pseudo-measurement
+Λ = Σ HᵀR⁻¹H, η = Σ HᵀR⁻¹z (via the model's ``regressor_gram``, chunked, one matrix product
+per chunk) and then applies **one** filterpy update with an n-dimensional whitened pseudo-measurement
 
     H' = diag(√λ) Vᵀ,  z' = diag(1/√λ) Vᵀ η,  R' = I        (Λ = V diag(λ) Vᵀ, λ clipped at 0)
 
@@ -22,7 +24,7 @@ variance 1), which keeps the filter's matrices well conditioned across parameter
 magnitudes span 10⁻⁷ (d, s²/m) to 10⁻² (r, m). :attr:`estimate`/:attr:`covariance` are SI.
 
 Process noise: Φ = I and Q = q·dt between updates (dt = time since the previous update). A scalar ``q``
-(1/s) is a random walk relative to the prior variance (Q_ii = q·dt·P0_ii); an (18,) array is the SI
+(1/s) is a random walk relative to the prior variance (Q_ii = q·dt·P0_ii); an (n,) array is the SI
 random-walk PSD per state. Q is applied between blocks (block-internal drift is ignored), so with
 q ≠ 0 keep blocks short relative to the drift time scale. Default q = 0 (constant parameters).
 """
@@ -36,14 +38,7 @@ from filterpy.kalman import KalmanFilter
 from numpy.typing import ArrayLike, NDArray
 
 from analysis.identification.batch import information_rank
-from analysis.identification.model import (
-    N_PARAMS,
-    as_noise_variance,
-    as_state,
-    information_from_gram,
-    regressor_gram,
-    residual_moments,
-)
+from analysis.identification.specification import ModelSpec, resolve
 
 
 @dataclass(frozen=True)
@@ -58,9 +53,9 @@ class StepRecord:
         Time of the block's last sample, s (NaN when neither sample times nor a sample rate are known).
     n_samples : int
         Samples in the block.
-    x : ndarray (18,)
+    x : ndarray (n,)
         Estimate after the block, SI.
-    sigma : ndarray (18,)
+    sigma : ndarray (n,)
         1σ after the block, SI (√diag P).
     """
 
@@ -73,7 +68,7 @@ class StepRecord:
 
 @dataclass(frozen=True)
 class ResidualStats:
-    """Residual z − H x̂ statistics of one step, per body axis (m/s²)."""
+    """Residual z − H x̂ statistics of one step, per measurement axis (SI of the axis's sensor)."""
 
     count: int
     mean: NDArray[np.float64]
@@ -81,21 +76,23 @@ class ResidualStats:
 
 
 class StreamingIdentifier:
-    """Kalman filter over the 18 accelerometer parameters, fed block by block as data arrive.
+    """Kalman filter over a model's parameters, fed block by block as data arrive.
 
     Parameters
     ----------
-    r_var : array_like (3,)
-        White measurement-noise variance per sample and body axis, (m/s²)² (see
+    r_var : array_like (n_axes,)
+        White measurement-noise variance per sample and measurement axis, SI² (see
         :func:`estimate_measurement_noise`, or noise density² × sample rate).
-    p0 : array_like (18, 18)
+    p0 : array_like (n, n)
         Prior covariance (the bench's datasheet bounds), SI; must be positive definite.
-    x0 : array_like (18,), optional
+    x0 : array_like (n,), optional
         Prior mean, SI (default 0).
-    q : float or array_like (18,)
+    q : float or array_like (n,)
         Process noise (see the module docstring). Default 0.
     sample_rate : float, optional
         Sample rate, Hz, used for the history time and dt when :meth:`update` gets no sample times.
+    model : ModelSpec, optional
+        The error model (default: the accelerometer model).
     """
 
     def __init__(
@@ -106,11 +103,14 @@ class StreamingIdentifier:
         *,
         q: float | ArrayLike = 0.0,
         sample_rate: float | None = None,
+        model: ModelSpec | None = None,
     ) -> None:
-        self.r_var = as_noise_variance(r_var)
+        self.model = m = resolve(model)
+        n_p = m.n_params
+        self.r_var = m.as_noise_variance(r_var)
         p = np.asarray(p0, dtype=float)
-        if p.shape != (N_PARAMS, N_PARAMS) or not np.all(np.isfinite(p)):
-            raise ValueError(f"prior covariance p0 must be a finite ({N_PARAMS}, {N_PARAMS}) matrix, got {p.shape}")
+        if p.shape != (n_p, n_p) or not np.all(np.isfinite(p)):
+            raise ValueError(f"prior covariance p0 must be a finite ({n_p}, {n_p}) matrix, got {p.shape}")
         if np.any(np.diag(p) <= 0.0):
             raise ValueError("prior covariance p0 must have positive variances (a KF needs a proper prior)")
         self._scale = np.sqrt(np.diag(p))
@@ -119,28 +119,28 @@ class StreamingIdentifier:
             np.linalg.cholesky(p_s)
         except np.linalg.LinAlgError as exc:
             raise ValueError("prior covariance p0 must be symmetric positive definite") from exc
-        xm = np.zeros(N_PARAMS) if x0 is None else as_state(x0, "x0")
+        xm = np.zeros(n_p) if x0 is None else m.as_state(x0, "x0")
         q_arr = np.asarray(q, dtype=float)
         if q_arr.ndim == 0:
-            self._q_s = np.full(N_PARAMS, float(q_arr))
-        elif q_arr.shape == (N_PARAMS,):
+            self._q_s = np.full(n_p, float(q_arr))
+        elif q_arr.shape == (n_p,):
             self._q_s = q_arr / self._scale**2
         else:
-            raise ValueError(f"q must be a scalar or have {N_PARAMS} entries")
+            raise ValueError(f"q must be a scalar or have {n_p} entries")
         if not np.all(np.isfinite(self._q_s)) or np.any(self._q_s < 0):
             raise ValueError("process noise q must be finite and >= 0")
         if sample_rate is not None and not (np.isfinite(sample_rate) and sample_rate > 0):
             raise ValueError(f"sample_rate must be > 0 Hz, got {sample_rate}")
         self.sample_rate = sample_rate
-        kf = KalmanFilter(dim_x=N_PARAMS, dim_z=N_PARAMS)
-        kf.x = (xm / self._scale).reshape(N_PARAMS, 1)
+        kf = KalmanFilter(dim_x=n_p, dim_z=n_p)
+        kf.x = (xm / self._scale).reshape(n_p, 1)
         kf.P = 0.5 * (p_s + p_s.T)
-        kf.F = np.eye(N_PARAMS)
-        kf.Q = np.zeros((N_PARAMS, N_PARAMS))
-        kf.R = np.eye(N_PARAMS)
+        kf.F = np.eye(n_p)
+        kf.Q = np.zeros((n_p, n_p))
+        kf.R = np.eye(n_p)
         self._kf = kf
         self._x0 = xm.copy()
-        self._info = np.zeros((N_PARAMS, N_PARAMS))
+        self._info = np.zeros((n_p, n_p))
         self._grams: dict[str, NDArray[np.float64]] = {}
         self._x_before: dict[str, NDArray[np.float64]] = {}
         self.history: list[StepRecord] = []
@@ -155,13 +155,14 @@ class StreamingIdentifier:
         omega: ArrayLike,
         step: str,
         t: ArrayLike | None = None,
+        earth: ArrayLike | None = None,
     ) -> None:
         """Fuse a block of samples (exactly, one filter update).
 
         Parameters
         ----------
-        f_out : array_like (n, 3)
-            Accelerometer output, body frame, m/s².
+        f_out : array_like (n, n_axes)
+            Sensor output (the model's channels side by side: accelerometer m/s², gyro rad/s), body frame.
         f_ref : array_like (n, 3)
             Reference specific force from the table attitude and local g, body frame, m/s².
         omega : array_like (n, 3)
@@ -171,24 +172,31 @@ class StreamingIdentifier:
             several blocks may share a label).
         t : array_like (n,), optional
             Sample times, s (for the history and the process-noise dt).
+        earth : array_like (n, 3), optional
+            Earth rate in the body frame, rad/s (the gyro reference ω_ib = omega + earth; None = 0).
         """
+        m = self.model
         fo = np.asarray(f_out, dtype=float)
         fr = np.asarray(f_ref, dtype=float)
         om = np.asarray(omega, dtype=float)
-        if fo.ndim != 2 or fo.shape[1] != 3 or fr.shape != fo.shape or om.shape != fo.shape:
+        n = fo.shape[0] if fo.ndim == 2 else -1
+        ea = None if earth is None else np.asarray(earth, dtype=float)
+        if (
+            fo.ndim != 2 or fo.shape[1] != m.n_axes or fr.shape != (n, 3) or om.shape != (n, 3)
+            or (ea is not None and ea.shape != (n, 3))
+        ):  # fmt: skip
             raise ValueError(
-                f"step {step!r}: f_out, f_ref and omega must all have shape (n, 3); "
+                f"step {step!r}: f_out, f_ref and omega must have shapes (n, {m.n_axes}), (n, 3), (n, 3); "
                 f"got {fo.shape}, {fr.shape}, {om.shape}"
             )
-        n = fo.shape[0]
         if n == 0:
             return
         if not (np.all(np.isfinite(fo)) and np.all(np.isfinite(fr)) and np.all(np.isfinite(om))):
             raise ValueError(f"step {step!r}: non-finite samples; drop or interpolate them before identification")
         t_end = self._block_end_time(n, t, step)
         dt = 0.0 if (self._t_last is None or not np.isfinite(t_end)) else max(t_end - self._t_last, 0.0)
-        gram = regressor_gram(fr, om, fo - fr)
-        info, eta = information_from_gram(gram, self.r_var)
+        gram = m.regressor_gram(fr, om, fo - m.ideal(fr, om, ea), earth=ea)
+        info, eta = m.information_from_gram(gram, self.r_var)
         assert eta is not None
         if step not in self._grams:
             self._grams[step] = np.zeros_like(gram)
@@ -199,7 +207,7 @@ class StreamingIdentifier:
         if np.any(self._q_s > 0.0) and dt > 0.0:
             kf.predict(Q=np.diag(self._q_s * dt))
         h_p, z_p = self._pseudo_measurement(info, eta)
-        kf.update(z_p, R=np.eye(N_PARAMS), H=h_p)
+        kf.update(z_p, R=np.eye(m.n_params), H=h_p)
         kf.P = 0.5 * (kf.P + kf.P.T)
         self._n_total += n
         if np.isfinite(t_end):
@@ -229,27 +237,27 @@ class StreamingIdentifier:
         h_p = root[:, None] * vec.T
         proj = vec.T @ eta_s
         z_p = np.divide(proj, root, out=np.zeros_like(proj), where=root > 0.0)
-        return h_p, z_p.reshape(N_PARAMS, 1)
+        return h_p, z_p.reshape(-1, 1)
 
     # ------------------------------------------------------------------ results
     @property
     def estimate(self) -> NDArray[np.float64]:
-        """Current estimate x̂ (18,), SI, :data:`analysis.identification.model.PARAM_NAMES` order."""
+        """Current estimate x̂ (n,), SI, in the model's name order."""
         return self._kf.x.reshape(-1) * self._scale
 
     @property
     def covariance(self) -> NDArray[np.float64]:
-        """Current covariance P (18, 18), SI."""
+        """Current covariance P (n, n), SI."""
         return self._kf.P * np.outer(self._scale, self._scale)
 
     @property
     def sigma(self) -> NDArray[np.float64]:
-        """Current 1σ (18,), SI."""
+        """Current 1σ (n,), SI."""
         return np.sqrt(np.clip(np.diag(self._kf.P), 0.0, None)) * self._scale
 
     @property
     def information(self) -> NDArray[np.float64]:
-        """Accumulated data information Σ HᵀR⁻¹H (18, 18), SI (without the prior)."""
+        """Accumulated data information Σ HᵀR⁻¹H (n, n), SI (without the prior)."""
         return self._info.copy()
 
     @property
@@ -259,46 +267,46 @@ class StreamingIdentifier:
 
     def rank_and_condition(self) -> tuple[int, float]:
         """Numerical rank and condition of the accumulated data information (see :mod:`.batch`)."""
-        return information_rank(self._info, self.r_var)
+        return information_rank(self._info, self.r_var, model=self.model)
 
     def residual_statistics(self, x: ArrayLike | None = None, *, prior: bool = False) -> dict[str, ResidualStats]:
         """Per-step residual statistics of z − H x, exact, from the stored per-step sums (no samples kept).
 
         Parameters
         ----------
-        x : array_like (18,), optional
+        x : array_like (n,), optional
             Parameters to evaluate the residual with; default the current (final) estimate.
         prior : bool
             If True, use for each step the estimate held *before* its first block (innovation statistics).
         """
         out: dict[str, ResidualStats] = {}
-        xs = self.estimate if x is None else as_state(x)
+        xs = self.estimate if x is None else self.model.as_state(x)
         for step, gram in self._grams.items():
-            count, mean, rms = residual_moments(gram, self._x_before[step] if prior else xs)
+            count, mean, rms = self.model.residual_moments(gram, self._x_before[step] if prior else xs)
             out[step] = ResidualStats(int(round(count)), mean, rms)
         return out
 
     def nees(self, truth: ArrayLike) -> float:
-        """Normalised estimation error squared (x̂ − x)ᵀ P⁻¹ (x̂ − x) against known truth x (SI, 18)."""
-        e_s = (self.estimate - as_state(truth, "truth")) / self._scale
+        """Normalised estimation error squared (x̂ − x)ᵀ P⁻¹ (x̂ − x) against known truth x (SI, n)."""
+        e_s = (self.estimate - self.model.as_state(truth, "truth")) / self._scale
         return float(e_s @ np.linalg.solve(self._kf.P, e_s))
 
 
 def estimate_measurement_noise(f_out_static: ArrayLike, method: str = "detrend") -> NDArray[np.float64]:
-    """Per-axis white-noise variance per sample, (m/s²)², from a static record (e.g. the warm-up hold).
+    """Per-axis white-noise variance per sample, SI², from a static record (e.g. the warm-up hold).
 
     Parameters
     ----------
-    f_out_static : array_like (n, 3)
-        Accelerometer output at rest, body frame, m/s² (n ≥ 10).
+    f_out_static : array_like (n, k)
+        Sensor output at rest, body frame (accelerometer m/s², gyro rad/s; n ≥ 10).
     method : {"detrend", "difference"}
         ``"detrend"``: variance about a per-axis straight-line fit (robust to a linear warm-up drift; the
         per-sample variance the filter's R means). ``"difference"``: var(Δf)/2, insensitive to any slow
         drift but biased low when the output is low-pass filtered (correlated adjacent samples).
     """
     f = np.asarray(f_out_static, dtype=float)
-    if f.ndim != 2 or f.shape[1] != 3:
-        raise ValueError(f"static record must have shape (n, 3), got {f.shape}")
+    if f.ndim != 2 or f.shape[1] < 1:
+        raise ValueError(f"static record must have shape (n, axes), got {f.shape}")
     n = f.shape[0]
     if n < 10:
         raise ValueError(f"static record too short to estimate noise: {n} samples (need at least 10)")

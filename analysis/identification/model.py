@@ -1,6 +1,9 @@
 """Accelerometer-triad error model (18 parameters) for turntable calibration (pure maths, vectorised).
 
-Model (per sample, **body frame b**; see ``shared/spec/accelerometer-calibration.md``, IEEE 1293 where silent)::
+Registered as the model ``accelerometer`` (:class:`AccelerometerModel`, :data:`ACCELEROMETER`) of
+:mod:`analysis.identification.specification`; the estimators take that object, not these constants.
+
+Model (per sample, **body frame b**; see ``docs/methods/accelerometer-calibration.md``, IEEE 1293 where silent)::
 
     f_out = f + (S + T) f + b + D (f ∘ f) + diag(r) c(ω) + v
 
@@ -35,7 +38,8 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from analysis.units import DISPLAY_UNITS, G0
+from analysis.identification.specification import ModelSpec, register
+from analysis.units import G0
 
 PARAM_NAMES: tuple[str, ...] = (
     "b_x",
@@ -261,11 +265,7 @@ def correct(
 
 def base_regressors(f: ArrayLike, omega: ArrayLike) -> NDArray[np.float64]:
     """Base regressors B (n, 10) = [1, f_x, f_y, f_z, f_x², f_y², f_z², c_x, c_y, c_z] (body frame, SI)."""
-    ff = _as_n3(f, "f")
-    c = centripetal(omega)
-    if c.shape != ff.shape:
-        raise ValueError(f"f and omega must have the same shape (n, 3), got {ff.shape} and {c.shape}")
-    return np.concatenate([np.ones((ff.shape[0], 1)), ff, ff * ff, c], axis=1)
+    return ACCELEROMETER.base_regressors(f, omega)
 
 
 def design_matrix(f: ArrayLike, omega: ArrayLike) -> NDArray[np.float64]:
@@ -273,19 +273,8 @@ def design_matrix(f: ArrayLike, omega: ArrayLike) -> NDArray[np.float64]:
 
     Row i of sample n holds, at the state indices :data:`AXIS_PARAMS` [i], the regressors
     ``[1, f_i, f_j, f_k, f_i², c_i]``. Exactly linear: ``predict(x, f, ω) − f == H x`` for any x.
-
-    Parameters
-    ----------
-    f : array_like (n, 3)
-        Reference specific force, body frame, m/s².
-    omega : array_like (n, 3)
-        Body angular rate, body frame, rad/s.
     """
-    base = base_regressors(f, omega)
-    h = np.zeros((base.shape[0], 3, N_PARAMS))
-    for i in range(3):
-        h[:, i, list(AXIS_PARAMS[i])] = base[:, list(AXIS_BASE[i])]
-    return h
+    return ACCELEROMETER.design_matrix(f, omega)
 
 
 def regressor_gram(
@@ -296,136 +285,118 @@ def regressor_gram(
     *,
     chunk: int = 1 << 17,
 ) -> NDArray[np.float64]:
-    """Weighted Gram matrix of the base regressors and (optionally) the measurements.
+    """Weighted Gram matrix of the base regressors and (optionally) the measurements (13×13 with z, else 10×10).
 
-    ``G = Σ_n w_n a_n a_nᵀ`` with ``a_n = [1, f_x, f_y, f_z, f_x², f_y², f_z², c_x, c_y, c_z, z_x, z_y, z_z]``
-    (13×13 with z, 10×10 without). Row/column 0 holds the plain sums (count, Σf, Σz, …). Computed in chunks
-    with one matrix product each, so memory stays bounded for 10⁷ samples.
-
-    Parameters
-    ----------
-    f : array_like (n, 3)
-        Reference specific force, body frame, m/s².
-    omega : array_like (n, 3)
-        Body angular rate, body frame, rad/s.
-    z : array_like (n, 3), optional
-        Measurement f_out − f_ref, body frame, m/s².
-    weights : array_like (n,), optional
-        Number of real samples each row stands for (default 1).
+    ``G = Σ_n w_n a_n a_nᵀ`` with ``a_n = [1, f_x, f_y, f_z, f_x², f_y², f_z², c_x, c_y, c_z, z_x, z_y, z_z]``;
+    see :meth:`analysis.identification.specification.ModelSpec.regressor_gram`.
     """
-    ff = _as_n3(f, "f")
-    om = _as_n3(omega, "omega")
-    n = ff.shape[0]
-    if om.shape[0] != n:
-        raise ValueError(f"f and omega must have the same number of samples, got {n} and {om.shape[0]}")
-    zz = None if z is None else _as_n3(z, "z")
-    if zz is not None and zz.shape[0] != n:
-        raise ValueError(f"z must have the same number of samples as f ({n}), got {zz.shape[0]}")
-    w = None
-    if weights is not None:
-        w = np.asarray(weights, dtype=float).reshape(-1)
-        if w.shape != (n,) or not np.all(np.isfinite(w)) or np.any(w < 0):
-            raise ValueError(f"weights must be {n} finite non-negative sample counts")
-    ncol = N_BASE + (3 if zz is not None else 0)
-    gram = np.zeros((ncol, ncol))
-    a = np.empty((min(chunk, max(n, 1)), ncol))
-    for s in range(0, n, chunk):
-        e = min(n, s + chunk)
-        m = e - s
-        fc = ff[s:e]
-        w2 = om[s:e] ** 2
-        blk = a[:m]
-        blk[:, 0] = 1.0
-        blk[:, 1:4] = fc
-        np.multiply(fc, fc, out=blk[:, 4:7])
-        np.subtract(w2.sum(axis=1, keepdims=True), w2, out=blk[:, 7:10])
-        if zz is not None:
-            blk[:, 10:13] = zz[s:e]
-        if w is None:
-            gram += blk.T @ blk
-        else:
-            gram += (blk * w[s:e, None]).T @ blk
-    return gram
+    return ACCELEROMETER.regressor_gram(f, omega, z, weights, chunk=chunk)
 
 
 def information_from_gram(
     gram: NDArray[np.float64], r_var: ArrayLike
 ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
-    """Data information Λ = Σ HᵀR⁻¹H (18×18) and η = Σ HᵀR⁻¹z (18,) from a :func:`regressor_gram`.
-
-    ``r_var`` (3,) is the per-axis white-noise variance per sample, (m/s²)². η is None for a Gram without
-    measurements. Λ is block diagonal per axis (in :data:`AXIS_PARAMS` index sets).
-    """
-    r = as_noise_variance(r_var)
-    info = np.zeros((N_PARAMS, N_PARAMS))
-    eta = np.zeros(N_PARAMS) if gram.shape[0] > N_BASE else None
-    for i in range(3):
-        p = list(AXIS_PARAMS[i])
-        q = list(AXIS_BASE[i])
-        info[np.ix_(p, p)] = gram[np.ix_(q, q)] / r[i]
-        if eta is not None:
-            eta[p] = gram[q, Z_COLUMNS[i]] / r[i]
-    return info, eta
+    """Data information Λ = Σ HᵀR⁻¹H (18×18) and η = Σ HᵀR⁻¹z (18,) from a :func:`regressor_gram`."""
+    return ACCELEROMETER.information_from_gram(gram, r_var)
 
 
 def residual_moments(gram: NDArray[np.float64], x: ArrayLike) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]:
-    """Count, per-axis mean and RMS of the residual e = z − H x, exactly, from a 13×13 Gram.
-
-    Uses e_i = z_i − g_iᵀ x_i and Σe_i² = [−x_i; 1]ᵀ G_i [−x_i; 1] with the axis sub-Gram G_i.
-    """
-    xs = as_state(x)
-    count = float(gram[0, 0])
-    mean = np.zeros(3)
-    rms = np.zeros(3)
-    if count <= 0:
-        return 0.0, np.full(3, np.nan), np.full(3, np.nan)
-    for i in range(3):
-        q = [*AXIS_BASE[i], Z_COLUMNS[i]]
-        v = np.append(-xs[list(AXIS_PARAMS[i])], 1.0)
-        sub = gram[np.ix_(q, q)]
-        mean[i] = float(gram[0, q] @ v) / count
-        rms[i] = np.sqrt(max(float(v @ sub @ v), 0.0) / count)
-    return count, mean, rms
+    """Count, per-axis mean and RMS of the residual e = z − H x, exactly, from a 13×13 Gram."""
+    return ACCELEROMETER.residual_moments(gram, x)
 
 
 def to_display(x: ArrayLike) -> NDArray[np.float64]:
     """State (or 1σ) vector in SI → display units per kind (µg, ppm, arcsec, µg/g², mm)."""
-    xs = np.asarray(x, dtype=float).reshape(-1)
-    if xs.shape != (N_PARAMS,):
-        raise ValueError(f"expected {N_PARAMS} values, got {xs.size}")
-    return xs / np.array([DISPLAY_UNITS[k][1] for k in PARAM_KINDS])
+    return ACCELEROMETER.to_display(x)
 
 
 def from_display(x_display: ArrayLike) -> NDArray[np.float64]:
     """State (or 1σ) vector in display units → SI."""
-    xs = np.asarray(x_display, dtype=float).reshape(-1)
-    if xs.shape != (N_PARAMS,):
-        raise ValueError(f"expected {N_PARAMS} values, got {xs.size}")
-    return xs * np.array([DISPLAY_UNITS[k][1] for k in PARAM_KINDS])
+    return ACCELEROMETER.from_display(x_display)
 
 
 def display_units() -> tuple[str, ...]:
     """Display unit label of each state, e.g. ('µg', 'µg', 'µg', 'ppm', …)."""
-    return tuple(DISPLAY_UNITS[k][0] for k in PARAM_KINDS)
+    return ACCELEROMETER.display_units()
 
 
 def sigma_from_display(values: Mapping[str, float]) -> NDArray[np.float64]:
     """Per-parameter SI values (e.g. prior 1σ) from display-unit values given per kind or per name.
 
-    ``values`` maps a kind (``bias``, ``scale``, ``misalignment``, ``quadratic``, ``size_effect``) or a
-    parameter name (``b_x`` …, overrides its kind) to a value in that kind's display unit; every parameter
-    must be covered. Example: ``{"bias": 1000, "scale": 1000, "misalignment": 100, "quadratic": 50,
-    "size_effect": 30}`` (µg, ppm, arcsec, µg/g², mm).
+    Example: ``{"bias": 1000, "scale": 1000, "misalignment": 100, "quadratic": 50, "size_effect": 30}``
+    (µg, ppm, arcsec, µg/g², mm); see :meth:`~analysis.identification.specification.ModelSpec.sigma_from_display`.
     """
-    out = np.full(N_PARAMS, np.nan)
-    unknown = set(values) - set(PARAM_KINDS) - set(PARAM_NAMES)
-    if unknown:
-        raise ValueError(f"unknown parameter kinds/names {sorted(unknown)}; use {sorted(set(PARAM_KINDS))}")
-    for k, (name, kind) in enumerate(zip(PARAM_NAMES, PARAM_KINDS, strict=True)):
-        v = values.get(name, values.get(kind))
-        if v is not None:
-            out[k] = float(v) * DISPLAY_UNITS[kind][1]
-    missing = [n for n, v in zip(PARAM_NAMES, out, strict=True) if not np.isfinite(v)]
-    if missing:
-        raise ValueError(f"no value given for {', '.join(missing)} (give it by kind or by name)")
-    return out
+    return ACCELEROMETER.sigma_from_display(values)
+
+
+class AccelerometerModel(ModelSpec):
+    """The 18-parameter accelerometer-triad model as a :class:`~analysis.identification.specification.ModelSpec`."""
+
+    name = "accelerometer"
+    output = "accel"
+    names = PARAM_NAMES
+    kinds = PARAM_KINDS
+    si_units = {"bias": "m/s^2", "scale": "1", "misalignment": "rad", "quadratic": "s^2/m", "size_effect": "m"}
+    kind_labels = KIND_LABELS
+    axis_params = AXIS_PARAMS
+    axis_base = AXIS_BASE
+    n_base = N_BASE
+    reference_scale = REFERENCE_SCALE
+    equation = (
+        "f_out = f + (S + T) f + b + D (f∘f) + diag(r) c(ω), body frame; c(ω) = [ω_y²+ω_z², ω_z²+ω_x², ω_x²+ω_y²]; "
+        "misalignment convention δf_i += τ_ij f_j"
+    )
+    unobservable_fix = {
+        "size_effect": (
+            "the motion has no rotation that excites it (c = ω² = 0); add constant-rate spins about "
+            "each body axis, at ≥ 30 °/s and in both directions"
+        ),
+        "bias": "add static holds in orientations that separate bias from scale/misalignment (±g on each axis)",
+    }
+    rate_power = {"size_effect": 2}
+    default_fix = (
+        "the orientations do not separate it; add positions with ±g and 45° tilts along each body "
+        "axis (e.g. the ten-step sequence or 24 cube orientations)"
+    )
+    bias_kind = "bias"
+
+    def fill_base(self, out, f, omega, earth) -> None:  # type: ignore[no-untyped-def]
+        """[1, f_x, f_y, f_z, f_x², f_y², f_z², c_x, c_y, c_z]; Earth rate is not used (< 1e-8 m/s² in c)."""
+        out[:, 0] = 1.0
+        out[:, 1:4] = f
+        np.multiply(f, f, out=out[:, 4:7])
+        w2 = omega**2
+        np.subtract(w2.sum(axis=1, keepdims=True), w2, out=out[:, 7:10])
+
+    def ideal(self, f: ArrayLike, omega: ArrayLike, earth: ArrayLike | None = None) -> NDArray[np.float64]:
+        """An error-free accelerometer reads the specific force f."""
+        return _as_n3(f, "f").copy()
+
+    def predict(
+        self, x: ArrayLike, f: ArrayLike, omega: ArrayLike, earth: ArrayLike | None = None
+    ) -> NDArray[np.float64]:
+        return predict(x, f, omega)
+
+    def correct(
+        self, x: ArrayLike, y: ArrayLike, f: ArrayLike, omega: ArrayLike, earth: ArrayLike | None = None
+    ) -> NDArray[np.float64]:
+        """Compensated specific force (:func:`correct`); ``f`` is not used (the output is inverted)."""
+        return correct(x, y, omega)
+
+    def attitude_vectors(self, f, omega, earth=None):  # type: ignore[no-untyped-def]
+        """The specific force f (gravity's direction follows the table attitude)."""
+        return _as_n3(f, "f")[:, None, :]
+
+    def gravity_shape(self, f, omega, g):  # type: ignore[no-untyped-def]
+        """f_true = f_rep (1 + δg/g): ∂f/∂g = f/g."""
+        return (_as_n3(f, "f") / g)[:, :, None]
+
+    def rate_shape(self, f, omega, x_hat):  # type: ignore[no-untyped-def]
+        """The centripetal regressor scales with ω²: a reported rate (1 + ε) too high leaves −2 ε r̂∘c."""
+        xs = np.asarray(x_hat, dtype=float).reshape(-1)
+        r_hat = xs if xs.shape == (3,) else self.as_state(xs)[SIZE_EFFECT]  # r̂ alone or the whole state
+        return (-2.0 * r_hat[None, :] * centripetal(omega))[:, :, None]
+
+
+ACCELEROMETER: AccelerometerModel = register(AccelerometerModel())  # type: ignore[assignment]
+"""The registered accelerometer model (``get_model("accelerometer")``)."""

@@ -1,8 +1,10 @@
-"""Identification plan: predicted 1σ per accelerometer parameter *before* any motion, with plain warnings.
+"""Identification plan: predicted 1σ per parameter *before* any motion, with plain warnings.
 
 Input: nominal samples of each procedure step (reference specific force and body rate at a few points,
-each standing for ``weights`` real samples), the white noise R, the prior P0, and the unit's bias
-stability. Model and frames: :mod:`analysis.identification.model` (body frame, z = f_out − f_ref = H x + v + β).
+each standing for ``weights`` real samples, and the Earth rate in the body frame for gyro models), the white
+noise R, the prior P0, and the unit's bias stability. The model is a
+:class:`analysis.identification.specification.ModelSpec` (default: the accelerometer model; body frame,
+z = y − y_ref = H x + v + β).
 
 Error model (documented assumption)
 -----------------------------------
@@ -19,7 +21,7 @@ x̂ = A⁻¹ (P0⁻¹ x0 + Σ HᵀR⁻¹ z) with A = P0⁻¹ + Λ. Its error is
 
     x̂ − x = A⁻¹ (P0⁻¹ (x0 − x) + Σ HᵀR⁻¹ v) + A⁻¹ Σ_s G_s β_s,      G_s = Σ_{n∈s} w_n H_nᵀ R⁻¹   (18×3)
 
-so the predicted covariance is ``A⁻¹`` (white, the filter's own P) plus the systematic term
+(G_s is n × n_axes) so the predicted covariance is ``A⁻¹`` (white, the filter's own P) plus the systematic term
 ``A⁻¹ (Σ_s G_s diag(σ_bi²) G_sᵀ) A⁻¹``, which the filter does not know about (its P is optimistic by
 that amount). The same is reported for the data alone (no prior), where the data have full rank.
 
@@ -42,18 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from analysis import gimbal
 from analysis.identification.batch import information_rank, unobservable_parameters
-from analysis.identification.model import (
-    AXIS_BASE,
-    AXIS_PARAMS,
-    KIND_LABELS,
-    N_PARAMS,
-    PARAM_KINDS,
-    PARAM_NAMES,
-    REFERENCE_SCALE,
-    as_noise_variance,
-    information_from_gram,
-    regressor_gram,
-)
+from analysis.identification.specification import ModelSpec, resolve
 from analysis.units import DEG, DISPLAY_UNITS
 
 
@@ -73,6 +64,8 @@ class PlanStep:
         Number of real samples each point stands for.
     angles : ndarray (m, 3), optional
         Gimbal angles (ψ, θ, γ), rad (for simulation and display; unused by the plan).
+    earth : ndarray (m, 3), optional
+        Earth rate in the body frame, rad/s (the gyro reference ω_ib = omega + earth; None = 0).
     """
 
     label: str
@@ -80,6 +73,7 @@ class PlanStep:
     omega: NDArray[np.float64]
     weights: NDArray[np.float64]
     angles: NDArray[np.float64] | None = None
+    earth: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         f = np.asarray(self.f_ref, dtype=float)
@@ -99,17 +93,17 @@ class PlanStep:
 
 @dataclass(frozen=True)
 class IdentificationPlan:
-    """Predicted identification accuracy (SI, :data:`analysis.identification.model.PARAM_NAMES` order).
+    """Predicted identification accuracy (SI, in the model's name order).
 
     Attributes
     ----------
-    sigma_white, sigma_total : ndarray (18,)
+    sigma_white, sigma_total : ndarray (n,)
         Predicted 1σ with the prior: white noise only (the filter's own P), and including the
         bias-instability systematic term.
-    sigma_data_white, sigma_data_total : ndarray (18,)
+    sigma_data_white, sigma_data_total : ndarray (n,)
         The same from the data alone (no prior); ``inf`` for unobservable parameters. ``sigma_data_total``
         is what the flags judge.
-    sigma_prior, magnitudes : ndarray (18,)
+    sigma_prior, magnitudes : ndarray (n,)
         Prior 1σ and the magnitudes the σ are judged against.
     rank, condition : int, float
         Data-information rank and condition (:func:`analysis.identification.batch.information_rank`).
@@ -117,7 +111,7 @@ class IdentificationPlan:
         Parameters flagged as not identified.
     warnings : list of str
         Plain-words warnings, each saying what change would fix it.
-    covariance_white, covariance_total : ndarray (18, 18)
+    covariance_white, covariance_total : ndarray (n, n)
     n_samples : float
         Total real samples the plan stands for.
     max_rate : float
@@ -140,18 +134,26 @@ class IdentificationPlan:
     max_rate: float
     min_snr: float = 3.0
     notes: list[str] = field(default_factory=list)
+    model: ModelSpec | None = None
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """State names, in order."""
+        return resolve(self.model).names
 
     def table(self) -> str:
         """Plain-text table of the prediction in display units."""
-        lines = [f"{'param':8s} {'unit':7s} {'prior':>10s} {'σ white':>10s} {'σ total':>10s} {'σ data':>10s}  status"]
-        for k, name in enumerate(PARAM_NAMES):
-            unit, one = DISPLAY_UNITS[PARAM_KINDS[k]]
+        m = resolve(self.model)
+        w = max(8, *(len(n) for n in m.names))
+        lines = [f"{'param':{w}s} {'unit':7s} {'prior':>10s} {'σ white':>10s} {'σ total':>10s} {'σ data':>10s}  status"]
+        for k, name in enumerate(m.names):
+            unit, one = DISPLAY_UNITS[m.kinds[k]]
             status = "NOT IDENTIFIED" if name in self.unidentifiable else "ok"
             lines.append(
-                f"{name:8s} {unit:7s} {self.sigma_prior[k] / one:10.4g} {self.sigma_white[k] / one:10.4g} "
+                f"{name:{w}s} {unit:7s} {self.sigma_prior[k] / one:10.4g} {self.sigma_white[k] / one:10.4g} "
                 f"{self.sigma_total[k] / one:10.4g} {self.sigma_data_total[k] / one:10.4g}  {status}"
             )
-        lines.append(f"data information rank {self.rank}/18, condition {self.condition:.3g}")
+        lines.append(f"data information rank {self.rank}/{m.n_params}, condition {self.condition:.3g}")
         return "\n".join(lines + self.warnings)
 
 
@@ -171,6 +173,7 @@ def plan_identification(
     magnitudes: ArrayLike | None = None,
     min_snr: float = 3.0,
     offset_covariance: ArrayLike | None = None,
+    model: ModelSpec | None = None,
 ) -> IdentificationPlan:
     """Predict the identification accuracy of a procedure before running it.
 
@@ -178,66 +181,68 @@ def plan_identification(
     ----------
     steps : sequence of PlanStep
         Nominal samples per step (body-frame f_ref, m/s², and ω, rad/s; weights = real samples per point).
-    r_var : array_like (3,)
-        White-noise variance per sample and body axis, (m/s²)² (noise density² × sample rate).
-    p0 : array_like (18, 18)
+    r_var : array_like (n_axes,)
+        White-noise variance per sample and measurement axis, SI² (noise density² × sample rate).
+    p0 : array_like (n, n)
         Prior covariance, SI (datasheet bounds).
-    bias_stability : float or array_like (3,)
-        σ_bi, m/s²: standard deviation of the unmodelled per-step DC offset (module docstring).
-    magnitudes : array_like (18,), optional
+    bias_stability : float or array_like (n_axes,)
+        σ_bi, SI: standard deviation of the unmodelled per-step DC offset (module docstring).
+    magnitudes : array_like (n,), optional
         Datasheet magnitude of each parameter, SI (default: the prior 1σ).
     min_snr : float
         A parameter counts as identified when σ_total ≤ magnitude / min_snr.
-    offset_covariance : array_like (3, K, K), optional
-        Covariance of the per-step DC offsets, per body axis, over the K distinct step labels in order of
+    offset_covariance : array_like (n_axes, K, K), optional
+        Covariance of the per-step DC offsets, per measurement axis, over the K distinct step labels in order of
         first appearance (e.g. correlated flicker from :func:`.bias_drift.window_mean_covariance`).
         Replaces the independent-offset model diag(σ_bi²); ``bias_stability`` then only words the warnings.
+    model : ModelSpec, optional
+        The error model (default: the accelerometer model).
     """
     if not steps:
         raise ValueError("the plan has no steps: give the nominal samples of at least one step")
-    r = as_noise_variance(r_var)
+    mdl = resolve(model)
+    n_p, n_ax, r = mdl.n_params, mdl.n_axes, mdl.as_noise_variance(r_var)
     p = np.asarray(p0, dtype=float)
-    if p.shape != (N_PARAMS, N_PARAMS) or np.any(np.diag(p) <= 0) or not np.all(np.isfinite(p)):
-        raise ValueError(f"prior covariance p0 must be a finite ({N_PARAMS}, {N_PARAMS}) matrix with variances > 0")
-    sbi = np.broadcast_to(np.asarray(bias_stability, dtype=float), (3,)).copy()
+    if p.shape != (n_p, n_p) or np.any(np.diag(p) <= 0) or not np.all(np.isfinite(p)):
+        raise ValueError(f"prior covariance p0 must be a finite ({n_p}, {n_p}) matrix with variances > 0")
+    sbi = np.broadcast_to(np.asarray(bias_stability, dtype=float), (n_ax,)).copy()
     if np.any(sbi < 0) or not np.all(np.isfinite(sbi)):
-        raise ValueError(f"bias_stability must be finite and >= 0 (m/s²), got {sbi}")
+        raise ValueError(f"bias_stability must be finite and >= 0 (SI), got {sbi}")
     if not min_snr > 0:
         raise ValueError(f"min_snr must be > 0, got {min_snr}")
     sig_prior = np.sqrt(np.diag(p))
     mag = sig_prior.copy() if magnitudes is None else np.asarray(magnitudes, dtype=float).reshape(-1)
-    if mag.shape != (N_PARAMS,) or np.any(mag <= 0):
-        raise ValueError(f"magnitudes must be {N_PARAMS} positive SI values")
+    if mag.shape != (n_p,) or np.any(mag <= 0):
+        raise ValueError(f"magnitudes must be {n_p} positive SI values")
 
     grams: dict[str, NDArray[np.float64]] = {}
     max_rate = 0.0
     for st in steps:
-        g = regressor_gram(st.f_ref, st.omega, weights=st.weights)
+        g = mdl.regressor_gram(st.f_ref, st.omega, weights=st.weights, earth=st.earth)
         grams[st.label] = grams.get(st.label, 0.0) + g
         moving = st.weights > 0
         if np.any(moving):
             max_rate = max(max_rate, float(np.max(np.linalg.norm(st.omega[moving], axis=1))))
-    info = np.zeros((N_PARAMS, N_PARAMS))
-    gains = np.zeros((len(grams), N_PARAMS, 3))
+    info = np.zeros((n_p, n_p))
+    gains = np.zeros((len(grams), n_p, n_ax))
     for idx, g in enumerate(grams.values()):
-        info_s, _ = information_from_gram(g, r)
+        info_s, _ = mdl.information_from_gram(g, r)
         info += info_s
-        for i in range(3):
-            gains[idx, list(AXIS_PARAMS[i]), i] = g[0, list(AXIS_BASE[i])] / r[i]
+        gains[idx] = mdl.offset_gains(g, r)
     if offset_covariance is None:
-        sys_info = sum(((gs * sbi**2) @ gs.T for gs in gains), np.zeros((N_PARAMS, N_PARAMS)))
+        sys_info = sum(((gs * sbi**2) @ gs.T for gs in gains), np.zeros((n_p, n_p)))
     else:
         c_off = np.asarray(offset_covariance, dtype=float)
-        if c_off.shape != (3, len(grams), len(grams)) or not np.all(np.isfinite(c_off)):
+        if c_off.shape != (n_ax, len(grams), len(grams)) or not np.all(np.isfinite(c_off)):
             raise ValueError(
-                f"offset_covariance must be a finite (3, {len(grams)}, {len(grams)}) array over the step labels"
+                f"offset_covariance must be a finite ({n_ax}, {len(grams)}, {len(grams)}) array over the step labels"
             )
-        sys_info = sum((gains[:, :, a].T @ c_off[a] @ gains[:, :, a] for a in range(3)), np.zeros((N_PARAMS, N_PARAMS)))
-    rank, cond = information_rank(info, r)
-    unobs = unobservable_parameters(info, r) if rank < N_PARAMS else ()
+        sys_info = sum((gains[:, :, a].T @ c_off[a] @ gains[:, :, a] for a in range(n_ax)), np.zeros((n_p, n_p)))
+    rank, cond = information_rank(info, r, model=mdl)
+    unobs = unobservable_parameters(info, r, model=mdl) if rank < n_p else ()
 
     # With prior, in per-kind scaled coordinates for numerical balance.
-    s = REFERENCE_SCALE
+    s = mdl.reference_scale
     ss = np.outer(s, s)
     a_s = info * ss + np.linalg.inv(p / ss)
     a_inv = np.linalg.inv(a_s)
@@ -247,19 +252,18 @@ def plan_identification(
     sig_t = np.sqrt(np.diag(cov_t))
 
     # Data alone (unobservable parameters held by their prior only, reported as ∞).
-    obs_mask = np.array([n not in unobs for n in PARAM_NAMES])
-    reg = np.zeros(N_PARAMS)
+    obs_mask, reg = np.array([n not in unobs for n in mdl.names]), np.zeros(n_p)
     reg[~obs_mask] = 1.0 / (sig_prior[~obs_mask] / s[~obs_mask]) ** 2
     d_s = info * ss + np.diag(reg)
-    d_inv = np.linalg.inv(d_s) if rank == N_PARAMS or np.any(reg > 0) else np.full_like(d_s, np.inf)
+    d_inv = np.linalg.inv(d_s) if rank == n_p or np.any(reg > 0) else np.full_like(d_s, np.inf)
     sig_dw = np.sqrt(np.abs(np.diag(d_inv * ss)))
     sig_dt = np.sqrt(np.abs(np.diag((d_inv + d_inv @ (sys_info * ss) @ d_inv) * ss)))
     sig_dw[~obs_mask] = np.inf
     sig_dt[~obs_mask] = np.inf
 
-    flagged = [k for k in range(N_PARAMS) if (not obs_mask[k]) or sig_dt[k] > mag[k] / min_snr]
-    unid = tuple(PARAM_NAMES[k] for k in flagged)
-    warnings = _warnings(flagged, obs_mask, sig_dw, sig_dt, mag, min_snr, max_rate, sbi, magnitudes is None)
+    flagged = [k for k in range(n_p) if (not obs_mask[k]) or sig_dt[k] > mag[k] / min_snr]
+    unid = tuple(mdl.names[k] for k in flagged)
+    warnings = _warnings(mdl, flagged, obs_mask, sig_dw, sig_dt, mag, min_snr, max_rate, sbi, magnitudes is None)
     n_total = float(sum(g[0, 0] for g in grams.values()))
     return IdentificationPlan(
         sigma_white=sig_w,
@@ -277,10 +281,12 @@ def plan_identification(
         n_samples=n_total,
         max_rate=max_rate,
         min_snr=min_snr,
+        model=mdl,
     )
 
 
 def _warnings(
+    mdl: ModelSpec,
     flagged: list[int],
     obs_mask: NDArray[np.bool_],
     sig_dw: NDArray[np.float64],
@@ -293,63 +299,76 @@ def _warnings(
 ) -> list[str]:
     against = "prior" if mag_is_prior else "datasheet magnitude"
     out: list[str] = []
-    for kind in ("bias", "scale", "misalignment", "quadratic", "size_effect"):
-        ks = [k for k in flagged if PARAM_KINDS[k] == kind]
-        if not ks:
-            continue
-        names = ", ".join(PARAM_NAMES[k] for k in ks)
-        label = KIND_LABELS[kind]
-        worst = max(ks, key=lambda k: sig_dt[k] / mag[k])
-        target = mag[worst] / min_snr
-        head = f"{names} ({label}) will not be identified: "
-        if not all(obs_mask[k] for k in ks):
-            if kind == "size_effect":
-                fix = (
-                    "the motion has no rotation that excites it (c = ω² = 0); add constant-rate spins about "
-                    "each body axis, at ≥ 30 °/s and in both directions"
-                )
-            elif kind == "bias":
-                fix = "add static holds in orientations that separate bias from scale/misalignment (±g on each axis)"
-            else:
-                fix = (
-                    "the orientations do not separate it; add positions with ±g and 45° tilts along each body "
-                    "axis (e.g. the ten-step sequence or 24 cube orientations)"
-                )
-            out.append(head + "not observable with this motion; " + fix + ".")
-            continue
-        data_sig = sig_dt[worst]
-        base = (
-            f"predicted 1σ {_fmt(kind, data_sig)} against a {_fmt(kind, mag[worst])} {against} "
-            f"(needs ≤ {_fmt(kind, target)} to resolve it at {min_snr:g}σ)"
-        )
-        white_share = (sig_dw[worst] / data_sig) ** 2 if np.isfinite(data_sig) and data_sig > 0 else 1.0
-        if kind == "size_effect":
-            if max_rate > 0 and np.isfinite(data_sig):
-                need = max_rate * math.sqrt(data_sig / target)  # σ ∝ 1/ω² at the same spin duration
-                need10 = max_rate * math.sqrt(data_sig / (0.1 * mag[worst]))
-                fix = (
-                    f"spins reach only {max_rate / DEG:.3g} °/s; spin at ≥ {math.ceil(need / DEG):.0f} °/s "
-                    f"for the same spin time (σ scales as 1/ω²; ≥ {math.ceil(need10 / DEG):.0f} °/s for 1σ ≤ "
-                    f"{_fmt(kind, 0.1 * mag[worst])}), or longer and in both directions"
-                )
-                if white_share < 0.5:
-                    fix += (
-                        f"; it is dominated by the bias stability ({_fmt('bias', float(sbi.max()))} between "
-                        "hold and spin), so a longer spin alone will not help"
-                    )
-            else:
-                fix = "add constant-rate spins about each body axis at ≥ 30 °/s"
-        elif white_share >= 0.5 and np.isfinite(data_sig):
-            factor = (data_sig / target) ** 2
-            fix = f"hold about {math.ceil(factor):.0f}× longer at each position (white-noise limited, σ ∝ 1/√time)"
-        else:
-            fix = (
-                f"it is limited by the bias stability ({_fmt('bias', float(sbi.max()))} between steps), not by "
-                "hold time: improve warm-up/thermal stability or shorten the time between the positions that "
-                "separate it"
-            )
-        out.append(head + base + "; " + fix + ".")
+    off_p = off_a = 0
+    for part in mdl.parts:
+        sbi_max = float(sbi[off_a : off_a + part.n_axes].max())
+        for kind in part.unique_kinds():
+            ks = [k for k in flagged if off_p <= k < off_p + part.n_params and mdl.kinds[k] == kind]
+            if ks:
+                out.append(_kind_warning(part, kind, ks, mdl.names, obs_mask, sig_dw, sig_dt, mag, min_snr, max_rate,
+                                         sbi_max, against))  # fmt: skip
+        off_p += part.n_params
+        off_a += part.n_axes
     return out
+
+
+def _kind_warning(
+    part: ModelSpec,
+    kind: str,
+    ks: list[int],
+    names_all: tuple[str, ...],
+    obs_mask: NDArray[np.bool_],
+    sig_dw: NDArray[np.float64],
+    sig_dt: NDArray[np.float64],
+    mag: NDArray[np.float64],
+    min_snr: float,
+    max_rate: float,
+    sbi_max: float,
+    against: str,
+) -> str:
+    """The warning for the flagged parameters ``ks`` of one kind of one model part."""
+    bias_kind = getattr(part, "bias_kind", "bias")
+    names = ", ".join(names_all[k] for k in ks)
+    worst = max(ks, key=lambda k: sig_dt[k] / mag[k])
+    target = mag[worst] / min_snr
+    head = f"{names} ({part.kind_labels[kind]}) will not be identified: "
+    if not all(obs_mask[k] for k in ks):
+        fix = part.unobservable_fix.get(kind, getattr(part, "default_fix", "the motion does not excite it"))
+        return head + "not observable with this motion; " + fix + "."
+    data_sig = sig_dt[worst]
+    base = (
+        f"predicted 1σ {_fmt(kind, data_sig)} against a {_fmt(kind, mag[worst])} {against} "
+        f"(needs ≤ {_fmt(kind, target)} to resolve it at {min_snr:g}σ)"
+    )
+    white_share = (sig_dw[worst] / data_sig) ** 2 if np.isfinite(data_sig) and data_sig > 0 else 1.0
+    pw = part.rate_power.get(kind, 0)
+    if pw:
+        if max_rate > 0 and np.isfinite(data_sig):
+            need = max_rate * (data_sig / target) ** (1.0 / pw)  # σ ∝ 1/ω^p at the same spin duration
+            need10 = max_rate * (data_sig / (0.1 * mag[worst])) ** (1.0 / pw)
+            law = "1/ω²" if pw == 2 else "1/ω"
+            fix = (
+                f"spins reach only {max_rate / DEG:.3g} °/s; spin at ≥ {math.ceil(need / DEG):.0f} °/s "
+                f"for the same spin time (σ scales as {law}; ≥ {math.ceil(need10 / DEG):.0f} °/s for 1σ ≤ "
+                f"{_fmt(kind, 0.1 * mag[worst])}), or longer and in both directions"
+            )
+            if white_share < 0.5:
+                fix += (
+                    f"; it is dominated by the bias stability ({_fmt(bias_kind, sbi_max)} between "
+                    "hold and spin), so a longer spin alone will not help"
+                )
+        else:
+            fix = "add constant-rate spins about each body axis at ≥ 30 °/s"
+    elif white_share >= 0.5 and np.isfinite(data_sig):
+        factor = (data_sig / target) ** 2
+        fix = f"hold about {math.ceil(factor):.0f}× longer at each position (white-noise limited, σ ∝ 1/√time)"
+    else:
+        fix = (
+            f"it is limited by the bias stability ({_fmt(bias_kind, sbi_max)} between steps), not by "
+            "hold time: improve warm-up/thermal stability or shorten the time between the positions that "
+            "separate it"
+        )
+    return head + base + "; " + fix + "."
 
 
 # ---------------------------------------------------------------------------------------------------------------

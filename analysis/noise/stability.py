@@ -238,6 +238,7 @@ def stability(
     data_type: str = "freq",
     theoh_split: float = 0.2,
     confidence: float | None = 0.683,
+    noise_type: int | list[tuple[float, float, int]] | None = None,
 ) -> StabilityResult:
     """Frequency-stability deviations of every channel of a record.
 
@@ -260,6 +261,11 @@ def stability(
     confidence : float or None
         Two-sided probability of the χ² intervals (default 0.683); None: no noise identification, EDF or
         intervals (faster).
+    noise_type : int or list of (τ_lo, τ_hi, α), optional
+        The power-law noise type set by hand, as Stable32 allows (α = 2 white PM, 1 flicker PM, 0 white FM, −1
+        flicker FM, −2 random-walk FM): one α for every τ, or α per closed τ range in seconds (the reported τ;
+        the first range holding τ wins); τ outside every range keep the identified type. The EDF, intervals and
+        the TOTDEV/HTOTDEV bias use it.
 
     Returns
     -------
@@ -325,7 +331,7 @@ def stability(
         if not 0.0 < confidence < 1.0:
             raise ValueError(f"confidence must be in (0, 1), got {confidence}")
         res.confidence = float(confidence)
-        _attach_intervals(rec, res)
+        _attach_intervals(rec, res, _noise_type_ranges(noise_type))
     return res
 
 
@@ -340,7 +346,30 @@ def _id_phase(rec: Record, ch: int) -> NDArray[np.float64]:
     return x
 
 
-def _attach_intervals(rec: Record, res: StabilityResult) -> None:
+def _noise_type_ranges(noise_type: int | list[tuple[float, float, int]] | None) -> list[tuple[float, float, int]]:
+    """``noise_type`` of :func:`stability` as a list of (τ_lo, τ_hi, α), checked."""
+    if noise_type is None:
+        return []
+    ranges = [(0.0, math.inf, noise_type)] if isinstance(noise_type, (int, np.integer)) else list(noise_type)
+    out = []
+    for lo, hi, a in ranges:
+        if int(a) != a or not -2 <= int(a) <= 2:
+            raise ValueError(f"noise type α must be an integer from -2 (random-walk FM) to 2 (white PM), got {a}")
+        if not (lo <= hi) or lo < 0:
+            raise ValueError(f"noise-type τ range {lo}..{hi} s is empty or negative")
+        out.append((float(lo), float(hi), int(a)))
+    return out
+
+
+def forced_alpha(ranges: list[tuple[float, float, int]], tau: float) -> int | None:
+    """The α set by hand for τ (a relative tolerance of 1e-9 on the range ends), or None."""
+    for lo, hi, a in ranges:
+        if lo * (1 - 1e-9) <= tau <= hi * (1 + 1e-9):
+            return a
+    return None
+
+
+def _attach_intervals(rec: Record, res: StabilityResult, ranges: list[tuple[float, float, int]] | None = None) -> None:
     """Noise type, EDF and χ² interval per estimator, τ and channel (see :mod:`analysis.noise.confidence`)."""
     from analysis.noise import confidence as ci
 
@@ -403,7 +432,9 @@ def _attach_intervals(rec: Record, res: StabilityResult) -> None:
                 # TheoBR ratio), and B1 from the handful of averages left at Theo1's τ misidentifies 30–75 %
                 # (coverage test)
                 n_b1 = (n - 1) // m_id if kind == "theo1" else int(est.n_terms[j, ch])
-                a = alpha_of(name, ch, m_id, dmax, n_b1, carry=kind == "theo1")
+                a = forced_alpha(ranges or [], float(est.tau[j]))
+                if a is None:
+                    a = alpha_of(name, ch, m_id, dmax, n_b1, carry=kind == "theo1")
                 alpha[j, ch] = a
                 e[j, ch] = ci.edf(kind, a, m, n)
                 if kind == "theo1" and name != "theo1":  # TheoBR = kf·Theo1: add the scatter of kf

@@ -24,7 +24,6 @@ from analysis.identification.budget import (
     build_budget,
     default_g_uncertainty,
 )
-from analysis.identification.model import PARAM_KINDS, PARAM_NAMES
 from analysis.timebase import TimeBase
 from benches.calibration_result import CalibrationResult
 from benches.identify import acquisition_span
@@ -35,8 +34,6 @@ if TYPE_CHECKING:  # pragma: no cover
     from benches.recording import Recording
 
 __all__ = [
-    "PARAM_KINDS",
-    "PARAM_NAMES",
     "BudgetComponent",
     "StepGeometry",
     "UncertaintyBudget",
@@ -175,6 +172,7 @@ def budget_for_run(
         rate_accuracy=rate_accuracy,
         flicker_step_variance=None if bias_instability is None else flicker_step_variance(geometry, bias_instability),
         residuals_per_step=per_step,
+        model=cal.error_model,
     )
     if tb_source:
         label = "Time base (unit clock vs table clock)"
@@ -187,7 +185,8 @@ def time_base_covariance(cal: CalibrationResult) -> tuple[NDArray[np.float64], s
     """The parameters' covariance from the run's estimated time base (J Σ Jᵀ, J = ∂x/∂(t₀, ε) from
     calibration.json's ``time_base.sensitivity``; included in its covariance) and the budget line's source text
     ("" when the file has none)."""
-    z = np.zeros((len(PARAM_NAMES), len(PARAM_NAMES)))
+    names = cal.names
+    z = np.zeros((len(names), len(names)))
     blk = cal.time_base
     if blk is None or not blk.sensitivity:
         return z, ""
@@ -195,7 +194,9 @@ def time_base_covariance(cal: CalibrationResult) -> tuple[NDArray[np.float64], s
     cov = np.asarray(tb.covariance, dtype=float)
     if not np.all(np.isfinite(cov)):
         return z, ""
-    jac = np.array([blk.sensitivity[n] for n in PARAM_NAMES], dtype=float)
+    if any(n not in blk.sensitivity for n in names):
+        return z, ""
+    jac = np.array([blk.sensitivity[n] for n in names], dtype=float)
     src = (
         f"t_table = t0 + (1 + eps) t_unit estimated from the run ({tb.method}, {len(tb.events)} motions): "
         f"t0 = {tb.offset * 1e3:.4f} ms, u = {tb.u_offset * 1e6:.3g} µs; eps = {tb.rate * 1e6:+.3f} ppm, "

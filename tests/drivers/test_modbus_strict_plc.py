@@ -15,7 +15,7 @@ import pytest
 from pymodbus.client import ModbusTcpClient
 
 from benches.bench_config import load_bench
-from benches.commands import table as cmd
+from benches.cli.commands import table as cmd
 from benches.factory import Bench
 from core.yaml_source import ConfigError
 from drivers.modbus.register_map import WordOrderConflict, load_modbus_map
