@@ -66,6 +66,12 @@ absorbs the rounding of unit conversions, so what the compiler accepts the runne
 simulated controllers accept too."""
 
 
+CONTINUOUS_DEMAND_MAX: float = 20 * math.pi
+"""Largest |angle| (rad) an operator may demand of a continuous axis: ten turns either way. One turn reaches
+every attitude (procedures compile continuous axes into (−π, π]); an unwrapped demand a few turns out is a
+deliberate jog, but ``move 0 0 1e9`` (2.8 million turns, ~87 days of way-points) is a typing error."""
+
+
 def _slack(limit: float) -> float:
     return LIMIT_TOLERANCE * max(1.0, abs(limit))
 
@@ -88,6 +94,16 @@ class AxisLimits:
         """True for an axis without position limits."""
         return self.position_min is None and self.position_max is None
 
+    @classmethod
+    def absent_axis(cls) -> AxisLimits:
+        """The limits of a gimbal the table does not have (a single-axis table's other two): fixed at 0, no rate."""
+        return cls(rate_max=0.0, accel_max=0.0, position_min=0.0, position_max=0.0)
+
+    @property
+    def absent(self) -> bool:
+        """True for a gimbal the table does not have (:meth:`absent_axis`)."""
+        return self.rate_max == 0.0 and self.position_min == 0.0 and self.position_max == 0.0
+
     def position_bounds(self) -> tuple[float, float]:
         """Allowed gimbal angles [low, high], rad, tolerance included (±inf where unlimited)."""
         lo = -math.inf if self.position_min is None else self.position_min - _slack(self.position_min)
@@ -99,6 +115,14 @@ class AxisLimits:
         a = float(angle)
         lo, hi = self.position_bounds()
         return math.isfinite(a) and lo <= a <= hi
+
+    def allows_demand(self, angle: float) -> bool:
+        """May an operator demand gimbal angle ``angle`` (rad) (``tablebench table move``)? Within the position
+        limits and, on a continuous axis, within ±:data:`CONTINUOUS_DEMAND_MAX` (drivers and controllers unwrap
+        their own targets freely; an operator's demand never needs more)."""
+        a = float(angle)
+        hi = CONTINUOUS_DEMAND_MAX + _slack(CONTINUOUS_DEMAND_MAX)
+        return self.allows_position(a) and (not self.continuous or -hi <= a <= hi)
 
     def allows_rate(self, rate: float) -> bool:
         """Is gimbal rate ``rate`` (rad/s, signed) within the rate limit? (False for NaN / inf.)"""
@@ -113,7 +137,9 @@ class AxisLimits:
     def position_range_text(self) -> str:
         """The position limits in degrees for messages, e.g. ``"[-90°, 90°]"`` or ``"continuous"``."""
         if self.continuous:
-            return "continuous"
+            return f"continuous (a demand within ±{math.degrees(CONTINUOUS_DEMAND_MAX):g}°)"
+        if self.absent:
+            return "absent (the table has no such axis)"
         lo = "-inf" if self.position_min is None else f"{math.degrees(self.position_min):g}°"
         hi = "+inf" if self.position_max is None else f"{math.degrees(self.position_max):g}°"
         return f"[{lo}, {hi}]"
