@@ -184,6 +184,7 @@ class UnitSpec:
     frame_options: dict[str, Any] = field(default_factory=dict)  # the unit's output configuration
     frame_desc: FrameDescription | None = None
     keep_raw: bool = False  # keep the raw serial stream as RUN_DIR/unit-raw.bin
+    time_reference: str | None = None  # hardware timing: "pps" or "time_tag" (one clock); None: estimated
 
 
 @dataclass(frozen=True)
@@ -324,7 +325,8 @@ def _acl(d: dict | None, smap: SourceMap, p: KeyPath, resource: str | None, simu
             raise smap.error(p + ("axes",), f"outer, middle and inner need three different axis numbers, got {axes}")
     tv = d.get("time_variable")
     if tv is None:
-        time_variable = SIM_TIME_VARIABLE if simulated else None
+        # absent: a simulated controller serves its clock; an explicit null: readings stamped by the host
+        time_variable = SIM_TIME_VARIABLE if simulated and "time_variable" not in d else None
     else:
         time_variable = _int(d, smap, p, "time_variable", 0, 0, 99999)
     oi = d.get("open_interlocks_at_end", False)
@@ -548,6 +550,7 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
             "frame",
             "frame_options",
             "keep_raw",
+            "time_reference",
         ],
     )
     driver = get_str(d, smap, p, "driver", choices=["sim", "serial"])
@@ -557,7 +560,9 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
     frame = get_str(d, smap, p, "frame", DEFAULT_FRAME)
     sc = _section(d, smap, p, "scale", required=frame == DEFAULT_FRAME)
     if sc is None:  # another frame format carries its own scale; the simulator's internal counts are fine
-        scale = CountScale(accel_lsb=0.01 * UG, gyro_lsb=1e-4 * DEG_PER_HOUR, temperature_lsb=0.01)
+        # internal counts are int32: 1e-3 °/h per count reaches ±596 °/s (a KVH 1750 ±490 °/s, a STIM300
+        # ±400 °/s); 1e-4 °/h clipped every rate above 59.65 °/s (a 90° step peaks at 85 °/s)
+        scale = CountScale(accel_lsb=0.01 * UG, gyro_lsb=1e-3 * DEG_PER_HOUR, temperature_lsb=0.01)
     else:
         sp = p + ("scale",)
         check_keys(sc, smap, sp, ["accel_ug_per_count", "gyro_dph_per_count", "temperature_c_per_count"])
@@ -608,6 +613,7 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
         frame_options=frame_options,
         frame_desc=frame_desc,
         keep_raw=keep_raw,
+        time_reference=get_str(d, smap, p, "time_reference", None, choices=["pps", "time_tag"]),
     )
 
 
