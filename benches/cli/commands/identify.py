@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:  # pragma: no cover
     pass
 
+from benches.cli.arguments import add_registry_arguments, sink_options
 from benches.results import CalibrationDocument, sinks_for_run
 from core.errors import UsageError
 
@@ -40,6 +41,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="measurement noise R: the bench's configured VRW, or estimated from the warm-up",
     )
     p.add_argument("--out", default=None, metavar="FILE.json", help="default: RUN/calibration.json")
+    add_registry_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -52,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     except IdentificationError as exc:
         raise UsageError(str(exc)) from None
     folder = Path(args.run) if Path(args.run).is_dir() else Path(args.run).parent
-    out = sinks_for_run(folder).calibration(
+    out = sinks_for_run(folder, sink_options(args)).calibration(
         CalibrationDocument(run=folder, result=result, path=Path(args.out) if args.out else None)
     ).path
     print(result.summary())

@@ -9,8 +9,16 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from benches.cli.arguments import add_bench_argument, add_procedure_arguments, check_seed, parse_overrides
+from benches.cli.arguments import (
+    add_bench_argument,
+    add_procedure_arguments,
+    add_registry_arguments,
+    check_seed,
+    parse_overrides,
+    sink_options,
+)
 from benches.progress import ProgressDisplay
+from benches.results import sinks_for_run
 from benches.session import (
     Prepared,
     SessionError,
@@ -65,6 +73,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-identify", action="store_true", help="only record (no plan, no identification)")
     p.add_argument("--no-certificate", action="store_true", help="do not issue a certificate at the end")
     p.add_argument("--plain", action="store_true", help="plain progress lines even on a terminal")
+    add_registry_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -194,7 +203,15 @@ def _finish(
     done: list[str] = []
     try:
         with _StopSignalsRaise():
-            identify_and_certify(folder, todo, live=live[0] if live else None, say=_say, done=done, prep=prep)
+            identify_and_certify(
+                folder,
+                todo,
+                live=live[0] if live else None,
+                say=_say,
+                done=done,
+                prep=prep,
+                sinks=sinks_for_run(folder, sink_options(args), say=_say),
+            )
     except KeyboardInterrupt:
         left = [t for t in todo if t not in done]
         _say(
