@@ -44,7 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         a = acts.add_parser(name, help=help_, description=help_)
         add_registry_arguments(a)
         a.add_argument("--runs", default="runs", metavar="DIR", help="runs folder of the default SQLite registry")
-        a.set_defaults(func=run, action=name, _parser=a, command="registry")
+        a.set_defaults(func=run, action=name)
         return a
 
     a = action("add", "record a run folder (idempotent)")
