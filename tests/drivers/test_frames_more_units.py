@@ -23,7 +23,31 @@ XSENS_MTI300 = bytes.fromhex(
     "b6898000b608c000c0200cbefbfbf23f33c485bfa0a2c108100442168000301004000186e1e0200400400003dd"
 )
 
-PUBLIC_FRAMES = [("xsens-mti-mtdata2", XSENS_MTI300)]
+# VectorNav VN-100 user manual UM001 (firmware v2.1), §4.3.7 example case 1: group 1, YawPitchRoll only,
+# with the values the manual states (yaw +43.578686°, pitch +1.8847202°, roll -2.0249654e-3°; CRC 0x9288).
+VN_MANUAL_YPR = bytes.fromhex("fa01080093502e42833ef13f48b504bb9288")
+VN_YPR_DESCRIPTION = """
+name: vn-ypr
+byte_order: little
+sync: [0xFA, 0x01, 0x08, 0x00]
+length: 18
+fields:
+  - {name: yaw, offset: 4, type: float32}
+  - {name: pitch, offset: 8, type: float32}
+  - {name: roll, offset: 12, type: float32}
+checksum: {algorithm: crc-16/xmodem, offset: 16, covers: [1, 16], byte_order: big}
+"""
+
+
+def _vn_ypr():
+    from core.yaml_source import load_yaml_text
+    from drivers.imu_unit.description import parse_description
+
+    data, smap = load_yaml_text(VN_YPR_DESCRIPTION, "vn-ypr.yaml")
+    return parse_description(data, smap)
+
+
+PUBLIC_FRAMES = [("xsens-mti-mtdata2", XSENS_MTI300), ("vn-ypr", VN_MANUAL_YPR)]
 
 
 def _decode(name: str, data: bytes, rate: float = 400.0):
@@ -58,15 +82,28 @@ def test_xsens_mti300_capture_decodes_to_the_printed_values():
     assert s.status[0] == 0  # status word 0x00400003: no clipping
 
 
-@pytest.mark.parametrize("name,frame", PUBLIC_FRAMES)
+@pytest.mark.parametrize("name,frame", PUBLIC_FRAMES, ids=[n for n, _ in PUBLIC_FRAMES])
 def test_every_single_bit_flip_of_a_public_frame_is_rejected(name, frame):
-    desc = load_frame(name)
+    desc = _vn_ypr() if name == "vn-ypr" else load_frame(name)
     for bit in range(8 * len(frame)):
         bad = bytearray(frame)
         bad[bit // 8] ^= 1 << (bit % 8)
         batch, stats = FrameDecoder(desc).feed(bytes(bad))
         assert len(batch) == 0, f"bit {bit} flipped was accepted"
         assert stats.rejected == (0 if bit < 8 * len(desc.sync) else 1)
+
+
+def test_vectornav_manual_example_decodes_with_the_shipped_conventions():
+    """The manual's packet read with the conventions of the shipped VectorNav description (little-endian
+    payload, CRC-16/XMODEM over every byte after the sync, sent MSB first)."""
+    batch, stats = FrameDecoder(_vn_ypr()).feed(VN_MANUAL_YPR)
+    assert (stats.frames, stats.rejected) == (1, 0)
+    assert batch.values["yaw"][0] == pytest.approx(43.578686, abs=5e-7)
+    assert batch.values["pitch"][0] == pytest.approx(1.8847202, abs=5e-8)
+    assert batch.values["roll"][0] == pytest.approx(-2.0249654e-3, abs=5e-11)
+    shipped = load_frame("vectornav-vn100-imu")
+    assert shipped.byte_order == "little" and shipped.checksum.spec.algorithm == "crc-16/xmodem"
+    assert (shipped.checksum.start, shipped.checksum.byte_order) == (1, "big")
 
 
 def test_xsens_clipping_flags_the_channel():
@@ -78,3 +115,35 @@ def test_xsens_clipping_flags_the_channel():
 
     assert stats.frames == 1
     assert s.status[0] == (1 << FLAG_BITS["accel_z"]) | (1 << FLAG_BITS["gyro_y"])
+
+
+def test_vectornav_round_trip_through_the_simulated_units_encoder_with_damage():
+    """No counter in the VectorNav output: frames are found by sync and CRC alone; garbage and a corrupted
+    frame cost exactly that frame; the samples are the ones sent (float32) and the time is TimeStartup."""
+    from drivers.imu_unit.samples import encode_samples
+    from tests.drivers.frame_support import decode_in_random_chunks
+
+    rate = 400.0
+    fmt = compile_format(load_frame("vectornav-vn100-imu"), None, rate)
+    rng = np.random.default_rng(7)
+    n = 300
+    idx = np.arange(n)
+    accel = rng.normal(0, 5, (n, 3))
+    gyro = rng.normal(0, 1, (n, 3))
+    temp = np.full(n, 298.15)
+    rows = encode_samples(fmt, idx, idx / rate, accel, gyro, temp)
+    allowed = np.array([b for b in range(256) if b != 0xFA], dtype=np.uint8)
+    pieces, flipped = [], {50, 200}
+    for i in range(n):
+        if i % 37 == 5:
+            pieces.append(rng.choice(allowed, 11).tobytes())
+        r = rows[i].copy()
+        if i in flipped:
+            r[20] ^= 0x10
+        pieces.append(r.tobytes())
+    dec, s, _ = decode_in_random_chunks(fmt, b"".join(pieces), rng, 3 * fmt.length)
+    kept = np.array([i for i in range(n) if i not in flipped])
+    assert dec.total.frames == kept.size and dec.total.rejected == len(flipped)
+    np.testing.assert_array_equal(s.accel, accel[kept].astype(np.float32).astype(np.float64))
+    np.testing.assert_array_equal(s.gyro, gyro[kept].astype(np.float32).astype(np.float64))
+    np.testing.assert_allclose(s.time, kept / rate, atol=1e-9)
