@@ -528,7 +528,8 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
         nd, smap, npth, ["vrw_ug_per_sqrt_hz", "bias_instability_ug", "arw_deg_per_sqrt_h", "gyro_bias_instability_dph"]
     )
     noise = NoiseSpec(
-        vrw=np.array(_vec(nd, smap, npth, "vrw_ug_per_sqrt_hz", UG_PER_SQRT_HZ, minimum=0)),
+        # > 0: the identification weights every sample by it (R = VRW² fs); 0 would claim a noise-free unit
+        vrw=np.array(_vec(nd, smap, npth, "vrw_ug_per_sqrt_hz", UG_PER_SQRT_HZ, minimum=0, exclusive_minimum=True)),
         bias_instability=np.array(_vec(nd, smap, npth, "bias_instability_ug", UG, (0.0,) * 3, minimum=0)),
         arw=np.array(_vec(nd, smap, npth, "arw_deg_per_sqrt_h", DEG_PER_SQRT_HOUR, (0.0,) * 3, minimum=0)),
         gyro_bias_instability=np.array(

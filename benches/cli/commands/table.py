@@ -100,7 +100,7 @@ def parse_demand(action: str, values: list[str], limits: Sequence[AxisLimits]) -
     if action == "move":
         deg = _numbers(values, 3, "move OUTER MIDDLE INNER")
         for name, x, lim in zip(AXES, deg, limits, strict=True):
-            if not lim.allows_position(x * DEG):
+            if not lim.allows_demand(x * DEG):
                 raise UsageError(
                     f"move: {name} {x:g}° is outside the bench limits {lim.position_range_text()}; nothing was sent"
                 )
