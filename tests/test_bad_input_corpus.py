@@ -176,6 +176,8 @@ class Case:
 
 
 GOOD_POSITIONAL = {
+    ("chamber", "action"): "status",
+    ("chamber", "temperature"): "20",
     ("certificate", "run"): "{run}",
     ("check", "procedure"): "{tiny}",
     ("correct", "calibration"): "{run}/calibration.json",
