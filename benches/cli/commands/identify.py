@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:  # pragma: no cover
     pass
 
+from benches.cli.arguments import add_registry_arguments, sink_options
 from benches.results import CalibrationDocument, sinks_for_run
 from core.errors import UsageError
 from core.outputs import check_output
@@ -48,6 +49,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "docs/methods/time-base.md), or take them as one clock (none: for comparisons)",
     )
     p.add_argument("--out", default=None, metavar="FILE.json", help="default: RUN/calibration.json")
+    add_registry_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -63,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
         result = identify_run(args.run, method=args.method, noise=args.noise, time_base=args.time_base)
     except IdentificationError as exc:
         raise UsageError(str(exc)) from None
-    out = sinks_for_run(folder).calibration(
+    out = sinks_for_run(folder, sink_options(args)).calibration(
         CalibrationDocument(run=folder, result=result, path=target if args.out else None)
     ).path
     print(result.summary())
