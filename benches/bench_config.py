@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +28,7 @@ from analysis.units import (
     UG_PER_G2,
     UG_PER_SQRT_HZ,
 )
-from core.declare import Section, number, text
+from benches.results.recalibration import parse_configuration, parse_recalibration
 from core.yaml_source import (
     ConfigError,
     KeyPath,
@@ -45,7 +45,9 @@ from core.yaml_source import get_int as _int
 from core.yaml_source import get_list_of_maps as _list_of_maps
 from core.yaml_source import get_matrix as _matrix
 from core.yaml_source import get_section as _section
-from drivers.acutrol.settings import AclSettings
+from drivers.acutrol.settings import AclSettings, default_profile
+from drivers.aerosmith.settings import AerosmithSettings
+from drivers.chamber.bench_section import ChamberSection, parse_chamber
 from drivers.imu_unit.counts import CountScale
 from drivers.imu_unit.description import (
     DEFAULT_FRAME,
@@ -57,19 +59,17 @@ from drivers.imu_unit.description import (
     shipped_frames,
 )
 from drivers.imu_unit.serial_unit import count_format
-from drivers.modbus.register_map import ModbusMap
+from drivers.modbus.register_map import ModbusMap, load_modbus_map
 from drivers.protocols import AXIS_NAMES, AxisLimits
+from drivers.sim.acl_controller import SIM_TIME_VARIABLE
 from drivers.sim.bench_section import parse_simulation
 from drivers.sim.config import (
     ACCEL_PARAM_NAMES,
     SimConfig,
 )
-
-from . import devices
-from .recording import AUX_NAME
+from drivers.sim.thermal_config import ChamberSim
 
 __all__ = [
-    "AuxiliarySpec",
     "BenchConfig",
     "ConfigError",
     "NoiseSpec",
@@ -148,8 +148,8 @@ class TurntableSpec:
     resource: str | None = None  # VISA resource string (driver acutrol)
     acl: AclSettings | None = None  # ACL open points (driver acutrol, or a simulated ACUTROL)
     rate_tolerance: float = 0.01 * DEG  # rad/s: at-rate / at-rest window of host-decided settling
-    sim_controller: str = devices.DEFAULT_SIMULATED_CONTROLLER  # simulated benches: the simulator's controller
-    settings: Any = None  # a registered controller's own settings (its ControllerKind.parse_settings)
+    sim_controller: str = "acutrol"  # simulated benches: which controller the simulator speaks
+    aerosmith: AerosmithSettings | None = None  # Ideal Aerosmith open points (driver ideal-aerosmith or simulated)
 
 
 @dataclass(frozen=True)
@@ -185,6 +185,7 @@ class UnitSpec:
     frame_options: dict[str, Any] = field(default_factory=dict)  # the unit's output configuration
     frame_desc: FrameDescription | None = None
     keep_raw: bool = False  # keep the raw serial stream as RUN_DIR/unit-raw.bin
+    time_reference: str | None = None  # hardware timing: "pps" or "time_tag" (one clock); None: estimated
 
 
 @dataclass(frozen=True)
@@ -200,17 +201,8 @@ class BenchConfig:
     limits: dict[str, float]
     simulation: SimConfig | None
     reference_standards: tuple[ReferenceStandard, ...] = ()
-    auxiliary: tuple[AuxiliarySpec, ...] = ()
-    """The auxiliary devices (temperature chamber, …), in file order."""
-
-
-@dataclass(frozen=True)
-class AuxiliarySpec:
-    """One ``auxiliary.<name>`` device: its registered driver (:mod:`benches.devices`) and parsed settings."""
-
-    name: str
-    driver: str
-    settings: Any
+    chamber: ChamberSection | None = None
+    """The temperature chamber (``chamber:`` section, docs/protocols/chambers.md), None without one."""
 
 
 @dataclass(frozen=True)
@@ -284,112 +276,236 @@ def _axis(d: dict, smap: SourceMap, p: KeyPath) -> AxisLimits:
     )
 
 
-TURNTABLE = Section(
-    number("position_tolerance_arcsec", 2.0 * ARCSEC, unit=ARCSEC, minimum=0, exclusive_minimum=True,
-           attr="position_tolerance"),
-    number("rate_tolerance_dps", 0.01 * DEG, unit=DEG, minimum=0, exclusive_minimum=True, attr="rate_tolerance"),
-    number("in_position_time_s", 0.2, minimum=0, attr="in_position_time"),
-    number("attitude_accuracy_arcsec", 1.0 * ARCSEC, unit=ARCSEC, minimum=0, attr="attitude_accuracy"),
-    number("rate_accuracy_ppm", 0.0, unit=1e-6, minimum=0, maximum=1e5, attr="rate_accuracy"),
-    number("heartbeat_period_s", 0.5, minimum=0, exclusive_minimum=True, attr="heartbeat_period"),
-    number("watchdog_s", 2.0, minimum=0, attr="watchdog"),
-    text("float_word_order", None, choices=["big", "little"]),
-)  # fmt: skip
-"""The ``turntable`` keys every controller shares; the driver, where the controller is, its own settings
-(:mod:`benches.devices`), ``model``/``serial_number`` (any scalar, kept as text) and ``axes`` are read by
-:func:`_turntable`."""
-TURNTABLE_KEYS = (
-    "driver", "address", "resource", "acl", "model", "serial_number", "axes", "position_tolerance_arcsec",
-    "rate_tolerance_dps", "in_position_time_s", "attitude_accuracy_arcsec", "rate_accuracy_ppm", "heartbeat_period_s",
-    "watchdog_s", "float_word_order", "modbus_map",
-)  # fmt: skip
-"""The order the allowed keys are listed in messages (a registered controller's own keys are appended)."""
+TURNTABLE_DRIVERS = ["sim", "acutrol", "modbus-tcp", "ideal-aerosmith"]
+SIM_CONTROLLERS = ["acutrol", "modbus", "modbus-strict", "ideal-aerosmith"]
+"""Simulated controllers: an ACUTROL (ACL), the tablebench Modbus controller, a strict PLC (same register map
+and world, its watchdog running from power-up, not from the first heartbeat), or an Ideal Aerosmith single-axis
+table (in-process)."""
 
 
-def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> TurntableSpec:
-    p: KeyPath = ("turntable",)
-    kinds = [devices.controller(n) for n in devices.controller_names()]
-    own = [k for kind in kinds for k in (kind.link_key, kind.settings_key, *kind.exclusive_keys) if k]
-    check_keys(d, smap, p, list(dict.fromkeys([*TURNTABLE_KEYS, *own])))
-    driver = get_str(d, smap, p, "driver", choices=[devices.SIMULATED, *devices.controller_names()])
-    simulated = driver == devices.SIMULATED
-    sim_controller = sim_controller or devices.DEFAULT_SIMULATED_CONTROLLER
-    kind = devices.simulated_controller(sim_controller) if simulated else devices.controller(driver)
-    links = {k.link_key: _opt_str(d, smap, p, k.link_key) for k in kinds}
-    _check_links(d, smap, p, driver, kind, kinds, links)
-    for other in kinds:
-        for key in (other.settings_key, *other.exclusive_keys):
-            if key and other is not kind and d.get(key) is not None:
-                raise smap.error(p + (key,), f"is only for {other.title}")
-    if not kind.host_watchdog:
-        for key in ("heartbeat_period_s", "watchdog_s"):
-            if d.get(key) is not None:
-                raise smap.error(
-                    p + (key,),
-                    f"{kind.no_watchdog}; remove this key (the host stops the axes itself on every exit path)",
-                )
-    limits = _axes_limits(d, smap, p)
-    settings = {"acl": None, "modbus_map": None}
-    settings.update(
-        kind.parse_settings(d, smap, p, link=links.get(kind.link_key), simulated=simulated, limits=limits)
-    )
-    common = TURNTABLE.read(d, smap, p, check=False)
-    wd, hb = common["watchdog"], common["heartbeat_period"]
-    if wd and hb >= wd:
-        raise smap.error(p + ("heartbeat_period_s",), f"{hb:g} s must be shorter than watchdog_s ({wd:g} s)")
-    common["watchdog"] = (wd or None) if kind.host_watchdog else None
-    return TurntableSpec(
-        driver=driver,
-        address=links.get("address"),
-        resource=links.get("resource"),
-        limits=limits,
-        model=str(d.get("model") or ""),
-        serial_number=str(d.get("serial_number") or ""),
-        sim_controller=sim_controller,
-        **settings,
-        **common,
+def _aerosmith(d: dict | None, smap: SourceMap, p: KeyPath) -> AerosmithSettings:
+    """The ``turntable.aerosmith`` section: the open points of the Ideal Aerosmith table language."""
+    d = d or {}
+    check_keys(d, smap, p, ["axis", "command_terminator", "prompt", "position_query", "rate_query"])
+    dflt = AerosmithSettings()
+    return AerosmithSettings(
+        axis=get_str(d, smap, p, "axis", dflt.axis, choices=list(AXIS_NAMES)),
+        command_terminator=get_str(d, smap, p, "command_terminator", dflt.command_terminator),
+        prompt=get_str(d, smap, p, "prompt", dflt.prompt),
+        position_query=get_str(d, smap, p, "position_query", dflt.position_query),
+        rate_query=get_str(d, smap, p, "rate_query", dflt.rate_query),
     )
 
 
-def _axes_limits(d: dict, smap: SourceMap, p: KeyPath) -> tuple[AxisLimits, AxisLimits, AxisLimits]:
-    """``turntable.axes``: the outer, middle and inner axis limits (SI)."""
+def _acl(d: dict | None, smap: SourceMap, p: KeyPath, resource: str | None, simulated: bool) -> AclSettings:
+    """The ``turntable.acl`` section: the open points of the ACUTROL command language (spec defaults)."""
+    d = d or {}
+    check_keys(
+        d,
+        smap,
+        p,
+        [
+            "reply_profile",
+            "mode_reply",
+            "decimals",
+            "axes",
+            "full_scale_deg",
+            "time_variable",
+            "time_scale_s",
+            "error_queue",
+            "open_interlocks_at_end",
+        ],
+    )
+    profile = get_str(d, smap, p, "reply_profile", default_profile(resource or ""), choices=["gpib", "tcp"])
+    axes = (1, 2, 3)
+    if d.get("axes") is not None:
+        ad = get_mapping(d["axes"], smap, p + ("axes",))
+        check_keys(ad, smap, p + ("axes",), list(AXIS_NAMES))
+        axes = tuple(_int(ad, smap, p + ("axes",), n, i + 1, 1, 99) for i, n in enumerate(AXIS_NAMES))  # type: ignore[assignment]
+        if len(set(axes)) != 3:
+            raise smap.error(p + ("axes",), f"outer, middle and inner need three different axis numbers, got {axes}")
+    tv = d.get("time_variable")
+    if tv is None:
+        # absent: a simulated controller serves its clock; an explicit null: readings stamped by the host
+        time_variable = SIM_TIME_VARIABLE if simulated and "time_variable" not in d else None
+    else:
+        time_variable = _int(d, smap, p, "time_variable", 0, 0, 99999)
+    oi = d.get("open_interlocks_at_end", False)
+    if not isinstance(oi, bool):
+        raise smap.error(p + ("open_interlocks_at_end",), f"expected true or false, got {oi!r}")
+    return AclSettings(
+        reply_profile=profile,  # type: ignore[arg-type]
+        mode_reply=get_str(d, smap, p, "mode_reply", "letter", choices=["letter", "word"]),  # type: ignore[arg-type]
+        decimals=_int(d, smap, p, "decimals", 4, 0, 12),
+        axes=axes,  # type: ignore[arg-type]
+        full_scale_deg=get_number(
+            d, smap, p, "full_scale_deg", 360.0, minimum=0, exclusive_minimum=True, maximum=36000
+        ),
+        time_variable=time_variable,
+        time_scale_s=get_number(d, smap, p, "time_scale_s", 0.001, minimum=0, exclusive_minimum=True),
+        error_queue=get_str(d, smap, p, "error_queue", "QERROR"),
+        open_interlocks_at_end=oi,
+        source=(
+            f"{smap.file}:{smap.line(p + ('reply_profile',))} turntable.acl.reply_profile"
+            if "reply_profile" in d
+            else f"{smap.file}:{smap.line(p[:-1] + ('resource',))} (the default for turntable.resource)"
+        ),
+    )
+
+
+def _modbus_map(d: dict, smap: SourceMap, p: KeyPath, not_modbus: bool) -> ModbusMap | None:
+    """``turntable.modbus_map``: the register map file (a path relative to the bench file), or None."""
+    if d.get("modbus_map") is None:
+        return None
+    if not_modbus:
+        raise smap.error(p + ("modbus_map",), "is only for a Modbus table (driver 'modbus-tcp' or a simulated one)")
+    map_path = Path(get_str(d, smap, p, "modbus_map"))
+    if not map_path.is_absolute():
+        map_path = Path(smap.file).parent / map_path
+    if not map_path.is_file():
+        raise smap.error(
+            p + ("modbus_map",), f"register map file {map_path} not found (a path relative to the bench file)"
+        )
+    return load_modbus_map(map_path)
+
+
+def _table_axes(d: dict, smap: SourceMap, p: KeyPath, aerosmith: AerosmithSettings | None) -> list[AxisLimits]:
+    """``turntable.axes``: the limits of each gimbal, or ``absent`` for one the table does not have."""
     axes = _section(d, smap, p, "axes")
     assert axes is not None
     check_keys(axes, smap, p + ("axes",), list(AXIS_NAMES))
     limits = []
     for name in AXIS_NAMES:
+        if axes.get(name) == "absent":  # a gimbal the table does not have (a single-axis table's other two)
+            limits.append(AxisLimits.absent_axis())
+            continue
+        if aerosmith is not None and name != aerosmith.axis:
+            raise smap.error(
+                p + ("axes", name),
+                f"an Ideal Aerosmith table has one axis ({aerosmith.axis}, turntable.aerosmith.axis); write "
+                f"'{name}: absent'",
+            )
         ad = _section(axes, smap, p + ("axes",), name)
         assert ad is not None
         limits.append(_axis(ad, smap, p + ("axes", name)))
-    return limits[0], limits[1], limits[2]
+    return limits
 
 
-def _check_links(
-    d: dict,
-    smap: SourceMap,
-    p: KeyPath,
-    driver: str,
-    kind: devices.ControllerKind,
-    kinds: list[devices.ControllerKind],
-    links: dict[str, str | None],
-) -> None:
-    """The key that says where a real controller is must be given, and no other controller's key."""
-    if driver == devices.SIMULATED:
-        owners = {k.link_key: k.name for k in kinds}
-        for key, value in links.items():
-            if value and key != "address":  # a simulated table ignores an address (kept for a later real bench)
-                raise smap.error(p + (key,), f"is only for driver {owners[key]!r} (this table is {driver!r})")
-        return
-    if not links.get(kind.link_key):
-        raise smap.error(p + (kind.link_key,), kind.link_required)
-    for other in kinds:
-        key = other.link_key
-        if key != kind.link_key and links.get(key):
-            if key == "address":
+def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> TurntableSpec:
+    p: KeyPath = ("turntable",)
+    check_keys(
+        d,
+        smap,
+        p,
+        [
+            "driver",
+            "address",
+            "resource",
+            "acl",
+            "model",
+            "serial_number",
+            "axes",
+            "position_tolerance_arcsec",
+            "rate_tolerance_dps",
+            "in_position_time_s",
+            "attitude_accuracy_arcsec",
+            "rate_accuracy_ppm",
+            "heartbeat_period_s",
+            "watchdog_s",
+            "float_word_order",
+            "modbus_map",
+            "aerosmith",
+        ],
+    )
+    driver = get_str(d, smap, p, "driver", choices=TURNTABLE_DRIVERS)
+    address = _opt_str(d, smap, p, "address")
+    resource = _opt_str(d, smap, p, "resource")
+    acl_speaker = driver == "acutrol" or (driver == "sim" and (sim_controller or "acutrol") == "acutrol")
+    aero = driver == "ideal-aerosmith" or (driver == "sim" and sim_controller == "ideal-aerosmith")
+    if driver == "ideal-aerosmith" and not address:
+        raise smap.error(
+            p + ("address",),
+            "is required for driver 'ideal-aerosmith': the serial port (e.g. '/dev/ttyUSB0', 'COM3' or "
+            "'socket://host:port' for a device server; 9600 8N1)",
+        )
+    if d.get("aerosmith") is not None and not aero:
+        raise smap.error(
+            p + ("aerosmith",), "is only for an Ideal Aerosmith table (driver 'ideal-aerosmith' or simulated)"
+        )
+    if driver == "modbus-tcp" and not address:
+        raise smap.error(p + ("address",), "is required for driver 'modbus-tcp' (e.g. '192.168.0.10:502')")
+    if driver == "acutrol" and not resource:
+        raise smap.error(
+            p + ("resource",),
+            "is required for driver 'acutrol': a VISA resource string, e.g. 'TCPIP0::192.168.53.1::9878::SOCKET', "
+            "'GPIB0::1::INSTR' or 'ASRL/dev/ttyS0::INSTR'",
+        )
+    if driver != "acutrol" and resource:
+        raise smap.error(p + ("resource",), f"is only for driver 'acutrol' (this table is {driver!r})")
+    if driver == "acutrol" and address:
+        raise smap.error(p + ("address",), "is not used by driver 'acutrol'; name the controller with resource:")
+    modbus_map = _modbus_map(d, smap, p, acl_speaker or aero)
+    if d.get("acl") is not None and not acl_speaker:
+        raise smap.error(p + ("acl",), "is only for an ACUTROL table (driver 'acutrol' or a simulated ACUTROL)")
+    if acl_speaker or aero:
+        for key in ("heartbeat_period_s", "watchdog_s"):
+            if d.get(key) is not None:
                 raise smap.error(
-                    p + (key,), f"is not used by driver {driver!r}; name the controller with {kind.link_key}:"
+                    p + (key,),
+                    f"the {'ACUTROL command language' if acl_speaker else 'Ideal Aerosmith command set'} has no host "
+                    "heartbeat or watchdog; remove this key (the host stops the axes itself on every exit path)",
                 )
-            raise smap.error(p + (key,), f"is only for driver {other.name!r} (this table is {driver!r})")
+    aerosmith = None
+    if aero:
+        ap = p + ("aerosmith",)
+        aerosmith = _aerosmith(get_mapping(d["aerosmith"], smap, ap) if d.get("aerosmith") else None, smap, ap)
+    limits = _table_axes(d, smap, p, aerosmith)
+    acl = None
+    if acl_speaker:
+        ap = p + ("acl",)
+        acl_d = get_mapping(d["acl"], smap, ap) if d.get("acl") is not None else None
+        acl = _acl(acl_d, smap, ap, resource, simulated=driver == "sim")
+        half = acl.full_scale_deg / 2.0
+        for name, lim in zip(AXIS_NAMES, limits, strict=True):
+            for key, v in (("position_min_deg", lim.position_min), ("position_max_deg", lim.position_max)):
+                if v is not None and abs(v / DEG) > half + 1e-9:
+                    raise smap.error(
+                        p + ("axes", name, key),
+                        f"{v / DEG:g}° is outside the controller's full-scale range ±{half:g}° (turntable.acl."
+                        "full_scale_deg)",
+                    )
+    word_order = get_str(d, smap, p, "float_word_order", None, choices=["big", "little"])
+    if modbus_map is not None and word_order is not None and word_order != modbus_map.word_order:
+        raise smap.error(
+            p + ("float_word_order",),
+            f"{word_order!r} contradicts the register map {modbus_map.source} (word_order: {modbus_map.word_order}); "
+            "remove float_word_order (the map is the authority) or correct the map",
+        )
+    wd = get_number(d, smap, p, "watchdog_s", 2.0, minimum=0)
+    hb = get_number(d, smap, p, "heartbeat_period_s", 0.5, minimum=0, exclusive_minimum=True)
+    if wd and hb >= wd:
+        raise smap.error(p + ("heartbeat_period_s",), f"{hb:g} s must be shorter than watchdog_s ({wd:g} s)")
+    return TurntableSpec(
+        driver=driver,
+        address=address,
+        limits=(limits[0], limits[1], limits[2]),
+        position_tolerance=get_number(d, smap, p, "position_tolerance_arcsec", 2.0, minimum=0, exclusive_minimum=True)
+        * ARCSEC,
+        in_position_time=get_number(d, smap, p, "in_position_time_s", 0.2, minimum=0),
+        attitude_accuracy=get_number(d, smap, p, "attitude_accuracy_arcsec", 1.0, minimum=0) * ARCSEC,
+        heartbeat_period=hb,
+        watchdog=None if acl_speaker or aero else (wd or None),
+        model=str(d.get("model") or ""),
+        serial_number=str(d.get("serial_number") or ""),
+        float_word_order=word_order,
+        rate_accuracy=get_number(d, smap, p, "rate_accuracy_ppm", 0.0, minimum=0, maximum=1e5) * 1e-6,
+        modbus_map=modbus_map,
+        resource=resource,
+        acl=acl,
+        rate_tolerance=get_number(d, smap, p, "rate_tolerance_dps", 0.01, minimum=0, exclusive_minimum=True) * DEG,
+        sim_controller=sim_controller or "acutrol",
+        aerosmith=aerosmith,
+    )
 
 
 def _param_map(d: dict | None, smap: SourceMap, p: KeyPath, positive: bool) -> dict[str, float]:
@@ -435,17 +551,20 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
             "frame",
             "frame_options",
             "keep_raw",
+            "time_reference",
+            "configuration",
         ],
     )
-    driver = get_str(d, smap, p, "driver", choices=devices.unit_names())
+    driver = get_str(d, smap, p, "driver", choices=["sim", "serial"])
     address = _opt_str(d, smap, p, "address")
-    if driver != devices.SIMULATED and not address:
-        example = devices.unit(driver).address_example
-        raise smap.error(p + ("address",), f"is required for driver {driver!r} (e.g. '{example}')")
+    if driver == "serial" and not address:
+        raise smap.error(p + ("address",), "is required for driver 'serial' (e.g. '/dev/ttyUSB0')")
     frame = get_str(d, smap, p, "frame", DEFAULT_FRAME)
     sc = _section(d, smap, p, "scale", required=frame == DEFAULT_FRAME)
     if sc is None:  # another frame format carries its own scale; the simulator's internal counts are fine
-        scale = CountScale(accel_lsb=0.01 * UG, gyro_lsb=1e-4 * DEG_PER_HOUR, temperature_lsb=0.01)
+        # internal counts are int32: 1e-3 °/h per count reaches ±596 °/s (a KVH 1750 ±490 °/s, a STIM300
+        # ±400 °/s); 1e-4 °/h clipped every rate above 59.65 °/s (a 90° step peaks at 85 °/s)
+        scale = CountScale(accel_lsb=0.01 * UG, gyro_lsb=1e-3 * DEG_PER_HOUR, temperature_lsb=0.01)
     else:
         sp = p + ("scale",)
         check_keys(sc, smap, sp, ["accel_ug_per_count", "gyro_dph_per_count", "temperature_c_per_count"])
@@ -496,6 +615,7 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
         frame_options=frame_options,
         frame_desc=frame_desc,
         keep_raw=keep_raw,
+        time_reference=get_str(d, smap, p, "time_reference", None, choices=["pps", "time_tag"]),
     )
 
 
@@ -568,31 +688,35 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
         root,
         smap,
         (),
-        ["name", "site", "turntable", "unit", "limits", "simulation", "reference_standards", "auxiliary"],
+        ["name", "site", "turntable", "unit", "limits", "simulation", "reference_standards", "chamber",
+         "recalibration"],
     )
+    parse_recalibration(root.get("recalibration"), smap)  # the registry's settings (docs/registry.md)
+    parse_configuration(root.get("unit"), smap)
     name = get_str(root, smap, (), "name")
     site = _site(_section(root, smap, (), "site"), smap)  # type: ignore[arg-type]
     sim_raw = root.get("simulation")
     sim_controller = None
     if isinstance(sim_raw, dict):
-        sim_controller = get_str(
-            sim_raw,
-            smap,
-            ("simulation",),
-            "controller",
-            devices.DEFAULT_SIMULATED_CONTROLLER,
-            choices=devices.simulated_controller_names(),
-        )
+        sim_controller = get_str(sim_raw, smap, ("simulation",), "controller", "acutrol", choices=SIM_CONTROLLERS)
     table = _turntable(_section(root, smap, (), "turntable"), smap, sim_controller)  # type: ignore[arg-type]
     unit = _unit(_section(root, smap, (), "unit"), smap)  # type: ignore[arg-type]
     limits = _param_map(_section(root, smap, (), "limits", required=False), smap, ("limits",), positive=True)
     sim_d = _section(root, smap, (), "simulation", required=False)
-    simulated = devices.SIMULATED in (table.driver, unit.driver)
+    simulated = table.driver == "sim" or unit.driver == "sim"
     if simulated and sim_d is None:
         raise smap.error(("simulation",), "is required when a driver is 'sim' (add a simulation: section)")
-    if sim_d is not None and not table.driver == unit.driver == devices.SIMULATED:
+    if sim_d is not None and not (table.driver == "sim" and unit.driver == "sim"):
         raise smap.error(("simulation",), "is only allowed when both turntable.driver and unit.driver are 'sim'")
     sim = parse_simulation(sim_d, smap, site, table, unit) if sim_d is not None else None
+    chamber = parse_chamber(root["chamber"], smap) if root.get("chamber") is not None else None
+    if chamber is not None and chamber.simulated:
+        if sim is None:
+            raise smap.error(("chamber", "driver"), "sim is only allowed on a simulated bench (simulation: section)")
+        s = chamber.config.settings
+        sim = replace(sim, chamber=ChamberSim(setpoint_min=s.setpoint_min, setpoint_max=s.setpoint_max))
+    elif chamber is not None and sim is not None:
+        raise smap.error(("chamber", "driver"), "a simulated bench needs driver: sim for its chamber")
     return BenchConfig(
         name=name,
         path=path,
@@ -603,34 +727,17 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
         limits=limits,
         simulation=sim,
         reference_standards=_reference_standards(root, smap),
-        auxiliary=_auxiliary(root, smap, simulated),
+        chamber=chamber,
     )
 
 
-def _auxiliary(root: dict, smap: SourceMap, simulated: bool) -> tuple[AuxiliarySpec, ...]:
-    """``auxiliary:`` (optional): device name → ``{driver: <registered kind>, …its settings}``
-    (:mod:`benches.devices`)."""
-    d = _section(root, smap, (), "auxiliary", required=False)
-    if d is None:
-        return ()
-    out = []
-    for name, body in d.items():
-        p: KeyPath = ("auxiliary", name)
-        if not isinstance(name, str) or not AUX_NAME.fullmatch(name):
-            raise smap.error(p, f"device name {name!r}: a letter, then letters, digits, '_' or '-' (≤ 64)")
-        body = get_mapping(body, smap, p)
-        names = devices.auxiliary_names()
-        if not names:
-            raise smap.error(p, "no auxiliary device driver is installed; remove this device (docs/extending.md)")
-        driver = get_str(body, smap, p, "driver", choices=names)
-        kind = devices.auxiliary(driver)
-        if simulated and kind.twin is None:
-            raise smap.error(p + ("driver",), f"{driver!r} has no simulated twin; this bench is simulated")
-        if not simulated and kind.connect is None:
-            raise smap.error(p + ("driver",), f"{driver!r} is simulated only; this is a real bench")
-        settings = kind.parse({k: v for k, v in body.items() if k != "driver"}, smap, p)
-        out.append(AuxiliarySpec(name, driver, settings))
-    return tuple(out)
+def chamber_limits(config: Any) -> tuple[float, float] | None:
+    """A bench's chamber set-point limits (K) for the procedure compiler; None without a chamber."""
+    chamber = getattr(config, "chamber", None)
+    if chamber is None:
+        return None
+    s = chamber.config.settings
+    return s.setpoint_min, s.setpoint_max
 
 
 def _reference_standards(d: dict, smap: SourceMap) -> tuple[ReferenceStandard, ...]:

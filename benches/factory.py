@@ -39,19 +39,27 @@ from typing import Any, BinaryIO
 
 from core.yaml_source import ConfigError
 from drivers import connect
-from drivers.protocols import InertialUnit, Readable, Turntable
-from drivers.sim.inprocess import SimInertialUnit
+from drivers.acutrol import AclTurntable
+from drivers.aerosmith import AerosmithTable
+from drivers.chamber.connect import open_chamber
+from drivers.protocols import InertialUnit, Turntable
+from drivers.sim.acl_controller import AclController
+from drivers.sim.acl_server import AclTableServer
+from drivers.sim.aerosmith_controller import AerosmithController
+from drivers.sim.chamber_loopback import serve_chamber
+from drivers.sim.inprocess import SimInertialUnit, SimTurntable
 from drivers.sim.loopback import Loopback
+from drivers.sim.modbus_controller import ModbusTableServer
 from drivers.sim.world import SimulatedWorld
+from drivers.transport import MessageTransport
 
-from . import devices
-from .bench_config import BenchConfig, unit_frame_format
+from .bench_config import BenchConfig, TurntableSpec, unit_frame_format
 
 log = logging.getLogger(__name__)
 
 TRANSPORTS = ("in-process", "loopback", "hardware")
 LOOPBACK_MIN_WATCHDOG_S = 10.0
-DEFAULT_TIMEOUT_S = devices.DEFAULT_TIMEOUT_S
+DEFAULT_TIMEOUT_S = 2.0
 
 
 @dataclass
@@ -64,8 +72,9 @@ class Bench:
     transport: str
     description: str
     _closers: list[Callable[[], None]] = field(default_factory=list, repr=False)
-    auxiliary: dict[str, Readable] = field(default_factory=dict)
-    """The bench's auxiliary devices by name (``auxiliary:`` of the bench file; :mod:`benches.devices`)."""
+    aux: dict[str, Any] = field(default_factory=dict)
+    """Named auxiliary devices (``"chamber"``: a :class:`drivers.chamber.base.Chamber`), recorded and commanded by
+    the runner's steps."""
 
     def describe(self) -> str:
         """One line for logs and recordings."""
@@ -117,6 +126,37 @@ def open_bench(
     transport: str | None = None,
     run_folder: str | Path | None = None,
 ) -> Bench:
+    """:func:`_open_table_and_unit`, then the bench's auxiliary devices (its temperature chamber: on a simulated
+    bench the world's chamber served in the bench's dialect on loopback, else the real link)."""
+    bench = _open_table_and_unit(config, seed=seed, transport=transport, run_folder=run_folder)
+    section = getattr(config, "chamber", None)
+    if section is None:
+        return bench
+    try:
+        if section.simulated:
+            assert bench.world is not None
+            server, conn = serve_chamber(bench.world, section.config)
+            bench._closers += [server.close, conn.close]
+        else:
+            conn = open_chamber(section.config)
+            bench._closers.append(conn.close)
+    except BaseException:
+        bench.close()
+        raise
+    bench.aux["chamber"] = conn.driver
+    bench.description += (
+        f"; chamber: {section.config.dialect} ({'simulated, loopback' if section.simulated else 'real'})"
+    )
+    return bench
+
+
+def _open_table_and_unit(
+    config: BenchConfig,
+    *,
+    seed: int | None = None,
+    transport: str | None = None,
+    run_folder: str | Path | None = None,
+) -> Bench:
     """Open the bench described by ``config`` (a ``benches.bench_config.BenchConfig``).
 
     Parameters
@@ -138,35 +178,8 @@ def open_bench(
     """
     transport = _transport(config, transport)
     if transport == "hardware":
-        bench = _open_hardware(config, run_folder)
-    else:
-        bench = _open_simulated(config, seed, transport, run_folder)
-    try:
-        _open_auxiliary(bench, config)
-    except BaseException:
-        bench.close()
-        raise
-    return bench
-
-
-def _open_auxiliary(bench: Bench, config: BenchConfig) -> None:
-    """Open the bench's auxiliary devices (their simulated twins on the bench's world, or their real links) into
-    ``bench.auxiliary``; each is closed with the bench, before the table and the unit."""
-    for spec in getattr(config, "auxiliary", ()):
-        kind = devices.auxiliary(spec.driver)
-        if bench.world is not None:
-            if kind.twin is None:
-                raise _bad(config, f"auxiliary.{spec.name}: driver {spec.driver!r} has no simulated twin")
-            dev, closers = kind.twin(bench.world, spec.settings)
-            bench._closers.extend(closers)
-        else:
-            if kind.connect is None:
-                raise _bad(config, f"auxiliary.{spec.name}: driver {spec.driver!r} is simulated only")
-            conn = kind.connect(spec.settings, DEFAULT_TIMEOUT_S)
-            bench._closers.append(conn.close)
-            dev = conn.driver
-        bench.auxiliary[spec.name] = dev
-        bench.description += f", {spec.name} ({kind.title or spec.driver})"
+        return _open_hardware(config, run_folder)
+    return _open_simulated(config, seed, transport, run_folder)
 
 
 def _transport(config: BenchConfig, transport: str | None) -> str:
@@ -191,10 +204,31 @@ def _open_simulated(
     config: BenchConfig, seed: int | None, transport: str, run_folder: str | Path | None = None
 ) -> Bench:
     world = SimulatedWorld.from_bench(config, seed)
-    twin = devices.simulated_twin(config.turntable, LOOPBACK_MIN_WATCHDOG_S)
+    tt = config.turntable
+    acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
+    aero = getattr(tt, "sim_controller", "") == "ideal-aerosmith"
+    if aero and transport != "in-process":
+        raise _bad(config, "the simulated Ideal Aerosmith table runs in-process only: use --transport in-process")
     if transport == "in-process":
         unit = SimInertialUnit(world)
-        table, what = twin.in_process(world, DEFAULT_TIMEOUT_S)
+        if aero:
+            table = aerosmith_table(AerosmithController(world, tt.aerosmith).stream(DEFAULT_TIMEOUT_S), tt)
+            what = "simulated Ideal Aerosmith (in-memory)"
+            return Bench(
+                table,
+                unit,
+                world,
+                "in-process",
+                f"{config.name}: simulated bench, {what}",
+                [table.close, unit.close],
+            )
+        if acl:
+            table: Turntable = acl_turntable(
+                AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt, clock=world.host_time
+            )
+            what = "simulated ACUTROL (ACL, in-memory)"
+        else:
+            table, what = SimTurntable(world), "in-process drivers"
         return Bench(
             table,
             unit,
@@ -204,11 +238,29 @@ def _open_simulated(
             f"{getattr(config.unit, 'frame', 'tablebench-v1')} and unit.keep_raw apply over loopback)",
             [table.close, unit.close],
         )
+    wd = getattr(tt, "watchdog", None)
+    realtime = bool(getattr(config.simulation, "realtime", False))
     closers: list[Callable[[], None]] = []
     raw, raw_name = _raw_sink(config, run_folder, closers)
     try:
-        fmt = unit_frame_format(config.unit)
-        lb = Loopback(world, table=twin, unit_frame=fmt, unit_raw=raw, unit_raw_name=raw_name)
+        lb = Loopback(
+            world,
+            dialect="acutrol" if acl else "modbus",
+            make_acl_table=(
+                (lambda transport: acl_turntable(transport, tt, clock=None if realtime else world.host_time))
+                if acl
+                else None
+            ),
+            acl=tt.acl,
+            word_order=getattr(tt, "float_word_order", None),
+            register_map=getattr(tt, "modbus_map", None),
+            watchdog_s=max(float(wd), LOOPBACK_MIN_WATCHDOG_S) if wd else None,
+            strict_watchdog=getattr(tt, "sim_controller", "") == "modbus-strict",
+            unit_frame=unit_frame_format(config.unit),
+            unit_raw=raw,
+            unit_raw_name=raw_name,
+            realtime=realtime,
+        )
     except BaseException:
         for fn in closers:
             fn()
@@ -223,16 +275,68 @@ def _open_simulated(
     )
 
 
+def _acl_options(tt: TurntableSpec) -> dict[str, Any]:
+    """The ACL driver's settings and tolerances from a bench's turntable section."""
+    return {
+        "settings": tt.acl,
+        "position_tolerance": tt.position_tolerance,
+        "settle_time": tt.in_position_time,
+        "rate_tolerance": tt.rate_tolerance,
+    }
+
+
+def aerosmith_table(stream: Any, tt: TurntableSpec) -> AerosmithTable:
+    """The Ideal Aerosmith driver for a bench's turntable section on an open byte stream."""
+    return AerosmithTable(
+        stream,
+        tuple(tt.limits),  # type: ignore[arg-type]
+        settings=tt.aerosmith,
+        position_tolerance=tt.position_tolerance,
+        rate_tolerance=tt.rate_tolerance,
+    )
+
+
+def acl_turntable(
+    transport: MessageTransport, tt: TurntableSpec, clock: Callable[[], float] | None = None
+) -> AclTurntable:
+    """The ACL driver for a bench's turntable section on an open transport (settings and tolerances from the bench);
+    ``clock``: the host clock (a simulated bench's world clock; None: the host's monotonic clock)."""
+    extra = {} if clock is None else {"clock": clock}
+    return AclTurntable(transport, tuple(tt.limits), **_acl_options(tt), **extra)  # type: ignore[arg-type]
+
+
+def _acutrol_connection(resource: str, tt: TurntableSpec) -> connect.Connection[AclTurntable]:
+    """Open the VISA ``resource`` and the ACL driver on it, with the bench's turntable settings and tolerances."""
+    return connect.acutrol_table(resource, tuple(tt.limits), timeout=DEFAULT_TIMEOUT_S, **_acl_options(tt))  # type: ignore[arg-type]
+
+
 def _hardware_table(config: BenchConfig) -> connect.Connection[Any]:
     """Open the real turntable (its Connection, with ``.where`` describing it)."""
     tt = config.turntable
-    real = devices.controller_names()
-    if tt.driver not in real:
-        raise _bad(config, f"turntable.driver {tt.driver!r} needs a simulation section; real: {', '.join(real)}")
-    try:
-        return devices.controller(tt.driver).connect(tt, DEFAULT_TIMEOUT_S)
-    except ValueError as exc:  # an unusable address (devices.host_port)
-        raise _bad(config, str(exc)) from None
+    limits = tuple(tt.limits) if getattr(tt, "limits", None) else None
+    if tt.driver == "modbus-tcp":
+        host, port = _host_port(config, tt.address, 502)
+        conn: Any = connect.modbus_table(
+            host,
+            port,
+            word_order=tt.float_word_order,
+            register_map=getattr(tt, "modbus_map", None),
+            limits=limits,  # type: ignore[arg-type]
+            timeout=DEFAULT_TIMEOUT_S,
+            rate_tolerance=getattr(tt, "rate_tolerance", None),
+        )
+        conn.where = f"Modbus TCP {host}:{port}"
+    elif tt.driver == "acutrol":
+        conn = _acutrol_connection(tt.resource, tt)
+        conn.where = f"ACUTROL (ACL) at {tt.resource}"
+    elif tt.driver == "ideal-aerosmith":
+        conn = connect.aerosmith_table(
+            tt.address, lambda stream: aerosmith_table(stream, tt), timeout=DEFAULT_TIMEOUT_S
+        )
+        conn.where = f"Ideal Aerosmith at {tt.address} (9600 8N1)"
+    else:
+        raise _bad(config, f"turntable.driver {tt.driver!r} needs a simulation section; real: acutrol, modbus-tcp")
+    return conn
 
 
 def open_table(config: BenchConfig, *, seed: int | None = None, transport: str | None = None) -> Bench:
@@ -251,19 +355,54 @@ def open_table(config: BenchConfig, *, seed: int | None = None, transport: str |
 
 def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str) -> Bench:
     world = SimulatedWorld.from_bench(config, seed)
-    twin = devices.simulated_twin(config.turntable, LOOPBACK_MIN_WATCHDOG_S)
+    tt = config.turntable
+    acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
+    aero = getattr(tt, "sim_controller", "") == "ideal-aerosmith"
+    if aero and transport != "in-process":
+        raise _bad(config, "the simulated Ideal Aerosmith table runs in-process only: use --transport in-process")
     closers: list[Callable[[], None]] = []
     ok = False
     try:
-        if transport == "in-process":
-            table, what = twin.in_process(world, DEFAULT_TIMEOUT_S, alone=True)
+        if aero:
+            table = aerosmith_table(AerosmithController(world, tt.aerosmith).stream(DEFAULT_TIMEOUT_S), tt)
+            what = "simulated Ideal Aerosmith (in-memory)"
             closers.append(table.close)
-        else:
-            srv = twin.serve(world)
+        elif transport == "in-process":
+            if acl:
+                table: Turntable = acl_turntable(
+                    AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt, clock=world.host_time
+                )
+                what = "simulated ACUTROL (ACL, in-memory)"
+            else:
+                table, what = SimTurntable(world), "simulated table, in-process driver"
+            closers.append(table.close)
+        elif acl:
+            srv = AclTableServer(world, tt.acl)
             closers.append(srv.close)
-            conn = twin.connect(srv, DEFAULT_TIMEOUT_S)
+            conn = _acutrol_connection(srv.resource, tt)
             closers.insert(0, conn.close)
-            table, what = conn.driver, twin.describe_alone(srv)
+            table, what = conn.driver, f"simulated ACUTROL over pyvisa-py {srv.resource}"
+        else:
+            wd = getattr(tt, "watchdog", None)
+            msrv = ModbusTableServer(
+                world,
+                word_order=tt.float_word_order,
+                register_map=getattr(tt, "modbus_map", None),
+                watchdog_s=max(float(wd), LOOPBACK_MIN_WATCHDOG_S) if wd else None,
+                watchdog_from_power_up=getattr(tt, "sim_controller", "") == "modbus-strict",
+            )
+            closers.append(msrv.close)
+            mconn = connect.modbus_table(
+                "127.0.0.1",
+                msrv.port,
+                word_order=tt.float_word_order,
+                register_map=getattr(tt, "modbus_map", None),
+                timeout=DEFAULT_TIMEOUT_S,
+                retries=0,
+                rate_tolerance=getattr(tt, "rate_tolerance", None),
+            )
+            closers.insert(0, mconn.close)
+            table, what = mconn.driver, f"simulated Modbus table on 127.0.0.1:{msrv.port}"
         ok = True
         return Bench(table, None, world, transport, f"{config.name}: {what}", list(reversed(closers)))  # type: ignore[arg-type]
     finally:
@@ -275,6 +414,19 @@ def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str)
                     log.debug("close after failed open", exc_info=True)
 
 
+def _host_port(config: BenchConfig, address: str | None, default_port: int) -> tuple[str, int]:
+    if not address:
+        raise _bad(config, "turntable.address is required for a Modbus TCP table (e.g. '192.168.0.10:502')")
+    host, _, port = address.rpartition(":") if ":" in address else (address, "", str(default_port))
+    try:
+        p = int(port)
+    except ValueError:
+        raise _bad(
+            config, f"turntable.address {address!r}: port must be an integer (e.g. '192.168.0.10:502')"
+        ) from None
+    return host, p
+
+
 def _open_hardware(config: BenchConfig, run_folder: str | Path | None = None) -> Bench:
     opened: list[connect.Connection[Any]] = []
     closers: list[Callable[[], None]] = []  # the raw-stream file, closed after the drivers
@@ -283,16 +435,24 @@ def _open_hardware(config: BenchConfig, run_folder: str | Path | None = None) ->
         opened.append(_hardware_table(config))
         where = opened[0].where  # type: ignore[attr-defined]
         un = config.unit
-        real = [n for n in devices.unit_names() if n != devices.SIMULATED]
-        if un.driver not in real:
-            names = " or ".join(repr(n) for n in real)
-            raise _bad(config, f"unit.driver {un.driver!r} needs a simulation section; a real unit uses {names}")
-        kind = devices.unit(un.driver)
+        if un.driver != "serial":
+            raise _bad(config, f"unit.driver {un.driver!r} needs a simulation section; a real unit uses 'serial'")
         if not un.address:
-            raise _bad(config, f"unit.address is required for {kind.title} (e.g. '{kind.address_example}')")
+            raise _bad(config, "unit.address is required for a serial unit (e.g. '/dev/ttyUSB0')")
         fmt = unit_frame_format(un)
         raw, raw_name = _raw_sink(config, run_folder, closers)
-        opened.append(kind.connect(un, fmt, DEFAULT_TIMEOUT_S, raw, raw_name))
+        baud = int(getattr(un, "baudrate", 921600) or 921600)
+        opened.append(
+            connect.serial_unit(
+                un.address,
+                fmt,
+                un.sample_rate,
+                baudrate=baud,
+                timeout=DEFAULT_TIMEOUT_S,
+                raw_sink=raw,
+                raw_name=raw_name,
+            )
+        )
         table, unit = opened[0].driver, opened[1].driver
         where_unit = f"unit ({fmt.name}) on {un.address}"
         bench = Bench(

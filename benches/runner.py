@@ -29,17 +29,16 @@ from drivers.protocols import (
     ImuBlock,
     InertialUnit,
     LinkError,
-    Readable,
-    Settable,
     TableError,
     TableState,
     TableStatus,
     Turntable,
 )
-from procedures.steps import Hold, Move, Note, Spin, Step, Warmup, limit_problems, move_time
+from procedures.steps import THERMAL_STEPS, Hold, Move, Note, Spin, Step, Warmup, limit_problems, move_time
 
 from .progress import NullProgress, ProgressDisplay
 from .recording import Recorder, StepRecord
+from .thermal.steps import ThermalSteps
 
 log = logging.getLogger(__name__)
 
@@ -108,19 +107,6 @@ class _InterruptFlag:
             signal.signal(sig, old)
 
 
-StepExecutor = Callable[["Runner", Step], None]
-"""How the runner executes one kind of step: ``executor(runner, step)`` using the runner's primitives
-(:meth:`Runner.acquire`, :meth:`Runner.wait_until`, :meth:`Runner.set_device`, :meth:`Runner.device`)."""
-
-STEP_EXECUTORS: dict[type[Step], StepExecutor] = {}
-"""Executors of step kinds added outside this module (:func:`register_step`); the built-in kinds are below."""
-
-
-def register_step(kind: type[Step], executor: StepExecutor) -> None:
-    """Teach the runner a new step kind (``docs/extending.md``: a step kind)."""
-    STEP_EXECUTORS[kind] = executor
-
-
 class Runner:
     """Run compiled steps on a bench.
 
@@ -140,11 +126,9 @@ class Runner:
     progress : ProgressDisplay or None
     total_bench_s : float or None
         Estimated procedure duration (for progress).
-    auxiliary : mapping of str to Readable
-        The bench's auxiliary devices by name: each is read every ``aux_period_s`` of bench time and its
-        readings recorded under ``/aux/<name>``; a step may set a :class:`drivers.protocols.Settable` one.
-    aux_period_s : float
-        Bench time between two readings of the auxiliary devices, s.
+    aux : mapping or None
+        Named auxiliary devices of the bench; ``"chamber"`` runs the soak and ramp steps
+        (:mod:`benches.thermal.steps`), and is left as the chamber safety rules say on every exit path.
     """
 
     def __init__(
@@ -160,9 +144,11 @@ class Runner:
         progress: ProgressDisplay | None = None,
         rest_rate: float = math.radians(0.01),
         stop_timeout_s: float = 120.0,
-        auxiliary: Mapping[str, Readable] | None = None,
-        aux_period_s: float = 1.0,
+        aux: Mapping[str, Any] | None = None,
     ) -> None:
+        self.aux = dict(aux or {})
+        self.aborted = RunAborted  # the exception a chamber step raises to stop the run (benches.thermal.steps)
+        self.thermal = ThermalSteps(self) if any(isinstance(s, THERMAL_STEPS) for s in steps) else None
         self.table = turntable
         self.unit = unit
         self.steps = list(steps)
@@ -182,9 +168,6 @@ class Runner:
         self._step_start = 0
         self._acq: tuple[int, int] | None = None
         self._progress_base = 0.0
-        self.auxiliary = dict(auxiliary or {})
-        self._aux_every = max(1, int(round(aux_period_s * self.rate)))
-        self._aux_next = 0
 
     # ---- acquisition primitives -----------------------------------------------------------------------------
     def _read_block(self, step: Step, n: int, counts: bool) -> TableState:
@@ -192,6 +175,8 @@ class Runner:
         state = self.table.read_state()
         self.table.heartbeat()
         self._state = state
+        if self.thermal is not None:
+            self.thermal.on_block(step, block)
         if self._recording:
             self.rec.add_samples(block)
             self.rec.add_table(state)
@@ -206,8 +191,6 @@ class Runner:
                 )
             for obs in self.observers:
                 obs.on_block(step, block, state, counts)
-            if self.auxiliary and self._sample >= self._aux_next:
-                self._read_auxiliary(state.time)
         self._sample += len(block)
         self._progress_base += len(block) / self.rate
         self._show(self.progress.update, self._progress_base)
@@ -216,47 +199,6 @@ class Runner:
         if state.status & TableStatus.FAULT:
             raise RunAborted("failed", f"turntable fault: {state.fault_code.name} (status {int(state.status):#x})")
         return state
-
-    def _read_auxiliary(self, time: float) -> None:
-        """Read every auxiliary device once and record it (bench time of the table reading)."""
-        add = getattr(self.rec, "add_aux", None)
-        for name, dev in self.auxiliary.items():
-            reading = dev.read()
-            if add is not None:
-                add(name, time, reading)
-        self._aux_next = self._sample + self._aux_every
-
-    # ---- primitives for step executors ------------------------------------------------------------------------
-    def acquire(self, step: Step, n: int, counts: bool = False) -> None:
-        """Read ``n`` samples (recorded; ``counts``: inside the step's acquisition window)."""
-        self._acquire(step, n, counts)
-
-    def wait_until(self, step: Step, predicate: Callable[[], bool], timeout_s: float, what: str) -> None:
-        """Keep acquiring (not counted) until ``predicate()`` holds; RunAborted after ``timeout_s`` of bench time."""
-        self._wait_until(step, lambda _state: predicate(), timeout_s, what)
-
-    def device(self, name: str) -> Readable:
-        """The auxiliary device ``name`` (RunAborted naming the bench's devices if there is none)."""
-        dev = self.auxiliary.get(name)
-        if dev is None:
-            raise RunAborted(
-                "failed", f"no auxiliary device {name!r} on this bench (has: {', '.join(self.auxiliary) or 'none'})"
-            )
-        return dev
-
-    def set_device(
-        self, step: Step, name: str, setpoint: float, *, wait: bool = True, timeout_s: float = 3600.0
-    ) -> None:
-        """Command auxiliary device ``name`` to ``setpoint`` (SI), recorded as an event; with ``wait``, acquire
-        (not counted) until it reports ``settled()``."""
-        dev = self.device(name)
-        if not isinstance(dev, Settable):
-            raise RunAborted("failed", f"step {step.name!r}: auxiliary device {name!r} cannot be set")
-        dev.set(float(setpoint))
-        if self._recording:
-            self.rec.event(self._time(), "info", f"{name}: set point {setpoint:g} ({dev.status()}) (step {step.name})")
-        if wait:
-            self._wait_until(step, lambda _s: dev.settled(), timeout_s, f"see {name} settle")
 
     def _acquire(self, step: Step, n: int, counts: bool) -> None:
         left = int(n)
@@ -322,11 +264,10 @@ class Runner:
             self._acq = (a0, self._sample)
             self.table.stop()
             self._wait_until(step, self._at_rest, 3 * ramp + 30.0, "come to rest")
+        elif isinstance(step, THERMAL_STEPS) and self.thermal is not None:
+            self.thermal.execute(step)
         else:
-            executor = next((STEP_EXECUTORS[t] for t in type(step).__mro__ if t in STEP_EXECUTORS), None)
-            if executor is None:
-                raise RunAborted("failed", f"step {step.name!r}: no runner for a {type(step).__name__} step")
-            executor(self, step)
+            raise RunAborted("failed", f"step {step.name!r}: no runner for a {type(step).__name__} step")
 
     def _time(self) -> float:
         return self._state.time if self._state is not None else 0.0
@@ -453,6 +394,8 @@ class Runner:
                             log.error("could not record the interrupted step: %s", exc)
                 else:
                     rest_problem = self._safe_stop()
+                if self.thermal is not None:
+                    self.thermal.leave_safe()
                 self.rec.set_status(status)
                 self._interrupt = None
                 self._show(self.progress.update, self._progress_base, force=True)

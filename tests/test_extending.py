@@ -1,30 +1,20 @@
 """The recipes of docs/extending.md, each done in test code only (no production file touched) and run through
-the real seams: a toy turntable controller, a toy unit frame format, a toy auxiliary device (with a toy step
-kind that sets it) and a toy results store."""
+the real seams: a toy unit frame format and a toy results store."""
 
 from __future__ import annotations
 
 import io
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pytest
 
-from benches import devices
-from benches.bench_config import load_bench, load_bench_text
-from benches.factory import open_bench, open_table
 from benches.recording import open_recording
 from benches.results.chain import register_copy_sink, unregister_copy_sink
 from benches.results.sink import AnalysisDocument, CalibrationDocument, CertificateDocument, ResultSink
 from benches.session import execute, identify_and_certify, prepare
-from drivers.connect import Connection
-from drivers.protocols import TableState, Turntable
-from drivers.sim.inprocess import SimTurntable
-from drivers.sim.world import SimulatedWorld
 from tests import REPO_ROOT
 from tests.simbench import short_ten_step
 
@@ -36,114 +26,6 @@ def _short(tmp: Path) -> Path:
     p = tmp / "short.yaml"
     p.write_text(short_ten_step(hold_s=1, warmup_s=1), encoding="utf-8")
     return p
-
-
-# ---- a controller ------------------------------------------------------------------------------------------------
-
-
-class ToyTable:
-    """A toy controller's driver: a thin wrapper that counts the commands it is given."""
-
-    def __init__(self, inner: Turntable) -> None:
-        self.inner, self.commands = inner, 0
-
-    def limits(self):
-        return self.inner.limits()
-
-    def move_to(self, angles) -> None:
-        self.commands += 1
-        self.inner.move_to(angles)
-
-    def spin(self, axis: int, rate: float) -> None:
-        self.commands += 1
-        self.inner.spin(axis, rate)
-
-    def stop(self) -> None:
-        self.inner.stop()
-
-    def read_state(self) -> TableState:
-        return self.inner.read_state()
-
-    def heartbeat(self) -> None:
-        self.inner.heartbeat()
-
-    def clear_fault(self) -> None:
-        self.inner.clear_fault()
-
-    def close(self) -> None:
-        self.inner.close()
-
-
-@dataclass(frozen=True)
-class ToySettings:
-    speed: str
-
-
-class ToyTwin:
-    """The toy controller's simulated twin (in-process only)."""
-
-    tables: list[ToyTable] = []
-
-    def in_process(self, world: SimulatedWorld, timeout: float, alone: bool = False):
-        t = ToyTable(SimTurntable(world))
-        self.tables.append(t)
-        return t, "toy controller (in-process)"
-
-
-def _toy_settings(d, smap, p, *, link, simulated, limits) -> dict[str, Any]:
-    speed = d.get("toy_speed", "normal")
-    if speed not in ("normal", "fast"):
-        raise smap.error(p + ("toy_speed",), f"{speed!r} is not allowed; choose normal or fast")
-    return {"settings": ToySettings(speed)}
-
-
-def _toy_connect(tt, timeout: float) -> Connection[Any]:
-    world = SimulatedWorld.from_bench(load_bench(REPO_ROOT / "benches" / "sim.yaml"), 1)  # the "wire"
-    conn: Any = Connection(ToyTable(SimTurntable(world)), world, [])
-    conn.where = f"toy controller at {tt.address}"
-    return conn
-
-
-@pytest.fixture
-def toy_controller():
-    devices.register_controller(
-        devices.ControllerKind(
-            name="toy-table",
-            title="a toy table (driver 'toy-table' or a simulated toy)",
-            link_key="address",
-            link_required="is required for driver 'toy-table' (e.g. 'toy://1')",
-            settings_key=None,
-            exclusive_keys=("toy_speed",),
-            host_watchdog=False,
-            no_watchdog="the toy protocol has no watchdog",
-            parse_settings=_toy_settings,
-            connect=_toy_connect,
-            twins={"toy": lambda tt, min_wd: ToyTwin()},
-        )
-    )
-    ToyTwin.tables = []
-    yield
-    devices.unregister_controller("toy-table")
-
-
-def test_a_controller(toy_controller, tmp_path):
-    text = ACL_BLOCK.sub("  toy_speed: fast\n", SIM_TEXT).replace("controller: acutrol", "controller: toy")
-    bench = tmp_path / "toy.yaml"
-    bench.write_text(text, encoding="utf-8")
-    prep = prepare(bench, _short(tmp_path))
-    assert prep.config.turntable.settings == ToySettings("fast")
-    result = execute(prep, tmp_path / "run", seed=2, transport="in-process", stream=io.StringIO(), live=False)
-    assert result.status == "complete", result.reason
-    assert ToyTwin.tables and ToyTwin.tables[0].commands >= 20  # every move and spin went through the toy driver
-    # a real bench names it by its driver name; the registry opens its link
-    real = text.replace("  driver: sim\n  model", "  driver: toy-table\n  address: toy://7\n  model", 1)
-    cfg = load_bench_text(real.split("\nunit:")[0] + "\nunit:" + real.split("\nunit:")[1].split("\nsimulation:")[0]
-                          .replace("driver: sim", "driver: serial\n  address: /dev/null"), "real.yaml")  # fmt: skip
-    with open_table(cfg) as b:
-        assert isinstance(b.turntable, ToyTable) and "toy controller at toy://7" in b.describe()
-    bad = real.replace("toy_speed: fast", "toy_speed: warp")
-    with pytest.raises(Exception, match="toy_speed"):
-        load_bench_text(bad, "bad.yaml")
 
 
 # ---- a unit format -----------------------------------------------------------------------------------------------
@@ -241,11 +123,4 @@ def test_no_production_file_names_the_toys():
     for pkg in ("core", "analysis", "procedures", "drivers", "benches"):
         for path in (REPO_ROOT / pkg).rglob("*.py"):
             text = path.read_text(encoding="utf-8")
-            assert "toy-table" not in text and "toy-unit" not in text and "toy-oven" not in text, path
-
-
-def test_open_bench_with_the_toy_controller(toy_controller):
-    text = ACL_BLOCK.sub("", SIM_TEXT).replace("controller: acutrol", "controller: toy")
-    cfg = load_bench_text(text, "toy.yaml")
-    with open_bench(cfg, seed=1) as b:
-        assert isinstance(b.turntable, ToyTable) and "toy controller" in b.describe()
+            assert "toy-unit" not in text and "toy list" not in text, path

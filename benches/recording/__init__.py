@@ -41,6 +41,7 @@ from .layout import (
     Samples,
     StepRecord,
     TableReadings,
+    TimeSources,
     Truth,
     recording_file,
 )
@@ -51,6 +52,7 @@ from .writer import Hdf5Recorder, Recorder, storage_filters
 __all__ = [
     "AUX_NAME",
     "AuxReadings",
+    "TimeSources",
     "FORMAT",
     "FORMAT_VERSION",
     "READABLE_VERSIONS",
