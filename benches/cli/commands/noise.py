@@ -6,8 +6,9 @@ import argparse
 import math
 
 from benches.cli.analysis_input import InputError, add_input_arguments, load_input, output_dir
+from benches.cli.work import Work, figure_png
 from core.errors import UsageError
-from core.jsonio import write_json
+from core.jsonio import write_json, write_text_atomic
 
 EXAMPLES = """examples:
   tablebench noise runs/static-noise-001                     # a recording (static-noise procedure)
@@ -264,23 +265,44 @@ def run(args: argparse.Namespace) -> int:
             f"(limit {limit}); use --taus octave, decade or log"
         )
     out = output_dir(args.out, "noise")
-    try:
-        result = analyse_noise(
-            data.channels,
-            data.rate,
-            data.units,
-            taus=taus,
-            confidence=args.confidence,
-            published_itotvar=args.published_itotvar,
-            estimators=estimators,
-            data_type=args.data_type,
-            fit_estimator=fit_estimator,
-            noise_type=noise_type,
-            remove_drift=args.remove_drift,
-        )
-    except ValueError as exc:
-        raise InputError(f"{data.source}: {exc}") from None
-    result["source"] = data.source
+    options = dict(
+        taus=taus,
+        confidence=args.confidence,
+        published_itotvar=args.published_itotvar,
+        estimators=estimators,
+        data_type=args.data_type,
+        fit_estimator=fit_estimator,
+        noise_type=noise_type,
+        remove_drift=args.remove_drift,
+    )
+    names = list(data.channels)
+
+    def compute(work: Work) -> tuple[dict, bytes | None]:
+        """One channel at a time (the channels are independent): progress and an ETA per channel."""
+        result: dict = {}
+        for k, name in enumerate(names):
+            work.stage(f"{name} ({k + 1}/{len(names)}): deviations, intervals, noise terms")
+            try:
+                one = analyse_noise({name: data.channels[name]}, data.rate, data.units, **options)
+            except ValueError as exc:
+                raise InputError(f"{data.source}: {exc}") from None
+            result = one if not result else {**result, "channels": {**result["channels"], **one["channels"]}}
+            work.advance()
+        result["source"] = data.source
+        png = None
+        if out is not None:
+            from analysis.noise.plot import plot_noise  # lazy: matplotlib (--help time)
+
+            work.stage("plotting")
+            png = figure_png(plot_noise(result, title=f"Noise analysis: {data.source}"), 110)
+        return result, png
+
+    with Work("noise", len(names) + 0.2 * (out is not None)) as work:  # the interrupt and progress of 'run'
+        result, png = work.run(compute, work)
+        if out is not None:
+            with work.writing():  # all or nothing: a Ctrl-C now is held until both files are complete
+                write_json(out / "noise.json", result, nonfinite="null")
+                write_text_atomic(out / "noise.png", png)
     print(f"{data.source}: {len(data.channels)} channel(s), {n} samples at {data.rate:g} Hz ({n / data.rate:.1f} s)")
     for name, ch in result["channels"].items():
         g = ch["gaps"]
@@ -291,10 +313,5 @@ def run(args: argparse.Namespace) -> int:
         print("gaps: none")
     print(format_table(result))
     if out is not None:
-        from analysis.noise.plot import plot_noise  # lazy: matplotlib (--help time)
-
-        write_json(out / "noise.json", result, nonfinite="null")
-        fig = plot_noise(result, title=f"Noise analysis: {data.source}")
-        fig.savefig(out / "noise.png", dpi=110)
         print(f"wrote {out / 'noise.json'} and {out / 'noise.png'}")
     return 0
