@@ -6,7 +6,7 @@ Every such command runs its computation through :class:`Work`, the way ``run`` r
   Ctrl-C (SIGINT), SIGTERM and SIGHUP reach the main thread within a tenth of a second even while the worker
   is inside one long numerical call (an ARMA fit, an FFT of a long record): the command says
   "interrupted" and exits 130 within a second. The worker is told to stop and stops at its next progress
-  call; it writes nothing.
+  call; it writes nothing (the ``tablebench`` process then ends at once: :func:`benches.cli.main.main`).
 - **Nothing half-written.** Outputs are written by the main thread only after the computation has finished,
   inside :meth:`Work.writing`: a signal arriving while the (short) writes run is held until they are done,
   and every file is written atomically (temporary file + rename), so an interrupted command leaves either
@@ -130,7 +130,7 @@ class Work:
                 self._show()
         except KeyboardInterrupt:
             self._cancel.set()
-            worker.join(0.2)  # a worker at a progress call stops at once; one inside a long call is abandoned
+            worker.join(0.1)  # a worker at a progress call stops at once; one inside a long call is abandoned
             raise
         if "error" in box:
             raise box["error"]
