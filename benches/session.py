@@ -27,7 +27,7 @@ from procedures.loader import load_procedure
 from procedures.paths import default_bench_path, resolve_bench, resolve_procedure
 from procedures.steps import CompiledProcedure
 
-from .bench_config import BenchConfig, load_bench
+from .bench_config import BenchConfig, chamber_limits, load_bench
 from .progress import ProgressDisplay
 from .recorded_run import RecordedRun, open_run
 from .recording import Hdf5Recorder, RecordingError, open_recording
@@ -68,7 +68,9 @@ def prepare(
     procedure_path = resolve_procedure(procedure or DEFAULT_PROCEDURE)
     config = load_bench(bench_path)
     proc = load_procedure(procedure_path, overrides or None)
-    compiled = compile_procedure(proc, limits=config.turntable.limits, mounting=config.unit.mounting)
+    compiled = compile_procedure(
+        proc, limits=config.turntable.limits, mounting=config.unit.mounting, chamber=chamber_limits(config)
+    )
     check_against_unit(compiled, float(config.unit.sample_rate))
     return Prepared(
         bench_path,
@@ -238,6 +240,7 @@ def execute(
                 position_tolerance=config.turntable.position_tolerance,
                 observers=list(observers(progress)) if observers is not None else (),
                 progress=progress,
+                aux=bench.aux,
             )
             try:
                 result = runner.run(replay=replay, start_sample=start_sample)

@@ -176,6 +176,8 @@ class Case:
 
 
 GOOD_POSITIONAL = {
+    ("chamber", "action"): "status",
+    ("chamber", "temperature"): "20",
     ("certificate", "run"): "{run}",
     ("check", "procedure"): "{tiny}",
     ("correct", "calibration"): "{run}/calibration.json",
@@ -186,6 +188,7 @@ GOOD_POSITIONAL = {
     ("noise", "input"): "{npy}",
     ("periodic", "input"): "{npy}",
     ("runs", "folder"): "{root}",
+    ("registry", "action"): "list",
     ("table", "action"): "status",
 }
 """A valid value for each positional, so the other arguments can be tested one at a time (a command not

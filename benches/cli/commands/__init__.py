@@ -8,6 +8,7 @@ same help the module registers.
 
 SUMMARIES: dict[str, str] = {
     "certificate": "issue the calibration certificate (PDF + JSON) of a run",
+    "chamber": "check a bench's temperature chamber (status, set T, stop)",
     "check": "validate a procedure against a bench (limits, attitudes, rates, duration); nothing moves",
     "correct": "apply a calibration to raw accelerometer data",
     "decode": "decode a raw unit capture (frames → SI samples) and summarise the link",
@@ -16,6 +17,7 @@ SUMMARIES: dict[str, str] = {
     "noise": "stability family (ADEV … HTOTDEV, Theo1, MTIE) and noise terms (Q, N, B, K, R) of a static record",
     "periodic": "identify and compensate periodic error terms",
     "plan": "predict parameter uncertainties of a procedure before running it",
+    "registry": "the calibration registry: history, trends, comparisons, due dates, exports",
     "run": "run a procedure on a bench and record it",
     "runs": "list recordings with their status; salvage a damaged one",
     "table": "check and jog a bench's turntable (status, idn, move, spin, stop, reset-fault)",

@@ -6,8 +6,10 @@ import argparse
 import sys
 from pathlib import Path
 
+from benches.cli.arguments import add_registry_arguments, sink_options
 from benches.cli.work import Work
 from benches.recording import RecordingError
+from benches.results import sinks_for_run
 from core.errors import UsageError
 from core.outputs import check_output
 
@@ -42,6 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="issue a certificate for an interrupted or failed run (says so prominently on page 1)",
     )
+    add_registry_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -72,7 +75,9 @@ def run(args: argparse.Namespace) -> int:
         with Work("certificate", 1.0) as work:  # the interrupt and progress of 'run'
             cert = work.run(build, work)
             with work.writing():  # numbered, rendered and written: all or nothing
-                pdf, js = publish_certificate(cert, args.run, args.out, args.json)
+                pdf, js = publish_certificate(
+                    cert, args.run, args.out, args.json, sinks_for_run(args.run, sink_options(args))
+                )
     except (CertificateError, RecordingError) as exc:
         raise UsageError(str(exc)) from None
     verdict = cert.verdict
