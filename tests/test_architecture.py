@@ -8,8 +8,11 @@ so ``procedures`` may import the seam :mod:`drivers.protocols` (``AxisLimits``, 
 
 from __future__ import annotations
 
+import argparse
 import ast
 import re
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -293,3 +296,27 @@ def test_no_test_skips() -> None:
         if skip.search(line)
     ]
     assert bad == [], "tests that skip: " + ", ".join(bad)
+
+
+def test_command_summaries_name_every_command_with_its_help() -> None:
+    """``tablebench --help`` lists the commands from ``SUMMARIES`` without importing them: it must name every
+    command module, with the one-line help the module itself registers."""
+    from benches.cli import build_parser
+    from benches.cli.commands import SUMMARIES
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    registered = {ca.dest: ca.help for ca in sub._choices_actions}
+    assert SUMMARIES == registered, (
+        "benches/cli/commands/__init__.py SUMMARIES must list every command with the help its module registers"
+    )
+
+
+def test_help_imports_no_command_and_no_numpy() -> None:
+    """``tablebench --help`` imports no command module and nothing numerical (issue 32: ≤ 8× ``python -c pass``)."""
+    code = (
+        "import sys\nfrom benches.cli import main\ntry:\n    main(['--help'])\nexcept SystemExit:\n    pass\n"
+        "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('numpy', 'h5py', 'yaml', 'scipy') "
+        "or m.startswith('benches.cli.commands.'))\nprint('IMPORTED:' + ','.join(bad))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO_ROOT, check=True)
+    assert out.stdout.strip().splitlines()[-1] == "IMPORTED:"
