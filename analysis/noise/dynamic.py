@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from analysis.noise.stability import stability
+
 
 def dynamic_adev(
     data: ArrayLike, rate: float, window: float, step: float | None = None, data_type: str = "freq"
@@ -34,8 +36,6 @@ def dynamic_adev(
     dict
         {"t_start", "t_centre": (W,) s, "tau": (M,) s, "adev": (W, M) in the rate unit (NaN where undefined)}.
     """
-    from analysis.noise.stability import stability  # lazy: the driver imports this package's kernels
-
     y = np.asarray(data, dtype=np.float64).ravel()
     n_win = int(round(window * rate))
     n_step = int(round((step if step is not None else window / 4.0) * rate))
