@@ -41,10 +41,12 @@ from core.yaml_source import ConfigError
 from drivers import connect
 from drivers.acutrol import AclTurntable
 from drivers.aerosmith import AerosmithTable
+from drivers.chamber.connect import open_chamber
 from drivers.protocols import InertialUnit, Turntable
 from drivers.sim.acl_controller import AclController
 from drivers.sim.acl_server import AclTableServer
 from drivers.sim.aerosmith_controller import AerosmithController
+from drivers.sim.chamber_loopback import serve_chamber
 from drivers.sim.inprocess import SimInertialUnit, SimTurntable
 from drivers.sim.loopback import Loopback
 from drivers.sim.modbus_controller import ModbusTableServer
@@ -70,6 +72,9 @@ class Bench:
     transport: str
     description: str
     _closers: list[Callable[[], None]] = field(default_factory=list, repr=False)
+    aux: dict[str, Any] = field(default_factory=dict)
+    """Named auxiliary devices (``"chamber"``: a :class:`drivers.chamber.base.Chamber`), recorded and commanded by
+    the runner's steps."""
 
     def describe(self) -> str:
         """One line for logs and recordings."""
@@ -115,6 +120,37 @@ def _raw_sink(
 
 
 def open_bench(
+    config: BenchConfig,
+    *,
+    seed: int | None = None,
+    transport: str | None = None,
+    run_folder: str | Path | None = None,
+) -> Bench:
+    """:func:`_open_table_and_unit`, then the bench's auxiliary devices (its temperature chamber: on a simulated
+    bench the world's chamber served in the bench's dialect on loopback, else the real link)."""
+    bench = _open_table_and_unit(config, seed=seed, transport=transport, run_folder=run_folder)
+    section = getattr(config, "chamber", None)
+    if section is None:
+        return bench
+    try:
+        if section.simulated:
+            assert bench.world is not None
+            server, conn = serve_chamber(bench.world, section.config)
+            bench._closers += [server.close, conn.close]
+        else:
+            conn = open_chamber(section.config)
+            bench._closers.append(conn.close)
+    except BaseException:
+        bench.close()
+        raise
+    bench.aux["chamber"] = conn.driver
+    bench.description += (
+        f"; chamber: {section.config.dialect} ({'simulated, loopback' if section.simulated else 'real'})"
+    )
+    return bench
+
+
+def _open_table_and_unit(
     config: BenchConfig,
     *,
     seed: int | None = None,
@@ -187,7 +223,9 @@ def _open_simulated(
                 [table.close, unit.close],
             )
         if acl:
-            table: Turntable = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
+            table: Turntable = acl_turntable(
+                AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt, clock=world.host_time
+            )
             what = "simulated ACUTROL (ACL, in-memory)"
         else:
             table, what = SimTurntable(world), "in-process drivers"
@@ -201,13 +239,18 @@ def _open_simulated(
             [table.close, unit.close],
         )
     wd = getattr(tt, "watchdog", None)
+    realtime = bool(getattr(config.simulation, "realtime", False))
     closers: list[Callable[[], None]] = []
     raw, raw_name = _raw_sink(config, run_folder, closers)
     try:
         lb = Loopback(
             world,
             dialect="acutrol" if acl else "modbus",
-            make_acl_table=(lambda transport: acl_turntable(transport, tt)) if acl else None,
+            make_acl_table=(
+                (lambda transport: acl_turntable(transport, tt, clock=None if realtime else world.host_time))
+                if acl
+                else None
+            ),
             acl=tt.acl,
             word_order=getattr(tt, "float_word_order", None),
             register_map=getattr(tt, "modbus_map", None),
@@ -216,6 +259,7 @@ def _open_simulated(
             unit_frame=unit_frame_format(config.unit),
             unit_raw=raw,
             unit_raw_name=raw_name,
+            realtime=realtime,
         )
     except BaseException:
         for fn in closers:
@@ -252,9 +296,13 @@ def aerosmith_table(stream: Any, tt: TurntableSpec) -> AerosmithTable:
     )
 
 
-def acl_turntable(transport: MessageTransport, tt: TurntableSpec) -> AclTurntable:
-    """The ACL driver for a bench's turntable section on an open transport (settings and tolerances from the bench)."""
-    return AclTurntable(transport, tuple(tt.limits), **_acl_options(tt))  # type: ignore[arg-type]
+def acl_turntable(
+    transport: MessageTransport, tt: TurntableSpec, clock: Callable[[], float] | None = None
+) -> AclTurntable:
+    """The ACL driver for a bench's turntable section on an open transport (settings and tolerances from the bench);
+    ``clock``: the host clock (a simulated bench's world clock; None: the host's monotonic clock)."""
+    extra = {} if clock is None else {"clock": clock}
+    return AclTurntable(transport, tuple(tt.limits), **_acl_options(tt), **extra)  # type: ignore[arg-type]
 
 
 def _acutrol_connection(resource: str, tt: TurntableSpec) -> connect.Connection[AclTurntable]:
@@ -321,7 +369,9 @@ def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str)
             closers.append(table.close)
         elif transport == "in-process":
             if acl:
-                table: Turntable = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
+                table: Turntable = acl_turntable(
+                    AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt, clock=world.host_time
+                )
                 what = "simulated ACUTROL (ACL, in-memory)"
             else:
                 table, what = SimTurntable(world), "simulated table, in-process driver"

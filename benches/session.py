@@ -240,6 +240,7 @@ def execute(
                 position_tolerance=config.turntable.position_tolerance,
                 observers=list(observers(progress)) if observers is not None else (),
                 progress=progress,
+                aux=bench.aux,
             )
             try:
                 result = runner.run(replay=replay, start_sample=start_sample)

@@ -188,6 +188,7 @@ GOOD_POSITIONAL = {
     ("noise", "input"): "{npy}",
     ("periodic", "input"): "{npy}",
     ("runs", "folder"): "{root}",
+    ("registry", "action"): "list",
     ("table", "action"): "status",
 }
 """A valid value for each positional, so the other arguments can be tested one at a time (a command not

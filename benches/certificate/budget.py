@@ -24,9 +24,11 @@ from analysis.identification.budget import (
     build_budget,
     default_g_uncertainty,
 )
+from analysis.timebase import TimeBase
 from benches.calibration_result import CalibrationResult
 from benches.identify import acquisition_span
 from benches.reference import reference_for_samples
+from benches.timebase import table_in_unit_time
 
 if TYPE_CHECKING:  # pragma: no cover
     from benches.recording import Recording
@@ -50,6 +52,7 @@ def step_geometry(
     latency: float = 0.0,
     names: Sequence[str] | None = None,
     max_points: int = 400,
+    time_base: TimeBase | None = None,
 ) -> list[StepGeometry]:
     """Decimated reference geometry of the complete hold/spin steps of an open recording.
 
@@ -67,9 +70,12 @@ def step_geometry(
         Only these steps (the ones the identification used); default every complete hold and spin.
     max_points : int
         Reference points per step (evenly spaced sample centres).
+    time_base : analysis.timebase.TimeBase, optional
+        The run's time base (calibration.json): the readings are put on the unit's clock with it, as the
+        identification did (benches.timebase.table_in_unit_time).
     """
     wanted = set(names) if names is not None else None
-    table = f.table()
+    table = f.table() if time_base is None else table_in_unit_time(f.table(), time_base)
     tt, ta, tr = table.time, table.angles, table.rates
     fs = float(f.header.sample_rate_hz)
     out: list[StepGeometry] = []
@@ -152,8 +158,9 @@ def budget_for_run(
     notes: list[str] = []
     p_w = cal.covariance_white
     per_step = cal.per_step
+    p_tb, tb_source = time_base_covariance(cal)
     budget = build_budget(
-        p_id,
+        p_id - p_tb,
         p_w,
         geometry,
         nv,
@@ -167,5 +174,32 @@ def budget_for_run(
         residuals_per_step=per_step,
         model=cal.error_model,
     )
+    if tb_source:
+        label = "Time base (unit clock vs table clock)"
+        budget.components.append(BudgetComponent("time_base", label, tb_source, "A", p_tb))
     budget.notes.extend(notes)
     return budget
+
+
+def time_base_covariance(cal: CalibrationResult) -> tuple[NDArray[np.float64], str]:
+    """The parameters' covariance from the run's estimated time base (J Σ Jᵀ, J = ∂x/∂(t₀, ε) from
+    calibration.json's ``time_base.sensitivity``; included in its covariance) and the budget line's source text
+    ("" when the file has none)."""
+    names = cal.names
+    z = np.zeros((len(names), len(names)))
+    blk = cal.time_base
+    if blk is None or not blk.sensitivity:
+        return z, ""
+    tb = blk.estimate
+    cov = np.asarray(tb.covariance, dtype=float)
+    if not np.all(np.isfinite(cov)):
+        return z, ""
+    if any(n not in blk.sensitivity for n in names):
+        return z, ""
+    jac = np.array([blk.sensitivity[n] for n in names], dtype=float)
+    src = (
+        f"t_table = t0 + (1 + eps) t_unit estimated from the run ({tb.method}, {len(tb.events)} motions): "
+        f"t0 = {tb.offset * 1e3:.4f} ms, u = {tb.u_offset * 1e6:.3g} µs; eps = {tb.rate * 1e6:+.3f} ppm, "
+        f"u = {tb.u_rate * 1e6:.3g} ppm; offset → misalignment and size effect through the spins"
+    )
+    return jac @ cov @ jac.T, src

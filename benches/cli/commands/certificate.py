@@ -6,7 +6,9 @@ import argparse
 import sys
 from pathlib import Path
 
+from benches.cli.arguments import add_registry_arguments, sink_options
 from benches.recording import RecordingError
+from benches.results import sinks_for_run
 from core.errors import UsageError
 from core.outputs import check_output
 
@@ -41,6 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="issue a certificate for an interrupted or failed run (says so prominently on page 1)",
     )
+    add_registry_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -69,6 +72,7 @@ def run(args: argparse.Namespace) -> int:
             out_json=args.json,
             issue_date=args.issue_date,
             allow_incomplete=args.allow_incomplete,
+            sinks=sinks_for_run(args.run, sink_options(args)),
         )
     except (CertificateError, RecordingError) as exc:
         raise UsageError(str(exc)) from None

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:  # pragma: no cover
     pass
 
+from benches.cli.arguments import add_registry_arguments, sink_options
 from benches.results import CalibrationDocument, sinks_for_run
 from core.errors import UsageError
 from core.outputs import check_output
@@ -40,7 +41,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="configured",
         help="measurement noise R: the bench's configured VRW, or estimated from the warm-up",
     )
+    p.add_argument(
+        "--time-base",
+        choices=("estimate", "none"),
+        default="estimate",
+        help="map the table's clock to the unit's with the time base estimated from the run's motions (default; "
+        "docs/methods/time-base.md), or take them as one clock (none: for comparisons)",
+    )
     p.add_argument("--out", default=None, metavar="FILE.json", help="default: RUN/calibration.json")
+    add_registry_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -53,12 +62,19 @@ def run(args: argparse.Namespace) -> int:
     if not target.name.lower().endswith(".json"):
         raise UsageError(f"--out {args.out}: give a .json file name (the calibration is JSON)")
     try:
-        result = identify_run(args.run, method=args.method, noise=args.noise)
+        result = identify_run(args.run, method=args.method, noise=args.noise, time_base=args.time_base)
     except IdentificationError as exc:
         raise UsageError(str(exc)) from None
-    out = sinks_for_run(folder).calibration(
+    out = sinks_for_run(folder, sink_options(args)).calibration(
         CalibrationDocument(run=folder, result=result, path=target if args.out else None)
     ).path
     print(result.summary())
+    tb = result.time_base.estimate if result.time_base is not None else None
+    if tb is not None and tb.events:
+        from analysis.timebase.plot import plot_timing_residuals  # lazy: matplotlib (--help time)
+
+        png = out.parent / "time-base.png"
+        plot_timing_residuals(tb).savefig(png, dpi=110)
+        print(f"timing residual around the motions: {png}", file=sys.stderr)
     print(f"calibration: {out}", file=sys.stderr)
     return 0
