@@ -29,7 +29,7 @@ x_t - mean - sum phi_j (x_(t-j) - mean) = e_t - sum theta_j e_(t-j)), the online
 standard deviation before/after compensation. A last line per channel says what could not be settled (a fit that
 did not converge, a near-cancelling AR/MA root pair); drift.json lists it under "unsettled". With --out DIR:
 drift.json (SI) and PNGs per channel (ACF/PACF, PSD, histogram, compensation). Tones found by the periodicity
-check are listed for 'tablebench periodic'. Methods: shared/spec/drift-timeseries.md, analysis/drift/.
+check are listed for 'tablebench periodic'. Methods: docs/methods/drift.md, analysis/drift/.
 """
 
 

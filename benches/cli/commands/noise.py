@@ -110,6 +110,20 @@ def register(sub: argparse._SubParsersAction) -> None:
         "quadratic or cubic phase it means); the removed coefficients are written to noise.json",
     )
     p.add_argument(
+        "--psd",
+        action="store_true",
+        help="also the one-sided power spectral density of each channel (Welch, log bins) with N, B, K fitted in the "
+        "frequency domain beside the Allan terms (IEEE 952 forms); noise.json 'psd', noise_psd.png (gap-free rate "
+        "data only)",
+    )
+    p.add_argument(
+        "--dynamic",
+        default=None,
+        metavar="WINDOW[:STEP]",
+        help="dynamic Allan deviation: overlapping ADEV of a WINDOW-second window moved by STEP seconds (default "
+        "WINDOW/4) along the record, drawn as a picture (noise_dynamic.png; values in noise.json 'dynamic')",
+    )
+    p.add_argument(
         "--published-itotvar",
         action="store_true",
         help="also report the published 'improved total variance' (paper reproduction; no better than ADEV)",
@@ -281,6 +295,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise InputError(f"{data.source}: {exc}") from None
     result["source"] = data.source
+    extras = _extras(args, data, result)
     print(f"{data.source}: {len(data.channels)} channel(s), {n} samples at {data.rate:g} Hz ({n / data.rate:.1f} s)")
     for name, ch in result["channels"].items():
         g = ch["gaps"]
@@ -296,5 +311,68 @@ def run(args: argparse.Namespace) -> int:
         write_json(out / "noise.json", result, nonfinite="null")
         fig = plot_noise(result, title=f"Noise analysis: {data.source}")
         fig.savefig(out / "noise.png", dpi=110)
+        _write_extras(out, extras, result, data)
         print(f"wrote {out / 'noise.json'} and {out / 'noise.png'}")
     return 0
+
+
+def _parse_dynamic(text: str) -> tuple[float, float | None]:
+    """``--dynamic WINDOW[:STEP]`` in seconds."""
+    win, _, step = text.partition(":")
+    try:
+        w = float(win)
+        s = float(step) if step else None
+    except ValueError:
+        w, s = math.nan, None
+    if not (math.isfinite(w) and w > 0) or (s is not None and not (math.isfinite(s) and s > 0)):
+        raise UsageError(f"--dynamic {text!r}: give WINDOW[:STEP] in seconds, e.g. --dynamic 600:60")
+    return w, s
+
+
+def _extras(args: argparse.Namespace, data, result: dict) -> dict:
+    """--psd and --dynamic: computed per channel, their JSON parts added to ``result``; the arrays for the plots."""
+    extras: dict = {}
+    if args.psd:
+        from analysis.noise.psd import rate_psd  # lazy: scipy (--help time)
+
+        if args.data_type != "freq":
+            raise UsageError("--psd needs rate (frequency) data; drop --data-type phase")
+        extras["psd"] = {}
+        for name, y in data.channels.items():
+            try:
+                extras["psd"][name] = p = rate_psd(y, data.rate)
+            except ValueError as exc:
+                raise InputError(f"{data.source}: channel {name}: {exc}") from None
+            terms = {k: {"value": v, "sigma": s, "uncertainty": "standard (1σ)"} for k, (v, s) in p["terms"].items()}
+            result["channels"][name]["psd"] = {
+                "f_hz": p["f_binned"], "one_sided_psd": p["psd_binned"], "dof": p["dof_binned"], "terms": terms,
+            }  # fmt: skip
+    if args.dynamic is not None:
+        from analysis.noise.dynamic import dynamic_adev  # lazy: scipy (--help time)
+
+        window, step = _parse_dynamic(args.dynamic)
+        extras["dynamic"] = {}
+        for name, y in data.channels.items():
+            try:
+                extras["dynamic"][name] = dynamic_adev(y, data.rate, window, step, args.data_type)
+            except ValueError as exc:
+                raise UsageError(f"--dynamic {args.dynamic}: {exc}") from None
+        result["dynamic"] = {"window_s": window, "step_s": step if step is not None else window / 4.0,
+                             "channels": extras["dynamic"]}  # fmt: skip
+    return extras
+
+
+def _write_extras(out, extras: dict, result: dict, data) -> None:
+    """noise_psd.png and noise_dynamic.png."""
+    if "psd" in extras:
+        from analysis.noise.plot import plot_psd  # lazy: matplotlib (--help time)
+
+        terms = {k: ch["terms"] for k, ch in result["channels"].items()}
+        plot_psd(extras["psd"], terms, 1.0 / data.rate, f"PSD: {data.source}").savefig(out / "noise_psd.png", dpi=110)
+        print(f"wrote {out / 'noise_psd.png'}")
+    if "dynamic" in extras:
+        from analysis.noise.plot import plot_dynamic  # lazy: matplotlib (--help time)
+
+        fig = plot_dynamic(extras["dynamic"], f"Dynamic ADEV: {data.source}")
+        fig.savefig(out / "noise_dynamic.png", dpi=110)
+        print(f"wrote {out / 'noise_dynamic.png'}")
