@@ -17,11 +17,13 @@ import numpy as np
 
 from analysis.earth import normal_gravity
 from analysis.identification.budget import default_g_uncertainty
+from analysis.identification.gyro import build as _gyro_model
 from analysis.units import (
     ARCSEC,
     DEG,
     DEG_PER_HOUR,
     DEG_PER_SQRT_HOUR,
+    G0,
     MM,
     PPM,
     UG,
@@ -78,6 +80,9 @@ __all__ = [
     "unit_frame_format",
 ]
 
+GYRO_PARAM_NAMES: tuple[str, ...] = _gyro_model(full_g=True, quadratic=True, asymmetry=True).names
+"""Every gyro-model parameter name (b 3, S 3, τ 6, G 9, S2 3, A 3) a bench may give a prior or limit for."""
+
 # parameter groups of the 18-parameter model: YAML key stem, unit suffix, SI per display unit, names
 PARAM_GROUPS: dict[str, tuple[str, float, tuple[str, ...]]] = {
     "bias": ("ug", UG, ACCEL_PARAM_NAMES[0:3]),
@@ -85,9 +90,20 @@ PARAM_GROUPS: dict[str, tuple[str, float, tuple[str, ...]]] = {
     "misalignment": ("arcsec", ARCSEC, ACCEL_PARAM_NAMES[6:12]),
     "quadratic": ("ug_g2", UG_PER_G2, ACCEL_PARAM_NAMES[12:15]),
     "size_effect": ("mm", MM, ACCEL_PARAM_NAMES[15:18]),
+    # the gyro model's (docs/methods/gyro-calibration.md): all variants' names, so a bench may state any
+    "gyro_bias": ("dph", DEG_PER_HOUR, GYRO_PARAM_NAMES[0:3]),
+    "gyro_scale": ("ppm", PPM, GYRO_PARAM_NAMES[3:6]),
+    "gyro_misalignment": ("arcsec", ARCSEC, GYRO_PARAM_NAMES[6:12]),
+    "gyro_g_sensitivity": ("dph_per_g", DEG_PER_HOUR / G0, GYRO_PARAM_NAMES[12:21]),
+    "gyro_quadratic": ("ppm_per_dps", PPM / DEG, GYRO_PARAM_NAMES[21:24]),
+    "gyro_asymmetry": ("ppm", PPM, GYRO_PARAM_NAMES[24:27]),
 }
 _NAME_UNIT = {name: (suffix, si) for suffix, si, names in PARAM_GROUPS.values() for name in names}
-PARAM_MAX: dict[str, float] = {"ug": 1e6, "ppm": 1e6, "arcsec": 360_000.0, "ug_g2": 1e6, "mm": 10_000.0}
+_ALL_PARAM_NAMES = ACCEL_PARAM_NAMES + GYRO_PARAM_NAMES
+PARAM_MAX: dict[str, float] = {
+    "ug": 1e6, "ppm": 1e6, "arcsec": 360_000.0, "ug_g2": 1e6, "mm": 10_000.0, "dph": 3.6e6, "dph_per_g": 1e5,
+    "ppm_per_dps": 1e6,
+}  # fmt: skip
 """Largest prior / limit a bench file may give, display units by key suffix (1 g, 100 %, 100°, 1 g/g², 10 m):
 beyond that the number is a typo, not a datasheet bound."""
 
@@ -180,6 +196,7 @@ class UnitSpec:
     frame_options: dict[str, Any] = field(default_factory=dict)  # the unit's output configuration
     frame_desc: FrameDescription | None = None
     keep_raw: bool = False  # keep the raw serial stream as RUN_DIR/unit-raw.bin
+    gyro_g_sensitivity: str = "diagonal"  # identify the gyro's g-sensitivity as its diagonal or the "full" 3 × 3
 
 
 @dataclass(frozen=True)
@@ -439,7 +456,7 @@ def _param_map(d: dict | None, smap: SourceMap, p: KeyPath, positive: bool) -> d
     if d is None:
         return {}
     allowed = [f"{g}_{suffix}" for g, (suffix, _, _) in PARAM_GROUPS.items()]
-    allowed += [f"{n}_{_NAME_UNIT[n][0]}" for n in ACCEL_PARAM_NAMES]
+    allowed += [f"{n}_{_NAME_UNIT[n][0]}" for n in _ALL_PARAM_NAMES]
     check_keys(d, smap, p, allowed)
     out: dict[str, float] = {}
     lo = dict(minimum=0.0, exclusive_minimum=True) if positive else {}
@@ -448,7 +465,7 @@ def _param_map(d: dict | None, smap: SourceMap, p: KeyPath, positive: bool) -> d
         if key in d:
             v = get_number(d, smap, p, key, maximum=PARAM_MAX[suffix], **lo)
             out.update({n: v * si for n in names})
-    for n in ACCEL_PARAM_NAMES:
+    for n in _ALL_PARAM_NAMES:
         suffix, si = _NAME_UNIT[n]
         key = f"{n}_{suffix}"
         if key in d:
@@ -474,6 +491,7 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
             "mounting",
             "noise",
             "prior",
+            "gyro_g_sensitivity",
             "frame",
             "frame_options",
             "keep_raw",
@@ -536,6 +554,7 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
         frame_options=frame_options,
         frame_desc=frame_desc,
         keep_raw=keep_raw,
+        gyro_g_sensitivity=get_str(d, smap, p, "gyro_g_sensitivity", "diagonal", choices=("diagonal", "full")),
     )
 
 

@@ -1,4 +1,10 @@
-"""Identification of the accelerometer model from a run: live during the run, and offline from a recording.
+"""Identification of the whole unit from a run: live during the run, and offline from a recording.
+
+The model is the unit's (:func:`unit_model`): the accelerometer model, joined by the gyro model when the
+recording has gyro data (every recording the bench writes has ``/imu/gyro``, old ones included) — one
+state vector, one reference, one time base. The gyro reference is ω_ib = the table's body rate from its
+readings + the Earth rate at the site in the body frame; during a spin the spinning gimbal's rate is the
+least-squares slope of its encoder angles over the acquisition (angle over time, not the reported rate).
 
 This module joins the pure maths of :mod:`analysis.identification.kalman`, :mod:`analysis.identification.batch`
 and :mod:`analysis.identification.plan` to the bench: the prior P0 and the white noise R come from the
@@ -23,12 +29,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from analysis.earth import earth_rate_enu
+from analysis.gimbal import body_rate, body_to_nav
 from analysis.identification.batch import batch_identify, information_rank, unobservable_parameters
 from analysis.identification.bias_drift import flicker_components, window_mean_covariance
 from analysis.identification.kalman import StreamingIdentifier, estimate_measurement_noise
 from analysis.identification.plan import IdentificationPlan, PlanStep, plan_identification
-from analysis.identification.specification import ModelSpec, get_model
-from analysis.units import DISPLAY_UNITS
+from analysis.identification.specification import ModelSpec, UnitModel, get_model
+from analysis.units import ARCSEC, DEG_PER_HOUR, DISPLAY_UNITS, G0, PPM
 from core.errors import UserError
 from core.provenance import file_sha256
 from drivers.protocols import ImuBlock, TableState
@@ -43,6 +51,16 @@ from .reference import reference_at, reference_for_samples
 
 ACCEL_MODEL: ModelSpec = get_model("accelerometer")
 MODEL_TEXT = ACCEL_MODEL.equation
+GYRO_PRIOR_DEFAULT: dict[str, float] = {
+    "gyro_bias": 10.0 * DEG_PER_HOUR,
+    "gyro_scale": 1000.0 * PPM,
+    "gyro_misalignment": 100.0 * ARCSEC,
+    "g_sensitivity": 1.0 * DEG_PER_HOUR / G0,
+    "gyro_quadratic": 10.0 * PPM / (math.pi / 180.0),
+    "gyro_asymmetry": 1000.0 * PPM,
+}
+"""Gyro prior 1σ per kind (SI) when the bench file states none: a tactical-grade datasheet (10 °/h, 1000 ppm,
+100″, 1 °/h/g); the calibration result warns that they were used."""
 IDENTIFIED_STEPS: tuple[type[Step], ...] = (Hold, Spin)
 """Steps whose counted samples the identification fits (a warm-up's only estimate the noise)."""
 _IDENTIFIED_KINDS = frozenset(t.kind for t in IDENTIFIED_STEPS)  # as written in a recording's steps table
@@ -55,20 +73,53 @@ class IdentificationError(UserError, RuntimeError):
 # ---- bench → prior and noise ------------------------------------------------------------------------------------
 
 
-def prior_covariance(config: BenchConfig) -> NDArray[np.float64]:
-    """P0 = diag(σ²) from the bench's ``unit.prior`` (datasheet 1σ per parameter, SI)."""
+def unit_model(config: BenchConfig, with_gyro: bool = True) -> ModelSpec:
+    """The model identified for the bench's unit: accelerometer, plus the gyro model when there are gyros.
+
+    The gyro's g-sensitivity is the full 3 × 3 matrix when the bench asks for it
+    (``unit.gyro_g_sensitivity: full``), else its diagonal.
+    """
+    if not with_gyro:
+        return ACCEL_MODEL
+    full = str(getattr(config.unit, "gyro_g_sensitivity", "diagonal")) == "full"
+    return UnitModel((ACCEL_MODEL, get_model("gyro", full_g=True) if full else get_model("gyro")))
+
+
+def prior_covariance(config: BenchConfig, model: ModelSpec | None = None) -> NDArray[np.float64]:
+    """P0 = diag(σ²) from the bench's ``unit.prior`` (datasheet 1σ per parameter, SI).
+
+    The accelerometer's 18 must be given; a gyro parameter the bench does not state takes the tactical-grade
+    default of its kind (:data:`GYRO_PRIOR_DEFAULT`, see :func:`defaulted_priors`).
+    """
+    m = ACCEL_MODEL if model is None else model
     prior = config.unit.prior
     missing = [n for n in ACCEL_MODEL.names if n not in prior]
     if missing:
         raise IdentificationError(
             f"bench {config.name!r}: unit prior lacks {', '.join(missing)}; give a datasheet 1σ for all 18 parameters"
         )
-    return np.diag([float(prior[n]) ** 2 for n in ACCEL_MODEL.names])
+    sig = [float(prior.get(n, GYRO_PRIOR_DEFAULT.get(k, math.nan))) for n, k in zip(m.names, m.kinds, strict=True)]
+    return np.diag(np.square(sig))
 
 
-def configured_noise_variance(config: BenchConfig) -> NDArray[np.float64]:
-    """Per-sample white-noise variance per axis, (m/s²)²: VRW density² × sample rate (bench file)."""
-    return np.asarray(config.unit.noise.vrw, dtype=float) ** 2 * float(config.unit.sample_rate)
+def defaulted_priors(config: BenchConfig, model: ModelSpec) -> list[str]:
+    """Names whose prior is the default of :data:`GYRO_PRIOR_DEFAULT` (the bench file states none)."""
+    return [n for n in model.names if n not in config.unit.prior]
+
+
+def configured_noise_variance(config: BenchConfig, model: ModelSpec | None = None) -> NDArray[np.float64]:
+    """Per-sample white-noise variance per axis: VRW² × sample rate, (m/s²)², then ARW² × rate, (rad/s)²."""
+    fs = float(config.unit.sample_rate)
+    acc = np.asarray(config.unit.noise.vrw, dtype=float) ** 2 * fs
+    if model is None or model.n_axes == 3:
+        return acc
+    arw = np.asarray(config.unit.noise.arw, dtype=float)
+    if np.any(arw <= 0):
+        raise IdentificationError(
+            f"bench {config.name!r}: unit.noise.arw_deg_per_sqrt_h is missing or zero; the gyro identification "
+            "needs the datasheet angle random walk (or identify with --noise warm-up)"
+        )
+    return np.concatenate([acc, arw**2 * fs])
 
 
 def unit_latency(config: BenchConfig) -> float:
@@ -80,21 +131,80 @@ def unit_latency(config: BenchConfig) -> float:
     return float(getattr(config.unit, "latency", 0.0) or 0.0)
 
 
-def bias_stability(config: BenchConfig) -> NDArray[np.float64]:
-    """Bias instability per axis, m/s² (the per-step unmodelled DC offset of the error budget)."""
-    return np.asarray(config.unit.noise.bias_instability, dtype=float)
+def bias_stability(config: BenchConfig, model: ModelSpec | None = None) -> NDArray[np.float64]:
+    """Bias instability per axis (the per-step unmodelled DC offset of the error budget): m/s², then rad/s."""
+    acc = np.asarray(config.unit.noise.bias_instability, dtype=float)
+    if model is None or model.n_axes == 3:
+        return acc
+    return np.concatenate([acc, np.asarray(config.unit.noise.gyro_bias_instability, dtype=float)])
+
+
+def earth_in_body(
+    angles: NDArray[np.float64], latitude: float, mounting: NDArray[np.float64] | None
+) -> NDArray[np.float64]:
+    """Earth rate in the body frame at gimbal angles (n, 3), rad/s: C_n^b Ω [0, cos φ, sin φ] (ENU)."""
+    c_bn = body_to_nav(angles, mounting)
+    return np.einsum("nji,j->ni", c_bn, earth_rate_enu(latitude))
+
+
+def angle_over_time(
+    t: NDArray[np.float64],
+    table_time: NDArray[np.float64],
+    table_angles: NDArray[np.float64],
+    span: tuple[float, float],
+) -> NDArray[np.float64] | None:
+    """Gimbal rates (3,) rad/s of a spin as the least-squares slope of the encoder angles over the span.
+
+    The scale reference of the gyro: the angle the encoder measured over the time the controller measured,
+    not a commanded or reported rate. None when the span holds fewer than 3 readings.
+    """
+    keep = (table_time >= span[0]) & (table_time <= span[1])
+    if np.count_nonzero(keep) < 3:
+        return None
+    tt = table_time[keep] - float(np.mean(table_time[keep]))
+    ang = table_angles[keep]
+    return (tt @ (ang - ang.mean(axis=0))) / float(tt @ tt)
+
+
+def window_reference(
+    t: NDArray[np.float64],
+    table_time: NDArray[np.float64],
+    table_angles: NDArray[np.float64],
+    table_rates: NDArray[np.float64],
+    config: BenchConfig,
+    latency: float,
+    span: tuple[float, float],
+    spin: bool,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The reference of one acquisition window (body frame, SI): f_ref, table rate ω, angles, and ``earth``.
+
+    ``earth`` is what the gyro reference adds to ω: the Earth rate C_n^b Ω^n at the site, and during a spin
+    the difference between the table rate from the encoder angles' slope over the window
+    (:func:`angle_over_time`) and the interpolated reported rate — so the gyro sees ω_ib from angle over
+    time while the accelerometer's centripetal term keeps the reported rate.
+    """
+    mnt = config.unit.mounting
+    fr, om, ang = reference_for_samples(
+        t, table_time, table_angles, table_rates, g=config.site.g, mounting=mnt, latency=latency, span=span
+    )
+    earth = earth_in_body(ang, config.site.latitude, mnt)
+    if spin:
+        slope = angle_over_time(t, table_time, table_angles, span)
+        if slope is not None:
+            earth = earth + body_rate(ang, np.broadcast_to(slope, ang.shape), mnt) - om
+    return fr, om, ang, earth
 
 
 def offset_covariance(windows: list[tuple[float, float]], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(3, K, K) covariance of the step-mean bias offsets over K acquisition windows (bench s), per body axis.
+    """(axes, K, K) covariance of the step-mean bias offsets over K acquisition windows (bench s), per axis.
 
     The unit's bias instability B (bench file) as flicker noise (:mod:`analysis.identification.bias_drift`): correlated
     between steps, so slow wander across a sequence of positions is propagated, not assumed independent.
     """
     starts = np.array([w[0] for w in windows])
     ends = np.array([w[1] for w in windows])
-    out = np.zeros((3, len(windows), len(windows)))
-    for axis in range(3):
+    out = np.zeros((b.size, len(windows), len(windows)))
+    for axis in range(b.size):
         if b[axis] > 0:
             out[axis] = window_mean_covariance(starts, ends, *flicker_components(float(b[axis])))
     return out
@@ -106,6 +216,7 @@ def offset_covariance(windows: list[tuple[float, float]], b: NDArray[np.float64]
 def _plan_steps_and_windows(
     compiled: CompiledProcedure, config: BenchConfig, sample_rate: float | None = None
 ) -> list[tuple[PlanStep, tuple[float, float]]]:
+    lat, mnt = config.site.latitude, config.unit.mounting
     rate = float(sample_rate or config.unit.sample_rate)
     limits = config.turntable.limits
     # nominal acquisition window of every step in bench time (step end minus the spin's ramp down)
@@ -120,26 +231,30 @@ def _plan_steps_and_windows(
         if not isinstance(ns.step, IDENTIFIED_STEPS) or not np.all(np.isfinite(ns.angles)):
             continue
         f_ref, omega = reference_at(ns.angles, ns.rates, config.site.g, config.unit.mounting)
-        out.append((PlanStep(ns.step.name, f_ref, omega, ns.weights, ns.angles), window[ns.step.name]))
+        earth = earth_in_body(ns.angles, lat, mnt)
+        out.append((PlanStep(ns.step.name, f_ref, omega, ns.weights, ns.angles, earth), window[ns.step.name]))
     if not out:
         raise IdentificationError(f"procedure {compiled.name!r} has no hold or spin to identify from")
     return out
 
 
-def plan_for(compiled: CompiledProcedure, config: BenchConfig) -> IdentificationPlan:
+def plan_for(compiled: CompiledProcedure, config: BenchConfig, model: ModelSpec | None = None) -> IdentificationPlan:
     """Predicted 1σ of every parameter for a procedure on a bench, before any motion.
 
-    White noise from the bench's VRW, prior from its datasheet bounds, and the bias instability as
-    correlated flicker between the steps' nominal acquisition windows (:func:`offset_covariance`).
+    White noise from the bench's VRW (and ARW), prior from its datasheet bounds, and the bias instability
+    as correlated flicker between the steps' nominal acquisition windows (:func:`offset_covariance`). The
+    model defaults to the unit's (:func:`unit_model`: accelerometer + gyro).
     """
+    m = unit_model(config) if model is None else model
     pairs = _plan_steps_and_windows(compiled, config)
-    b = bias_stability(config)
+    b = bias_stability(config, m)
     return plan_identification(
         [p for p, _ in pairs],
-        configured_noise_variance(config),
-        prior_covariance(config),
+        configured_noise_variance(config, m),
+        prior_covariance(config, m),
         b,
         offset_covariance=offset_covariance([w for _, w in pairs], b),
+        model=m,
     )
 
 
@@ -166,7 +281,9 @@ class LiveIdentifier:
     step end (one exact information-form update per batch: with Q = 0 grouping samples changes nothing).
     The reference for the buffered samples interpolates the table readings taken during (and just before)
     the buffer at the sample times less the unit's latency — the same readings offline identification
-    interpolates, so the live result equals the offline one.
+    interpolates, so the live result equals the offline one. A spin is fused once, at its end: its gyro
+    reference rate is the slope of the encoder angles over the whole acquisition (:func:`window_reference`).
+    The model is the unit's (:func:`unit_model`), with the gyro when ``with_gyro``.
     """
 
     def __init__(
@@ -175,11 +292,14 @@ class LiveIdentifier:
         progress: ProgressDisplay | None = None,
         show: tuple[str, ...] = ("b_z", "S_z", "r_x"),
         update_seconds: float = 2.0,
+        with_gyro: bool = True,
     ) -> None:
         self.config = config
+        self.model = m = unit_model(config, with_gyro)
         self.filter = StreamingIdentifier(
-            configured_noise_variance(config), prior_covariance(config), sample_rate=config.unit.sample_rate
-        )
+            configured_noise_variance(config, m), prior_covariance(config, m), sample_rate=config.unit.sample_rate,
+            model=m,
+        )  # fmt: skip
         self.latency = unit_latency(config)
         self.progress = progress
         self.show = show
@@ -189,6 +309,7 @@ class LiveIdentifier:
         self._accel: list[NDArray[np.float64]] = []
         self._n = 0
         self._step: str | None = None
+        self._spin = False
         self._acq_t0 = 0.0
 
     def on_block(self, step: Step, block: ImuBlock, table: TableState, counts: bool) -> None:
@@ -203,10 +324,11 @@ class LiveIdentifier:
         if self._step != step.name:
             self._acq_t0 = float(block.time[0])
         self._step = step.name
+        self._spin = isinstance(step, Spin)
         self._times.append(block.time)
-        self._accel.append(block.accel)
+        self._accel.append(np.hstack([block.accel, block.gyro]) if self.model.n_axes == 6 else block.accel)
         self._n += len(block)
-        if self._n >= self._flush_n:
+        if self._n >= self._flush_n and not self._spin:
             self.flush()
 
     def on_step_end(self, step: Step, record: StepRecord) -> None:
@@ -219,17 +341,17 @@ class LiveIdentifier:
             return
         t = np.concatenate(self._times)
         rd = self._readings
-        f_ref, omega, _ang = reference_for_samples(
+        f_ref, omega, _ang, earth = window_reference(
             t,
             np.array([r.time for r in rd]),
             np.stack([r.angles for r in rd]),
             np.stack([r.rates for r in rd]),
-            g=self.config.site.g,
-            mounting=self.config.unit.mounting,
-            latency=self.latency,
-            span=acquisition_span(self._acq_t0, float(t[-1]), self.latency, float(self.config.unit.sample_rate)),
+            self.config,
+            self.latency,
+            acquisition_span(self._acq_t0, float(t[-1]), self.latency, float(self.config.unit.sample_rate)),
+            self._spin,
         )
-        self.filter.update(np.concatenate(self._accel), f_ref, omega, self._step, t=t)
+        self.filter.update(np.concatenate(self._accel), f_ref, omega, self._step, t=t, earth=earth)
         self._times.clear()
         self._accel.clear()
         self._n = 0
@@ -238,8 +360,8 @@ class LiveIdentifier:
             x, s = self.filter.estimate, self.filter.sigma
             parts = []
             for name in self.show:
-                k = ACCEL_MODEL.index(name)
-                unit, one = DISPLAY_UNITS[ACCEL_MODEL.kinds[k]]
+                k = self.model.index(name)
+                unit, one = DISPLAY_UNITS[self.model.kinds[k]]
                 parts.append(f"{name} {x[k] / one:.4g}±{s[k] / one:.2g} {unit}")
             self.progress.extra(", ".join(parts) + " (± = filter white-noise 1σ, k = 1)")
 
@@ -258,6 +380,17 @@ class StepWindow:
     f_ref: NDArray[np.float64]
     omega: NDArray[np.float64]
     angles: NDArray[np.float64] | None = None
+    gyro: NDArray[np.float64] | None = None
+    """Gyro output (n, 3), rad/s, body frame (None: accelerometer only)."""
+    earth: NDArray[np.float64] | None = None
+    """What the gyro reference adds to ``omega`` (n, 3), rad/s: Earth rate (+ the spin's angle-over-time rate)."""
+
+    def output(self, model: ModelSpec) -> NDArray[np.float64]:
+        """The unit's output for ``model``: accelerometer (n, 3), or accelerometer and gyro side by side (n, 6)."""
+        if model.n_axes == 3:
+            return self.f_out
+        assert self.gyro is not None
+        return np.hstack([self.f_out, self.gyro])
 
 
 @dataclass
@@ -272,17 +405,53 @@ class RecordedRun:
     truth: dict[str, float] | None
     incomplete_steps: list[str]
     temperature: NDArray[np.float64]
+    warmup_gyro: NDArray[np.float64] | None = None
+    model: ModelSpec = ACCEL_MODEL
+    """The model identified from this recording (:func:`unit_model`: with the gyro when it has gyro data)."""
 
 
 ACCEL_INVALID = 0b111
 """``/imu/status`` bits of the accelerometer channels (bit set = sample invalid,
 drivers.imu_unit.description.FLAG_BITS): flagged samples are left out of the identification, never silently used."""
+GYRO_INVALID = 0b111000
+"""``/imu/status`` bits of the gyro channels (with the gyro model, a row with either triad flagged is left out)."""
 
 
-def load_run(run: str | Path) -> RecordedRun:
+def _has_gyro(rec: Any, steps: list[StepRecord]) -> bool:
+    """True when the recording's gyro channels carry data in its identified windows (not all flagged, not all 0)."""
+    for s in steps:
+        if s.status == "complete" and s.kind in _IDENTIFIED_KINDS and s.acq_end > s.acq_start:
+            stop = min(int(s.acq_end), int(s.acq_start) + 1000)
+            smp = rec.samples(s.acq_start, stop, ("gyro", "status"))
+            ok = (smp.status & GYRO_INVALID) == 0
+            return bool(np.any(ok) and np.any(smp.gyro[ok] != 0.0))
+    return False
+
+
+def _read_window(rec: Any, s: StepRecord, config: BenchConfig, table: Any, with_gyro: bool) -> StepWindow | None:
+    """One hold/spin acquisition window with its reference (flagged samples left out); None when all flagged."""
+    latency = unit_latency(config)
+    smp = rec.samples(s.acq_start, s.acq_end, ("time", "accel", "status") + (("gyro",) if with_gyro else ()))
+    t, fo, st, gy = smp.time, smp.accel, smp.status, smp.gyro
+    assert t is not None and fo is not None and st is not None
+    valid = (st & (ACCEL_INVALID | (GYRO_INVALID if with_gyro else 0))) == 0  # flagged by the unit
+    if not valid.all():
+        t, fo = t[valid], fo[valid]
+        gy = None if gy is None else gy[valid]
+        if t.size == 0:
+            return None
+    span = acquisition_span(float(t[0]), float(t[-1]), latency, float(config.unit.sample_rate))
+    fr, om, ang, earth = window_reference(
+        t, table.time, table.angles, table.rates, config, latency, span, s.kind == Spin.kind
+    )
+    return StepWindow(s.name, s.kind, t, fo, fr, om, ang, gy if with_gyro else None, earth)
+
+
+def load_run(run: str | Path, with_gyro: bool | None = None) -> RecordedRun:
     """Read a recording's acquisition windows and reference; clear errors for unusable recordings.
 
     The recording is verified first (every checksum): identification never runs on damaged data.
+    ``with_gyro``: identify the gyro triad too (default: when the recording has gyro data).
     """
     try:
         rec = open_recording(run)
@@ -303,36 +472,27 @@ def load_run(run: str | Path) -> RecordedRun:
             raise IdentificationError(f"{path}: no completed step in the recording (was the run stopped at once?)")
         n = rec.n_samples
         table = rec.table()
-        latency = unit_latency(config)
+        gyro = _has_gyro(rec, steps) if with_gyro is None else with_gyro
+        model = unit_model(config, gyro)
         windows: list[StepWindow] = []
         warm: NDArray[np.float64] | None = None
+        warm_g: NDArray[np.float64] | None = None
         incomplete = [s.name for s in steps if s.status != "complete"]
         for s in steps:
             if s.status != "complete" or s.acq_end <= s.acq_start:
                 continue
             if s.kind == Warmup.kind:
-                warm = rec.samples(s.acq_start, s.acq_end, ("accel",)).accel
+                wsmp = rec.samples(s.acq_start, s.acq_end, ("accel", "gyro"))
+                warm, warm_g = wsmp.accel, wsmp.gyro
                 continue
-            if s.kind not in _IDENTIFIED_KINDS:
-                continue
-            smp = rec.samples(s.acq_start, s.acq_end, ("time", "accel", "status"))
-            t, fo, st = smp.time, smp.accel, smp.status
-            assert t is not None and fo is not None and st is not None
-            valid = (st & ACCEL_INVALID) == 0  # flagged by the unit
-            if not valid.all():
-                t, fo = t[valid], fo[valid]
-                if t.size == 0:
-                    continue
-            span = acquisition_span(float(t[0]), float(t[-1]), latency, float(config.unit.sample_rate))
-            fr, om, ang = reference_for_samples(
-                t, table.time, table.angles, table.rates, g=config.site.g, mounting=config.unit.mounting,
-                latency=latency, span=span,
-            )  # fmt: skip
-            windows.append(StepWindow(s.name, s.kind, t, fo, fr, om, ang))
+            if s.kind in _IDENTIFIED_KINDS:
+                win = _read_window(rec, s, config, table, gyro)
+                if win is not None:
+                    windows.append(win)
         tr = rec.truth()
         truth = None
         if tr is not None and all(n_ in tr.parameters for n_ in ACCEL_MODEL.names):
-            truth = {n_: float(tr.parameters[n_]) for n_ in ACCEL_MODEL.names}
+            truth = {n_: float(tr.parameters[n_]) for n_ in model.names if n_ in tr.parameters}
         temp = rec.samples(fields=("temperature",), index=np.arange(0, n, max(1, n // 10000))).temperature
         temp = temp if temp is not None else np.zeros(0)
     if not windows:
@@ -340,21 +500,24 @@ def load_run(run: str | Path) -> RecordedRun:
             f"{path}: no complete hold or spin step to identify from (procedure {attrs.get('procedure_name')!r}); "
             "run a calibration procedure such as ten-step"
         )
-    return RecordedRun(path, attrs, config, windows, warm, truth, incomplete, temp)
+    return RecordedRun(path, attrs, config, windows, warm, truth, incomplete, temp, warm_g, model)
 
 
 def _windows_as_plan_steps(windows: list[StepWindow], max_points: int = 4000) -> list[PlanStep]:
     out = []
     for w in windows:
         m = w.f_ref.shape[0]
+        ea = w.earth
         if w.kind == "hold":
-            out.append(PlanStep(w.name, w.f_ref.mean(0, keepdims=True), w.omega.mean(0, keepdims=True), np.array([m])))
+            mean = None if ea is None else ea.mean(0, keepdims=True)
+            out.append(PlanStep(w.name, w.f_ref.mean(0, keepdims=True), w.omega.mean(0, keepdims=True), np.array([m]),
+                                earth=mean))  # fmt: skip
         else:
             k = max(1, math.ceil(m / max_points))
             idx = np.arange(0, m, k)
             wts = np.full(idx.size, float(k))
             wts[-1] = m - k * (idx.size - 1)
-            out.append(PlanStep(w.name, w.f_ref[idx], w.omega[idx], wts))
+            out.append(PlanStep(w.name, w.f_ref[idx], w.omega[idx], wts, earth=None if ea is None else ea[idx]))
     return out
 
 
@@ -362,8 +525,128 @@ def _display(model: ModelSpec, k: int, value: float) -> float:
     return value / DISPLAY_UNITS[model.kinds[k]][1]
 
 
-def identify_run(run: str | Path, method: str = "kalman", noise: str = "configured") -> CalibrationResult:
-    """Identify the 18 parameters from a recording; returns the typed calibration result.
+def _noise_variance(rr: RecordedRun, noise: str) -> NDArray[np.float64]:
+    """R per axis: the bench's configured densities, or estimated from the run's warm-up record."""
+    model = rr.model
+    if noise == "configured":
+        return configured_noise_variance(rr.config, model)
+    if noise == "warm-up":
+        if rr.warmup_accel is None or rr.warmup_accel.shape[0] < 100:
+            raise IdentificationError(f"{rr.path}: no warm-up record to estimate R from; use --noise configured")
+        warm = rr.warmup_accel
+        if model.n_axes == 6:
+            assert rr.warmup_gyro is not None
+            warm = np.hstack([warm, rr.warmup_gyro])
+        return estimate_measurement_noise(warm)
+    raise IdentificationError(f"unknown noise source {noise!r}; use configured or warm-up")
+
+
+def _estimate(
+    rr: RecordedRun, method: str, r_var: NDArray[np.float64], p0: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], list[dict[str, Any]], dict[str, Any] | None]:
+    """Estimate, white covariance, data information, per-step residual rows and (Kalman) history."""
+    model = rr.model
+    if method == "kalman":
+        kf = StreamingIdentifier(r_var, p0, sample_rate=rr.config.unit.sample_rate, model=model)
+        for w in rr.windows:
+            kf.update(w.output(model), w.f_ref, w.omega, w.name, t=w.t, earth=w.earth)
+        per_step = [
+            {"name": name, "samples": int(st.count), "mean": list(map(float, st.mean)), "rms": list(map(float, st.rms))}
+            for name, st in kf.residual_statistics().items()
+        ]
+        history = {
+            "time": [h.time for h in kf.history],
+            "step": [h.step for h in kf.history],
+            "estimate": [list(map(float, h.x)) for h in kf.history],
+            "sigma": [list(map(float, h.sigma)) for h in kf.history],
+        }
+        return kf.estimate, kf.covariance, kf.information, per_step, history
+    ws = rr.windows
+    earth = None if model.n_axes == 3 else np.concatenate([w.earth for w in ws])  # type: ignore[misc]
+    res = batch_identify(
+        np.concatenate([w.output(model) for w in ws]), np.concatenate([w.f_ref for w in ws]),
+        np.concatenate([w.omega for w in ws]), r_var, None, p0, model=model, earth=earth,
+    )  # fmt: skip
+    per_step = []
+    for w in ws:
+        r = w.output(model) - model.predict(res.x, w.f_ref, w.omega, w.earth)
+        per_step.append(
+            {
+                "name": w.name,
+                "samples": int(r.shape[0]),
+                "mean": list(map(float, r.mean(0))),
+                "rms": list(map(float, np.sqrt((r**2).mean(0)))),
+            }
+        )
+    return res.x, res.covariance, res.information, per_step, None
+
+
+def _truth_check(
+    model: ModelSpec,
+    truth: dict[str, float] | None,
+    x: NDArray[np.float64],
+    p_total: NDArray[np.float64],
+    identified: list[bool],
+) -> dict[str, Any] | None:
+    """Errors against the simulator's truth (the parameters it states), NEES over the identified ones."""
+    if not truth:
+        return None
+    sigma = np.sqrt(np.diag(p_total))
+    have = [k for k, n in enumerate(model.names) if n in truth]
+    err = {k: x[k] - truth[model.names[k]] for k in have}
+    idx = np.array([k for k in have if identified[k]], dtype=int)
+    e = np.array([err[k] for k in idx])
+    nees = float(e @ np.linalg.solve(p_total[np.ix_(idx, idx)], e)) if idx.size else float("nan")
+    return {
+        "values": {model.names[k]: float(truth[model.names[k]]) for k in have},
+        "error_over_u": {model.names[k]: float(err[k] / sigma[k]) for k in have},
+        "nees": nees,
+        "dof": int(idx.size),
+        "nees_states": [model.names[i] for i in idx],
+    }
+
+
+def _run_block(rr: RecordedRun) -> dict[str, Any]:
+    """calibration.json ``run``: what was run where, on which unit and table (from the recording)."""
+    a = rr.attrs
+    config = rr.config
+    temp = rr.temperature
+    return {
+        "status": str(a.get("status", "")),
+        "bench_name": str(a.get("bench_name", "")),
+        "procedure_name": str(a.get("procedure_name", "")),
+        "procedure_sha256": str(a.get("procedure_sha256", "")),
+        "procedure_overrides": dict(a.get("procedure_overrides") or {}),
+        "integrity_verified": bool(a.get("integrity_verified", False)),
+        "integrity_note": str(a.get("integrity_note", "")),
+        "seed": -1 if a.get("seed") is None else int(a["seed"]),
+        "created_utc": str(a.get("created_utc", "")),
+        "transport": str(a.get("transport", "")),
+        "site": {
+            "name": config.site.name,
+            "latitude_deg": math.degrees(config.site.latitude),
+            "height_m": config.site.height,
+            "g": config.site.g,
+            "g_source": config.site.g_source,
+        },
+        "unit": {"model": config.unit.model, "serial_number": config.unit.serial_number},
+        "table": {
+            "model": config.turntable.model,
+            "serial_number": config.turntable.serial_number,
+            "attitude_accuracy": config.turntable.attitude_accuracy,
+        },
+        "temperature_k": {
+            "mean": float(temp.mean()) if temp.size else None,
+            "min": float(temp.min()) if temp.size else None,
+            "max": float(temp.max()) if temp.size else None,
+        },
+    }
+
+
+def identify_run(
+    run: str | Path, method: str = "kalman", noise: str = "configured", *, with_gyro: bool | None = None
+) -> CalibrationResult:
+    """Identify the unit's parameters from a recording; returns the typed calibration result.
 
     Parameters
     ----------
@@ -372,78 +655,37 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
     method : {"kalman", "batch"}
         The streaming filter over all windows in order, or batch least squares (same prior, same model).
     noise : {"configured", "warm-up"}
-        R from the bench's configured VRW, or estimated from the run's warm-up record.
+        R from the bench's configured VRW/ARW, or estimated from the run's warm-up record.
+    with_gyro : bool, optional
+        Identify the gyro triad too (default: when the recording has gyro data; False: accelerometer only).
     """
     if method not in ("kalman", "batch"):
         raise IdentificationError(f"unknown method {method!r}; use kalman or batch")
-    rr = load_run(run)
-    model = ACCEL_MODEL
+    rr = load_run(run, with_gyro)
+    model = rr.model
     config = rr.config
-    p0 = prior_covariance(config)
-    if noise == "configured":
-        r_var = configured_noise_variance(config)
-    elif noise == "warm-up":
-        if rr.warmup_accel is None or rr.warmup_accel.shape[0] < 100:
-            raise IdentificationError(f"{rr.path}: no warm-up record to estimate R from; use --noise configured")
-        r_var = estimate_measurement_noise(rr.warmup_accel)
-    else:
-        raise IdentificationError(f"unknown noise source {noise!r}; use configured or warm-up")
-    history = None
-    if method == "kalman":
-        kf = StreamingIdentifier(r_var, p0, sample_rate=config.unit.sample_rate)
-        for w in rr.windows:
-            kf.update(w.f_out, w.f_ref, w.omega, w.name, t=w.t)
-        x, p_white, info = kf.estimate, kf.covariance, kf.information
-        resid = kf.residual_statistics()
-        per_step = [
-            {"name": name, "samples": int(st.count), "mean": list(map(float, st.mean)), "rms": list(map(float, st.rms))}
-            for name, st in resid.items()
-        ]
-        history = {
-            "time": [h.time for h in kf.history],
-            "step": [h.step for h in kf.history],
-            "estimate": [list(map(float, h.x)) for h in kf.history],
-            "sigma": [list(map(float, h.sigma)) for h in kf.history],
-        }
-    else:
-        res = batch_identify(
-            np.concatenate([w.f_out for w in rr.windows]),
-            np.concatenate([w.f_ref for w in rr.windows]),
-            np.concatenate([w.omega for w in rr.windows]),
-            r_var,
-            None,
-            p0,
-        )
-        x, p_white, info = res.x, res.covariance, res.information
-        per_step = []
-        for w in rr.windows:
-            r = w.f_out - model.predict(x, w.f_ref, w.omega)
-            per_step.append(
-                {
-                    "name": w.name,
-                    "samples": int(r.shape[0]),
-                    "mean": list(map(float, r.mean(0))),
-                    "rms": list(map(float, np.sqrt((r**2).mean(0)))),
-                }
-            )
+    p0 = prior_covariance(config, model)
+    r_var = _noise_variance(rr, noise)
+    x, p_white, info, per_step, history = _estimate(rr, method, r_var, p0)
     kinds = {w.name: w.kind for w in rr.windows}
     for s in per_step:
         s["kind"] = kinds.get(s["name"], "")
     # honest total uncertainty: white + bias-instability systematic term, on the actual data geometry
-    b = bias_stability(config)
+    b = bias_stability(config, model)
     actual = plan_identification(
         _windows_as_plan_steps(rr.windows),
         r_var,
         p0,
         b,
         offset_covariance=offset_covariance([(float(w.t[0]), float(w.t[-1])) for w in rr.windows], b),
+        model=model,
     )
     p_total = p_white + (actual.covariance_total - actual.covariance_white)
     p_total = 0.5 * (p_total + p_total.T)
     sigma = np.sqrt(np.diag(p_total))
     sigma_white = np.sqrt(np.diag(p_white))
-    rank, cond = information_rank(info, r_var)
-    unobs = set(unobservable_parameters(info, r_var)) | set(actual.unidentifiable)
+    rank, cond = information_rank(info, r_var, model=model)
+    unobs = set(unobservable_parameters(info, r_var, model=model)) | set(actual.unidentifiable)
     params: dict[str, Any] = {}
     for k, name in enumerate(model.names):
         kind = model.kinds[k]
@@ -463,28 +705,19 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
     n_s = np.array([st["samples"] for st in per_step], dtype=float)
     ms_s = np.array([st["rms"] for st in per_step]) ** 2
     rms_all = np.sqrt((n_s[:, None] * ms_s).sum(0) / n_s.sum())
-    truth_block = None
-    if rr.truth is not None:
-        xt = np.array([rr.truth[n_] for n_ in model.names])
-        err = x - xt
-        ident = np.array([params[n_]["identified"] for n_ in model.names])
-        idx = np.flatnonzero(ident)
-        sub = p_total[np.ix_(idx, idx)]
-        nees = float(err[idx] @ np.linalg.solve(sub, err[idx]))
-        truth_block = {
-            "values": rr.truth,
-            "error_over_u": {n_: float(err[k] / sigma[k]) for k, n_ in enumerate(model.names)},
-            "nees": nees,
-            "dof": int(idx.size),
-            "nees_states": [model.names[i] for i in idx],
-        }
+    truth_block = _truth_check(model, rr.truth, x, p_total, [params[n]["identified"] for n in model.names])
     warnings = list(actual.warnings)
+    dflt = defaulted_priors(config, model)
+    if dflt:
+        warnings.append(
+            f"the bench file states no prior for {', '.join(dflt)}: tactical-grade defaults used "
+            "(10 °/h, 1000 ppm, 100″, 1 °/h/g); give unit.prior gyro_* keys from the datasheet"
+        )
     if rr.incomplete_steps:
         warnings.insert(0, f"recording incomplete: step(s) {', '.join(rr.incomplete_steps)} not completed")
     if not rr.attrs.get("integrity_verified", False):
         warnings.insert(0, str(rr.attrs.get("integrity_note") or "recording integrity cannot be verified"))
     a = rr.attrs
-    temp = rr.temperature
     result = {
         "format": "tablebench-calibration",
         "format_version": 2,
@@ -492,7 +725,7 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
         "recording_sha256": file_sha256(rr.path),
         "software_version": str(a.get("software_version", "")),
         "method": method,
-        "model": MODEL_TEXT,
+        "model": model.equation,
         "parameter_names": list(model.names),
         "parameters": params,
         "covariance": [list(map(float, row)) for row in p_total],
@@ -513,36 +746,7 @@ def identify_run(run: str | Path, method: str = "kalman", noise: str = "configur
         },
         "truth": truth_block,
         "history": history,
-        "run": {
-            "status": str(a.get("status", "")),
-            "bench_name": str(a.get("bench_name", "")),
-            "procedure_name": str(a.get("procedure_name", "")),
-            "procedure_sha256": str(a.get("procedure_sha256", "")),
-            "procedure_overrides": dict(a.get("procedure_overrides") or {}),
-            "integrity_verified": bool(a.get("integrity_verified", False)),
-            "integrity_note": str(a.get("integrity_note", "")),
-            "seed": -1 if a.get("seed") is None else int(a["seed"]),
-            "created_utc": str(a.get("created_utc", "")),
-            "transport": str(a.get("transport", "")),
-            "site": {
-                "name": config.site.name,
-                "latitude_deg": math.degrees(config.site.latitude),
-                "height_m": config.site.height,
-                "g": config.site.g,
-                "g_source": config.site.g_source,
-            },
-            "unit": {"model": config.unit.model, "serial_number": config.unit.serial_number},
-            "table": {
-                "model": config.turntable.model,
-                "serial_number": config.turntable.serial_number,
-                "attitude_accuracy": config.turntable.attitude_accuracy,
-            },
-            "temperature_k": {
-                "mean": float(temp.mean()) if temp.size else None,
-                "min": float(temp.min()) if temp.size else None,
-                "max": float(temp.max()) if temp.size else None,
-            },
-        },
+        "run": _run_block(rr),
         "warnings": warnings,
     }
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(p_total)) and np.all(np.isfinite(p_white))):

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from analysis.earth import normal_gravity
 from analysis.identification.model import PARAM_NAMES
 from analysis.units import ARCSEC, DEG, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MM, PPM, UG, UG_PER_G2
@@ -83,6 +85,26 @@ class GyroTruth:
     scale: Vec3 = (0.0, 0.0, 0.0)
     misalignment: tuple[float, float, float, float, float, float] = (0.0,) * 6
     g_sensitivity: Mat3 = _Z3
+
+
+def gyro_truth(gyro: GyroTruth) -> dict[str, float]:
+    """The gyro model's parameters by name (``gyro_b_x`` …, SI) for a simulated gyro truth."""
+    ax = "xyz"
+    others = ((1, 2), (0, 2), (0, 1))
+    g = np.asarray(gyro.g_sensitivity, dtype=float)
+    out = {f"gyro_b_{ax[i]}": float(gyro.bias[i]) for i in range(3)}
+    out |= {f"gyro_S_{ax[i]}": float(gyro.scale[i]) for i in range(3)}
+    tau = [f"gyro_tau_{ax[i]}{ax[j]}" for i in range(3) for j in others[i]]
+    out |= {n: float(v) for n, v in zip(tau, gyro.misalignment, strict=True)}
+    out |= {f"gyro_G_{ax[i]}{ax[i]}": float(g[i, i]) for i in range(3)}
+    out |= {f"gyro_G_{ax[i]}{ax[j]}": float(g[i, j]) for i in range(3) for j in others[i]}
+    s2 = getattr(gyro, "quadratic", None)
+    asym = getattr(gyro, "asymmetry", None)
+    if s2 is not None and any(s2):
+        out |= {f"gyro_S2_{ax[i]}": float(s2[i]) for i in range(3)}
+    if asym is not None and any(asym):
+        out |= {f"gyro_A_{ax[i]}": float(asym[i]) for i in range(3)}
+    return out
 
 
 @dataclass(frozen=True)
@@ -305,6 +327,7 @@ def example_navigation_grade() -> SimConfig:
 
 __all__ = [
     "ACCEL_PARAM_NAMES",
+    "gyro_truth",
     "CHANNELS",
     "MISALIGNMENT_PAIRS",
     "AccelTruth",

@@ -43,7 +43,7 @@ from analysis.earth import earth_rate_enu
 from drivers.imu_unit.counts import CountScale, RawFrames, concat_frames
 from drivers.protocols import AxisLimits, AxisMode, FaultCode, TableError, TableState, TableStatus
 from drivers.sim.chamber import ChamberPhysics
-from drivers.sim.config import ACCEL_PARAM_NAMES, SimConfig
+from drivers.sim.config import ACCEL_PARAM_NAMES, SimConfig, gyro_truth
 from drivers.sim.imu_model import InertialModel, misalignment_matrix
 from drivers.sim.motion import AxisPlan, plan_hold, plan_position, plan_rate, plan_stop
 
@@ -596,7 +596,11 @@ class SimulatedWorld:
 
     # ---- truth ---------------------------------------------------------------------------------------
     def truth(self) -> dict[str, float]:
-        """The 18 accelerometer-model parameters by name, SI, as the model can identify them.
+        """The 18 accelerometer-model parameters and the gyro model's, by name, SI, as the models identify them.
+
+        Gyro names (``docs/methods/gyro-calibration.md``): ``gyro_b_*``, ``gyro_S_*``, ``gyro_tau_*`` and all
+        nine ``gyro_G_*`` (the default model identifies the diagonal three); the simulated gyro has no
+        quadratic or asymmetry term unless configured, when ``gyro_S2_*``/``gyro_A_*`` are added.
 
         The size effect is the lever-arm term as the accelerometer senses it: accelerometer i (sensing row
         m_i = e_i + S_i e_i + τ_ij e_j + τ_ik e_k of I+S+T) at ρ_i, during a spin at ω about body axis j ≠ i,
@@ -614,7 +618,8 @@ class SimulatedWorld:
             others = [k for k in range(3) if k != i]
             r[i] = -m[i, i] * rho[i, i] - 0.5 * sum(m[i, k] * rho[i, k] for k in others)
         vals = [*a.bias, *a.scale, *a.misalignment, *a.quadratic, *r]
-        return {name: float(v) for name, v in zip(ACCEL_PARAM_NAMES, vals, strict=True)}
+        out = {name: float(v) for name, v in zip(ACCEL_PARAM_NAMES, vals, strict=True)}
+        return out | gyro_truth(self.cfg.gyro)
 
     def truth_arrays(self) -> dict[str, NDArray[np.float64]]:
         """Everything else the simulator knows, SI, body frame (lever arms, gyro errors, noise, site…)."""
