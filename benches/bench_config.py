@@ -286,7 +286,9 @@ def _axis(d: dict, smap: SourceMap, p: KeyPath) -> AxisLimits:
 
 
 TURNTABLE_DRIVERS = ["sim", "acutrol", "modbus-tcp"]
-SIM_CONTROLLERS = ["acutrol", "modbus"]
+SIM_CONTROLLERS = ["acutrol", "modbus", "modbus-strict"]
+"""Simulated controllers: an ACUTROL (ACL), the tablebench Modbus controller, or a strict PLC (same register map
+and world, its watchdog running from power-up, not from the first heartbeat)."""
 
 
 def _acl(d: dict | None, smap: SourceMap, p: KeyPath, resource: str | None, simulated: bool) -> AclSettings:
@@ -425,6 +427,13 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
                         f"{v / DEG:g}° is outside the controller's full-scale range ±{half:g}° (turntable.acl."
                         "full_scale_deg)",
                     )
+    word_order = get_str(d, smap, p, "float_word_order", None, choices=["big", "little"])
+    if modbus_map is not None and word_order is not None and word_order != modbus_map.word_order:
+        raise smap.error(
+            p + ("float_word_order",),
+            f"{word_order!r} contradicts the register map {modbus_map.source} (word_order: {modbus_map.word_order}); "
+            "remove float_word_order (the map is the authority) or correct the map",
+        )
     wd = get_number(d, smap, p, "watchdog_s", 2.0, minimum=0)
     hb = get_number(d, smap, p, "heartbeat_period_s", 0.5, minimum=0, exclusive_minimum=True)
     if wd and hb >= wd:
@@ -441,7 +450,7 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
         watchdog=None if acl_speaker else (wd or None),
         model=str(d.get("model") or ""),
         serial_number=str(d.get("serial_number") or ""),
-        float_word_order=get_str(d, smap, p, "float_word_order", None, choices=["big", "little"]),
+        float_word_order=word_order,
         rate_accuracy=get_number(d, smap, p, "rate_accuracy_ppm", 0.0, minimum=0, maximum=1e5) * 1e-6,
         modbus_map=modbus_map,
         resource=resource,

@@ -17,9 +17,9 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,10 +35,178 @@ FORMAT_VERSION = 2
 ``covariance_white``, and "not identified" instead of null for an infinite predicted σ."""
 READABLE_VERSIONS = (1, 2)
 NOT_IDENTIFIED = "not identified"
+SI_UNITS = {k: v for m in ("accelerometer", "gyro") for k, v in get_model(m).si_units.items()}
+"""The SI unit written for each parameter kind."""
 
 
 class CalibrationFormatError(UserError, ValueError):
     """calibration.json is missing, of another format/version, or malformed; the message names the key."""
+
+
+# ---- the typed blocks of calibration.json --------------------------------------------------------------------------
+
+_B = TypeVar("_B", bound="_Block")
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Block:
+    """A calibration.json block read as typed members; absent keys are None and stay absent when written,
+    keys this version does not know are kept in ``other`` (files written by other versions round-trip)."""
+
+    other: dict[str, Any] = field(default_factory=dict)
+    KEY: ClassVar[str] = ""
+
+    @classmethod
+    def _names(cls) -> list[str]:
+        return [f.name for f in fields(cls) if f.name != "other"]
+
+    @classmethod
+    def from_mapping(cls: type[_B], d: Any, where: str = "calibration.json") -> _B:
+        """The block from its JSON mapping (values as read; the consumers check what they use)."""
+        if not isinstance(d, Mapping):
+            raise CalibrationFormatError(
+                f"{where}: {cls.KEY} is missing or malformed (expected a mapping, got {type(d).__name__}); see "
+                "benches/CALIBRATION_FORMAT.md, or identify the run again"
+            )
+        names = cls._names()
+        kw = {n: cls._read(n, d[n], where) for n in names if n in d}
+        return cls(**kw, other={k: v for k, v in d.items() if k not in names})
+
+    @classmethod
+    def _read(cls, name: str, value: Any, where: str) -> Any:
+        return value
+
+    def to_mapping(self) -> dict[str, Any]:
+        """The block as written to calibration.json (present members in declaration order, then ``other``)."""
+        out = {n: _plain(getattr(self, n)) for n in self._names() if getattr(self, n) is not None}
+        return {**out, **self.other}
+
+
+def _plain(v: Any) -> Any:
+    if isinstance(v, _Block):
+        return v.to_mapping()
+    if isinstance(v, tuple | list):
+        return [_plain(x) for x in v]
+    if isinstance(v, dict):
+        return {k: _plain(x) for k, x in v.items()}
+    return v
+
+
+@dataclass(frozen=True, kw_only=True)
+class InformationSummary(_Block):
+    """``information``: numerical rank and condition of the data information, the parameters it cannot
+    identify, and how the rank was decided (``condition`` is ``inf`` or the string written for it when
+    rank-deficient)."""
+
+    KEY: ClassVar[str] = "information"
+    rank: int | None = None
+    condition: float | str | None = None
+    unidentifiable: list[str] | None = None
+    tolerance: str | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class StepResiduals(_Block):
+    """One row of ``residuals.per_step``: the fit residual of one acquisition window (body frame, m/s²)."""
+
+    KEY: ClassVar[str] = "residuals.per_step"
+    name: str | None = None
+    samples: int | None = None
+    mean: list[float] | None = None
+    rms: list[float] | None = None
+    kind: str | None = None
+
+    def as_row(self) -> dict[str, Any]:
+        """The row as the certificate's budget and plots take it (a plain mapping)."""
+        return self.to_mapping()
+
+
+@dataclass(frozen=True, kw_only=True)
+class Residuals(_Block):
+    """``residuals``: overall RMS per axis (m/s²) and the rows per step."""
+
+    KEY: ClassVar[str] = "residuals"
+    rms: list[float] | None = None
+    per_step: tuple[StepResiduals, ...] | None = None
+
+    @classmethod
+    def _read(cls, name: str, value: Any, where: str) -> Any:
+        if name != "per_step" or value is None:
+            return value
+        if not isinstance(value, list | tuple):
+            raise CalibrationFormatError(
+                f"{where}: residuals.per_step is missing or malformed (expected a list of rows); see "
+                "benches/CALIBRATION_FORMAT.md, or identify the run again"
+            )
+        return tuple(StepResiduals.from_mapping(r, where) for r in value)
+
+    def rows(self) -> list[dict[str, Any]]:
+        """``per_step`` as plain mappings ([] when absent)."""
+        return [r.as_row() for r in self.per_step or ()]
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlanSummary(_Block):
+    """``plan``: the plan on the actual data geometry (predicted total 1σ per parameter, rank, warnings)."""
+
+    KEY: ClassVar[str] = "plan"
+    predicted_sigma: dict[str, float | str] | None = None
+    rank: int | None = None
+    warnings: list[str] | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class TruthCheck(_Block):
+    """``truth``: a simulated bench's true parameters and the estimate's errors against them (SI)."""
+
+    KEY: ClassVar[str] = "truth"
+    values: dict[str, float] | None = None
+    error_over_u: dict[str, float] | None = None
+    nees: float | None = None
+    dof: int | None = None
+    nees_states: list[str] | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class FilterHistory(_Block):
+    """``history``: the streaming filter's estimate and white-noise 1σ after each update."""
+
+    KEY: ClassVar[str] = "history"
+    time: list[float] | None = None
+    step: list[str] | None = None
+    estimate: list[list[float]] | None = None
+    sigma: list[list[float]] | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunInfo(_Block):
+    """``run``: the recording's provenance (status, bench, procedure, seed, site, unit, table, temperature K)."""
+
+    KEY: ClassVar[str] = "run"
+    status: str | None = None
+    bench_name: str | None = None
+    procedure_name: str | None = None
+    procedure_sha256: str | None = None
+    procedure_overrides: dict[str, float] | None = None
+    integrity_verified: bool | None = None
+    integrity_note: str | None = None
+    seed: int | None = None
+    created_utc: str | None = None
+    transport: str | None = None
+    site: dict[str, Any] | None = None
+    unit: dict[str, Any] | None = None
+    table: dict[str, Any] | None = None
+    temperature_k: dict[str, float | None] | None = None
+
+
+_BLOCKS: dict[str, type[_Block]] = {
+    "information": InformationSummary,
+    "residuals": Residuals,
+    "plan": PlanSummary,
+    "truth": TruthCheck,
+    "history": FilterHistory,
+    "run": RunInfo,
+}
 
 
 @dataclass(frozen=True)
@@ -70,10 +238,12 @@ class ParameterEstimate:
 
 @dataclass
 class CalibrationResult:
-    """What an identification produces (calibration.json), typed. Arrays SI in the model's name order.
+    """What an identification produces (calibration.json), typed. Arrays SI in the identified model's name order
+    (:attr:`error_model`: the accelerometer's 18, or the whole unit's with the gyro).
 
-    The model (:class:`analysis.identification.specification.ModelSpec`) is the one whose state names the
-    file lists: the accelerometer's 18, or the whole unit's (accelerometer + gyro).
+    The blocks of the file are typed members (``information``, ``residuals``, ``plan``, ``truth``,
+    ``history``, ``run``, ``warnings``, …; None when a file lacks them); ``extra`` keeps only keys this version
+    does not know. For compatibility a known key given in ``extra`` is moved to its typed member.
     """
 
     parameters: dict[str, ParameterEstimate]
@@ -84,12 +254,50 @@ class CalibrationResult:
     recording: str
     recording_sha256: str
     extra: dict[str, Any] = field(default_factory=dict)
-    """Everything else of the file (information, residuals, plan, truth, history, run, warnings, …)."""
+    """Keys of the file this version does not know (kept, written back)."""
+    noise_source: str | None = None
+    software_version: str | None = None
+    model: str | None = None
+    information: InformationSummary | None = None
+    residuals: Residuals | None = None
+    plan: PlanSummary | None = None
+    truth: TruthCheck | None = None
+    history: FilterHistory | None = None
+    run: RunInfo | None = None
+    warnings: list[str] = field(default_factory=list)
+    live_vs_offline_max_u: float | None = None
+    """Largest |live filter − offline| / u_white of ``tablebench run`` (None: no live filter)."""
+
+    def __post_init__(self) -> None:
+        extra = dict(self.extra)
+        ns = extra.pop("noise_source", None)
+        if isinstance(ns, Mapping):
+            if self.noise_source is None and "source" in ns:
+                self.noise_source = ns["source"]
+            rest = {k: v for k, v in ns.items() if k != "source"}
+            if rest:
+                extra["noise_source"] = rest
+        for key, cls in _BLOCKS.items():
+            if key in extra and getattr(self, key) is None:
+                v = extra.pop(key)
+                if v is not None:
+                    setattr(self, key, cls.from_mapping(v, self.recording or "calibration.json"))
+        for key in ("software_version", "model", "live_vs_offline_max_u"):
+            if key in extra and getattr(self, key) is None:
+                setattr(self, key, extra.pop(key))
+        if "warnings" in extra and not self.warnings:
+            self.warnings = list(extra.pop("warnings") or [])
+        self.extra = extra
+
+    @property
+    def per_step(self) -> list[dict[str, Any]]:
+        """``residuals.per_step`` as plain rows ([] when absent)."""
+        return self.residuals.rows() if self.residuals is not None else []
 
     # ---- access ------------------------------------------------------------------------------------------
     @property
-    def model(self) -> ModelSpec:
-        """The identified model (from the parameter names)."""
+    def error_model(self) -> ModelSpec:
+        """The identified error model (:mod:`analysis.identification.specification`), from the parameter names."""
         return model_for_names(tuple(self.parameters))
 
     @property
@@ -126,35 +334,34 @@ class CalibrationResult:
         result = self
         w = max(8, *(len(n) for n in result.parameters))
         lines = [f"{'param':{w}s} {'value':>12s} {'u (k=1)':>10s} {'unit':7s} {'err/u':>7s}  note"]
-        truth = result.extra.get("truth") or {}
+        truth = result.truth
+        err_u = (truth.error_over_u or {}) if truth is not None else {}
         for name, p in result.parameters.items():
             unit, one = DISPLAY_UNITS[p.kind]
-            e = truth.get("error_over_u", {}).get(name)
+            e = err_u.get(name)
             note = "" if p.identified else "NOT IDENTIFIED (prior-dominated; not applied)"
             e_txt = "" if e is None else f"{e:7.2f}"
             lines.append(f"{name:{w}s} {p.value / one:12.4f} {p.u / one:10.4f} {unit:7s} {e_txt:>7s}  {note}")
-        info = result.extra.get("information") or {}
-        cond = info.get("condition")
+        info = result.information or InformationSummary()
+        cond = info.condition
         cond_txt = f"{cond:.3g}" if isinstance(cond, float) else str(cond)
         lines.append(
-            f"information rank {info.get('rank')}/{len(result.parameters)}, condition {cond_txt}; "
-            f"method {result.method}"
+            f"information rank {info.rank}/{len(result.parameters)}, condition {cond_txt}; method {result.method}"
         )
         lines.append(
             "u = the identification's combined standard uncertainty (white noise ⊕ correlated bias instability, "
             "k = 1); the certificate adds table, gravity and model components and states U = 2u"
         )
-        if truth:
-            lines.append(f"NEES {truth['nees']:.2f} over {truth['dof']} identified states (simulator truth)")
+        if truth is not None and (truth.to_mapping()):
+            lines.append(f"NEES {truth.nees:.2f} over {truth.dof} identified states (simulator truth)")
         else:
             lines.append("no simulator truth in the recording (a real bench): errors against truth not computed")
-        lines += [f"warning: {w}" for w in result.extra.get("warnings", [])]
+        lines += [f"warning: {w}" for w in result.warnings]
         return "\n".join(lines)
 
     # ---- (de)serialisation -------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         """calibration.json content (format version :data:`FORMAT_VERSION`)."""
-        si_units = self.model.si_units
         params = {}
         for n in self.names:
             p = self.parameters[n]
@@ -163,7 +370,7 @@ class CalibrationResult:
                 "value": p.value,
                 "u": p.u,
                 "u_white": p.u_white,
-                "unit": si_units[p.kind],
+                "unit": SI_UNITS[p.kind],
                 "kind": p.kind,
                 "display_unit": unit,
                 "display_value": p.value / one,
@@ -171,19 +378,39 @@ class CalibrationResult:
                 "identified": p.identified,
                 "prior_sigma": p.prior_sigma,
             }
+        blocks: dict[str, Any] = {}
+        if self.software_version is not None:
+            blocks["software_version"] = self.software_version
+        if self.model is not None:
+            blocks["model"] = self.model
+        if self.information is not None:
+            info = self.information.to_mapping()
+            cond = info.get("condition")
+            if "condition" in info and not (isinstance(cond, int | float) and math.isfinite(cond)):
+                info["condition"] = "infinite (rank-deficient)"
+            blocks["information"] = info
+        if self.residuals is not None:
+            blocks["residuals"] = self.residuals.to_mapping()
+        if self.plan is not None:
+            plan = self.plan.to_mapping()
+            if "predicted_sigma" in plan:
+                plan["predicted_sigma"] = {
+                    k: (v if isinstance(v, int | float) and math.isfinite(v) else NOT_IDENTIFIED)
+                    for k, v in dict(plan["predicted_sigma"]).items()
+                }
+            blocks["plan"] = plan
+        blocks["truth"] = None if self.truth is None else self.truth.to_mapping()
+        blocks["history"] = None if self.history is None else self.history.to_mapping()
+        if self.run is not None:
+            blocks["run"] = self.run.to_mapping()
+        blocks["warnings"] = list(self.warnings)
+        if self.live_vs_offline_max_u is not None:
+            blocks["live_vs_offline_max_u"] = self.live_vs_offline_max_u
         extra = dict(self.extra)
-        plan = dict(extra.get("plan") or {})
-        if "predicted_sigma" in plan:
-            plan["predicted_sigma"] = {
-                k: (v if isinstance(v, int | float) and math.isfinite(v) else NOT_IDENTIFIED)
-                for k, v in dict(plan["predicted_sigma"]).items()
-            }
-            extra["plan"] = plan
-        info = dict(extra.get("information") or {})
-        cond = info.get("condition")
-        if "condition" in info and not (isinstance(cond, int | float) and math.isfinite(cond)):
-            info["condition"] = "infinite (rank-deficient)"
-            extra["information"] = info
+        noise = {"variance": self.noise_variance.tolist()}
+        if self.noise_source is not None:
+            noise["source"] = self.noise_source
+        noise.update(dict(extra.pop("noise_source", {})))
         return {
             "format": FORMAT,
             "format_version": FORMAT_VERSION,
@@ -196,7 +423,8 @@ class CalibrationResult:
             "parameters": params,
             "covariance": self.covariance.tolist(),
             "covariance_white": self.covariance_white.tolist(),
-            "measurement_noise": {"variance": self.noise_variance.tolist(), **dict(extra.pop("noise_source", {}))},
+            "measurement_noise": noise,
+            **blocks,
             **extra,
         }
 
@@ -269,8 +497,28 @@ class CalibrationResult:
         known = {"format", "format_version", "recording", "recording_sha256", "method", "uncertainty",
                  "parameter_names", "parameters", "covariance", "covariance_white", "measurement_noise"}  # fmt: skip
         extra = {k: v for k, v in d.items() if k not in known}
-        extra["noise_source"] = {k: v for k, v in dict(d["measurement_noise"]).items() if k != "variance"}
+        noise = dict(d["measurement_noise"])
+        typed: dict[str, Any] = {}
+        for key, block in _BLOCKS.items():
+            v = extra.pop(key, None)
+            if v is not None:
+                typed[key] = block.from_mapping(v, where)
+        for key in ("software_version", "model", "live_vs_offline_max_u"):
+            if key in extra:
+                typed[key] = extra.pop(key)
+        warnings = extra.pop("warnings", None)
+        if not isinstance(warnings, list | type(None)):
+            raise CalibrationFormatError(
+                f"{where}: warnings is missing or malformed (expected a list of strings); see "
+                "benches/CALIBRATION_FORMAT.md, or identify the run again"
+            )
+        rest = {k: v for k, v in noise.items() if k not in ("variance", "source")}
+        if rest:
+            extra["noise_source"] = rest
         return cls(
+            **typed,
+            warnings=list(warnings or []),
+            noise_source=noise.get("source"),
             parameters=params,
             covariance=cov,
             covariance_white=cov_w,
@@ -318,6 +566,14 @@ def _matrix(v: Any, key: str, n: int = 18) -> NDArray[np.float64]:
 
 
 __all__ = [
+    "SI_UNITS",
+    "FilterHistory",
+    "InformationSummary",
+    "PlanSummary",
+    "Residuals",
+    "RunInfo",
+    "StepResiduals",
+    "TruthCheck",
     "FORMAT",
     "FORMAT_VERSION",
     "NOT_IDENTIFIED",

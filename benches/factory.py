@@ -196,6 +196,7 @@ def _open_simulated(
             word_order=getattr(tt, "float_word_order", None),
             register_map=getattr(tt, "modbus_map", None),
             watchdog_s=max(float(wd), LOOPBACK_MIN_WATCHDOG_S) if wd else None,
+            strict_watchdog=getattr(tt, "sim_controller", "") == "modbus-strict",
             unit_frame=unit_frame_format(config.unit),
             unit_raw=raw,
             unit_raw_name=raw_name,
@@ -247,6 +248,7 @@ def _hardware_table(config: BenchConfig) -> connect.Connection[Any]:
             register_map=getattr(tt, "modbus_map", None),
             limits=limits,  # type: ignore[arg-type]
             timeout=DEFAULT_TIMEOUT_S,
+            rate_tolerance=getattr(tt, "rate_tolerance", None),
         )
         conn.where = f"Modbus TCP {host}:{port}"
     elif tt.driver == "acutrol":
@@ -298,6 +300,7 @@ def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str)
                 word_order=tt.float_word_order,
                 register_map=getattr(tt, "modbus_map", None),
                 watchdog_s=max(float(wd), LOOPBACK_MIN_WATCHDOG_S) if wd else None,
+                watchdog_from_power_up=getattr(tt, "sim_controller", "") == "modbus-strict",
             )
             closers.append(msrv.close)
             mconn = connect.modbus_table(
@@ -307,6 +310,7 @@ def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str)
                 register_map=getattr(tt, "modbus_map", None),
                 timeout=DEFAULT_TIMEOUT_S,
                 retries=0,
+                rate_tolerance=getattr(tt, "rate_tolerance", None),
             )
             closers.insert(0, mconn.close)
             table, what = mconn.driver, f"simulated Modbus table on 127.0.0.1:{msrv.port}"

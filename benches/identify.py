@@ -1,10 +1,4 @@
-"""Identification of the whole unit from a run: live during the run, and offline from a recording.
-
-The model is the unit's (:func:`unit_model`): the accelerometer model, joined by the gyro model when the
-recording has gyro data (every recording the bench writes has ``/imu/gyro``, old ones included) — one
-state vector, one reference, one time base. The gyro reference is ω_ib = the table's body rate from its
-readings + the Earth rate at the site in the body frame; during a spin the spinning gimbal's rate is the
-least-squares slope of its encoder angles over the acquisition (angle over time, not the reported rate).
+"""Identification of the accelerometer model from a run: live during the run, and offline from a recording.
 
 This module joins the pure maths of :mod:`analysis.identification.kalman`, :mod:`analysis.identification.batch`
 and :mod:`analysis.identification.plan` to the bench: the prior P0 and the white noise R come from the
@@ -21,7 +15,10 @@ the plan does. The live display shows the filter's white-noise 1σ. Results: :cl
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import math
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -36,27 +33,37 @@ from analysis.identification.bias_drift import flicker_components, window_mean_c
 from analysis.identification.kalman import StreamingIdentifier, estimate_measurement_noise
 from analysis.identification.plan import IdentificationPlan, PlanStep, plan_identification
 from analysis.identification.specification import ModelSpec, UnitModel, get_model
-from analysis.units import ARCSEC, DEG_PER_HOUR, DISPLAY_UNITS, G0, PPM
+from analysis.units import ARCSEC, DEG, DEG_PER_HOUR, DISPLAY_UNITS, G0, PPM
 from core.errors import UserError
-from core.provenance import file_sha256
 from drivers.protocols import ImuBlock, TableState
 from procedures.steps import CompiledProcedure, Hold, Spin, Step, Warmup
 from procedures.trajectory import nominal_samples
 
-from .bench_config import BenchConfig, load_bench_text
-from .calibration_result import CalibrationResult
+from .bench_config import BenchConfig
+from .calibration_result import (
+    CalibrationResult,
+    FilterHistory,
+    InformationSummary,
+    ParameterEstimate,
+    PlanSummary,
+    Residuals,
+    RunInfo,
+    StepResiduals,
+    TruthCheck,
+)
 from .progress import ProgressDisplay
-from .recording import RecordingError, StepRecord, open_recording
+from .recorded_run import RecordedRun, run_of
+from .recording import RecordingError, StepRecord
 from .reference import reference_at, reference_for_samples
 
 ACCEL_MODEL: ModelSpec = get_model("accelerometer")
-MODEL_TEXT = ACCEL_MODEL.equation
+"""The accelerometer model (:mod:`analysis.identification.specification` registry)."""
 GYRO_PRIOR_DEFAULT: dict[str, float] = {
     "gyro_bias": 10.0 * DEG_PER_HOUR,
     "gyro_scale": 1000.0 * PPM,
     "gyro_misalignment": 100.0 * ARCSEC,
     "g_sensitivity": 1.0 * DEG_PER_HOUR / G0,
-    "gyro_quadratic": 10.0 * PPM / (math.pi / 180.0),
+    "gyro_quadratic": 10.0 * PPM / DEG,
     "gyro_asymmetry": 1000.0 * PPM,
 }
 """Gyro prior 1σ per kind (SI) when the bench file states none: a tactical-grade datasheet (10 °/h, 1000 ppm,
@@ -394,12 +401,10 @@ class StepWindow:
 
 
 @dataclass
-class RecordedRun:
-    """What identification needs from a recording."""
+class IdentificationData:
+    """What identification needs from a recorded run: the acquisition windows with their reference."""
 
-    path: Path
-    attrs: dict[str, Any]
-    config: BenchConfig
+    run: RecordedRun
     windows: list[StepWindow]
     warmup_accel: NDArray[np.float64] | None
     truth: dict[str, float] | None
@@ -409,6 +414,16 @@ class RecordedRun:
     model: ModelSpec = ACCEL_MODEL
     """The model identified from this recording (:func:`unit_model`: with the gyro when it has gyro data)."""
 
+    @property
+    def path(self) -> Path:
+        """The recording file."""
+        return self.run.path
+
+    @property
+    def config(self) -> BenchConfig:
+        """The recorded bench, parsed once (:attr:`RecordedRun.config`)."""
+        return self.run.config
+
 
 ACCEL_INVALID = 0b111
 """``/imu/status`` bits of the accelerometer channels (bit set = sample invalid,
@@ -417,8 +432,30 @@ GYRO_INVALID = 0b111000
 """``/imu/status`` bits of the gyro channels (with the gyro model, a row with either triad flagged is left out)."""
 
 
-def _has_gyro(rec: Any, steps: list[StepRecord]) -> bool:
-    """True when the recording's gyro channels carry data in its identified windows (not all flagged, not all 0)."""
+def load_run(run: str | Path | RecordedRun, with_gyro: bool | None = None) -> IdentificationData:
+    """Read a recording's acquisition windows and reference; clear errors for unusable recordings.
+
+    ``run`` is a run folder, a recording file or an open :class:`RecordedRun` (left open). The recording is
+    verified when it is opened (every checksum): identification never runs on damaged data. ``with_gyro``:
+    identify the gyro triad too (default: when the recording has gyro data, :func:`has_gyro_data`).
+    """
+    with _opened(run) as rr:
+        return _identification_data(rr, with_gyro)
+
+
+@contextlib.contextmanager
+def _opened(run: str | Path | RecordedRun) -> Iterator[RecordedRun]:
+    """:func:`benches.recorded_run.run_of` with a recording that cannot be opened as IdentificationError."""
+    with contextlib.ExitStack() as stack:
+        try:
+            rr = stack.enter_context(run_of(run))
+        except RecordingError as exc:
+            raise IdentificationError(str(exc)) from None
+        yield rr
+
+
+def has_gyro_data(rec: Any, steps: Sequence[StepRecord]) -> bool:
+    """True when the gyro channels carry data in the first identified window (not all flagged, not all 0)."""
     for s in steps:
         if s.status == "complete" and s.kind in _IDENTIFIED_KINDS and s.acq_end > s.acq_start:
             stop = min(int(s.acq_end), int(s.acq_start) + 1000)
@@ -447,60 +484,45 @@ def _read_window(rec: Any, s: StepRecord, config: BenchConfig, table: Any, with_
     return StepWindow(s.name, s.kind, t, fo, fr, om, ang, gy if with_gyro else None, earth)
 
 
-def load_run(run: str | Path, with_gyro: bool | None = None) -> RecordedRun:
-    """Read a recording's acquisition windows and reference; clear errors for unusable recordings.
-
-    The recording is verified first (every checksum): identification never runs on damaged data.
-    ``with_gyro``: identify the gyro triad too (default: when the recording has gyro data).
-    """
-    try:
-        rec = open_recording(run)
-    except RecordingError as exc:
-        raise IdentificationError(str(exc)) from None
-    path = rec.path
-    with rec:
-        hdr = rec.header
-        attrs = hdr.as_dict()
-        attrs["integrity_verified"] = rec.integrity_verified
-        attrs["integrity_note"] = rec.integrity_note
-        bench_text = rec.bench_text
-        if not bench_text or rec.n_table == 0:
-            raise IdentificationError(f"{path}: the recording lacks its bench text, samples or table readings")
-        config = load_bench_text(bench_text, f"{path}:/bench_yaml")
-        steps = rec.steps
-        if not steps:
-            raise IdentificationError(f"{path}: no completed step in the recording (was the run stopped at once?)")
-        n = rec.n_samples
-        table = rec.table()
-        gyro = _has_gyro(rec, steps) if with_gyro is None else with_gyro
-        model = unit_model(config, gyro)
-        windows: list[StepWindow] = []
-        warm: NDArray[np.float64] | None = None
-        warm_g: NDArray[np.float64] | None = None
-        incomplete = [s.name for s in steps if s.status != "complete"]
-        for s in steps:
-            if s.status != "complete" or s.acq_end <= s.acq_start:
-                continue
-            if s.kind == Warmup.kind:
-                wsmp = rec.samples(s.acq_start, s.acq_end, ("accel", "gyro"))
-                warm, warm_g = wsmp.accel, wsmp.gyro
-                continue
-            if s.kind in _IDENTIFIED_KINDS:
-                win = _read_window(rec, s, config, table, gyro)
-                if win is not None:
-                    windows.append(win)
-        tr = rec.truth()
-        truth = None
-        if tr is not None and all(n_ in tr.parameters for n_ in ACCEL_MODEL.names):
-            truth = {n_: float(tr.parameters[n_]) for n_ in model.names if n_ in tr.parameters}
-        temp = rec.samples(fields=("temperature",), index=np.arange(0, n, max(1, n // 10000))).temperature
-        temp = temp if temp is not None else np.zeros(0)
+def _identification_data(rr: RecordedRun, with_gyro: bool | None = None) -> IdentificationData:
+    path, rec = rr.path, rr.recording
+    if not rr.bench_text or rec.n_table == 0:
+        raise IdentificationError(f"{path}: the recording lacks its bench text, samples or table readings")
+    config = rr.config
+    steps = rr.steps
+    if not steps:
+        raise IdentificationError(f"{path}: no completed step in the recording (was the run stopped at once?)")
+    n = rec.n_samples
+    table = rec.table()
+    gyro = has_gyro_data(rec, steps) if with_gyro is None else with_gyro
+    model = unit_model(config, gyro)
+    windows: list[StepWindow] = []
+    warm: NDArray[np.float64] | None = None
+    warm_g: NDArray[np.float64] | None = None
+    incomplete = [s.name for s in rr.incomplete_steps()]
+    for s in steps:
+        if s.status != "complete" or s.acq_end <= s.acq_start:
+            continue
+        if s.kind == Warmup.kind:
+            wsmp = rec.samples(s.acq_start, s.acq_end, ("accel", "gyro"))
+            warm, warm_g = wsmp.accel, wsmp.gyro
+            continue
+        if s.kind in _IDENTIFIED_KINDS:
+            win = _read_window(rec, s, config, table, gyro)
+            if win is not None:
+                windows.append(win)
+    tr = rec.truth()
+    truth = None
+    if tr is not None and all(n_ in tr.parameters for n_ in ACCEL_MODEL.names):
+        truth = {n_: float(tr.parameters[n_]) for n_ in model.names if n_ in tr.parameters}
+    temp = rec.samples(fields=("temperature",), index=np.arange(0, n, max(1, n // 10000))).temperature
+    temp = temp if temp is not None else np.zeros(0)
     if not windows:
         raise IdentificationError(
-            f"{path}: no complete hold or spin step to identify from (procedure {attrs.get('procedure_name')!r}); "
+            f"{path}: no complete hold or spin step to identify from (procedure {rr.header.procedure_name!r}); "
             "run a calibration procedure such as ten-step"
         )
-    return RecordedRun(path, attrs, config, windows, warm, truth, incomplete, temp, warm_g, model)
+    return IdentificationData(rr, windows, warm, truth, incomplete, temp, warm_g, model)
 
 
 def _windows_as_plan_steps(windows: list[StepWindow], max_points: int = 4000) -> list[PlanStep]:
@@ -521,240 +543,274 @@ def _windows_as_plan_steps(windows: list[StepWindow], max_points: int = 4000) ->
     return out
 
 
-def _display(model: ModelSpec, k: int, value: float) -> float:
-    return value / DISPLAY_UNITS[model.kinds[k]][1]
+# ---- offline identification: estimate / residual statistics / truth check / result --------------------------------
 
 
-def _noise_variance(rr: RecordedRun, noise: str) -> NDArray[np.float64]:
-    """R per axis: the bench's configured densities, or estimated from the run's warm-up record."""
-    model = rr.model
+@dataclass
+class Estimate:
+    """The estimator's output on the recorded windows (SI, model name order).
+
+    ``filter_residuals``: the streaming filter's own per-step residual statistics (Kalman), None for batch.
+    """
+
+    method: str
+    noise_variance: NDArray[np.float64]
+    noise_source: str
+    prior: NDArray[np.float64]
+    x: NDArray[np.float64]
+    covariance_white: NDArray[np.float64]
+    information: NDArray[np.float64]
+    filter_residuals: list[StepResiduals] | None = None
+    history: FilterHistory | None = None
+
+
+@dataclass
+class Uncertainty:
+    """The combined covariance (white ⊕ bias instability on the actual geometry) and what is identifiable."""
+
+    covariance: NDArray[np.float64]
+    plan: IdentificationPlan
+    rank: int
+    condition: float
+    unidentifiable: set[str]
+
+
+def measurement_noise(data: IdentificationData, noise: str) -> NDArray[np.float64]:
+    """Per-sample white-noise variance per axis (SI²): from the bench ("configured") or the warm-up."""
     if noise == "configured":
-        return configured_noise_variance(rr.config, model)
+        return configured_noise_variance(data.config, data.model)
     if noise == "warm-up":
-        if rr.warmup_accel is None or rr.warmup_accel.shape[0] < 100:
-            raise IdentificationError(f"{rr.path}: no warm-up record to estimate R from; use --noise configured")
-        warm = rr.warmup_accel
-        if model.n_axes == 6:
-            assert rr.warmup_gyro is not None
-            warm = np.hstack([warm, rr.warmup_gyro])
+        if data.warmup_accel is None or data.warmup_accel.shape[0] < 100:
+            raise IdentificationError(f"{data.path}: no warm-up record to estimate R from; use --noise configured")
+        warm = data.warmup_accel
+        if data.model.n_axes == 6:
+            assert data.warmup_gyro is not None
+            warm = np.hstack([warm, data.warmup_gyro])
         return estimate_measurement_noise(warm)
     raise IdentificationError(f"unknown noise source {noise!r}; use configured or warm-up")
 
 
-def _estimate(
-    rr: RecordedRun, method: str, r_var: NDArray[np.float64], p0: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], list[dict[str, Any]], dict[str, Any] | None]:
-    """Estimate, white covariance, data information, per-step residual rows and (Kalman) history."""
-    model = rr.model
+def estimate(data: IdentificationData, method: str, noise: str = "configured") -> Estimate:
+    """Run the estimator (streaming Kalman filter over the windows in order, or batch least squares)."""
+    model = data.model
+    p0 = prior_covariance(data.config, model)
+    r_var = measurement_noise(data, noise)
     if method == "kalman":
-        kf = StreamingIdentifier(r_var, p0, sample_rate=rr.config.unit.sample_rate, model=model)
-        for w in rr.windows:
+        kf = StreamingIdentifier(r_var, p0, sample_rate=data.config.unit.sample_rate, model=model)
+        for w in data.windows:
             kf.update(w.output(model), w.f_ref, w.omega, w.name, t=w.t, earth=w.earth)
-        per_step = [
-            {"name": name, "samples": int(st.count), "mean": list(map(float, st.mean)), "rms": list(map(float, st.rms))}
+        rows = [
+            StepResiduals(name=name, samples=int(st.count), mean=list(map(float, st.mean)),
+                          rms=list(map(float, st.rms)))
             for name, st in kf.residual_statistics().items()
-        ]
-        history = {
-            "time": [h.time for h in kf.history],
-            "step": [h.step for h in kf.history],
-            "estimate": [list(map(float, h.x)) for h in kf.history],
-            "sigma": [list(map(float, h.sigma)) for h in kf.history],
-        }
-        return kf.estimate, kf.covariance, kf.information, per_step, history
-    ws = rr.windows
-    earth = None if model.n_axes == 3 else np.concatenate([w.earth for w in ws])  # type: ignore[misc]
-    res = batch_identify(
-        np.concatenate([w.output(model) for w in ws]), np.concatenate([w.f_ref for w in ws]),
-        np.concatenate([w.omega for w in ws]), r_var, None, p0, model=model, earth=earth,
-    )  # fmt: skip
-    per_step = []
-    for w in ws:
-        r = w.output(model) - model.predict(res.x, w.f_ref, w.omega, w.earth)
-        per_step.append(
-            {
-                "name": w.name,
-                "samples": int(r.shape[0]),
-                "mean": list(map(float, r.mean(0))),
-                "rms": list(map(float, np.sqrt((r**2).mean(0)))),
-            }
+        ]  # fmt: skip
+        history = FilterHistory(
+            time=[h.time for h in kf.history],
+            step=[h.step for h in kf.history],
+            estimate=[list(map(float, h.x)) for h in kf.history],
+            sigma=[list(map(float, h.sigma)) for h in kf.history],
         )
-    return res.x, res.covariance, res.information, per_step, None
+        return Estimate(method, r_var, noise, p0, kf.estimate, kf.covariance, kf.information, rows, history)
+    if method == "batch":
+        ws = data.windows
+        earth = None if model.n_axes == 3 else np.concatenate([w.earth for w in ws])  # type: ignore[misc]
+        res = batch_identify(
+            np.concatenate([w.output(model) for w in ws]), np.concatenate([w.f_ref for w in ws]),
+            np.concatenate([w.omega for w in ws]), r_var, None, p0, model=model, earth=earth,
+        )  # fmt: skip
+        return Estimate(method, r_var, noise, p0, res.x, res.covariance, res.information)
+    raise IdentificationError(f"unknown method {method!r}; use kalman or batch")
 
 
-def _truth_check(
-    model: ModelSpec,
-    truth: dict[str, float] | None,
-    x: NDArray[np.float64],
-    p_total: NDArray[np.float64],
-    identified: list[bool],
-) -> dict[str, Any] | None:
-    """Errors against the simulator's truth (the parameters it states), NEES over the identified ones."""
+def residual_statistics(data: IdentificationData, est: Estimate) -> Residuals:
+    """Per-step residual mean and RMS per body axis (m/s²) and the overall RMS (sample-weighted)."""
+    rows = est.filter_residuals
+    if rows is None:
+        rows = []
+        for w in data.windows:
+            r = w.output(data.model) - data.model.predict(est.x, w.f_ref, w.omega, w.earth)
+            rows.append(
+                StepResiduals(name=w.name, samples=int(r.shape[0]), mean=list(map(float, r.mean(0))),
+                              rms=list(map(float, np.sqrt((r**2).mean(0)))))
+            )  # fmt: skip
+    kinds = {w.name: w.kind for w in data.windows}
+    rows = [dataclasses.replace(r, kind=kinds.get(str(r.name), "")) for r in rows]
+    n_s = np.array([r.samples for r in rows], dtype=float)
+    ms_s = np.array([r.rms for r in rows]) ** 2
+    rms_all = np.sqrt((n_s[:, None] * ms_s).sum(0) / n_s.sum())
+    return Residuals(rms=list(map(float, rms_all)), per_step=tuple(rows))
+
+
+def combined_uncertainty(data: IdentificationData, est: Estimate) -> Uncertainty:
+    """White covariance ⊕ the bias instability's systematic term, on the actual data geometry; rank."""
+    model = data.model
+    b = bias_stability(data.config, model)
+    actual = plan_identification(
+        _windows_as_plan_steps(data.windows),
+        est.noise_variance,
+        est.prior,
+        b,
+        offset_covariance=offset_covariance([(float(w.t[0]), float(w.t[-1])) for w in data.windows], b),
+        model=model,
+    )
+    p_total = est.covariance_white + (actual.covariance_total - actual.covariance_white)
+    p_total = 0.5 * (p_total + p_total.T)
+    rank, cond = information_rank(est.information, est.noise_variance, model=model)
+    unobs = set(unobservable_parameters(est.information, est.noise_variance, model=model)) | set(actual.unidentifiable)
+    return Uncertainty(p_total, actual, int(rank), float(cond), unobs)
+
+
+def truth_check(
+    truth: dict[str, float] | None, x: NDArray[np.float64], unc: Uncertainty, model: ModelSpec = ACCEL_MODEL
+) -> TruthCheck | None:
+    """Errors against a simulated bench's truth: error/u per parameter it states, NEES over the identified ones."""
     if not truth:
         return None
-    sigma = np.sqrt(np.diag(p_total))
-    have = [k for k, n in enumerate(model.names) if n in truth]
-    err = {k: x[k] - truth[model.names[k]] for k in have}
-    idx = np.array([k for k in have if identified[k]], dtype=int)
+    names = model.names
+    sigma = np.sqrt(np.diag(unc.covariance))
+    have = [k for k, n_ in enumerate(names) if n_ in truth]
+    err = {k: x[k] - truth[names[k]] for k in have}
+    idx = np.array([k for k in have if names[k] not in unc.unidentifiable], dtype=int)
     e = np.array([err[k] for k in idx])
-    nees = float(e @ np.linalg.solve(p_total[np.ix_(idx, idx)], e)) if idx.size else float("nan")
-    return {
-        "values": {model.names[k]: float(truth[model.names[k]]) for k in have},
-        "error_over_u": {model.names[k]: float(err[k] / sigma[k]) for k in have},
-        "nees": nees,
-        "dof": int(idx.size),
-        "nees_states": [model.names[i] for i in idx],
-    }
+    sub = unc.covariance[np.ix_(idx, idx)]
+    return TruthCheck(
+        values={names[k]: float(truth[names[k]]) for k in have},
+        error_over_u={names[k]: float(err[k] / sigma[k]) for k in have},
+        nees=float(e @ np.linalg.solve(sub, e)) if idx.size else float("nan"),
+        dof=int(idx.size),
+        nees_states=[names[i] for i in idx],
+    )
 
 
-def _run_block(rr: RecordedRun) -> dict[str, Any]:
-    """calibration.json ``run``: what was run where, on which unit and table (from the recording)."""
-    a = rr.attrs
-    config = rr.config
-    temp = rr.temperature
-    return {
-        "status": str(a.get("status", "")),
-        "bench_name": str(a.get("bench_name", "")),
-        "procedure_name": str(a.get("procedure_name", "")),
-        "procedure_sha256": str(a.get("procedure_sha256", "")),
-        "procedure_overrides": dict(a.get("procedure_overrides") or {}),
-        "integrity_verified": bool(a.get("integrity_verified", False)),
-        "integrity_note": str(a.get("integrity_note", "")),
-        "seed": -1 if a.get("seed") is None else int(a["seed"]),
-        "created_utc": str(a.get("created_utc", "")),
-        "transport": str(a.get("transport", "")),
-        "site": {
+def _run_info(data: IdentificationData) -> RunInfo:
+    a = data.run.attrs()
+    config, temp = data.config, data.temperature
+    return RunInfo(
+        status=str(a.get("status", "")),
+        bench_name=str(a.get("bench_name", "")),
+        procedure_name=str(a.get("procedure_name", "")),
+        procedure_sha256=str(a.get("procedure_sha256", "")),
+        procedure_overrides=dict(a.get("procedure_overrides") or {}),
+        integrity_verified=bool(a.get("integrity_verified", False)),
+        integrity_note=str(a.get("integrity_note", "")),
+        seed=-1 if a.get("seed") is None else int(a["seed"]),
+        created_utc=str(a.get("created_utc", "")),
+        transport=str(a.get("transport", "")),
+        site={
             "name": config.site.name,
             "latitude_deg": math.degrees(config.site.latitude),
             "height_m": config.site.height,
             "g": config.site.g,
             "g_source": config.site.g_source,
         },
-        "unit": {"model": config.unit.model, "serial_number": config.unit.serial_number},
-        "table": {
+        unit={"model": config.unit.model, "serial_number": config.unit.serial_number},
+        table={
             "model": config.turntable.model,
             "serial_number": config.turntable.serial_number,
             "attitude_accuracy": config.turntable.attitude_accuracy,
         },
-        "temperature_k": {
+        temperature_k={
             "mean": float(temp.mean()) if temp.size else None,
             "min": float(temp.min()) if temp.size else None,
             "max": float(temp.max()) if temp.size else None,
         },
-    }
-
-
-def identify_run(
-    run: str | Path, method: str = "kalman", noise: str = "configured", *, with_gyro: bool | None = None
-) -> CalibrationResult:
-    """Identify the unit's parameters from a recording; returns the typed calibration result.
-
-    Parameters
-    ----------
-    run : path
-        Run folder or recording file.
-    method : {"kalman", "batch"}
-        The streaming filter over all windows in order, or batch least squares (same prior, same model).
-    noise : {"configured", "warm-up"}
-        R from the bench's configured VRW/ARW, or estimated from the run's warm-up record.
-    with_gyro : bool, optional
-        Identify the gyro triad too (default: when the recording has gyro data; False: accelerometer only).
-    """
-    if method not in ("kalman", "batch"):
-        raise IdentificationError(f"unknown method {method!r}; use kalman or batch")
-    rr = load_run(run, with_gyro)
-    model = rr.model
-    config = rr.config
-    p0 = prior_covariance(config, model)
-    r_var = _noise_variance(rr, noise)
-    x, p_white, info, per_step, history = _estimate(rr, method, r_var, p0)
-    kinds = {w.name: w.kind for w in rr.windows}
-    for s in per_step:
-        s["kind"] = kinds.get(s["name"], "")
-    # honest total uncertainty: white + bias-instability systematic term, on the actual data geometry
-    b = bias_stability(config, model)
-    actual = plan_identification(
-        _windows_as_plan_steps(rr.windows),
-        r_var,
-        p0,
-        b,
-        offset_covariance=offset_covariance([(float(w.t[0]), float(w.t[-1])) for w in rr.windows], b),
-        model=model,
     )
-    p_total = p_white + (actual.covariance_total - actual.covariance_white)
-    p_total = 0.5 * (p_total + p_total.T)
-    sigma = np.sqrt(np.diag(p_total))
-    sigma_white = np.sqrt(np.diag(p_white))
-    rank, cond = information_rank(info, r_var, model=model)
-    unobs = set(unobservable_parameters(info, r_var, model=model)) | set(actual.unidentifiable)
-    params: dict[str, Any] = {}
-    for k, name in enumerate(model.names):
-        kind = model.kinds[k]
-        unit, _one = DISPLAY_UNITS[kind]
-        params[name] = {
-            "value": float(x[k]),
-            "u": float(sigma[k]),
-            "u_white": float(sigma_white[k]),
-            "unit": model.si_units[kind],
-            "kind": kind,
-            "display_unit": unit,
-            "display_value": _display(model, k, x[k]),
-            "display_u": _display(model, k, sigma[k]),
-            "identified": name not in unobs,
-            "prior_sigma": float(math.sqrt(p0[k, k])),
-        }
-    n_s = np.array([st["samples"] for st in per_step], dtype=float)
-    ms_s = np.array([st["rms"] for st in per_step]) ** 2
-    rms_all = np.sqrt((n_s[:, None] * ms_s).sum(0) / n_s.sum())
-    truth_block = _truth_check(model, rr.truth, x, p_total, [params[n]["identified"] for n in model.names])
+
+
+def calibration_result(
+    data: IdentificationData, est: Estimate, residuals: Residuals, unc: Uncertainty, truth: TruthCheck | None
+) -> CalibrationResult:
+    """Assemble the typed calibration result (refused when anything is non-finite: nothing is written)."""
+    x, p_total, p_white = est.x, unc.covariance, est.covariance_white
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(p_total)) and np.all(np.isfinite(p_white))):
+        raise IdentificationError(
+            f"{data.path}: the identification produced non-finite estimates or covariance (damaged data?); "
+            "nothing was written"
+        )
+    sigma, sigma_white = np.sqrt(np.diag(p_total)), np.sqrt(np.diag(p_white))
+    model = data.model
+    params = {
+        name: ParameterEstimate(
+            name=name,
+            kind=model.kinds[k],
+            value=float(x[k]),
+            u=float(sigma[k]),
+            u_white=float(sigma_white[k]),
+            prior_sigma=float(math.sqrt(est.prior[k, k])),
+            identified=name not in unc.unidentifiable,
+        )
+        for k, name in enumerate(model.names)
+    }
+    actual = unc.plan
     warnings = list(actual.warnings)
-    dflt = defaulted_priors(config, model)
+    dflt = defaulted_priors(data.config, model)
     if dflt:
         warnings.append(
             f"the bench file states no prior for {', '.join(dflt)}: tactical-grade defaults used "
             "(10 °/h, 1000 ppm, 100″, 1 °/h/g); give unit.prior gyro_* keys from the datasheet"
         )
-    if rr.incomplete_steps:
-        warnings.insert(0, f"recording incomplete: step(s) {', '.join(rr.incomplete_steps)} not completed")
-    if not rr.attrs.get("integrity_verified", False):
-        warnings.insert(0, str(rr.attrs.get("integrity_note") or "recording integrity cannot be verified"))
-    a = rr.attrs
-    result = {
-        "format": "tablebench-calibration",
-        "format_version": 2,
-        "recording": rr.path.name,
-        "recording_sha256": file_sha256(rr.path),
-        "software_version": str(a.get("software_version", "")),
-        "method": method,
-        "model": model.equation,
-        "parameter_names": list(model.names),
-        "parameters": params,
-        "covariance": [list(map(float, row)) for row in p_total],
-        "covariance_white": [list(map(float, row)) for row in p_white],
-        "information": {
-            "rank": int(rank),
-            "condition": float(cond),
-            "unidentifiable": sorted(unobs, key=model.names.index),
-            "tolerance": "numerical rank of the noise-whitened data information, scaled per parameter kind "
+    if data.incomplete_steps:
+        warnings.insert(0, f"recording incomplete: step(s) {', '.join(data.incomplete_steps)} not completed")
+    if not data.run.integrity_verified:
+        warnings.insert(0, data.run.integrity_note or "recording integrity cannot be verified")
+    return CalibrationResult(
+        parameters=params,
+        covariance=np.array([list(map(float, row)) for row in p_total]),
+        covariance_white=np.array([list(map(float, row)) for row in p_white]),
+        noise_variance=np.array(list(map(float, est.noise_variance))),
+        method=est.method,
+        recording=data.path.name,
+        recording_sha256=data.run.sha256,
+        noise_source=est.noise_source,
+        software_version=str(data.run.header.software_version or ""),
+        model=model.equation,
+        information=InformationSummary(
+            rank=unc.rank,
+            condition=unc.condition,
+            unidentifiable=sorted(unc.unidentifiable, key=model.names.index),
+            tolerance="numerical rank of the noise-whitened data information, scaled per parameter kind "
             "(analysis.identification.batch.information_rank)",
-        },
-        "measurement_noise": {"variance": list(map(float, r_var)), "source": noise},
-        "residuals": {"rms": list(map(float, rms_all)), "per_step": per_step},
-        "plan": {
-            "predicted_sigma": {n_: float(actual.sigma_total[k]) for k, n_ in enumerate(model.names)},
-            "rank": int(actual.rank),
-            "warnings": list(actual.warnings),
-        },
-        "truth": truth_block,
-        "history": history,
-        "run": _run_block(rr),
-        "warnings": warnings,
-    }
-    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(p_total)) and np.all(np.isfinite(p_white))):
-        raise IdentificationError(
-            f"{rr.path}: the identification produced non-finite estimates or covariance (damaged data?); "
-            "nothing was written"
-        )
-    return CalibrationResult.from_dict(result, str(rr.path))
+        ),
+        residuals=residuals,
+        plan=PlanSummary(
+            predicted_sigma={n_: float(actual.sigma_total[k]) for k, n_ in enumerate(model.names)},
+            rank=int(actual.rank),
+            warnings=list(actual.warnings),
+        ),
+        truth=truth,
+        history=est.history,
+        run=_run_info(data),
+        warnings=warnings,
+    )
+
+
+def identify_run(
+    run: str | Path | RecordedRun, method: str = "kalman", noise: str = "configured", *, with_gyro: bool | None = None
+) -> CalibrationResult:
+    """Identify the unit's parameters from a recording; returns the typed calibration result.
+
+    The model is the unit's (:func:`unit_model`): the accelerometer's 18 states, and the gyro's when the
+    recording has gyro data (``with_gyro`` None) or when asked (True); False: the accelerometer alone.
+
+    Parameters
+    ----------
+    run : path or RecordedRun
+        Run folder, recording file, or an open :class:`RecordedRun` (``tablebench run`` passes its own).
+    method : {"kalman", "batch"}
+        The streaming filter over all windows in order, or batch least squares (same prior, same model).
+    noise : {"configured", "warm-up"}
+        R from the bench's configured VRW (and ARW), or estimated from the run's warm-up record.
+    """
+    if method not in ("kalman", "batch"):
+        raise IdentificationError(f"unknown method {method!r}; use kalman or batch")
+    with _opened(run) as rr:
+        data = _identification_data(rr, with_gyro)
+        est = estimate(data, method, noise)
+        residuals = residual_statistics(data, est)
+        unc = combined_uncertainty(data, est)
+        truth = truth_check(data.truth, est.x, unc, data.model)
+        result = calibration_result(data, est, residuals, unc, truth)
+    return CalibrationResult.from_dict(result.to_dict(), str(data.path))  # the checks every reader applies
 
 
 def write_calibration(result: CalibrationResult, out: str | Path) -> Path:

@@ -29,6 +29,7 @@ from procedures.steps import CompiledProcedure
 
 from .bench_config import BenchConfig, load_bench
 from .progress import ProgressDisplay
+from .recorded_run import RecordedRun, open_run
 from .recording import Hdf5Recorder, RecordingError, open_recording
 from .runner import Runner, RunResult, SampleObserver
 
@@ -287,6 +288,7 @@ def identify_and_certify(
     live: LiveIdentifier | None = None,
     say: Callable[..., None] = print,
     done: list[str] | None = None,
+    prep: Prepared | None = None,
 ) -> list[str]:
     """The end of the session: identify the complete recording (calibration.json) and issue its certificate.
 
@@ -302,20 +304,48 @@ def identify_and_certify(
         ``say(text, err=True)`` for the closing lines (``err=False``: a result path for stdout).
     done : list, optional
         Appended with each finished item as it finishes (so an interruption can say what is left).
+    prep : Prepared, optional
+        The bench and procedure the run was prepared with: the recording is opened once
+        (:class:`benches.recorded_run.RecordedRun`) and its bench and procedure are not parsed again.
     """
+    done = [] if done is None else done
+    try:
+        recorded = open_run(
+            folder,
+            config=None if prep is None else prep.config,
+            compiled=None if prep is None else prep.compiled,
+            overrides=None if prep is None else prep.overrides,
+        )
+    except RecordingError:
+        recorded = None  # identification and certificate name the problem themselves
+    try:
+        return _identify_and_certify(folder, todo, recorded, live, say, done)
+    finally:
+        if recorded is not None:
+            recorded.close()
+
+
+def _identify_and_certify(
+    folder: Path,
+    todo: list[str],
+    recorded: RecordedRun | None,
+    live: LiveIdentifier | None,
+    say: Callable[..., None],
+    done: list[str],
+) -> list[str]:
     from benches.identify import IdentificationError, identify_run  # lazy: filterpy, scipy (--help time)
 
-    done = [] if done is None else done
+    source: Path | RecordedRun = folder if recorded is None else recorded
     if "identification" in todo:
         try:
-            result = identify_run(folder, method="kalman")
+            result = identify_run(source, method="kalman")
         except IdentificationError as exc:
             say(f"identification not possible: {exc}")
             return done
         if live is not None and live.filter.n_samples:
             # the live filter saw the same samples and readings (except replayed ones on resume)
             u_white = np.array([p.u_white for p in result.parameters.values()])
-            result.extra["live_vs_offline_max_u"] = float(np.max(np.abs(live.filter.estimate - result.x) / u_white))
+            result.live_vs_offline_max_u = float(np.max(np.abs(live.filter.estimate - result.x) / u_white))
         path = result.save(folder / "calibration.json")
         done.append("identification")
         say(result.summary())
@@ -323,7 +353,7 @@ def identify_and_certify(
     if "certificate" in todo:
         from benches.certificate import issue_certificate  # lazy: fpdf, matplotlib, filterpy (--help time)
 
-        pdf, js, verdict = issue_certificate(folder)
+        pdf, js, verdict = issue_certificate(folder, recorded=recorded)
         done.append("certificate")
         say(f"certificate: {pdf} ({verdict})", err=False)
         for line in verdict_explanation(js, verdict):

@@ -111,7 +111,7 @@ def coverage_section(n_runs: int, rate: float = 100.0, res: CoverageResult | Non
 
 
 def _errors(result: CalibrationResult) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    t = np.array([result.extra["truth"]["values"][n] for n in PARAM_NAMES])
+    t = np.array([result.truth.values[n] for n in PARAM_NAMES])
     return result.x - t, result.u, result.identified
 
 
@@ -138,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
         r = identify_run(folder)
         e, _s, _i = _errors(r)
         errs.append(e)
-        nees.append(r.extra["truth"]["nees"])
+        nees.append(r.truth.nees)
         print(f"seed {k}: NEES {nees[-1]:.1f}")
     errs_a = np.array(errs)
     rms = np.sqrt((errs_a**2).mean(0))

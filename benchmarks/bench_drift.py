@@ -50,19 +50,9 @@ def _numpy_rls(x: np.ndarray, p: int, n0: int) -> np.ndarray:
     return theta
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true", help="smaller sizes (CI smoke run)")
-    args = ap.parse_args()
-    load_start = os.getloadavg()[0]
-    rate = 100.0
-    minutes = 5 if args.quick else 30
-    n = int(minutes * 60 * rate)
-    rng = np.random.default_rng(1)
+def _online_section(n: int, n0: int, rate: float, rng: np.random.Generator) -> tuple[str, list[float]]:
+    """1. Online estimator throughput (samples/s), against a numpy per-sample recursion for pure AR."""
     rows = []
-    n0 = 3000
-
-    # 1. online estimator throughput
     lines = [
         "| model | samples | kernel samples/s | × real time (100 Hz) | × numpy per-sample |",
         "|---|---|---|---|---|",
@@ -82,28 +72,33 @@ def main() -> None:
             ref = f"{sps / ((m - n0) / dref):.0f}×"
         lines.append(f"| ARMA({p},{q}) | {n - n0} | {sps:.3g} | {sps / rate:.0f}× | {ref or '—'} |")
         rows.append(sps)
-    online = "\n".join(lines)
+    return "\n".join(lines), rows
 
-    # 2. ML and CSS fits vs statsmodels exact ML (same model: mean estimated ↔ trend "c", fixed at 0 ↔ trend "n")
+
+def _sm_fit(y: np.ndarray, p: int, q: int, trend: str) -> float:
+    """statsmodels' exact ML fit (the reference), its log-likelihood."""
     from statsmodels.tsa.arima.model import ARIMA
 
-    def sm_fit(y: np.ndarray, p: int, q: int, trend: str) -> float:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            return float(ARIMA(y, order=(p, 0, q), trend=trend).fit().llf)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return float(ARIMA(y, order=(p, 0, q), trend=trend).fit().llf)
 
+
+def _fit_section(rng: np.random.Generator) -> tuple[str, str]:
+    """2. ML and CSS fits and the order search vs statsmodels exact ML (same model: mean estimated ↔ trend "c",
+    fixed at 0 ↔ trend "n")."""
     x = simulate_arma([0.9], [-0.4], 1.0, 5000, rng) + 0.3
     t_ml = _best(lambda: fit_arma(x, 1, 1))
     t_ml0 = _best(lambda: fit_arma(x - x.mean(), 1, 1, include_mean=False))
     t_css = _best(lambda: fit_arma(x, 1, 1, method="css"))
-    t_sm = _best(lambda: sm_fit(x, 1, 1, "c"), repeat=1)
-    t_sm0 = _best(lambda: sm_fit(x - x.mean(), 1, 1, "n"), repeat=1)
+    t_sm = _best(lambda: _sm_fit(x, 1, 1, "c"), repeat=1)
+    t_sm0 = _best(lambda: _sm_fit(x - x.mean(), 1, 1, "n"), repeat=1)
     t0 = time.perf_counter()
     sel = select_order(x)
     t_sel = time.perf_counter() - t0
     t0 = time.perf_counter()
     for p, q in sel.models:
-        sm_fit(x, p, q, "c")
+        _sm_fit(x, p, q, "c")
     t_sel_sm = time.perf_counter() - t0
     fallbacks = sum("bfgs" in m.optimiser for m in sel.models.values())
     fit_line = (
@@ -116,8 +111,11 @@ def main() -> None:
         f"needed the BFGS fallback) vs statsmodels fitting the same 16 models {t_sel_sm:.1f} s → "
         f"{t_sel_sm / t_sel:.1f}× faster"
     )
+    return fit_line, sel_line
 
-    # 2b. the published reference models (tests/data/drift): all fits, ours vs statsmodels
+
+def _reference_section() -> str:
+    """2b. The published reference models (tests/data/drift): all fits, ours vs statsmodels."""
     import json
     from pathlib import Path
 
@@ -135,17 +133,19 @@ def main() -> None:
     t_ref = time.perf_counter() - t0
     t0 = time.perf_counter()
     for y, m in cases:
-        sm_fit(y, m["p"], m["q"], "c" if m["constant"] else "n")
+        _sm_fit(y, m["p"], m["q"], "c" if m["constant"] else "n")
     t_ref_sm = time.perf_counter() - t0
-    ref_line = (
+    return (
         f"the {len(cases)} published reference models (gretl, Stata; 124–250 samples): {t_ref:.2f} s vs statsmodels "
         f"{t_ref_sm:.2f} s → {t_ref_sm / t_ref:.1f}× faster"
     )
 
-    # 3. LM smoother vs filterpy RTS
+
+def _smoother_section(quick: bool, rng: np.random.Generator) -> str:
+    """3. The sliding-window LM smoother vs filterpy's Kalman filter + RTS smoother."""
     from filterpy.kalman import KalmanFilter, rts_smoother
 
-    ns = 2000 if args.quick else 5000
+    ns = 2000 if quick else 5000
     ss = arma_state_space([0.9], [-0.4], 1.0, 1.0)
     z = simulate_arma([0.9], [-0.4], 1.0, ns, rng) + rng.standard_normal(ns)
 
@@ -157,11 +157,25 @@ def main() -> None:
 
     t_rts = _best(rts, repeat=1)
     t_lm = _best(lambda: sliding_window_smoother(ss, z, 400, 200), repeat=1)
-    sm_line = (
+    return (
         f"smoothing {ns} samples of ARMA(1,1) + noise: sliding-window LM (400/200) {t_lm:.2f} s, filterpy KF + RTS "
         f"{t_rts:.2f} s → ratio {t_lm / t_rts:.2f}"
     )
 
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="smaller sizes (CI smoke run)")
+    args = ap.parse_args()
+    load_start = os.getloadavg()[0]
+    rate = 100.0
+    minutes = 5 if args.quick else 30
+    n = int(minutes * 60 * rate)
+    rng = np.random.default_rng(1)
+    online, rows = _online_section(n, 3000, rate, rng)
+    fit_line, sel_line = _fit_section(rng)
+    ref_line = _reference_section()
+    sm_line = _smoother_section(args.quick, rng)
     # 4. whole chain
     x = simulate_arma([0.9], [0.4], (2 * 4.85e-6) ** 2, n, rng) + 2e-5
     t_all = _best(lambda: analyse_drift({"gyro_z": x}, rate), repeat=1)
@@ -169,7 +183,6 @@ def main() -> None:
         f"analyse_drift on a {minutes}-minute record at {rate:g} Hz ({n} samples, one channel): {t_all:.2f} s → "
         f"{n / rate / t_all:.0f}× faster than real time"
     )
-
     load_line = (
         f"machine load (1-min load average, {os.cpu_count()} CPUs) {load_start:.1f} at start, {os.getloadavg()[0]:.1f} "
         "at end: absolute times scale with it; the ratios compare runs made minutes apart within it"
@@ -192,7 +205,6 @@ def main() -> None:
     )
     print(body)
     write_section("drift", "Drift analysis (analysis/drift/)", body)
-
 
 if __name__ == "__main__":
     main()

@@ -135,7 +135,7 @@ def run_coverage(
         write_calibration(cal, folder / "calibration.json")
         cert = build_certificate(folder, with_plots=False)
         x = np.array([p.value for p in cert.parameters])
-        truth = np.array([cal.extra["truth"]["values"][n] for n in PARAM_NAMES])
+        truth = np.array([cal.truth.values[n] for n in PARAM_NAMES])
         errs.append(x - truth)
         us.append(np.array([p.standard_uncertainty for p in cert.parameters]))
         big_u.append(np.array([p.expanded_uncertainty for p in cert.parameters]))

@@ -62,6 +62,7 @@ def modbus_table(
     timeout: float = 2.0,
     retries: int = 1,
     wrap: Wrap = _same,
+    rate_tolerance: float | None = None,
 ) -> Connection[ModbusTurntable]:
     """A Modbus TCP turntable controller at ``host:port`` with its register map (:mod:`drivers.modbus.register_map`)."""
     client = ModbusTcpClient(host, port=port, timeout=timeout, retries=retries)
@@ -70,8 +71,9 @@ def modbus_table(
         raise LinkError(f"turntable: no Modbus TCP answer at {host}:{port}; check power, cable and address")
     transport = wrap(client)
     try:
+        extra = {} if rate_tolerance is None else {"rate_tolerance": rate_tolerance}
         table = ModbusTurntable(
-            transport, unit_id=unit_id, word_order=word_order, limits=limits, register_map=register_map
+            transport, unit_id=unit_id, word_order=word_order, limits=limits, register_map=register_map, **extra
         )
     except BaseException:
         client.close()

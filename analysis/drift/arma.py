@@ -560,18 +560,8 @@ def fit_arma(
     note = start.note
     s0 = p if condition is None or method == "ml" else max(int(condition), p)
     k = p + q + 1 + int(include_mean)
-    z = np.zeros(0)
     if p + q == 0:
-        tail = ac[s0:]
-        mu = float(tail.mean()) if include_mean else 0.0
-        s2 = dot(tail - mu, tail - mu) / tail.size
-        aic, bic = _criteria(tail.size, s2, k)
-        se_mu = math.sqrt(s2 / tail.size) if include_mean else math.nan
-        ll = -0.5 * tail.size * (math.log(2.0 * math.pi * s2) + 1.0)
-        return ArmaModel(
-            0, 0, z, z, s2, z, z, s2 * math.sqrt(2.0 / tail.size), tail.size, method, aic, bic, note=note,
-            include_mean=include_mean, mean=centre + mu, se_mean=se_mu, log_likelihood=ll, optimiser="closed form",
-        )  # fmt: skip
+        return _white_noise_model(ac[s0:], centre, method, include_mean, note)
     scale = math.sqrt(float(np.mean(ac * ac)))
     scaled = ac / scale
     x0 = np.r_[_shrink_to_admissible(start.phi), _shrink_to_admissible(start.theta)]
@@ -587,29 +577,9 @@ def fit_arma(
         params, conv, iterations, optimiser = _maximise(css, [x0], p)
     phi, theta = params[:p], params[p:]
     if method == "ml":
-        ex = exact_residuals(ac, phi, theta, include_mean)
-        mu = ex.mean
-        e = ex.weighted()
-        s2, s2_crit = ex.sigma2, ex.sigma2_eff
-        ll = -0.5 * ex.minus_two_log_likelihood()
-        fixed = _ml_problem(scaled - mu / scale, p, False)  # Jacobian at fixed μ: full (φ, θ, μ) information
-        jac = [c * scale for c in fixed[1](params, e / scale)]
-        if include_mean:
-            jac.append(-ex.weight * ex.mean_direction)
-        m = ex.n
+        mu, e, s2, s2_crit, ll, jac, m = _ml_statistics(ac, scale, params, p, include_mean)
     else:
-        if include_mean:
-            mu_s, e, e1 = _css_mean(scaled, phi, theta, s0)
-            mu = mu_s * scale
-            e = e * scale
-        else:
-            mu, e = 0.0, css_residuals(ac, phi, theta, s0)
-        s2 = s2_crit = dot(e, e) / e.size
-        ll = -0.5 * e.size * (math.log(2.0 * math.pi * s2) + 1.0)
-        jac = _jacobian(ac - mu, phi, theta, s0, e)
-        if include_mean:
-            jac.append(-e1)
-        m = e.size
+        mu, e, s2, s2_crit, ll, jac, m = _css_statistics(ac, scale, params, p, s0, include_mean)
     info, _ = normal_equations(jac, e)
     se = np.full(k - 1, np.nan)
     try:
@@ -617,20 +587,7 @@ def fit_arma(
         se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     except np.linalg.LinAlgError:
         note = _note(note, "information matrix singular (over-parametrised model)")
-    status = "converged"
-    if not conv.converged:
-        status = "not converged" if admissible(phi, theta, BOUNDARY_MARGIN) else "boundary"
-        where = (
-            ""
-            if status == "not converged"
-            else " (the likelihood rises toward the stationarity/invertibility boundary: a unit AR or MA root)"
-        )
-        note = _note(
-            note,
-            f"ARMA({p},{q}) {method.upper()} fit did not converge{where}: gradient norm {conv.gradient_norm:.3g}, "
-            f"{conv.gain:.3g} log-likelihood still to gain, step {conv.step_se:.3g} s.e. after {iterations} "
-            "iterations; the best point found is reported",
-        )
+    status, note = _convergence_status(conv, phi, theta, method, iterations, note)
     aic, bic = _criteria(m, s2_crit, k)
     return ArmaModel(
         p, q, phi, theta, s2, se[:p], se[p : p + q], s2 * math.sqrt(2.0 / m), m, method, aic, bic, note=note,
@@ -639,6 +596,77 @@ def fit_arma(
         likelihood_gap=conv.gain,
         iterations=iterations, optimiser=optimiser, redundant_pairs=redundant_root_pairs(phi, theta),
     )  # fmt: skip
+
+
+def _white_noise_model(
+    tail: NDArray[np.float64], centre: float, method: str, include_mean: bool, note: str
+) -> ArmaModel:
+    """ARMA(0, 0) in closed form: the mean and the variance of the (conditioned) record."""
+    z = np.zeros(0)
+    k = 1 + int(include_mean)
+    mu = float(tail.mean()) if include_mean else 0.0
+    s2 = dot(tail - mu, tail - mu) / tail.size
+    aic, bic = _criteria(tail.size, s2, k)
+    se_mu = math.sqrt(s2 / tail.size) if include_mean else math.nan
+    ll = -0.5 * tail.size * (math.log(2.0 * math.pi * s2) + 1.0)
+    return ArmaModel(
+        0, 0, z, z, s2, z, z, s2 * math.sqrt(2.0 / tail.size), tail.size, method, aic, bic, note=note,
+        include_mean=include_mean, mean=centre + mu, se_mean=se_mu, log_likelihood=ll, optimiser="closed form",
+    )  # fmt: skip
+
+
+def _ml_statistics(ac: NDArray[np.float64], scale: float, params: NDArray[np.float64], p: int, include_mean: bool):
+    """Exact-likelihood residual statistics at ``params``: (μ, weighted prediction errors, σ², σ²_eff, ln L,
+    residual Jacobian columns in (φ, θ, μ), residuals used)."""
+    phi, theta = params[:p], params[p:]
+    ex = exact_residuals(ac, phi, theta, include_mean)
+    mu = ex.mean
+    e = ex.weighted()
+    ll = -0.5 * ex.minus_two_log_likelihood()
+    fixed = _ml_problem(ac / scale - mu / scale, p, False)  # Jacobian at fixed μ: full (φ, θ, μ) information
+    jac = [c * scale for c in fixed[1](params, e / scale)]
+    if include_mean:
+        jac.append(-ex.weight * ex.mean_direction)
+    return mu, e, ex.sigma2, ex.sigma2_eff, ll, jac, ex.n
+
+
+def _css_statistics(
+    ac: NDArray[np.float64], scale: float, params: NDArray[np.float64], p: int, s0: int, include_mean: bool
+):
+    """Conditional-least-squares residual statistics at ``params`` (as :func:`_ml_statistics`)."""
+    phi, theta = params[:p], params[p:]
+    if include_mean:
+        mu_s, e, e1 = _css_mean(ac / scale, phi, theta, s0)
+        mu = mu_s * scale
+        e = e * scale
+    else:
+        mu, e = 0.0, css_residuals(ac, phi, theta, s0)
+    s2 = dot(e, e) / e.size
+    ll = -0.5 * e.size * (math.log(2.0 * math.pi * s2) + 1.0)
+    jac = _jacobian(ac - mu, phi, theta, s0, e)
+    if include_mean:
+        jac.append(-e1)
+    return mu, e, s2, s2, ll, jac, e.size
+
+
+def _convergence_status(conv, phi, theta, method: str, iterations: int, note: str) -> tuple[str, str]:
+    """("converged" | "not converged" | "boundary", the note with the non-convergence message added)."""
+    if conv.converged:
+        return "converged", note
+    p, q = len(phi), len(theta)
+    status = "not converged" if admissible(phi, theta, BOUNDARY_MARGIN) else "boundary"
+    where = (
+        ""
+        if status == "not converged"
+        else " (the likelihood rises toward the stationarity/invertibility boundary: a unit AR or MA root)"
+    )
+    note = _note(
+        note,
+        f"ARMA({p},{q}) {method.upper()} fit did not converge{where}: gradient norm {conv.gradient_norm:.3g}, "
+        f"{conv.gain:.3g} log-likelihood still to gain, step {conv.step_se:.3g} s.e. after {iterations} "
+        "iterations; the best point found is reported",
+    )
+    return status, note
 
 
 @dataclass

@@ -2,7 +2,7 @@
 
 Uses matplotlib's object API (no pyplot global state) with the Agg canvas, so it is safe in tests and
 threads. Values are plotted in the channel's SI unit (label given by the caller). Pure: the figures are
-returned; the command (``benches/commands/drift.py``) writes them as PNG files.
+returned; the command (``benches/cli/commands/drift.py``) writes them as PNG files.
 """
 
 from __future__ import annotations

@@ -150,6 +150,141 @@ def unsettled(sel: OrderSelection) -> list[dict]:
     return out
 
 
+def _record_tests(
+    a: NDArray[np.float64], y: NDArray[np.float64], trend: NDArray[np.float64], replaced: int, o: DriftOptions
+) -> dict:
+    """Stationarity (Daniel, reverse arrangement on sub-series means and mean squares) and normality (Jarque–Bera)
+    of the detrended record ``y`` (``a`` the raw record, ``trend`` the removed trend)."""
+    tests = {}
+    means = segment_stats(y, o.segments, "mean")
+    msq = segment_stats(y, o.segments, "mean_square")
+    for label, z in (("mean", means), ("mean_square", msq)):
+        t = daniel_test(z, o.alpha)
+        t.name = f"daniel_{label}"
+        tests[t.name] = t
+        t = reverse_arrangement_test(z, o.alpha)
+        t.name = f"reverse_arrangement_{label}"
+        tests[t.name] = t
+    jb = jarque_bera_test(y, o.alpha)
+    if replaced and o.outlier_k <= 4:
+        jb.note += (
+            f"; the {o.outlier_k:g}-sigma replacement of {replaced} samples truncates the tails (Gaussian data "
+            "lose ~0.16 of kurtosis at 3 sigma), which alone makes JB reject for n above a few thousand"
+        )
+    jb.extra["before_outlier_replacement"] = jarque_bera_test(a - trend, o.alpha).statistic
+    tests["jarque_bera"] = jb
+    return tests
+
+
+def _online_pass(model, centred: NDArray[np.float64], o: DriftOptions, say: Callable[[str], None]) -> dict:
+    """The online RLS / extended-LS pass over the record after a batch start on its first samples."""
+    n = centred.size
+    online: dict = {"run": False}
+    if o.online and model.p + model.q > 0:
+        say("online RLS/ELS pass")
+        n0 = min(max(1000, n // 20), n // 2)
+        try:
+            est = OnlineArma(model.p, model.q, o.forgetting).initialise(centred[:n0])
+            t0 = time.perf_counter()
+            est.feed(centred[n0:])
+            dt = time.perf_counter() - t0
+            st = est.state()
+            online = {
+                "run": True,
+                "method": "rls" if model.q == 0 else "extended_ls",
+                "forgetting": o.forgetting,
+                "initial_samples": n0,
+                "phi": st.phi.tolist(),
+                "theta": st.theta.tolist(),
+                "samples_per_s": (n - n0) / dt if dt > 0 else math.inf,
+            }
+        except DriftInputError as exc:
+            online = {"run": False, "note": str(exc)}
+    return online
+
+
+def _compensation(
+    model, centred: NDArray[np.float64], o: DriftOptions, say: Callable[[str], None]
+) -> tuple[dict, NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """State-space ARMA compensation: the steady-state filter over the record and the sliding-window smoother over
+    its first samples; (summary, innovations, compensated span, smoothed drift)."""
+    n = centred.size
+    s2 = model.sigma2
+    rvar = float(o.measurement_var) if o.measurement_var is not None else s2
+    comp: dict = {"measurement_var": rvar, "std_before": float(np.std(centred))}
+    innov = np.zeros(0)
+    compensated = np.zeros(0)
+    smoothed = np.zeros(0)
+    if model.p > 0:
+        ss = arma_state_space(model.phi, model.theta, s2, rvar)
+        yc = centred
+        _, pred = steady_state_filter(ss, yc)
+        innov = yc - pred
+        comp["std_after_filter"] = float(np.std(innov))
+        ns = int(min(o.smoother_samples, n))
+        if ns >= 2:
+            say(f"sliding-window smoother over {ns} samples")
+            sm = sliding_window_smoother(ss, yc[:ns], o.window, min(o.stride, o.window))
+            smoothed = sm.drift
+            compensated = yc[:ns] - sm.drift
+            comp.update(
+                {
+                    "smoother_samples": ns,
+                    "std_before_smoothed_span": float(np.std(yc[:ns])),
+                    "std_after_smoother": float(np.std(compensated)),
+                    "windows": sm.windows,
+                    "max_lm_iterations": sm.max_iterations,
+                }
+            )
+    else:
+        comp["note"] = "white residual (p = 0): nothing predictable to compensate"
+    return comp, innov, compensated, smoothed
+
+
+def _summary(n, rate, out, det, sel, moments, tests, tones, removed, r, pr, band_acf, band_pacf, online, comp, o):
+    """The JSON-ready summary of one channel's drift chain."""
+    model = sel.best
+    model_d = model.to_dict()
+    model_d["moment"] = {
+        "phi": moments.phi.tolist(),
+        "theta": moments.theta.tolist(),
+        "sigma2": moments.sigma2,
+        "note": moments.note,
+    }
+    summary = {
+        "samples": n,
+        "rate_hz": rate,
+        "outliers": {
+            "method": out.method,
+            "k": o.outlier_k,
+            "replaced": out.replaced,
+            "centre": out.centre,
+            "scale": out.scale,
+        },
+        "detrend": {"order": det.order, "coefficients": det.coefficients.tolist(), "criteria": det.criteria},
+        "model": model_d,
+        "order_selection": {
+            "criterion": o.criterion,
+            "by_aic": list(sel.by_aic),
+            "by_bic": list(sel.by_bic),
+            "p_ge_q": o.p_ge_q,
+            "table": sel.table,
+        },
+        "unsettled": unsettled(sel),
+        "tests": {k: v.to_dict() for k, v in tests.items()},
+        "tones_hz": tones.extra["frequencies"],
+        "tones_removed": [
+            {"frequency_hz": t.frequency_hz, "amplitude": t.amplitude, "phase": t.phase} for t in removed
+        ],
+        "periodic_handoff": "run 'tablebench periodic' on these tones" if tones.extra["frequencies"] else "",
+        "acf": {"values": r.tolist(), "band": band_acf.tolist()},
+        "pacf": {"values": pr.tolist(), "band": band_pacf},
+        "online": online,
+        "compensation": comp,
+    }
+    return summary
+
+
 def analyse_channel(
     x: ArrayLike,
     rate: float,
@@ -190,24 +325,7 @@ def analyse_channel(
     if float(np.std(y)) <= 1e-13 * max(float(np.max(np.abs(a))), 1e-300):
         raise DriftInputError(f"{name}: nothing varies after removing the trend; no drift to model")
 
-    tests = {}
-    means = segment_stats(y, o.segments, "mean")
-    msq = segment_stats(y, o.segments, "mean_square")
-    for label, z in (("mean", means), ("mean_square", msq)):
-        t = daniel_test(z, o.alpha)
-        t.name = f"daniel_{label}"
-        tests[t.name] = t
-        t = reverse_arrangement_test(z, o.alpha)
-        t.name = f"reverse_arrangement_{label}"
-        tests[t.name] = t
-    jb = jarque_bera_test(y, o.alpha)
-    if out.replaced and o.outlier_k <= 4:
-        jb.note += (
-            f"; the {o.outlier_k:g}-sigma replacement of {out.replaced} samples truncates the tails (Gaussian data "
-            "lose ~0.16 of kurtosis at 3 sigma), which alone makes JB reject for n above a few thousand"
-        )
-    jb.extra["before_outlier_replacement"] = jarque_bera_test(a - det.trend, o.alpha).statistic
-    tests["jarque_bera"] = jb
+    tests = _record_tests(a, y, det.trend, out.replaced, o)
     tones = welch_tones(y, rate, o.tone_alpha)
     tests["welch_periodicity"] = tones
     removed = []
@@ -238,96 +356,13 @@ def analyse_channel(
     band_acf = correlation_bands(n, r, o.alpha)
     band_pacf = float(correlation_bands(n, None, o.alpha)[0])
 
-    online: dict = {"run": False}
-    if o.online and model.p + model.q > 0:
-        say("online RLS/ELS pass")
-        n0 = min(max(1000, n // 20), n // 2)
-        try:
-            est = OnlineArma(model.p, model.q, o.forgetting).initialise(centred[:n0])
-            t0 = time.perf_counter()
-            est.feed(centred[n0:])
-            dt = time.perf_counter() - t0
-            st = est.state()
-            online = {
-                "run": True,
-                "method": "rls" if model.q == 0 else "extended_ls",
-                "forgetting": o.forgetting,
-                "initial_samples": n0,
-                "phi": st.phi.tolist(),
-                "theta": st.theta.tolist(),
-                "samples_per_s": (n - n0) / dt if dt > 0 else math.inf,
-            }
-        except DriftInputError as exc:
-            online = {"run": False, "note": str(exc)}
+    online = _online_pass(model, centred, o, say)
 
-    s2 = model.sigma2
-    rvar = float(o.measurement_var) if o.measurement_var is not None else s2
-    comp: dict = {"measurement_var": rvar, "std_before": float(np.std(centred))}
-    innov = np.zeros(0)
-    compensated = np.zeros(0)
-    smoothed = np.zeros(0)
-    if model.p > 0:
-        ss = arma_state_space(model.phi, model.theta, s2, rvar)
-        yc = centred
-        _, pred = steady_state_filter(ss, yc)
-        innov = yc - pred
-        comp["std_after_filter"] = float(np.std(innov))
-        ns = int(min(o.smoother_samples, n))
-        if ns >= 2:
-            say(f"sliding-window smoother over {ns} samples")
-            sm = sliding_window_smoother(ss, yc[:ns], o.window, min(o.stride, o.window))
-            smoothed = sm.drift
-            compensated = yc[:ns] - sm.drift
-            comp.update(
-                {
-                    "smoother_samples": ns,
-                    "std_before_smoothed_span": float(np.std(yc[:ns])),
-                    "std_after_smoother": float(np.std(compensated)),
-                    "windows": sm.windows,
-                    "max_lm_iterations": sm.max_iterations,
-                }
-            )
-    else:
-        comp["note"] = "white residual (p = 0): nothing predictable to compensate"
+    comp, innov, compensated, smoothed = _compensation(model, centred, o, say)
 
-    model_d = model.to_dict()
-    model_d["moment"] = {
-        "phi": moments.phi.tolist(),
-        "theta": moments.theta.tolist(),
-        "sigma2": moments.sigma2,
-        "note": moments.note,
-    }
-    summary = {
-        "samples": n,
-        "rate_hz": rate,
-        "outliers": {
-            "method": out.method,
-            "k": o.outlier_k,
-            "replaced": out.replaced,
-            "centre": out.centre,
-            "scale": out.scale,
-        },
-        "detrend": {"order": det.order, "coefficients": det.coefficients.tolist(), "criteria": det.criteria},
-        "model": model_d,
-        "order_selection": {
-            "criterion": o.criterion,
-            "by_aic": list(sel.by_aic),
-            "by_bic": list(sel.by_bic),
-            "p_ge_q": o.p_ge_q,
-            "table": sel.table,
-        },
-        "unsettled": unsettled(sel),
-        "tests": {k: v.to_dict() for k, v in tests.items()},
-        "tones_hz": tones.extra["frequencies"],
-        "tones_removed": [
-            {"frequency_hz": t.frequency_hz, "amplitude": t.amplitude, "phase": t.phase} for t in removed
-        ],
-        "periodic_handoff": "run 'tablebench periodic' on these tones" if tones.extra["frequencies"] else "",
-        "acf": {"values": r.tolist(), "band": band_acf.tolist()},
-        "pacf": {"values": pr.tolist(), "band": band_pacf},
-        "online": online,
-        "compensation": comp,
-    }
+    summary = _summary(
+        n, rate, out, det, sel, moments, tests, tones, removed, r, pr, band_acf, band_pacf, online, comp, o
+    )
     return ChannelDrift(summary, a, y, innov, compensated, smoothed, r, pr, band_acf, band_pacf)
 
 

@@ -22,7 +22,7 @@ reversed slices) and, as the strided subset j = 0, m, 2m, …, the non-overlappi
 terms s_j (m-sums of d) are, on an octave grid, one difference of G_m(j) = S_m(j+m) − S_m(j), S_m the moving
 sums of m phase points: G_1 is the detrended record itself and G_{2m}(j) = G_m(j) + 2G_m(j+m) + G_m(j+2m) is
 formed in place, chunk by chunk (two adds per sample per τ); otherwise s comes from a running sum of d over
-each chunk. Up to :data:`_LEVELS_PER_PASS` consecutive octaves share one pass over the record, each a chunk
+each chunk. Up to :data:`LEVELS_PER_PASS` consecutive octaves share one pass over the record, each a chunk
 behind the previous, so the chunks are reused while in cache. The plain sums Σd, Σs and the non-overlapping Σd
 telescope to O(m) end sums; sums of squares are single-threaded BLAS dot products of 4096 elements; the chunk
 temporaries are preallocated. Cost O(N) per τ (about seven vector operations per sample); memory two float64
@@ -175,15 +175,15 @@ def tau_grid(
     return m
 
 
-_LEVELS_PER_PASS = 8
-"""Octave levels sharing one pass over the record (:func:`_octave_levels`); tuning only."""
+LEVELS_PER_PASS = 8
+"""Octave levels sharing one pass over the record (:func:`octave_levels`); tuning only."""
 
 _DOT_BLOCK = 4096
 """Elements per BLAS dot product in :func:`sum_of_products` (OpenBLAS spreads a dot product of more than 10 000
 elements over threads, which on a busy machine costs far more than it saves; below that it runs on the calling
 thread)."""
 
-_vecdot = getattr(np, "vecdot", None)  # numpy ≥ 2.0
+vecdot = getattr(np, "vecdot", None)  # numpy ≥ 2.0
 _add_reduce = np.add.reduce
 
 
@@ -196,7 +196,7 @@ def sum_of_products(u: NDArray[np.float64], v: NDArray[np.float64] | None = None
     if q:
         bu = u[:q].reshape(-1, _DOT_BLOCK)
         bv = bu if v is None else v[:q].reshape(-1, _DOT_BLOCK)
-        tot = float(_add_reduce(_vecdot(bu, bv) if _vecdot is not None else np.einsum("ij,ij->i", bu, bv)))
+        tot = float(_add_reduce(vecdot(bu, bv) if vecdot is not None else np.einsum("ij,ij->i", bu, bv)))
     if k > q:
         r = u[q:]
         tot += float(np.dot(r, r if v is None else v[q:]))
@@ -220,7 +220,7 @@ def _line(col: NDArray, ks: NDArray[np.float64]) -> tuple[float, float]:
     return s0 / n, (s1 / skk if n > 1 else 0.0)
 
 
-def _prefix_sum(v: NDArray[np.float64], out: NDArray[np.float64], scratch: NDArray[np.float64], depth: int = 4) -> None:
+def prefix_sum(v: NDArray[np.float64], out: NDArray[np.float64], scratch: NDArray[np.float64], depth: int = 4) -> None:
     """out_i = v_0 + … + v_i (1-D, ``out`` may be strided; ``scratch`` ≥ len(v) elements, not overlapping either).
 
     numpy's cumulative sum adds one element after the other (≈ 2.7 ns per element); here the pair sums
@@ -232,13 +232,13 @@ def _prefix_sum(v: NDArray[np.float64], out: NDArray[np.float64], scratch: NDArr
         np.cumsum(v, out=out)
         return
     if k % 2:
-        _prefix_sum(v[:-1], out[:-1], scratch, depth)
+        prefix_sum(v[:-1], out[:-1], scratch, depth)
         out[-1] = out[-2] + v[-1]
         return
     h = k // 2
     p = scratch[:h]
     np.add(v[0::2], v[1::2], out=p)
-    _prefix_sum(p, out[1::2], scratch[h:], depth - 1)
+    prefix_sum(p, out[1::2], scratch[h:], depth - 1)
     np.subtract(out[1::2], v[1::2], out=out[0::2])
 
 
@@ -254,7 +254,7 @@ def _integrate(
     """Phase of one channel minus its line, in data unit × samples: x_0 = 0, x_j = Σ_{k<j} e_k with
     e_k = a_k − mean − r_s (k − k̄), written into ``x`` (N+1,); e itself is left in ``e_out`` — (N+1,): all of
     it, the moving-difference array G_1 of the octave passes; or a chunk-sized scratch buffer. ``scratch``: at
-    least a chunk, for :func:`_prefix_sum`."""
+    least a chunk, for :func:`prefix_sum`."""
     n = col.shape[0]
     kbar = (n - 1) / 2.0
     big = ks.size
@@ -269,7 +269,7 @@ def _integrate(
         blk -= mean + r_s * (s - kbar)
         first = blk[0]
         blk[0] = first + carry  # the running sum carried into the chunk's cumulative sum
-        _prefix_sum(blk, x[s + 1 : e + 1], scratch)
+        prefix_sum(blk, x[s + 1 : e + 1], scratch)
         blk[0] = first
         carry = float(x[e])
     if whole:
@@ -296,7 +296,7 @@ def _reflected_range(x: NDArray[np.float64], a: int, b: int) -> NDArray[np.float
     return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
 
 
-def _edge_sum_general(x: NDArray[np.float64], m: int, lo: int, hi: int, half_a: float, chunk: int) -> float:
+def edge_sum_general(x: NDArray[np.float64], m: int, lo: int, hi: int, half_a: float, chunk: int) -> float:
     """Σ over centres lo ≤ i ≤ hi of the squared reflected second differences x*_{i−m} − 2x_i + x*_{i+m},
     plus the removed ramp's exact contribution half_a·(2m² − 2·max(m−i, 0)² − 2·max(i+m−N, 0)²); any m ≤ N
     (a centre may reach past both ends). ``x`` is one channel's phase, (N+1,)."""
@@ -314,20 +314,20 @@ def _edge_sum_general(x: NDArray[np.float64], m: int, lo: int, hi: int, half_a: 
     return out
 
 
-def _edge_sums(x: NDArray[np.float64], m: int, half_a: float, chunk: int, bufs: _Buffers) -> float:
+def edge_sums(x: NDArray[np.float64], m: int, half_a: float, chunk: int, bufs: _Buffers) -> float:
     """Σ of the squared reflected second differences (with the removed ramp's contribution) over the total
     variance's edge centres, 1 ≤ i ≤ m − 1 and N − m + 1 ≤ i ≤ N − 1, of one channel's phase x (N+1,), x_0 = 0.
 
     For 2m ≤ N each edge centre reaches past one end only: with u = i (left) or N − i (right), 1 ≤ u ≤ m − 1,
     the terms are x_{u+m} − 2x_u − x_{m−u} and 2x_N − x_{N+u−m} − 2x_{N−u} + x_{N−u−m}, and the ramp adds
-    half_a·2u(2m − u) to both (reversed slices, no index arrays). Otherwise :func:`_edge_sum_general`."""
+    half_a·2u(2m − u) to both (reversed slices, no index arrays). Otherwise :func:`edge_sum_general`."""
     n = x.shape[0] - 1
     if n < 3:
         return 0.0
     if 2 * m > n:
         left_end = min(m - 1, n - 1)
-        out = _edge_sum_general(x, m, 1, left_end, half_a, chunk)
-        return out + _edge_sum_general(x, m, max(n - m + 1, left_end + 1), n - 1, half_a, chunk)
+        out = edge_sum_general(x, m, 1, left_end, half_a, chunk)
+        return out + edge_sum_general(x, m, max(n - m + 1, left_end + 1), n - 1, half_a, chunk)
     out = 0.0
     two_xn = 2.0 * float(x[n])
     ks = bufs.ks
@@ -363,7 +363,7 @@ def _range_sum(x: NDArray[np.float64], a: int, b: int) -> float:
     return float(x[a:b].sum()) if b > a else 0.0
 
 
-def _lag_sum(x: NDArray[np.float64], m: int, count: int, off: int = 0) -> float:
+def lag_sum(x: NDArray[np.float64], m: int, count: int, off: int = 0) -> float:
     """Σ_{i<count} (x_{i+off+m} − x_{i+off}) by telescoping: O(min(count, m)) elements read."""
     if count >= m:
         return _range_sum(x, off + count, off + count + m) - _range_sum(x, off, off + m)
@@ -372,7 +372,7 @@ def _lag_sum(x: NDArray[np.float64], m: int, count: int, off: int = 0) -> float:
 
 def _lag2_sum(x: NDArray[np.float64], m: int, count: int) -> float:
     """Σ_{i<count} (x_{i+2m} − 2x_{i+m} + x_i) by telescoping."""
-    return _lag_sum(x, m, count, m) - _lag_sum(x, m, count, 0)
+    return lag_sum(x, m, count, m) - lag_sum(x, m, count, 0)
 
 
 class _Buffers:
@@ -422,7 +422,7 @@ def _double_g(g: NDArray[np.float64], m: int, s: int, k: int, bufs: _Buffers) ->
         w += g[s + m : s + k + m]
 
 
-def _octave_levels(
+def octave_levels(
     x: NDArray[np.float64], g: NDArray[np.float64], levels: list[tuple[int, int, bool]], chunk: int, bufs: _Buffers
 ) -> list[tuple[float, float, float, float]]:
     """One pass over the record for consecutive averaging factors m, 2m, 4m, … of the octave grid, one channel.
@@ -473,10 +473,10 @@ def _octave_levels(
     return [(a[0], a[1], a[2], a[3]) for a in acc]
 
 
-def _octave_far(
+def octave_far(
     x: NDArray[np.float64], g: NDArray[np.float64], m: int, k_avar: int, double: bool, chunk: int, bufs: _Buffers
 ) -> tuple[float, float, float, float]:
-    """:func:`_octave_levels` for one level with m ≥ chunk, walking the record column by column: for each offset
+    """:func:`octave_levels` for one level with m ≥ chunk, walking the record column by column: for each offset
     block [c, c + w) of the period m, the blocks j = c + t·m + [0, w), t = 0, 1, …, in turn. Consecutive blocks
     then share their lag-m first differences D1(j) = x_{j+m} − x_j and pair sums h(j) = G_m(j) + G_m(j+m):
     d = D1(j+m) − D1(j) and G_{2m}(j) = h(j) + h(j+m) cost one new operation each (three with independent
@@ -487,7 +487,7 @@ def _octave_far(
     n_m = n + 2 - 3 * m
     n_g = n + 2 - 4 * m if double else 0
     s2 = a2 = t2 = 0.0
-    t1 = _lag_sum(g, m, n_m) if n_m > 0 else 0.0  # Σs telescoped, before G is doubled
+    t1 = lag_sum(g, m, n_m) if n_m > 0 else 0.0  # Σs telescoped, before G is doubled
     d1a, d1b = bufs.b1[:chunk], bufs.b1[chunk : 2 * chunk]
     ha, hb = bufs.b2, bufs.b3
     d = bufs.b4
@@ -687,19 +687,19 @@ def _channel(
                     _double_g(g, m_cur, s, min(top, s + chunk) - s, bufs)
                 m_cur *= 2
             if ml[j] >= chunk:
-                sums.append(_octave_far(x, g, ml[j], n // ml[j] - 1, j + 1 < len(ml), chunk, bufs))
+                sums.append(octave_far(x, g, ml[j], n // ml[j] - 1, j + 1 < len(ml), chunk, bufs))
                 m_cur = 2 * ml[j]
                 continue
             group = [j]  # next levels of the same pass: consecutive octaves with 2m ≤ chunk
             while (
-                len(group) < _LEVELS_PER_PASS
+                len(group) < LEVELS_PER_PASS
                 and group[-1] + 1 < len(ml)
                 and ml[group[-1] + 1] == 2 * ml[group[-1]]
                 and 2 * ml[group[-1] + 1] <= chunk
             ):
                 group.append(group[-1] + 1)
             levels = [(ml[i], n // ml[i] - 1, i + 1 < len(ml)) for i in group]
-            sums += _octave_levels(x, g, levels, chunk, bufs)
+            sums += octave_levels(x, g, levels, chunk, bufs)
             m_cur = 2 * ml[group[-1]]
     else:
         for m in ml:
@@ -731,7 +731,7 @@ def _channel(
             var["mvar"][j, ch] = tot / (2.0 * m**4 * n_m)
             nterm["mvar"][j] = n_m
         if m <= n and n >= 3:
-            edge = _edge_sums(x, m, half_a, chunk, bufs)
+            edge = edge_sums(x, m, half_a, chunk, bufs)
             var["totvar"][j, ch] = (central + edge) / (2.0 * m * m * (n - 1))
             nterm["totvar"][j] = n - 1
 

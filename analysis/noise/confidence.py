@@ -52,7 +52,7 @@ D_ORDER = {"adev": 2, "oadev": 2, "mdev": 2, "tdev": 2, "hdev": 3, "ohdev": 3, "
 # ------------------------------------------------------------------------------------ noise identification
 
 
-def _lag1(z: NDArray[np.float64]) -> float:
+def lag1(z: NDArray[np.float64]) -> float:
     """Lag-1 autocorrelation as Stable32 computes it, Σ z̃_i z̃_{i+1} / Σ z̃_i² · (n − 1)/n with z̃ = z − mean,
     of each column of z (n, k), averaged over the columns."""
     z = z - z.mean(axis=0)
@@ -97,7 +97,7 @@ def lag1_alpha(x_phase: NDArray[np.float64], m: int, dmax: int = 2) -> int | Non
         return None
     d = 0
     while True:
-        r1 = _lag1(z)
+        r1 = lag1(z)
         rho = r1 / (1.0 + r1)
         if rho < 0.25 or d >= dmax:
             return int(-round(2.0 * rho) - 2 * d + 2)
@@ -106,7 +106,7 @@ def lag1_alpha(x_phase: NDArray[np.float64], m: int, dmax: int = 2) -> int | Non
 
 
 @lru_cache(maxsize=64)
-def _expected_lag1(n: int, random_walk: bool) -> float:
+def expected_lag1(n: int, random_walk: bool) -> float:
     """E[Σ z̃_i z̃_{i+1}] / E[Σ z̃_i²] · (n − 1)/n on n points of white noise (−(n − 1)/n²) or of a random walk
     (covariance min(i, j) + 1), z̃ the points less their mean."""
     if not random_walk:
@@ -132,8 +132,8 @@ def is_phase_noise(x_phase: NDArray[np.float64], m: int) -> bool | None:
     n = z.shape[0]
     if n < PM_TEST_MIN_POINTS:
         return None
-    cut = min(1.0 / 3.0, 0.5 * (_expected_lag1(n, False) + _expected_lag1(n, True)))
-    return _lag1(z) < cut
+    cut = min(1.0 / 3.0, 0.5 * (expected_lag1(n, False) + expected_lag1(n, True)))
+    return lag1(z) < cut
 
 
 RN_MIN_FACTOR = 4
@@ -449,7 +449,7 @@ _WPM_EXACT_MAX_N = 1 << 21
 beyond, SP 1065 Table 5's AVAR EDF (optimistic at large m)."""
 
 
-def _totvar_wpm_b(n: int, m: int):  # noqa: ANN202 (scipy.sparse matrix)
+def totvar_wpm_b(n: int, m: int):  # noqa: ANN202 (scipy.sparse matrix)
     """B = AᵀA, A (N − 2 × N) the map from the phase to TOTVAR's reflected second differences at factor m."""
     from scipy import sparse
 
@@ -476,7 +476,7 @@ def edf_totvar_wpm(n: int, m: int) -> float:
     measured over 400 simulated records: 68)."""
     if n > _WPM_EXACT_MAX_N:
         return edf_avar_simple(n, m, 2)
-    b = _totvar_wpm_b(n, m)
+    b = totvar_wpm_b(n, m)
     tr = float(b.diagonal().sum())
     return tr * tr / float(b.multiply(b).sum())
 
@@ -495,7 +495,7 @@ def totvar_wpm_shape(n: int, m: int) -> tuple[float, float, float] | None:
     covered 73–78 % instead of 68 % at m ≥ 64 (N = 1024). None where N·m > 2²² (B² too large)."""
     if n > _WPM_EXACT_MAX_N or n * m > _WPM_SHAPE_MAX:
         return None
-    b = _totvar_wpm_b(n, m)
+    b = totvar_wpm_b(n, m)
     tr1 = float(b.diagonal().sum())
     b2 = b @ b
     tr2 = float(b2.diagonal().sum())

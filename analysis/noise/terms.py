@@ -1,6 +1,6 @@
 """Noise terms of an Allan-variance curve: weighted non-negative least squares and the slope-line reading.
 
-IEEE 952 (gyros) / IEEE 1293 (accelerometers) model, ``/work/shared/spec/noise-variance.md``::
+IEEE 952 (gyros) / IEEE 1293 (accelerometers) model (docs/methods/noise.md)::
 
     σ²(τ) = 3Q²/τ² + N²/τ + (2 ln2/π) B² + K² τ/3 + R² τ²/2  =  Σ_{n=−2}^{2} C_n τ^n
 
@@ -29,6 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import nnls
 
 from analysis import units
+from analysis.noise.slope import COVERAGE, slope_readings
 from analysis.units import magnitude_problem
 
 TERMS: tuple[str, ...] = ("Q", "N", "B", "K", "R")
@@ -68,8 +69,6 @@ except for white FM), TheoBR over all τ (one bias factor for the whole run, tak
 variance: with white noise at short τ and random walk at long τ it inflates the short-τ part by the random walk's
 bias, 1.7× in N on a test record; TheoH uses it only at long τ), MTIE and TIE rms (not variances of the
 power-law model)."""
-SLOPES: dict[str, float] = {"Q": -1.0, "N": -0.5, "B": 0.0, "K": 0.5, "R": 1.0}
-"""Log-log slope of the Allan *deviation* of each term."""
 B_FLOOR: float = math.sqrt(2.0 * math.log(2.0) / math.pi)
 """Flicker floor of the Allan deviation per unit bias instability, ≈ 0.6643."""
 
@@ -259,74 +258,6 @@ def fit_noise_terms(
     return NoiseFit(coef, cov, terms_out, t, chi2_red)
 
 
-def slope_terms(
-    tau: ArrayLike,
-    dev: ArrayLike,
-    lo: ArrayLike | None = None,
-    hi: ArrayLike | None = None,
-    gains: tuple[float, ...] = GAINS,
-) -> dict[str, dict[str, float | bool]]:
-    """The classic slope-line reading of an Allan-deviation curve.
-
-    For each term, the straight line of its slope (−1, −½, 0, +½, +1 in log-log) is moved until it touches
-    the curve from below — the point where the curve's local slope equals the term's — and read at
-    τ = √3, 1, (floor), 3, √2 s: Q = σ τ/√3, N = σ √τ, B = min σ / 0.6643, K = σ √(3/τ), R = σ √2/τ.
-    Every term's own line lies under the noise-free curve, so each reading is an upper bound there (on a
-    measured curve the minimum also picks the point that scattered lowest: biased low by up to the
-    confidence half-width); ``observed`` tells
-    whether the curve's slope at the touching point is within ±0.2 of the term's (the term dominates there).
-    Only points whose confidence half-width is ≤ 25 % are read (without ``lo``/``hi``: τ ≤ 0.3 τ_max).
-
-    Parameters
-    ----------
-    tau, dev : array_like (M,)
-        Averaging times (s) and Allan deviations (u).
-    lo, hi : array_like (M,), optional
-        Confidence bounds of ``dev``; the reading's σ is half their spread, scaled to the reading.
-    gains : tuple of float
-        Gains of the deviation's variance per term (:data:`GAINS` for Allan deviations: the readings above;
-        in general term = σ τ^(−n/2)/√gain); terms with gain 0 are not read.
-
-    Returns
-    -------
-    dict
-        term → {"value": SI, "sigma": SI, "tau": s, "observed": bool}.
-    """
-    t = np.asarray(tau, dtype=np.float64)
-    d = np.asarray(dev, dtype=np.float64)
-    ok = np.isfinite(d) & (d > 0)
-    t, d = t[ok], d[ok]
-    rel = np.full(t.shape, np.nan)
-    if lo is not None and hi is not None:
-        rel = 0.5 * (np.asarray(hi, dtype=np.float64)[ok] - np.asarray(lo, dtype=np.float64)[ok]) / d
-    local = np.gradient(np.log(d), np.log(t)) if t.size >= 2 else np.zeros(t.shape)
-    # read only where the curve is known well (CI half-width ≤ 25 %, or τ ≤ T/10 without CIs): the lowest
-    # point of a noisy tail would otherwise pull every reading down
-    good = rel <= 0.25 if np.any(np.isfinite(rel)) else t <= 0.1 * t.max() * 3.0
-    if np.count_nonzero(good) >= 2:
-        t, d, rel, local = t[good], d[good], rel[good], local[good]
-    factor = {
-        name: (lambda tt, p=POWERS[i], g=gains[i]: tt ** (-p / 2.0) / math.sqrt(g))
-        for i, name in enumerate(TERMS)
-        if gains[i] > 0.0
-    }
-    out: dict[str, dict[str, float | bool]] = {}
-    if t.size == 0:
-        return out
-    for name, slope in SLOPES.items():
-        if name not in factor:
-            continue
-        vals = d * factor[name](t)
-        j = int(np.argmin(vals))
-        out[name] = {
-            "value": float(vals[j]),
-            "sigma": float(vals[j] * rel[j]) if np.isfinite(rel[j]) else float("nan"),
-            "tau": float(t[j]),
-            "observed": bool(abs(local[j] - slope) <= 0.2),
-        }
-    return out
-
-
 FIT_ESTIMATORS: tuple[str, ...] = tuple(FIT_GAINS)
 """Estimators accepted by the noise-term fit (see :data:`FIT_GAINS`)."""
 
@@ -358,6 +289,8 @@ def analyse_noise(
     estimators: tuple[str, ...] = ("adev", "oadev", "mdev", "totdev"),
     data_type: str = "freq",
     fit_estimator: str = "oadev",
+    noise_type: int | list[tuple[float, float, int]] | None = None,
+    remove_drift: str | None = None,
 ) -> dict:
     """Stability deviations with intervals and fitted noise terms of named channels (the ``noise.json`` data).
 
@@ -387,6 +320,11 @@ def analyse_noise(
         What the records hold.
     fit_estimator : str
         Estimator for the NNLS and slope-line term reading, one of :data:`FIT_ESTIMATORS`.
+    noise_type : int or list of (τ_lo, τ_hi, α), optional
+        Noise type set by hand for the intervals and the fit (:func:`analysis.noise.stability.stability`).
+    remove_drift : {"linear", "quadratic"}, optional
+        Frequency drift removed from each channel first (:func:`analysis.noise.drift_removal.remove_drift`);
+        the removed polynomial is reported per channel under ``"drift_removed"``.
 
     Returns
     -------
@@ -405,7 +343,63 @@ def analyse_noise(
             f"the noise-term fit needs an estimator with a fixed gain per noise term "
             f"({', '.join(FIT_ESTIMATORS)}), got {fit_estimator!r}"
         )
-    gains = FIT_GAINS[fit_estimator]
+    names, arrays, unit_of = _checked_channels(channels, units)
+    removed = {}
+    if remove_drift is not None:
+        from analysis.noise.drift_removal import remove_drift as _remove
+
+        for i, k in enumerate(names):
+            arrays[i], removed[k] = _remove(arrays[i], rate, remove_drift, data_type)
+    n = arrays[0].size
+    data = _rows(arrays).T  # (N, C) view of a (C, N) array: stability reads its rows without a copy
+    del arrays
+    ests = tuple(dict.fromkeys((*estimators, fit_estimator)))
+    res = stability(data, rate, ests, taus, data_type, confidence=confidence, noise_type=noise_type)
+    itot = None
+    if published_itotvar:
+        if data_type != "freq" or np.isnan(data).any():
+            raise ValueError("--published-itotvar needs a gap-free frequency (rate) record")
+        from analysis.noise.allan import improved_total_variance
+
+        itot = improved_total_variance(data, rate, res.estimates[fit_estimator].tau)
+    del data
+    record_time = (res.n_points - 1) / rate
+    fe = res.estimates[fit_estimator]
+    out_channels: dict[str, dict] = {}
+    for j, name in enumerate(names):
+        try:
+            fitted = _channel_terms(fe, j, unit_of[name], res.n_points, record_time, terms, fit_estimator)
+        except ValueError as exc:
+            raise ValueError(f"channel {name!r}: {exc} (is the channel constant?)") from None
+        ch = _channel_deviations(res, j, unit_of[name])
+        ch.update(_flat_keys(res, fe, j))
+        if itot is not None:
+            ch["itotdev_published"] = np.sqrt(itot.var["itotvar"][:, j])
+        ch.update(fitted)
+        if remove_drift is not None:
+            ch["drift_removed"] = {
+                "model": remove_drift,
+                "data_type": data_type,
+                "coefficients": removed[name],
+                "powers_of_t_s": list(range(removed[name].size)),
+            }
+        out_channels[name] = ch
+    return {
+        "rate_hz": float(rate),
+        "n_samples": int(n),
+        "data_type": data_type,
+        "confidence": confidence,
+        "estimators": list(res.estimates),
+        "noise_type": "identified" if noise_type is None else noise_type,
+        "remove_drift": remove_drift,
+        "channels": out_channels,
+    }
+
+
+def _checked_channels(
+    channels: dict[str, ArrayLike], units: dict[str, str] | str | None
+) -> tuple[list[str], list[NDArray[np.float64]], dict[str, str]]:
+    """Names, 1-D float64 records (equal lengths, magnitudes a variance can hold) and unit label per channel."""
     if not channels:
         raise ValueError("no channels to analyse")
     names = list(channels)
@@ -422,95 +416,74 @@ def analyse_noise(
         unit_of = {k: units or "SI" for k in names}
     else:
         unit_of = {k: units.get(k, "SI") for k in names}
-    data = _rows(arrays).T  # (N, C) view of a (C, N) array: stability reads its rows without a copy
-    del arrays
-    ests = tuple(dict.fromkeys((*estimators, fit_estimator)))
-    res = stability(data, rate, ests, taus, data_type, confidence=confidence)
-    itot = None
-    if published_itotvar:
-        if data_type != "freq" or np.isnan(data).any():
-            raise ValueError("--published-itotvar needs a gap-free frequency (rate) record")
-        from analysis.noise.allan import improved_total_variance
+    return names, arrays, unit_of
 
-        itot = improved_total_variance(data, rate, res.estimates[fit_estimator].tau)
-    del data
-    record_time = (res.n_points - 1) / rate
-    fe = res.estimates[fit_estimator]
-    out_channels: dict[str, dict] = {}
-    for j, name in enumerate(names):
-        unit = unit_of[name]
-        fit_dev = fe.unbiased()[:, j]
-        try:
-            fit = fit_noise_terms(
-                fe.tau, fit_dev**2, record_time, fe.edf[:, j] if fe.edf is not None else None, terms, gains=gains
-            )
-        except ValueError as exc:
-            raise ValueError(f"channel {name!r}: {exc} (is the channel constant?)") from None
-        ch: dict = {
-            "unit": unit,
-            "gaps": {"samples": int(res.gap_samples[j]), "runs": int(res.gap_runs[j])},
-            "deviations": {},
-        }
-        for est_name, est in res.estimates.items():
-            d = {
-                "tau": est.tau,
-                "m": est.m,
-                "value": est.dev[:, j],
-                "n_terms": est.n_terms[:, j],
-            }
-            if est.edf is not None:
-                d.update(edf=est.edf[:, j], lo=est.lo[:, j], hi=est.hi[:, j], alpha=est.alpha[:, j])
-            if est.bias is not None:
-                d["value_unbiased"] = est.unbiased()[:, j]
-            ch["deviations"][est_name] = d
-        # the classic flat keys (τ grid of the fit estimator) for existing readers
-        ch["tau"] = fe.tau
-        for est_name in ("adev", "oadev", "mdev", "totdev"):
-            if est_name in res.estimates:
-                e = res.estimates[est_name]
-                flat = np.full(fe.m.size, np.nan)
-                hit = np.isin(fe.m, e.m)
-                flat[hit] = e.dev[np.searchsorted(e.m, fe.m[hit]), j]
-                ch[est_name] = flat
-        if itot is not None:
-            ch["itotdev_published"] = np.sqrt(itot.var["itotvar"][:, j])
-        ch["terms"] = {
-            t: {"value": v, "sigma": s, "uncertainty": "standard (1σ)", "unit": term_unit(t, unit)}
-            for t, (v, s) in fit.terms.items()
-        }
-        disp = {}
-        for t, (v, s) in fit.terms.items():
-            dv, du = to_display(t, v, unit)
-            ds, _ = to_display(t, s, unit)
-            disp[t] = {"value": dv, "sigma": ds, "uncertainty": "standard (1σ)", "unit": du}
-        ch["terms_display"] = disp
-        lo = fe.lo[:, j] if fe.lo is not None else None
-        hi = fe.hi[:, j] if fe.hi is not None else None
-        slope = slope_terms(fe.tau, fit_dev, lo, hi, gains=gains)
-        ch["slope_terms"] = {
-            t: {
-                "value": d["value"],
-                "sigma": d["sigma"],
-                "unit": term_unit(t, unit),
-                "tau": d["tau"],
-                "observed": d["observed"],
-            }
-            for t, d in slope.items()
-        }
-        ch["fit"] = {
-            "estimator": fit_estimator,
-            "model": "hadamard" if gains is HADAMARD_GAINS else "allan",
-            "coefficients": fit.coefficients,
-            "powers": list(POWERS),
-            "chi2_red": fit.chi2_red,
-            "tau_used": fit.tau_used,
-        }
-        out_channels[name] = ch
-    return {
-        "rate_hz": float(rate),
-        "n_samples": int(n),
-        "data_type": data_type,
-        "confidence": confidence,
-        "estimators": list(res.estimates),
-        "channels": out_channels,
+
+def _channel_deviations(res, j: int, unit: str) -> dict:
+    """Channel j's unit, gaps and deviations of every estimator (with intervals where computed)."""
+    ch: dict = {
+        "unit": unit,
+        "gaps": {"samples": int(res.gap_samples[j]), "runs": int(res.gap_runs[j])},
+        "deviations": {},
     }
+    for est_name, est in res.estimates.items():
+        d = {
+            "tau": est.tau,
+            "m": est.m,
+            "value": est.dev[:, j],
+            "n_terms": est.n_terms[:, j],
+        }
+        if est.edf is not None:
+            d.update(edf=est.edf[:, j], lo=est.lo[:, j], hi=est.hi[:, j], alpha=est.alpha[:, j])
+        if est.bias is not None:
+            d["value_unbiased"] = est.unbiased()[:, j]
+        ch["deviations"][est_name] = d
+    return ch
+
+
+def _flat_keys(res, fe, j: int) -> dict:
+    """The classic flat keys (τ grid of the fit estimator ``fe``) for existing readers."""
+    flat_keys: dict = {"tau": fe.tau}
+    for est_name in ("adev", "oadev", "mdev", "totdev"):
+        if est_name in res.estimates:
+            e = res.estimates[est_name]
+            flat = np.full(fe.m.size, np.nan)
+            hit = np.isin(fe.m, e.m)
+            flat[hit] = e.dev[np.searchsorted(e.m, fe.m[hit]), j]
+            flat_keys[est_name] = flat
+    return flat_keys
+
+
+def _channel_terms(
+    fe, j: int, unit: str, n_points: int, record_time: float, terms: tuple[str, ...], fit_estimator: str
+) -> dict:
+    """Channel j's fitted noise terms (SI and display), slope-line readings and fit facts from estimate ``fe``."""
+    gains = FIT_GAINS[fit_estimator]
+    fit_dev = fe.unbiased()[:, j]
+    fit = fit_noise_terms(
+        fe.tau, fit_dev**2, record_time, fe.edf[:, j] if fe.edf is not None else None, terms, gains=gains
+    )
+    out: dict = {}
+    out["terms"] = {
+        t: {"value": v, "sigma": s, "uncertainty": "standard (1σ)", "unit": term_unit(t, unit)}
+        for t, (v, s) in fit.terms.items()
+    }
+    disp = {}
+    for t, (v, s) in fit.terms.items():
+        dv, du = to_display(t, v, unit)
+        ds, _ = to_display(t, s, unit)
+        disp[t] = {"value": dv, "sigma": ds, "uncertainty": "standard (1σ)", "unit": du}
+    out["terms_display"] = disp
+    slope = slope_readings(fe.tau, fe.dev[:, j], fe.m, n_points, fit_estimator, gains, fit.terms)
+    out["slope_terms"] = {
+        t: {**d, "unit": term_unit(t, unit), "upper_bound": True, "coverage": COVERAGE} for t, d in slope.items()
+    }
+    out["fit"] = {
+        "estimator": fit_estimator,
+        "model": "hadamard" if gains is HADAMARD_GAINS else "allan",
+        "coefficients": fit.coefficients,
+        "powers": list(POWERS),
+        "chi2_red": fit.chi2_red,
+        "tau_used": fit.tau_used,
+    }
+    return out

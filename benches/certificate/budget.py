@@ -151,7 +151,7 @@ def budget_for_run(
     nv = cal.noise_variance
     notes: list[str] = []
     p_w = cal.covariance_white
-    per_step = list((cal.extra.get("residuals") or {}).get("per_step") or [])
+    per_step = cal.per_step
     budget = build_budget(
         p_id,
         p_w,
@@ -165,7 +165,7 @@ def budget_for_run(
         rate_accuracy=rate_accuracy,
         flicker_step_variance=None if bias_instability is None else flicker_step_variance(geometry, bias_instability),
         residuals_per_step=per_step,
-        model=cal.model,
+        model=cal.error_model,
     )
     budget.notes.extend(notes)
     return budget

@@ -23,10 +23,11 @@ it) / INVALID (non-finite, failed integrity); overall PASS only when every limit
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import json
 import math
-from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -42,15 +43,19 @@ from analysis.identification.decision import (
 )
 from analysis.units import ARCSEC, display_unit, kelvin_to_celsius, to_display
 from benches.bench_config import BenchConfig, load_bench_text
-from benches.calibration_result import CalibrationFormatError, CalibrationResult
+from benches.calibration_result import SI_UNITS, CalibrationFormatError, CalibrationResult
 from benches.certificate_register import CertificateRegister, RegisterError, free_paths, write_new
-from benches.recording import RecordingError, open_recording
-from core.errors import UserError
+from benches.recorded_run import RecordedRun, run_of
+from benches.recording import RecordingError, StepRecord
 from core.provenance import file_sha256, software_version
-from procedures.compiler import compile_procedure
-from procedures.loader import load_procedure_text
 
-from .budget import UncertaintyBudget, budget_for_run, default_g_uncertainty, step_geometry
+from .budget import (
+    StepGeometry,
+    UncertaintyBudget,
+    budget_for_run,
+    default_g_uncertainty,
+    step_geometry,
+)
 from .content import (
     ANALYSES,
     BenchInfo,
@@ -61,22 +66,6 @@ from .content import (
 )
 from .pdf import render_pdf
 from .plots import plot_convergence, plot_coverage, plot_residuals
-
-
-def _procedure_step_count(
-    procedure_text: str | Callable[[], str] | None, overrides: dict[str, float], bench_text: str
-) -> int | None:
-    """Number of steps of the recorded procedure (with its overrides), compiled for the recorded bench; None
-    when the recording carries no procedure text that compiles (another tool's recording)."""
-    try:
-        text = procedure_text() if callable(procedure_text) else str(procedure_text or "")
-        if not text.strip() or not bench_text.strip():
-            return None
-        cfg = _load_bench_config(bench_text)
-        proc = load_procedure_text(text, "recording.h5:/procedure_yaml", overrides or None)
-        return len(compile_procedure(proc, limits=cfg.turntable.limits, mounting=cfg.unit.mounting).steps)
-    except (UserError, ValueError):
-        return None
 
 
 def _load_bench_config(text: str) -> BenchConfig:
@@ -96,10 +85,15 @@ def bench_info(bench_text: str, cal_run: dict[str, Any], rec_attrs: dict[str, An
     rec_attrs : dict
         The recording's root attributes.
     """
+    cfg = _load_bench_config(bench_text) if bench_text.strip() else None
+    return bench_info_of(cfg, cal_run, rec_attrs)
+
+
+def bench_info_of(cfg: BenchConfig | None, cal_run: dict[str, Any], rec_attrs: dict[str, Any]) -> BenchInfo:
+    """:func:`bench_info` from the parsed bench (None: fall back to ``calibration.json`` ``run``)."""
     site = dict(cal_run.get("site") or {})
     table = dict(cal_run.get("table") or {})
     unit = dict(cal_run.get("unit") or {})
-    cfg = _load_bench_config(bench_text) if bench_text.strip() else None
     if cfg is not None:
         s, t, u = cfg.site, cfg.turntable, cfg.unit
         g_src = str(s.g_source)
@@ -237,7 +231,375 @@ def _analysis_rows(kind: str, data: dict[str, Any]) -> list[dict[str, str]]:
     return rows
 
 
-# ---- the content model ---------------------------------------------------------------------------------------
+# ---- the content model: gather / decide / assemble ---------------------------------------------------------
+
+
+@dataclass
+class Gathered:
+    """Everything the certificate states, read from the run folder (recording, calibration.json, analyses)."""
+
+    run: Path
+    rec_path: Path
+    cal_path: Path
+    rec_sha: str
+    attrs: dict[str, Any]
+    steps: tuple[StepRecord, ...]
+    run_status: str
+    complete: bool
+    incomplete_reason: str
+    cal: CalibrationResult
+    procedure_steps: int | None
+    binfo: BenchInfo
+    geometry: list[StepGeometry]
+    temperature: dict[str, float]
+    n_samples: int
+    duration_s: float
+    event_warnings: list[str]
+    integrity: dict[str, Any]
+    overrides: dict[str, float]
+    per_step: list[dict[str, Any]]
+    analyses: dict[str, list[dict[str, str]]] = field(default_factory=dict)
+    analysis_plots: list[tuple[str, bytes]] = field(default_factory=list)
+
+
+@dataclass
+class Decision:
+    """The uncertainty budget, the per-parameter results with their verdicts, and the overall verdict."""
+
+    budget: UncertaintyBudget
+    results: list[ParameterResult]
+    verdict: str
+    reasons: list[str]
+    warnings: list[str]
+
+
+def _run_paths(run_dir: str | Path) -> tuple[Path, Path, Path]:
+    given = Path(run_dir)
+    run = given.parent if given.is_file() else given
+    rec_path = given if given.is_file() else run / "recording.h5"
+    if not rec_path.exists():
+        raise CertificateError(f"{given}: no recording.h5 here; give a run folder printed by 'tablebench run'")
+    return run, rec_path, run / "calibration.json"
+
+
+def _completeness(rr: RecordedRun, allow_incomplete: bool, run: Path) -> tuple[bool, str]:
+    run_status = str(rr.header.status or "?")
+    bad = rr.incomplete_steps()
+    reason_parts = []
+    if run_status != "complete":
+        reason_parts.append(f"the recording's status is {run_status!r}")
+    for s in bad:
+        reason_parts.append(f"step {s.index} {s.name!r} {s.status}")
+    complete = run_status == "complete" and not bad
+    incomplete_reason = "; ".join(reason_parts)
+    if not complete and not allow_incomplete:
+        raise CertificateError(
+            f"{rr.path}: the run is incomplete ({incomplete_reason}); resume it with 'tablebench run --resume "
+            f"{run}', or issue a certificate of the completed steps with --allow-incomplete"
+        )
+    return complete, incomplete_reason
+
+
+def _load_calibration(cal_path: Path, run: Path, rec_sha: str) -> CalibrationResult:
+    if not cal_path.exists():
+        raise CertificateError(f"{run}: no calibration.json; identify first ('tablebench identify {run}')")
+    try:
+        cal = CalibrationResult.load(cal_path)
+    except CalibrationFormatError as exc:
+        raise CertificateError(str(exc)) from None
+    if cal.recording_sha256 and cal.recording_sha256 != rec_sha:
+        raise CertificateError(
+            f"{cal_path}: was identified from a different recording (SHA-256 differs from recording.h5); "
+            f"identify this recording again"
+        )
+    return cal
+
+
+def _gather_analyses(run: Path) -> tuple[dict[str, list[dict[str, str]]], list[tuple[str, bytes]]]:
+    analyses: dict[str, list[dict[str, str]]] = {}
+    analysis_plots: list[tuple[str, bytes]] = []
+    for kind in ANALYSES:
+        p = run / kind / f"{kind}.json"
+        if p.exists():
+            analyses[kind] = _analysis_rows(kind, _load_json(p, f"{kind} analysis"))
+            for png in sorted((run / kind).glob("*.png"))[:6]:
+                analysis_plots.append((f"{kind}/{png.name}", png.read_bytes()))
+    return analyses, analysis_plots
+
+
+def gather(
+    run_dir: str | Path,
+    *,
+    allow_incomplete: bool = False,
+    bench: BenchInfo | None = None,
+    recorded: RecordedRun | None = None,
+) -> Gathered:
+    """Read what the certificate states from the run folder (see :func:`build_certificate`)."""
+    run, rec_path, cal_path = _run_paths(run_dir)
+    with contextlib.ExitStack() as stack:
+        try:
+            rr = stack.enter_context(run_of(recorded if recorded is not None else rec_path))
+        except RecordingError as exc:
+            raise CertificateError(str(exc)) from None
+        return _gather_open(rr, run, rec_path, cal_path, rr.sha256, allow_incomplete, bench)
+
+
+def _gather_open(
+    rr: RecordedRun,
+    run: Path,
+    rec_path: Path,
+    cal_path: Path,
+    rec_sha: str,
+    allow_incomplete: bool,
+    bench: BenchInfo | None,
+) -> Gathered:
+    f = rr.recording
+    attrs = rr.header.as_dict()
+    attrs["seed"] = -1 if attrs.get("seed") is None else attrs["seed"]
+    complete, incomplete_reason = _completeness(rr, allow_incomplete, run)
+    cal = _load_calibration(cal_path, run, rec_sha)
+    bench_text = rr.bench_text
+    compiled = rr.compiled
+    cal_run = cal.run.to_mapping() if cal.run is not None else {}
+    binfo = bench or bench_info_of(rr.config if bench_text.strip() else None, cal_run, attrs)
+    used = [str(p.get("name")) for p in cal.per_step]
+    geometry = step_geometry(f, binfo.g, None if binfo.mounting is None else np.asarray(binfo.mounting),
+                             latency=binfo.latency, names=used or None)  # fmt: skip
+    n_samples = f.n_samples
+    ends = f.samples(fields=("time",), index=[0, n_samples - 1]).time if n_samples > 1 else None
+    analyses, analysis_plots = _gather_analyses(run)
+    return Gathered(
+        run=run,
+        rec_path=rec_path,
+        cal_path=cal_path,
+        rec_sha=rec_sha,
+        attrs=attrs,
+        steps=rr.steps,
+        run_status=str(attrs.get("status", "?")),
+        complete=complete,
+        incomplete_reason=incomplete_reason,
+        cal=cal,
+        procedure_steps=None if compiled is None else len(compiled.steps),
+        binfo=binfo,
+        geometry=geometry,
+        temperature=f.temperature_stats(),
+        n_samples=n_samples,
+        duration_s=float(ends[-1] - ends[0]) if ends is not None else 0.0,
+        event_warnings=[
+            f"bench t = {e.time:.1f} s: {e.message}" for e in f.events() if e.level.lower() in ("warning", "error")
+        ],
+        integrity={"verified": f.integrity_verified, "note": f.integrity_note},
+        overrides=dict(rr.header.procedure_overrides),
+        per_step=_per_step_rows(cal, cal_path),
+        analyses=analyses,
+        analysis_plots=analysis_plots,
+    )
+
+
+def _parameter_result(
+    g: Gathered, budget: UncertaintyBudget, i: int, name: str, kind: str, integrity_ok: bool
+) -> tuple[ParameterResult, str | None, str | None]:
+    """One parameter's row, its decision, and a reason (FAIL/INVALID) or an unverified note."""
+    x, unc, exp_u = g.cal.x, budget.combined, budget.expanded
+    comp_std = {c.key: c.std for c in budget.components}
+    pr = g.cal.parameters[name]
+    lim = g.binfo.limits.get(name)
+    dv, du = to_display(kind, x[i]), to_display(kind, exp_u[i])
+    v_txt, u_txt = format_with_uncertainty(dv, du)
+    conf = decide(float(x[i]), float(exp_u[i]), lim, identified=pr.identified, integrity_ok=integrity_ok,
+                  full_rank=True)  # fmt: skip
+    verdict = conf.verdict
+    lim_txt = "" if lim is None else f"±{to_display(kind, lim):.4g} {display_unit(kind)}"
+    reason = unverified = None
+    if verdict == FAIL:
+        reason = f"{name} = {v_txt} ± {u_txt} {display_unit(kind)} (U, k = 2) exceeds the limit {lim_txt}"
+    elif verdict == INVALID:
+        reason = f"{name}: {conf.reason}"
+    elif verdict in (UNDECIDED, NOT_EVALUATED) and lim is not None:
+        unverified = f"{name} ({verdict.lower()}): {conf.reason}; limit {lim_txt}"
+    row = ParameterResult(
+        name=name,
+        kind=kind,
+        unit=SI_UNITS[kind],
+        display_unit=display_unit(kind),
+        value=float(x[i]),
+        standard_uncertainty=float(unc[i]),
+        expanded_uncertainty=float(exp_u[i]),
+        display_value=float(dv),
+        display_expanded=float(du),
+        value_text=v_txt,
+        expanded_text=u_txt,
+        identifiable=pr.identified,
+        limit=None if lim is None else float(lim),
+        display_limit=None if lim is None else float(to_display(kind, lim)),
+        verdict=verdict,
+        budget={k: float(v[i]) for k, v in comp_std.items()},
+        display_budget={k: float(to_display(kind, v[i])) for k, v in comp_std.items()},
+    )
+    return row, reason, unverified
+
+
+def decide_conformity(g: Gathered) -> Decision:
+    """The GUM budget and the ILAC-G8 decision per parameter and overall (see the module docstring)."""
+    binfo = g.binfo
+    integrity_ok = True  # open_recording() verified every checksum (a damaged recording raised above)
+    try:
+        budget: UncertaintyBudget = budget_for_run(
+            g.cal,
+            g.geometry,
+            g=binfo.g,
+            g_uncertainty=binfo.g_uncertainty,
+            g_source=binfo.g_source,
+            attitude_accuracy=binfo.attitude_accuracy,
+            rate_accuracy=binfo.rate_accuracy,
+            bias_instability=None if binfo.bias_instability is None else np.asarray(binfo.bias_instability),
+        )
+    except ValueError as exc:
+        raise CertificateError(f"{g.cal_path}: {exc}") from None
+    results: list[ParameterResult] = []
+    reasons: list[str] = []
+    unverified: list[str] = []
+    model = g.cal.error_model
+    n_states = model.n_params
+    for i, (name, kind) in enumerate(zip(model.names, model.kinds, strict=True)):
+        row, reason, note = _parameter_result(g, budget, i, name, kind, integrity_ok)
+        results.append(row)
+        reasons += [reason] if reason else []
+        unverified += [note] if note else []
+    info = g.cal.information
+    rank = int((info.rank if info is not None and info.rank is not None else n_states) or 0)
+    verdict = overall_verdict(
+        [p.verdict for p in results],
+        [p.limit is not None for p in results],
+        complete=g.complete,
+        integrity_ok=integrity_ok,
+        full_rank=rank == n_states,
+    )
+    if rank != n_states:
+        unverified.append(f"the identification has information rank {rank} < {n_states}: no overall PASS is possible")
+    reasons.extend(unverified)
+    plan_warnings = (g.cal.plan.warnings if g.cal.plan is not None else None) or []
+    warnings = list(dict.fromkeys([*plan_warnings, *g.cal.warnings]))
+    unident = [p.name for p in results if not p.identifiable]
+    if unident:
+        warnings.append("not identified (prior-dominated, do not use for compensation): " + ", ".join(unident))
+    if not binfo.limits:
+        warnings.append("the bench file gives no pass/fail limits: no conformity statement")
+    warnings.extend(g.event_warnings)
+    if not g.integrity["verified"]:
+        warnings.insert(0, g.integrity["note"])
+    return Decision(budget, results, verdict, reasons, warnings)
+
+
+def _bench_block(g: Gathered) -> dict[str, Any]:
+    binfo, attrs = g.binfo, g.attrs
+    return {
+        "name": binfo.name,
+        "table_model": binfo.table_model,
+        "table_serial_number": binfo.table_serial,
+        "attitude_accuracy": binfo.attitude_accuracy,
+        "attitude_accuracy_arcsec": binfo.attitude_accuracy / ARCSEC,
+        "site": binfo.site_name,
+        "latitude_deg": binfo.latitude_deg,
+        "height_m": binfo.height_m,
+        "g": binfo.g,
+        "g_source": binfo.g_source,
+        "g_uncertainty": binfo.g_uncertainty,
+        "simulated": bool(attrs.get("simulated", False)),
+        "transport": str(attrs.get("transport", "")),
+        "limits": binfo.limits,
+        "source": binfo.source,
+        "rate_accuracy_ppm": binfo.rate_accuracy * 1e6,
+        "reference_standards": [
+            {**r, "overdue": bool(r["due"] < str(attrs.get("created_utc", ""))[:10])}
+            for r in binfo.reference_standards
+        ],
+    }
+
+
+def _recording_block(g: Gathered) -> dict[str, Any]:
+    attrs = g.attrs
+    return {
+        "file": "recording.h5",
+        "sha256": g.rec_sha,
+        "status": g.run_status,
+        "created_utc": str(attrs.get("created_utc", "")),
+        "updated_utc": str(attrs.get("updated_utc", "")),
+        "software_version": str(attrs.get("software_version", "")),
+        "seed": attrs.get("seed", -1),
+        "samples": g.n_samples,
+        "duration_s": g.duration_s,
+        "sample_rate_hz": float(attrs.get("sample_rate_hz", 0.0) or 0.0),
+        "integrity_verified": g.integrity["verified"],
+        "integrity_note": g.integrity["note"],
+        "steps_complete": sum(s.status == "complete" for s in g.steps),
+        "steps": g.procedure_steps if g.procedure_steps is not None else len(g.steps),
+        "steps_recorded": len(g.steps),
+    }
+
+
+def assemble(g: Gathered, d: Decision, issue_date: str, with_plots: bool = True) -> Certificate:
+    """The certificate's content model from what was gathered and decided (figures when ``with_plots``)."""
+    cal, budget = g.cal, d.budget
+    created = str(g.attrs.get("created_utc", ""))
+    written = cal.to_dict()  # as calibration.json states them
+    cert = Certificate(
+        number=f"TB-{g.rec_sha[:10].upper()}",
+        issue_date=issue_date,
+        verdict=d.verdict,
+        reasons=d.reasons,
+        complete=g.complete,
+        incomplete_reason=g.incomplete_reason,
+        unit={"model": g.binfo.unit_model, "serial_number": g.binfo.unit_serial},
+        bench=_bench_block(g),
+        procedure={
+            "name": str(g.attrs.get("procedure_name", "")),
+            "sha256": str(g.attrs.get("procedure_sha256", "")),
+            "procedure_overrides": g.overrides,
+        },
+        recording=_recording_block(g),
+        environment={
+            "unit_temperature_k": g.temperature,
+            "unit_temperature_c": {k: kelvin_to_celsius(v) for k, v in g.temperature.items()},
+        },
+        identification={
+            "method": cal.method,
+            "calibration_sha256": file_sha256(g.cal_path),
+            "information": written.get("information", {}),
+            "measurement_noise": written["measurement_noise"],
+            "steps_used": [geo.name for geo in g.geometry],
+        },
+        parameters=d.results,
+        budget_components=[
+            {"key": c.key, "label": c.label, "type": c.type, "source": c.source} for c in budget.components
+        ],
+        budget_notes=list(budget.notes),
+        coverage_factor=budget.coverage_factor,
+        covariance=budget.covariance.tolist(),
+        warnings=d.warnings,
+        analyses=g.analyses,
+        software_version=software_version(),
+        creation_date=_creation_datetime(created).isoformat(),
+        analysis_plots=g.analysis_plots,
+    )
+    if with_plots:
+        cert.plots["residuals"] = plot_residuals(g.per_step, cal.noise_variance)
+        hist = cal.history.to_mapping() if cal.history is not None else {}
+        if len(hist.get("time") or []) >= 2:  # a single update has nothing to converge
+            cert.plots["convergence"] = plot_convergence(
+                hist, list(cal.names), cal.error_model.kinds, cal.x, identified=list(cal.identified)
+            )
+        cert.plots["coverage"] = plot_coverage(g.geometry)
+    return cert
+
+
+def _issue_date(issue_date: str | None) -> str:
+    if issue_date is None:
+        return _dt.datetime.now(_dt.timezone.utc).date().isoformat()
+    try:
+        return _dt.date.fromisoformat(issue_date).isoformat()
+    except ValueError:
+        raise CertificateError(f"--issue-date {issue_date!r}: expected YYYY-MM-DD") from None
 
 
 def build_certificate(
@@ -247,8 +609,9 @@ def build_certificate(
     allow_incomplete: bool = False,
     bench: BenchInfo | None = None,
     with_plots: bool = True,
+    recorded: RecordedRun | None = None,
 ) -> Certificate:
-    """Build the certificate of the run in ``run_dir``.
+    """Build the certificate of the run in ``run_dir``: :func:`gather`, :func:`decide_conformity`, :func:`assemble`.
 
     Parameters
     ----------
@@ -262,266 +625,24 @@ def build_certificate(
         Override the bench information read from the recording (tests, re-issues against other limits).
     with_plots : bool
         Render the figures (PNG bytes in ``Certificate.plots``).
+    recorded : RecordedRun, optional
+        The run's recording already opened (``tablebench run``); default: opened here.
 
     Raises
     ------
     CertificateError
         Missing/mismatched inputs, or an incomplete recording without ``allow_incomplete``.
     """
-    given = Path(run_dir)
-    run = given.parent if given.is_file() else given
-    rec_path = given if given.is_file() else run / "recording.h5"
-    cal_path = run / "calibration.json"
-    if not rec_path.exists():
-        raise CertificateError(f"{given}: no recording.h5 here; give a run folder printed by 'tablebench run'")
-    if issue_date is None:
-        issue_date = _dt.datetime.now(_dt.timezone.utc).date().isoformat()
-    else:
-        try:
-            issue_date = _dt.date.fromisoformat(issue_date).isoformat()
-        except ValueError:
-            raise CertificateError(f"--issue-date {issue_date!r}: expected YYYY-MM-DD") from None
-    rec_sha = file_sha256(rec_path)
-    try:
-        f = open_recording(rec_path)
-    except RecordingError as exc:
-        raise CertificateError(str(exc)) from None
-    with f:
-        attrs = f.header.as_dict()
-        attrs["seed"] = -1 if attrs.get("seed") is None else attrs["seed"]
-        steps = f.steps
-        run_status = str(attrs.get("status", "?"))
-        bad = [s for s in steps if s.status != "complete"]
-        complete = run_status == "complete" and not bad
-        reason_parts = []
-        if run_status != "complete":
-            reason_parts.append(f"the recording's status is {run_status!r}")
-        for s in bad:
-            reason_parts.append(f"step {s.index} {s.name!r} {s.status}")
-        incomplete_reason = "; ".join(reason_parts)
-        if not complete and not allow_incomplete:
-            raise CertificateError(
-                f"{rec_path}: the run is incomplete ({incomplete_reason}); resume it with 'tablebench run --resume "
-                f"{run}', or issue a certificate of the completed steps with --allow-incomplete"
-            )
-        if not cal_path.exists():
-            raise CertificateError(f"{run}: no calibration.json; identify first ('tablebench identify {run}')")
-        try:
-            cal_result = CalibrationResult.load(cal_path)
-        except CalibrationFormatError as exc:
-            raise CertificateError(str(exc)) from None
-        cal = cal_result.to_dict()
-        if cal.get("recording_sha256") and cal["recording_sha256"] != rec_sha:
-            raise CertificateError(
-                f"{cal_path}: was identified from a different recording (SHA-256 differs from recording.h5); "
-                f"identify this recording again"
-            )
-        names = list(cal_result.names)  # the model's names, checked by CalibrationResult.load
-        kinds = cal_result.model.kinds
-        bench_text = f.bench_text
-        procedure_steps = _procedure_step_count(f.procedure_text, dict(f.header.procedure_overrides), bench_text)
-        binfo = bench or bench_info(bench_text, dict(cal.get("run") or {}), attrs)
-        used = [str(p.get("name")) for p in (cal.get("residuals") or {}).get("per_step", [])]
-        geometry = step_geometry(f, binfo.g, None if binfo.mounting is None else np.asarray(binfo.mounting),
-                                 latency=binfo.latency, names=used or None)  # fmt: skip
-        temp = f.temperature_stats()
-        n_samples = f.n_samples
-        ends = f.samples(fields=("time",), index=[0, n_samples - 1]).time if n_samples > 1 else None
-        t_span = float(ends[-1] - ends[0]) if ends is not None else 0.0
-        event_warnings = [
-            f"bench t = {e.time:.1f} s: {e.message}" for e in f.events() if e.level.lower() in ("warning", "error")
-        ]
-        integrity = {"verified": f.integrity_verified, "note": f.integrity_note}
-        overrides = dict(f.header.procedure_overrides)
-
-    per_step = _per_step_rows(cal, cal_path)
-    x, noise_var = cal_result.x, cal_result.noise_variance
-    integrity_ok = True  # open_recording() verified every checksum (a damaged recording raised above)
-    try:
-        budget: UncertaintyBudget = budget_for_run(
-            cal_result,
-            geometry,
-            g=binfo.g,
-            g_uncertainty=binfo.g_uncertainty,
-            g_source=binfo.g_source,
-            attitude_accuracy=binfo.attitude_accuracy,
-            rate_accuracy=binfo.rate_accuracy,
-            bias_instability=None if binfo.bias_instability is None else np.asarray(binfo.bias_instability),
-        )
-    except ValueError as exc:
-        raise CertificateError(f"{cal_path}: {exc}") from None
-    notes = list(budget.notes)
-
-    unc = budget.combined
-    exp_u = budget.expanded
-    comp_std = {c.key: c.std for c in budget.components}
-    results: list[ParameterResult] = []
-    reasons: list[str] = []
-    unverified: list[str] = []
-    for i, (name, kind) in enumerate(zip(names, kinds, strict=True)):
-        pr = cal["parameters"][name]
-        ident = cal_result.parameters[name].identified
-        lim = binfo.limits.get(name)
-        dv, du = to_display(kind, x[i]), to_display(kind, exp_u[i])
-        v_txt, u_txt = format_with_uncertainty(dv, du)
-        conf = decide(
-            float(x[i]), float(exp_u[i]), lim, identified=ident, integrity_ok=integrity_ok, full_rank=True
-        )
-        verdict = conf.verdict
-        lim_txt = "" if lim is None else f"±{to_display(kind, lim):.4g} {display_unit(kind)}"
-        if verdict == FAIL:
-            reasons.append(f"{name} = {v_txt} ± {u_txt} {display_unit(kind)} (U, k = 2) exceeds the limit {lim_txt}")
-        elif verdict == INVALID:
-            reasons.append(f"{name}: {conf.reason}")
-        elif verdict in (UNDECIDED, NOT_EVALUATED) and lim is not None:
-            unverified.append(f"{name} ({verdict.lower()}): {conf.reason}; limit {lim_txt}")
-        results.append(
-            ParameterResult(
-                name=name,
-                kind=kind,
-                unit=str(pr.get("unit", "")),
-                display_unit=display_unit(kind),
-                value=float(x[i]),
-                standard_uncertainty=float(unc[i]),
-                expanded_uncertainty=float(exp_u[i]),
-                display_value=float(dv),
-                display_expanded=float(du),
-                value_text=v_txt,
-                expanded_text=u_txt,
-                identifiable=ident,
-                limit=None if lim is None else float(lim),
-                display_limit=None if lim is None else float(to_display(kind, lim)),
-                verdict=verdict,
-                budget={k: float(v[i]) for k, v in comp_std.items()},
-                display_budget={k: float(to_display(kind, v[i])) for k, v in comp_std.items()},
-            )
-        )
-    rank = int((cal.get("information") or {}).get("rank", 18) or 0)
-    verdict = overall_verdict(
-        [p.verdict for p in results],
-        [p.limit is not None for p in results],
-        complete=complete,
-        integrity_ok=integrity_ok,
-        full_rank=rank == 18,
-    )
-    if rank != 18:
-        unverified.append(f"the identification has information rank {rank} < 18: no overall PASS is possible")
-    reasons.extend(unverified)
-
-    warnings = list(dict.fromkeys([*(cal.get("plan") or {}).get("warnings", []), *cal.get("warnings", [])]))
-    unident = [p.name for p in results if not p.identifiable]
-    if unident:
-        warnings.append(
-            "not identified (prior-dominated, do not use for compensation): " + ", ".join(unident)
-        )  # fmt: skip
-    if not binfo.limits:
-        warnings.append("the bench file gives no pass/fail limits: no conformity statement")
-    warnings.extend(event_warnings)
-    if not integrity["verified"]:
-        warnings.insert(0, integrity["note"])
-
-    analyses: dict[str, list[dict[str, str]]] = {}
-    analysis_plots: list[tuple[str, bytes]] = []
-    for kind in ANALYSES:
-        p = run / kind / f"{kind}.json"
-        if p.exists():
-            analyses[kind] = _analysis_rows(kind, _load_json(p, f"{kind} analysis"))
-            for png in sorted((run / kind).glob("*.png"))[:6]:
-                analysis_plots.append((f"{kind}/{png.name}", png.read_bytes()))
-
-    created = str(attrs.get("created_utc", ""))
-    creation = _creation_datetime(created)
-    t_unit = {"model": binfo.unit_model, "serial_number": binfo.unit_serial}
-    cert = Certificate(
-        number=f"TB-{rec_sha[:10].upper()}",
-        issue_date=issue_date,
-        verdict=verdict,
-        reasons=reasons,
-        complete=complete,
-        incomplete_reason=incomplete_reason,
-        unit=t_unit,
-        bench={
-            "name": binfo.name,
-            "table_model": binfo.table_model,
-            "table_serial_number": binfo.table_serial,
-            "attitude_accuracy": binfo.attitude_accuracy,
-            "attitude_accuracy_arcsec": binfo.attitude_accuracy / ARCSEC,
-            "site": binfo.site_name,
-            "latitude_deg": binfo.latitude_deg,
-            "height_m": binfo.height_m,
-            "g": binfo.g,
-            "g_source": binfo.g_source,
-            "g_uncertainty": binfo.g_uncertainty,
-            "simulated": bool(attrs.get("simulated", False)),
-            "transport": str(attrs.get("transport", "")),
-            "limits": binfo.limits,
-            "source": binfo.source,
-            "rate_accuracy_ppm": binfo.rate_accuracy * 1e6,
-            "reference_standards": [
-                {**r, "overdue": bool(r["due"] < str(attrs.get("created_utc", ""))[:10])}
-                for r in binfo.reference_standards
-            ],
-        },
-        procedure={
-            "name": str(attrs.get("procedure_name", "")),
-            "sha256": str(attrs.get("procedure_sha256", "")),
-            "procedure_overrides": overrides,
-        },
-        recording={
-            "file": "recording.h5",
-            "sha256": rec_sha,
-            "status": run_status,
-            "created_utc": created,
-            "updated_utc": str(attrs.get("updated_utc", "")),
-            "software_version": str(attrs.get("software_version", "")),
-            "seed": attrs.get("seed", -1),
-            "samples": n_samples,
-            "duration_s": t_span,
-            "sample_rate_hz": float(attrs.get("sample_rate_hz", 0.0) or 0.0),
-            "integrity_verified": integrity["verified"],
-            "integrity_note": integrity["note"],
-            "steps_complete": sum(s.status == "complete" for s in steps),
-            "steps": procedure_steps if procedure_steps is not None else len(steps),
-            "steps_recorded": len(steps),
-        },
-        environment={
-            "unit_temperature_k": temp,
-            "unit_temperature_c": {k: kelvin_to_celsius(v) for k, v in temp.items()},
-        },
-        identification={
-            "method": str(cal.get("method", "")),
-            "calibration_sha256": file_sha256(cal_path),
-            "information": cal.get("information", {}),
-            "measurement_noise": cal.get("measurement_noise", {}),
-            "steps_used": [g.name for g in geometry],
-        },
-        parameters=results,
-        budget_components=[
-            {"key": c.key, "label": c.label, "type": c.type, "source": c.source} for c in budget.components
-        ],
-        budget_notes=notes,
-        coverage_factor=budget.coverage_factor,
-        covariance=budget.covariance.tolist(),
-        warnings=warnings,
-        analyses=analyses,
-        software_version=software_version(),
-        creation_date=creation.isoformat(),
-        analysis_plots=analysis_plots,
-    )
-    if with_plots:
-        cert.plots["residuals"] = plot_residuals(per_step, noise_var)
-        if len((cal.get("history") or {}).get("time") or []) >= 2:  # a single update has nothing to converge
-            cert.plots["convergence"] = plot_convergence(
-                cal["history"], names, kinds, x, identified=list(cal_result.identified)
-            )
-        cert.plots["coverage"] = plot_coverage(geometry)
-    return cert
+    _run_paths(run_dir)  # a missing recording is named before a bad --issue-date
+    date = _issue_date(issue_date)
+    g = gather(run_dir, allow_incomplete=allow_incomplete, bench=bench, recorded=recorded)
+    return assemble(g, decide_conformity(g), date, with_plots)
 
 
-def _per_step_rows(cal: dict[str, Any], path: Path) -> list[dict[str, Any]]:
+def _per_step_rows(cal: CalibrationResult, path: Path) -> list[dict[str, Any]]:
     """calibration.json residuals.per_step, checked (name, samples, mean (3), rms (3), SI)."""
     try:
-        per_step = list((cal.get("residuals") or {}).get("per_step") or [])
+        per_step = cal.per_step
         for row in per_step:
             ok = (
                 int(row["samples"]) >= 0
@@ -553,6 +674,7 @@ def issue_certificate(
     out_json: str | Path | None = None,
     issue_date: str | None = None,
     allow_incomplete: bool = False,
+    recorded: RecordedRun | None = None,
 ) -> tuple[Path, Path, str]:
     """Build and write the certificate of a run: ``RUN/certificate.pdf`` and ``RUN/certificate.json`` by default.
 
@@ -563,7 +685,7 @@ def issue_certificate(
     """
     given = Path(run_dir)
     run = given.parent if given.is_file() else given
-    cert = build_certificate(given, issue_date=issue_date, allow_incomplete=allow_incomplete)
+    cert = build_certificate(given, issue_date=issue_date, allow_incomplete=allow_incomplete, recorded=recorded)
 
     def paths(number: str) -> tuple[Path, Path]:
         if out_pdf is None:
@@ -588,4 +710,5 @@ def issue_certificate(
     return pdf_path, json_path, cert.verdict
 
 
-__all__ = ["bench_info", "build_certificate", "issue_certificate"]
+__all__ = ["Decision", "Gathered", "assemble", "bench_info", "build_certificate", "decide_conformity", "gather",
+           "issue_certificate"]

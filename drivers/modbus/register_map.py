@@ -17,7 +17,23 @@ Keys (see the shipped file for a complete example):
     unit; e.g. a PLC in degrees: ``angle: 0.017453292519943295``).
 ``holding``
     command registers: ``position_setpoint`` (3 values), ``rate_setpoint`` (3 values), ``command_axis``,
-    ``command``, ``heartbeat``, ``fault_reset`` (one register each).
+    ``command``, ``heartbeat``, ``fault_reset`` (one register each). ``heartbeat`` is optional (a PLC without a
+    watchdog: the driver then sends no heartbeat); ``command_axis`` and ``command`` are optional where the
+    control scheme does not use them (below).
+``control`` (optional; default ``scheme: command-register``)
+    how motion is started, the part that varies between PLC families:
+
+    * ``scheme: command-register`` — one command register (``holding.command``, values in ``commands:``) and,
+      for a spin, the axis in ``holding.command_axis``: the tablebench controller's scheme;
+    * ``scheme: per-axis`` — one control word per axis, ``axis_command: [outer, middle, inner]`` (addresses);
+      a move writes ``commands.move`` to all three words (one write when they are consecutive), a spin
+      ``commands.spin`` to the spinning axis's word, a stop ``commands.stop`` to all three;
+    * ``start_coils: {move: C, spin: C, stop: C}`` (either scheme, optional) — after the set-points (and, per
+      axis, the control words) the driver switches coil C on (function code 5) to start the action, instead of
+      writing the command register (``commands`` then only name the control-word values, if any).
+
+    A status register without an ``AT_RATE`` bit (``status_bits``) is allowed: the driver then reports
+    AT_RATE itself when a rate-mode axis reads within its rate tolerance of the demanded rate.
 ``state_registers``, ``state``
     where the state is read (``input``: function code 4, or ``holding``: 3) and its fields: ``time`` (1 value),
     ``angles`` (3), ``rates`` (3), ``status``, ``fault_code``, ``mode`` (3 registers), ``last_reject``,
@@ -44,6 +60,7 @@ from drivers.protocols import AxisMode, FaultCode, TableStatus
 
 DEFAULT_MAP = Path(__file__).resolve().parent / "maps" / "tablebench.yaml"
 VALUE_TYPES = {"float64": 4, "float32": 2, "int32": 2}
+OPTIONAL_HOLDING = ("command_axis", "command", "heartbeat")
 HOLDING_FIELDS = {
     "position_setpoint": 3,
     "rate_setpoint": 3,
@@ -65,6 +82,12 @@ STATE_FIELDS = {
 }
 """Field sizes: n > 0 = n values (value_type), 0 = one register, -3 = three registers."""
 COMMANDS = ("move", "spin", "stop", "clear_fault")
+SCHEMES = ("command-register", "per-axis")
+COIL_ACTIONS = ("move", "spin", "stop")
+
+
+class WordOrderConflict(ConfigError):
+    """A float word order given by a bench contradicts the register map's (nothing was sent)."""
 
 
 @dataclass(frozen=True)
@@ -85,6 +108,14 @@ class ModbusMap:
     status_bits: dict[str, int]
     modes: dict[str, int]
     fault_codes: dict[str, int] = field(default_factory=dict)
+    scheme: str = "command-register"
+    axis_command: tuple[int, int, int] | None = None
+    start_coils: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def has_heartbeat(self) -> bool:
+        """True when the PLC has a heartbeat register (a watchdog to feed)."""
+        return "heartbeat" in self.holding
 
     @property
     def value_regs(self) -> int:
@@ -190,15 +221,29 @@ def _table(
     return out
 
 
-def map_with_word_order(register_map: ModbusMap | None, word_order: str | None) -> ModbusMap:
-    """The register map a client or a server uses: ``register_map`` (None: the shipped one), with its float word
-    order replaced by ``word_order`` when that is given ("big" or "little"; ValueError otherwise)."""
-    m = register_map or load_modbus_map()
-    if word_order is None:
-        return m
-    if word_order not in ("big", "little"):
+def map_with_word_order(
+    register_map: ModbusMap | None, word_order: str | None, where: str = "float_word_order"
+) -> ModbusMap:
+    """The register map a client or a server uses: ``register_map`` (None: the shipped one).
+
+    ``word_order`` ("big" or "little"; ValueError otherwise) selects the word order of the shipped tablebench
+    controller, whose word order is a controller setting. With a map of the bench's own, the map is the
+    authority: a ``word_order`` that contradicts it is a :class:`WordOrderConflict` naming both (``where`` is
+    the setting's place, e.g. the bench file's line) — raised before anything is sent.
+    """
+    if word_order is not None and word_order not in ("big", "little"):
         raise ValueError(f"float word order must be 'big' or 'little', got {word_order!r}")
-    return dataclasses.replace(m, word_order=word_order)
+    if register_map is not None:
+        if word_order is not None and word_order != register_map.word_order:
+            raise WordOrderConflict(
+                where,
+                None,
+                f"float_word_order {word_order!r} contradicts the register map {register_map.source} "
+                f"(word_order: {register_map.word_order}); remove float_word_order or correct the map",
+            )
+        return register_map
+    m = load_modbus_map()
+    return m if word_order is None else dataclasses.replace(m, word_order=word_order)
 
 
 def load_modbus_map(path: str | Path = DEFAULT_MAP) -> ModbusMap:
@@ -220,6 +265,7 @@ def load_modbus_map(path: str | Path = DEFAULT_MAP) -> ModbusMap:
         "status_bits",
         "modes",
         "fault_codes",
+        "control",
     ]
     check_keys(root, smap, (), keys)
     for k in ("addressing", "holding", "state", "commands", "status_bits", "modes"):
@@ -232,11 +278,15 @@ def load_modbus_map(path: str | Path = DEFAULT_MAP) -> ModbusMap:
         k: get_number(sc, smap, ("scale",), k, 1.0, minimum=0, exclusive_minimum=True)
         for k in ("angle", "rate", "time")
     }
-    holding = _table(root["holding"], smap, ("holding",), list(HOLDING_FIELDS), base, 65535, True)
+    holding = _table(root["holding"], smap, ("holding",), list(HOLDING_FIELDS), base, 65535, False)
+    missing = [n for n in HOLDING_FIELDS if n not in holding and n not in OPTIONAL_HOLDING]
+    if missing:
+        raise smap.error(("holding",), f"missing {', '.join(missing)}")
     state = _table(root["state"], smap, ("state",), list(STATE_FIELDS), base, 65535, True)
     holding = {k: v - base for k, v in holding.items()}
     state = {k: v - base for k, v in state.items()}
     fault_names = [f.name for f in FaultCode]
+    scheme, axis_command, coils = _control(root.get("control"), smap, base)
     m = ModbusMap(
         name=get_str(root, smap, (), "name", ""),
         source=str(path),
@@ -264,8 +314,15 @@ def load_modbus_map(path: str | Path = DEFAULT_MAP) -> ModbusMap:
             if root.get("fault_codes") is not None
             else {f.name: int(f) for f in FaultCode}
         ),
+        scheme=scheme,
+        axis_command=axis_command,
+        start_coils=coils,
     )
-    for sect, fields, p in (("holding", m.holding, ("holding",)), ("state", m.state, ("state",))):
+    _check_scheme(m, smap)
+    holding_spans = dict(m.holding)
+    for i, a in enumerate(m.axis_command or ()):
+        holding_spans[f"control.axis_command[{i}]"] = a
+    for sect, fields, p in (("holding", holding_spans, ("holding",)), ("state", m.state, ("state",))):
         spans = sorted((a, a + m.size(n), n) for n, a in fields.items())
         for (a0, e0, n0), (a1, _e1, n1) in zip(spans, spans[1:], strict=False):
             if a1 < e0:
@@ -280,4 +337,44 @@ def load_modbus_map(path: str | Path = DEFAULT_MAP) -> ModbusMap:
     return m
 
 
-__all__ = ["DEFAULT_MAP", "ModbusMap", "load_modbus_map"]
+def _control(c: Any, smap: SourceMap, base: int) -> tuple[str, tuple[int, int, int] | None, dict[str, int]]:
+    """The ``control`` section: (scheme, per-axis control-word addresses, start coils), 0-based."""
+    if c is None:
+        return "command-register", None, {}
+    p: KeyPath = ("control",)
+    cd = get_mapping(c, smap, p)
+    check_keys(cd, smap, p, ["scheme", "axis_command", "start_coils"])
+    scheme = get_str(cd, smap, p, "scheme", "command-register", choices=list(SCHEMES))
+    axis_command = None
+    if cd.get("axis_command") is not None:
+        ac = cd["axis_command"]
+        if not (isinstance(ac, list) and len(ac) == 3 and all(type(a) is int and base <= a <= 65535 for a in ac)):
+            raise smap.error(p + ("axis_command",), f"expected 3 register numbers [outer, middle, inner] >= {base}")
+        if len(set(ac)) != 3:
+            raise smap.error(p + ("axis_command",), "the three control words must be different registers")
+        axis_command = (ac[0] - base, ac[1] - base, ac[2] - base)
+    coils = {}
+    if cd.get("start_coils") is not None:
+        coils = {
+            k: v - base
+            for k, v in _table(cd["start_coils"], smap, p + ("start_coils",), COIL_ACTIONS, base, 65535, True).items()
+        }
+    return scheme, axis_command, coils
+
+
+def _check_scheme(m: ModbusMap, smap: SourceMap) -> None:
+    """Every register the control scheme writes is in the map."""
+    if m.scheme == "per-axis":
+        if m.axis_command is None:
+            raise smap.error(("control", "scheme"), "per-axis needs control.axis_command: [outer, middle, inner]")
+        need: list[str] = []
+    else:
+        if m.axis_command is not None:
+            raise smap.error(("control", "axis_command"), "is only for scheme: per-axis")
+        need = ["command_axis"] + ([] if m.start_coils else ["command"])
+    missing = [n for n in need if n not in m.holding]
+    if missing:
+        raise smap.error(("holding",), f"missing {', '.join(missing)} (control scheme {m.scheme})")
+
+
+__all__ = ["DEFAULT_MAP", "ModbusMap", "WordOrderConflict", "load_modbus_map", "map_with_word_order"]

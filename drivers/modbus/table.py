@@ -7,6 +7,14 @@ Commands are checked against the table's limits before anything is sent (:class:
 the wire); Modbus exception responses from the controller become :class:`TableError` with the controller's
 reason; timeouts, lost connections and malformed answers become :class:`LinkError`.
 
+Every value read back (time, angles, rates, limits) is checked for plausibility before it is used or shown
+(:func:`check_plausible`): a wrong word order or register map produces numbers no table reaches, and they are
+refused with one line naming the value, the bench's limit and the fix (:class:`ImplausibleReading`).
+
+How motion is started (one command register, per-axis control words, start coils) is the map's ``control``
+scheme; a status register without an AT_RATE bit is completed from the rates read against the demand.
+See docs/protocols/modbus.md.
+
 Frames and units: gimbal angles (outer ψ, middle θ, inner γ), rad, rates rad/s (see drivers.protocols).
 """
 
@@ -23,9 +31,11 @@ from drivers.modbus.register_map import ModbusMap, map_with_word_order
 from drivers.protocols import (
     AXIS_NAMES,
     AxisLimits,
+    AxisMode,
     LinkError,
     TableError,
     TableState,
+    TableStatus,
 )
 
 log = logging.getLogger(__name__)
@@ -65,6 +75,69 @@ def check_rate(axis: int, rate: float, limits: tuple[AxisLimits, AxisLimits, Axi
     return int(axis), r
 
 
+ANGLE_MARGIN = math.radians(10.0)
+"""Over-travel allowed beyond a limited axis's position limits before a reading is implausible, rad."""
+MAX_TURNS = 1e5
+"""A continuous axis's unwrapped angle beyond this many turns is implausible."""
+RATE_MARGIN = 1.25
+"""A rate reading beyond ``RATE_MARGIN × rate_max + 0.01 rad/s`` is implausible."""
+MAX_TIME_S = 1e9
+"""A controller time beyond ~31.7 years is implausible."""
+
+
+class ImplausibleReading(LinkError):
+    """A value read back is one no table reaches (wrong word order, wrong map, a corrupted register)."""
+
+
+def _tiny(x: float) -> bool:
+    return x != 0.0 and abs(x) < 1e-30  # a subnormal-looking reading: a float read with its words swapped
+
+
+def check_plausible(
+    state: TableState,
+    limits: tuple[AxisLimits, AxisLimits, AxisLimits],
+    previous: TableState | None = None,
+    hint: str = "",
+) -> None:
+    """Refuse a reading no table reaches (:class:`ImplausibleReading`, one line naming value, limit and fix).
+
+    Checks: every value finite and not subnormal-small; time in [0, 1e9] s and not running backwards;
+    angles of limited axes within their limits ± 10°, of continuous axes within ±1e5 turns; rates within
+    1.25 × rate_max + 0.01 rad/s; and, against the previous reading, no angle change faster than the rate limit
+    allows (1.25 × rate_max × Δt + 0.05 rad).
+    """
+    fix = f"; check {hint}" if hint else ""
+
+    def bad(what: str) -> ImplausibleReading:
+        return ImplausibleReading(f"implausible reading: {what}{fix}")
+
+    t = float(state.time)
+    if not math.isfinite(t) or _tiny(t) or not 0.0 <= t <= MAX_TIME_S:
+        raise bad(f"controller time {t!r} s (expected 0…{MAX_TIME_S:g} s)")
+    if previous is not None and t < previous.time:
+        raise bad(f"controller time ran backwards ({previous.time:.6g} s → {t:.6g} s)")
+    for i, lim in enumerate(limits):
+        a, r = float(state.angles[i]), float(state.rates[i])
+        name = AXIS_NAMES[i]
+        if not math.isfinite(a) or _tiny(a):
+            raise bad(f"{name} angle {a!r} rad")
+        if lim.position_min is not None and lim.position_max is not None:
+            if not lim.position_min - ANGLE_MARGIN <= a <= lim.position_max + ANGLE_MARGIN:
+                raise bad(f"{name} angle {math.degrees(a):.6g}° outside its limits {lim.position_range_text()}")
+        elif abs(a) > MAX_TURNS * 2 * math.pi:
+            raise bad(f"{name} angle {math.degrees(a):.6g}° (a continuous axis, beyond {MAX_TURNS:g} turns)")
+        if not math.isfinite(r) or _tiny(r) or abs(r) > RATE_MARGIN * lim.rate_max + 0.01:
+            raise bad(f"{name} rate {math.degrees(r):.6g} °/s beyond its limit {math.degrees(lim.rate_max):g} °/s")
+        if previous is not None:
+            step = abs(a - float(previous.angles[i]))
+            allowed = RATE_MARGIN * lim.rate_max * (t - previous.time) + 0.05
+            if step > allowed:
+                raise bad(
+                    f"{name} angle jumped {math.degrees(step):.6g}° in {t - previous.time:.6g} s "
+                    f"(its rate limit {math.degrees(lim.rate_max):g} °/s allows {math.degrees(allowed):.6g}°)"
+                )
+
+
 class ModbusTurntable:
     """Three-axis table on a Modbus TCP register map.
 
@@ -79,7 +152,10 @@ class ModbusTurntable:
     limits : tuple of 3 AxisLimits or None
         Table limits used for checks before sending; None reads them from the controller.
     register_map : ModbusMap or None
-        The controller's register map (None: the shipped tablebench map).
+        The controller's register map (None: the shipped tablebench map). A ``word_order`` contradicting a map
+        given here is refused (:class:`~drivers.modbus.register_map.WordOrderConflict`) before anything is sent.
+    rate_tolerance : float
+        rad/s: a rate-mode axis within this of its demand is AT_RATE, where the map's status has no such bit.
     """
 
     def __init__(
@@ -89,14 +165,18 @@ class ModbusTurntable:
         word_order: str | None = None,
         limits: tuple[AxisLimits, AxisLimits, AxisLimits] | None = None,
         register_map: ModbusMap | None = None,
+        rate_tolerance: float = math.radians(0.01),
     ) -> None:
         m = map_with_word_order(register_map, word_order)
         self.map = m
         self.client = client
         self.unit_id = int(unit_id)
         self.word_order = m.word_order
+        self.rate_tol = float(rate_tolerance)
         self._hb = 0
         self._closed = False
+        self._last_state: TableState | None = None
+        self._rate_demand: list[float | None] = [None, None, None]
         self._limits = tuple(limits) if limits is not None else self._read_limits()
         if len(self._limits) != 3:
             raise ValueError("limits must be 3 AxisLimits (outer, middle, inner)")
@@ -152,6 +232,38 @@ class ModbusTurntable:
     def _write(self, what: str, address: int, values: list[int]) -> None:
         self._call(what, self.client.write_registers, address, values)
 
+    def _coil(self, what: str, address: int) -> None:
+        self._call(what, self.client.write_coil, address, True)
+
+    @property
+    def _hint(self) -> str:
+        return (
+            f"the word order (now {self.word_order!r}), the unit id and the register map ({self.map.source}) "
+            "against the PLC's documentation"
+        )
+
+    def _start(self, action: str, axes: tuple[int, ...]) -> None:
+        """Start ``action`` (move/spin/stop) on ``axes`` with the map's control scheme (set-points written)."""
+        m = self.map
+        value = m.commands[action]
+        if m.scheme == "per-axis":
+            assert m.axis_command is not None
+            words = [m.axis_command[a] for a in axes]
+            if len(words) > 1 and words == list(range(words[0], words[0] + len(words))):
+                self._write(f"{action} (control words)", words[0], [value] * len(words))
+            else:
+                for a, w in zip(axes, words, strict=True):
+                    self._write(f"{action} ({AXIS_NAMES[a]} control word)", w, [value])
+        elif action == "spin":
+            if not m.start_coils and m.holding.get("command") == m.holding["command_axis"] + 1:
+                self._write("spin", m.holding["command_axis"], [axes[0], value])  # axis and command in one write
+                return
+            self._write("spin (axis)", m.holding["command_axis"], [axes[0]])
+        if m.start_coils:
+            self._coil(f"{action} (start coil)", m.start_coils[action])
+        elif m.scheme != "per-axis":
+            self._write(action, m.holding["command"], [value])
+
     def _read_state_regs(self, what: str, address: int, count: int) -> list[int]:
         rr = self._call(what, self._read_fn(), address, count=count)
         regs = list(rr.registers)
@@ -194,22 +306,21 @@ class ModbusTurntable:
         a = check_position(angles, self._limits)  # type: ignore[arg-type]
         m = self.map
         self._write("move_to (set-points)", m.holding["position_setpoint"], m.pack([x / m.angle_scale for x in a]))
-        self._write("move_to", m.holding["command"], [m.commands["move"]])
+        self._start("move", (0, 1, 2))
+        self._rate_demand = [None, None, None]
 
     def spin(self, axis: int, rate: float) -> None:
         """Command a constant rate (rad/s, signed) on gimbal ``axis`` (0 outer, 1 middle, 2 inner)."""
         ax, r = check_rate(axis, rate, self._limits)  # type: ignore[arg-type]
         m = self.map
         self._write("spin (set-point)", m.holding["rate_setpoint"] + m.value_regs * ax, m.pack(r / m.rate_scale))
-        if m.holding["command"] == m.holding["command_axis"] + 1:
-            self._write("spin", m.holding["command_axis"], [ax, m.commands["spin"]])
-        else:
-            self._write("spin (axis)", m.holding["command_axis"], [ax])
-            self._write("spin", m.holding["command"], [m.commands["spin"]])
+        self._start("spin", (ax,))
+        self._rate_demand[ax] = r
 
     def stop(self) -> None:
         """Bring every axis to rest under control."""
-        self._write("stop", self.map.holding["command"], [self.map.commands["stop"]])
+        self._start("stop", (0, 1, 2))
+        self._rate_demand = [None, None, None]
 
     def read_state(self) -> TableState:
         """Read time, angles, rates, status, fault code and modes in one request."""
@@ -229,17 +340,29 @@ class ModbusTurntable:
             fault = m.fault_from(field("fault_code")[0])
         except ValueError as exc:
             raise LinkError(f"Modbus turntable: read_state: invalid value ({exc}); check the register map") from exc
-        return TableState(
+        status = m.status_from(field("status")[0])
+        if "AT_RATE" not in m.status_bits:  # the PLC has no "at rate" bit: judged here from the demand
+            at = [
+                md == AxisMode.RATE and d is not None and abs(float(rat[i]) - d) <= self.rate_tol
+                for i, (md, d) in enumerate(zip(modes, self._rate_demand, strict=True))
+            ]
+            status = status | TableStatus.AT_RATE if any(at) else status & ~TableStatus.AT_RATE
+        state = TableState(
             time=t,
             angles=ang,
             rates=rat,
-            status=m.status_from(field("status")[0]),
+            status=status,
             fault_code=fault,
             modes=modes,  # type: ignore[arg-type]
         )
+        check_plausible(state, self._limits, self._last_state, self._hint)  # type: ignore[arg-type]
+        self._last_state = state
+        return state
 
     def heartbeat(self) -> None:
-        """Feed the controller's watchdog (writes an incrementing counter)."""
+        """Feed the controller's watchdog (writes an incrementing counter); nothing where the map has none."""
+        if not self.map.has_heartbeat:
+            return
         self._hb = (self._hb + 1) & 0xFFFF
         self._write("heartbeat", self.map.holding["heartbeat"], [self._hb])
 

@@ -78,6 +78,7 @@ class Loopback:
         word_order: Literal["big", "little"] | None = None,
         register_map: ModbusMap | None = None,
         watchdog_s: float | None = None,
+        strict_watchdog: bool = False,
         corruption: Corruption | None = None,
         timeout: float = 2.0,
         unit_id: int = 1,
@@ -94,7 +95,11 @@ class Loopback:
         try:
             if dialect == "modbus":
                 self.table_server = ModbusTableServer(
-                    world, word_order=word_order, watchdog_s=watchdog_s, register_map=register_map
+                    world,
+                    word_order=word_order,
+                    watchdog_s=watchdog_s,
+                    register_map=register_map,
+                    watchdog_from_power_up=strict_watchdog,
                 )
                 self._closers.append(self.table_server.close)
                 table: Any = connect.modbus_table(

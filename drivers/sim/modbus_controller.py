@@ -6,18 +6,22 @@ register blocks laid out as a register-map file says (:mod:`drivers.modbus.regis
 tablebench map), and an ``action`` hook that
 
 * refreshes the state input registers from ``world.table_state()`` when they are read,
-* executes COMMAND writes (MOVE → ``world.command_position``, SPIN → ``world.command_rate``, STOP →
-  ``world.command_stop``, CLEAR_FAULT / FAULT_RESET → ``world.clear_fault``), answering a refused command with
+* executes commands as the map's control scheme says (:mod:`drivers.modbus.register_map`, ``control``): a
+  COMMAND register write, per-axis control words, or a start coil (MOVE → ``world.command_position`` or, one
+  axis's control word, ``world.command_axis_position``; SPIN → ``world.command_rate``; STOP →
+  ``world.command_stop``; CLEAR_FAULT / FAULT_RESET → ``world.clear_fault``), answering a refused command with
   Modbus exception 3 (illegal value: limits, bad command) or 4 (device failure: a fault is latched) and the
   reason in LAST_REJECT,
-* feeds the watchdog on HEARTBEAT writes (``world.heartbeat`` too).
+* feeds the watchdog on HEARTBEAT writes (``world.heartbeat`` too); a map without a heartbeat register is a
+  PLC without a watchdog.
 
 Safety behaviour of the controller (wall clock, independent of the world's bench-time watchdog):
 
-* watchdog: once a heartbeat has been received, if no HEARTBEAT write arrives for ``watchdog_s`` seconds
-  while motion is commanded (MOVE/SPIN since the last STOP), the table is stopped
-  (``world.command_stop``), the fault COMMUNICATION_LOST is injected and WATCHDOG + FAULT are reported until
-  a fault reset;
+* watchdog: once a heartbeat has been received (``watchdog_from_power_up``: from the server's start, as a
+  strict PLC's), if no HEARTBEAT write arrives for ``watchdog_s`` seconds while motion is commanded
+  (MOVE/SPIN since the last STOP), the table is stopped (``world.command_stop``), the fault
+  COMMUNICATION_LOST is injected and WATCHDOG + FAULT are reported until a fault reset; a strict PLC also
+  trips when a motion command arrives with the heartbeat already overdue (the command is refused);
 * client disconnect while motion is commanded → ``world.command_stop``.
 
 The limits are checked here as well as in the driver (a controller never trusts its client). The simulated
@@ -59,6 +63,8 @@ class ModbusTableServer:
     host : str
     register_map : ModbusMap or None
         The layout served (None: the shipped tablebench map).
+    watchdog_from_power_up : bool
+        A strict PLC: the watchdog runs from the server's start, not from the first heartbeat.
     """
 
     def __init__(
@@ -70,15 +76,18 @@ class ModbusTableServer:
         watchdog_s: float | None = None,
         host: str = "127.0.0.1",
         register_map: ModbusMap | None = None,
+        watchdog_from_power_up: bool = False,
     ) -> None:
         m = map_with_word_order(register_map, word_order)
         self.map = m
         self.world = world
         self.word_order = m.word_order
-        self.watchdog_s = float(watchdog_s) if watchdog_s else None
+        self.watchdog_s = float(watchdog_s) if watchdog_s and m.has_heartbeat else None
+        self.strict = bool(watchdog_from_power_up)
         self.host = host
         self._limits = tuple(world.table_limits())
-        self._last_hb: float | None = None
+        self._last_hb: float | None = time.monotonic() if self.strict else None
+        self._hr: dict[int, int] = {}  # the holding registers as written (the set-points a start coil uses)
         self._motion_commanded = False
         self._watchdog_latched = False
         self._last_reject = FaultCode.NONE
@@ -101,7 +110,7 @@ class ModbusTableServer:
     # ---- datastore ---------------------------------------------------------------------------------------------
     def _sizes(self) -> tuple[int, int]:
         m = self.map
-        hr = max(a + m.size(n) for n, a in m.holding.items())
+        hr = max([a + m.size(n) for n, a in m.holding.items()] + [a + 1 for a in m.axis_command or ()])
         st = max(a + m.size(n) for n, a in m.state.items())
         return (max(hr, st), 1) if m.state_registers == "holding" else (hr, st)
 
@@ -125,7 +134,14 @@ class ModbusTableServer:
         return SimDevice(
             id=0,
             simdata=(
-                [SimData(0, count=16, values=False, datatype=DataType.BITS)],
+                [
+                    SimData(
+                        0,
+                        count=max([16, *(c + 1 for c in m.start_coils.values())]),
+                        values=False,
+                        datatype=DataType.BITS,
+                    )
+                ],
                 [SimData(0, count=16, values=False, datatype=DataType.BITS)],
                 [SimData(0, values=hr, datatype=DataType.REGISTERS)],
                 [SimData(0, values=ir, datatype=DataType.REGISTERS)],
@@ -178,20 +194,39 @@ class ModbusTableServer:
                     if start_address <= a < start_address + len(registers):
                         registers[a - start_address] = v
                 return None
+            if function_code in (5, 15) and set_values:
+                coil_action = {c: k for k, c in self.map.start_coils.items()}
+                for i, v in enumerate(set_values):
+                    action = coil_action.get(address + i)
+                    if action is not None and v:
+                        return self._execute(action, self._coil_axes(action))
+                return None
             if function_code in (6, 16) and set_values:
-                image = list(registers)
-                off = address - start_address
-                image[off : off + count] = [int(v) for v in set_values]
                 touched = range(address, address + count)
+                for a, v in zip(touched, set_values, strict=False):
+                    self._hr[a] = int(v)
                 h = m.holding
-                if h["heartbeat"] in touched:
+                if "heartbeat" in h and h["heartbeat"] in touched:
                     self._last_hb = time.monotonic()
-                    self._hb_echo = image[h["heartbeat"] - start_address] & 0xFFFF
+                    self._hb_echo = self._hr[h["heartbeat"]] & 0xFFFF
                     self.world.heartbeat()
-                if h["fault_reset"] in touched and image[h["fault_reset"] - start_address] == 1:
+                if h["fault_reset"] in touched and self._hr[h["fault_reset"]] == 1:
                     self._clear_fault()
-                if h["command"] in touched:
-                    return self._execute(image, start_address)
+                if m.start_coils:
+                    return None
+                if m.scheme == "per-axis":
+                    assert m.axis_command is not None
+                    hit = [i for i, w in enumerate(m.axis_command) if w in touched]
+                    if hit:
+                        acts = {self._hr[m.axis_command[i]] for i in hit}
+                        if len(acts) != 1:
+                            self._last_reject = FaultCode.BAD_COMMAND
+                            return ExcCodes.ILLEGAL_VALUE
+                        return self._execute_value(acts.pop(), tuple(hit))
+                elif "command" in h and h["command"] in touched:
+                    v = self._hr[h["command"]]
+                    axes = (self._hr.get(h["command_axis"], 0),) if v == m.commands["spin"] else (0, 1, 2)
+                    return self._execute_value(v, axes)
             return None
         except TableError as exc:
             log.info("simulated Modbus controller refused a command: %s", exc)
@@ -218,49 +253,84 @@ class ModbusTableServer:
         self._watchdog_latched = False
         self._last_reject = FaultCode.NONE
 
-    def _execute(self, image: list[int], base: int = 0) -> Any:
+    def _coil_axes(self, action: str) -> tuple[int, ...]:
+        """The axes a start coil acts on: per-axis, those whose control word holds the action; else a spin's
+        ``command_axis`` or every axis."""
+        m = self.map
+        if m.scheme == "per-axis":
+            assert m.axis_command is not None
+            return tuple(i for i, w in enumerate(m.axis_command) if self._hr.get(w) == m.commands[action])
+        return (self._hr.get(m.holding["command_axis"], 0),) if action == "spin" else (0, 1, 2)
+
+    def _execute_value(self, value: int, axes: tuple[int, ...]) -> Any:
+        from pymodbus.constants import ExcCodes
+
+        if value == 0:
+            return None
+        action = {v: k for k, v in self.map.commands.items()}.get(value)
+        if action is None:
+            self._last_reject = FaultCode.BAD_COMMAND
+            return ExcCodes.ILLEGAL_VALUE
+        return self._execute(action, axes)
+
+    def _values(self, name: str, k: int = 0, n: int | None = None) -> list[float]:
+        m = self.map
+        a = m.holding[name] + k
+        return m.unpack([self._hr.get(a + i, 0) for i in range(n if n is not None else m.size(name))])
+
+    def _execute(self, action: str, axes: tuple[int, ...]) -> Any:
         from pymodbus.constants import ExcCodes
 
         m = self.map
-
-        def regs(name: str, k: int = 0, n: int | None = None) -> list[int]:
-            a = m.holding[name] - base + k
-            return image[a : a + (n if n is not None else m.size(name))]
-
-        commands = {v: k for k, v in m.commands.items()}
-        cmd = commands.get(regs("command")[0])
-        if regs("command")[0] == 0:
-            return None
-        if cmd is None:
-            self._last_reject = FaultCode.BAD_COMMAND
-            return ExcCodes.ILLEGAL_VALUE
-        if cmd == "stop":
+        if action == "stop":
             self.world.command_stop()
             self._motion_commanded = False
             return None
-        if cmd == "clear_fault":
+        if action == "clear_fault":
             self._clear_fault()
             return None
+        if not axes:
+            self._last_reject = FaultCode.BAD_COMMAND
+            return ExcCodes.ILLEGAL_VALUE
+        if self.strict and self.watchdog_s and not self._watchdog_latched:
+            assert self._last_hb is not None
+            if time.monotonic() - self._last_hb > self.watchdog_s:
+                log.warning("simulated strict PLC: motion commanded with the heartbeat overdue (WATCHDOG)")
+                self._trip()
         if self._watchdog_latched:
             self._last_reject = FaultCode.COMMUNICATION_LOST
             return ExcCodes.DEVICE_FAILURE
-        if cmd == "move":
+        if action == "move":
             self._last_reject = FaultCode.POSITION_LIMIT
-            sp = [x * m.angle_scale for x in m.unpack(regs("position_setpoint"))]
+            sp = [x * m.angle_scale for x in self._values("position_setpoint")]
             angles = check_position(sp, self._limits)  # type: ignore[arg-type]
-            self.world.command_position(angles)
+            if len(axes) == 3:
+                self.world.command_position(angles)
+            else:
+                for ax in axes:
+                    self.world.command_axis_position(ax, float(angles[ax]))
         else:  # spin
             self._last_reject = FaultCode.RATE_LIMIT
-            axis = regs("command_axis")[0]
-            if axis > 2:
-                self._last_reject = FaultCode.BAD_COMMAND
-                return ExcCodes.ILLEGAL_VALUE
-            rate = m.unpack(regs("rate_setpoint", m.value_regs * axis, m.value_regs))[0] * m.rate_scale
-            ax, r = check_rate(axis, rate, self._limits)  # type: ignore[arg-type]
-            self.world.command_rate(ax, r)
+            for axis in axes:
+                if axis > 2:
+                    self._last_reject = FaultCode.BAD_COMMAND
+                    return ExcCodes.ILLEGAL_VALUE
+                rate = self._values("rate_setpoint", m.value_regs * axis, m.value_regs)[0] * m.rate_scale
+                ax, r = check_rate(axis, rate, self._limits)  # type: ignore[arg-type]
+                self.world.command_rate(ax, r)
         self._last_reject = FaultCode.NONE
         self._motion_commanded = True
         return None
+
+    def _trip(self) -> None:
+        """The watchdog trips: stop under control, latch COMMUNICATION_LOST."""
+        self.world.command_stop()
+        try:
+            self.world.inject_fault(FaultCode.COMMUNICATION_LOST)
+        except Exception:
+            log.debug("world.inject_fault(COMMUNICATION_LOST) not supported", exc_info=True)
+        self._watchdog_latched = True
+        self._motion_commanded = False
 
     # ---- event loop thread -------------------------------------------------------------------------------------
     def _trace_connect(self, connected: bool) -> None:
@@ -296,13 +366,7 @@ class ModbusTableServer:
                     "simulated Modbus controller: no heartbeat for %.3g s; stopping the table (WATCHDOG)",
                     self.watchdog_s,
                 )
-                self.world.command_stop()
-                try:
-                    self.world.inject_fault(FaultCode.COMMUNICATION_LOST)
-                except Exception:
-                    log.debug("world.inject_fault(COMMUNICATION_LOST) not supported", exc_info=True)
-                self._watchdog_latched = True
-                self._motion_commanded = False
+                self._trip()
 
     def _run(self, port: int) -> None:
         asyncio.set_event_loop(self._loop)

@@ -164,8 +164,8 @@ def test_gaps_are_reported_and_skipped(tmp_path: Path, capsys: pytest.CaptureFix
 def test_recording_is_read_in_chunks_into_one_array(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The recording loader fills one (C, N) float64 array chunk by chunk (chunk boundaries inside the step):
     values equal the file's, the channels are rows of that one array, gaps and ±inf are located exactly."""
-    import benches.analysis_input as ai
-    from benches.analysis_input import InputError, load_input
+    import benches.cli.analysis_input as ai
+    from benches.cli.analysis_input import InputError, load_input
 
     monkeypatch.setattr(ai, "READ_CHUNK_ROWS", 1000)
     rng = np.random.default_rng(4)
@@ -195,3 +195,30 @@ def test_recording_is_read_in_chunks_into_one_array(tmp_path: Path, monkeypatch:
     res_npy = analyse_noise(load_input(tmp_path / "a.npy", rate=rate).channels, rate, "SI")
     for k_rec, k_npy in (("accel_y", "ch0"), ("accel_z", "ch1")):
         np.testing.assert_array_equal(res_rec["channels"][k_rec]["oadev"], res_npy["channels"][k_npy]["oadev"])
+
+
+def test_noise_type_and_drift_removal_options(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rng = np.random.default_rng(9)
+    y = rng.normal(0.0, 1e-3, 20_000) + 1e-7 * np.arange(20_000)
+    np.save(tmp_path / "d.npy", y)
+    out = tmp_path / "o"
+    args = ["noise", str(tmp_path / "d.npy"), "--rate", "10", "--out", str(out)]
+    assert main([*args, "--noise-type", "wfm@0:50,rwfm@50:1e6", "--remove-drift", "linear"]) == 0
+    data = json.loads((out / "noise.json").read_text())
+    ch = data["channels"]["ch0"]
+    alpha = np.array(ch["deviations"]["oadev"]["alpha"])
+    tau = np.array(ch["deviations"]["oadev"]["tau"])
+    assert np.all(alpha[tau <= 50] == 0) and np.all(alpha[tau > 50] == -2)
+    assert ch["drift_removed"]["model"] == "linear"
+    assert ch["drift_removed"]["coefficients"][1] == pytest.approx(1e-7 * 10, rel=0.05)  # per second
+    assert "slope-line" in capsys.readouterr().out
+    assert main([*args, "--noise-type", "ffm"]) == 0
+    assert set(json.loads((out / "noise.json").read_text())["channels"]["ch0"]["deviations"]["oadev"]["alpha"]) == {-1}
+
+
+@pytest.mark.parametrize("bad", ["pink", "3", "wfm@5", "wfm@9:1", ""])
+def test_bad_noise_type_is_one_line_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str], bad: str) -> None:
+    np.save(tmp_path / "d.npy", np.random.default_rng(1).normal(size=1000))
+    assert main(["noise", str(tmp_path / "d.npy"), "--rate", "10", "--noise-type", bad]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--noise-type" in err[0]

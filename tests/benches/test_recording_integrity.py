@@ -8,7 +8,7 @@ from __future__ import annotations
 import json
 import shutil
 
-import h5py  # tests craft and damage files directly; only benches/recording.py uses h5py in the package
+import h5py  # tests craft and damage files directly; only benches/recording/ uses h5py in the package
 import numpy as np
 import pytest
 

@@ -13,7 +13,7 @@ import sys
 import pytest
 
 from benches import factory
-from benches.commands import table as cmd
+from benches.cli.commands import table as cmd
 from tests import REPO_ROOT
 from tests.simbench import bench_variant
 

@@ -47,7 +47,7 @@ def test_ten_step_over_loopback_in_a_real_format_equals_in_process(tmp_path, ben
     raw = (wire / "unit-raw.bin").read_bytes()
     assert len(raw) == n * length
     from benches.bench_config import load_bench, unit_frame_format
-    from benches.commands.decode import decode_file
+    from benches.cli.commands.decode import decode_file
 
     samples, stats = decode_file(wire / "unit-raw.bin", unit_frame_format(load_bench(bench).unit))
     assert stats.frames == n and stats.rejected == 0 and np.array_equal(samples.accel, accel)
@@ -67,7 +67,7 @@ def test_samples_flagged_invalid_are_never_used(tmp_path):
     analysis inputs; the same corrupted samples unflagged would wreck the estimate."""
     import shutil
 
-    from benches.analysis_input import InputError, load_input
+    from benches.cli.analysis_input import InputError, load_input
 
     proc = _short_ten_step(tmp_path)
     bench = bench_variant(tmp_path, rate=RATE, source="sim-kvh.yaml", name="sim-kvh.yaml")

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import analysis.noise.allan as al
-import analysis.noise.stability as st
+from analysis.noise import record
 from analysis.noise.allan import ESTIMATORS, allan_variances
 from analysis.noise.stability import stability
 
@@ -104,7 +104,7 @@ def test_phase_left_behind_is_the_integrated_mean_removed_record() -> None:
     plain = allan_variances(y, 50.0, chunk=1000)
     for est in ESTIMATORS:
         np.testing.assert_array_equal(with_phase.var[est], plain.var[est])
-    ref = st._Record(y, 50.0, "freq").x
+    ref = record.Record(y, 50.0, "freq").x
     np.testing.assert_allclose(phase, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
     with pytest.raises(ValueError, match="phase must be"):
         allan_variances(y, 50.0, phase=np.empty((1, y.shape[0] + 1)))
@@ -152,8 +152,8 @@ def test_edge_sums_fast_form_equals_the_general_reflection(half_a: float) -> Non
     x = np.concatenate([[0.0], np.cumsum(rng.normal(size=n))])
     bufs = al._Buffers(32, 64)
     for m in (1, 2, 31, 32, 33, 200, 500):
-        fast = al._edge_sums(x, m, half_a, 32, bufs)
-        general = al._edge_sum_general(x, m, 1, m - 1, half_a, 32) + al._edge_sum_general(
+        fast = al.edge_sums(x, m, half_a, 32, bufs)
+        general = al.edge_sum_general(x, m, 1, m - 1, half_a, 32) + al.edge_sum_general(
             x, m, n - m + 1, n - 1, half_a, 32
         )
         assert fast == pytest.approx(general, rel=1e-12, abs=1e-12), m
@@ -163,7 +163,7 @@ def test_edge_sums_fast_form_equals_the_general_reflection(half_a: float) -> Non
 def test_levels_sharing_a_pass_give_the_definitions(monkeypatch: pytest.MonkeyPatch, per_pass: int) -> None:
     """Several octave levels in one pass (each a chunk behind the previous), on an odd length whose last levels
     end inside a chunk and have fewer chunks than the first."""
-    monkeypatch.setattr(al, "_LEVELS_PER_PASS", per_pass)
+    monkeypatch.setattr(al, "LEVELS_PER_PASS", per_pass)
     n = 2999
     y = _record(n, 13)
     res = allan_variances(y, 1.0, "octave", chunk=64)
@@ -185,9 +185,9 @@ def test_column_walk_equals_the_chunk_walk(n: int, m: int) -> None:
     chunk = 16
     ga, gb = g0.copy(), g0.copy()
     bufs = al._Buffers(chunk, 2 * chunk)
-    ref = al._octave_levels(x, ga, [(m, n // m - 1, True)], chunk, bufs)[0]
-    t1 = al._lag_sum(g0, m, n + 2 - 3 * m) if n + 2 - 3 * m > 0 else 0.0
-    far = al._octave_far(x, gb, m, n // m - 1, True, chunk, bufs)
+    ref = al.octave_levels(x, ga, [(m, n // m - 1, True)], chunk, bufs)[0]
+    t1 = al.lag_sum(g0, m, n + 2 - 3 * m) if n + 2 - 3 * m > 0 else 0.0
+    far = al.octave_far(x, gb, m, n // m - 1, True, chunk, bufs)
     np.testing.assert_allclose(far[:3], ref[:3], rtol=1e-12)
     assert far[3] == pytest.approx(t1, rel=1e-12, abs=1e-12) and ref[3] == pytest.approx(t1, rel=1e-12, abs=1e-12)
     top = max(n + 2 - 4 * m, 0)
@@ -201,7 +201,7 @@ def test_pairwise_prefix_sum_equals_the_cumulative_sum(k: int, depth: int) -> No
     rng = np.random.default_rng(k + depth)
     v = rng.normal(size=k) + 50.0
     out = np.full(2 * k, np.nan)
-    al._prefix_sum(v, out[::2], np.empty(k), depth)  # into a strided view, as the recursion does
+    al.prefix_sum(v, out[::2], np.empty(k), depth)  # into a strided view, as the recursion does
     ref = np.cumsum(v.astype(np.longdouble))
     np.testing.assert_allclose(out[::2], ref.astype(np.float64), rtol=1e-12)
     assert np.isnan(out[1::2]).all()  # nothing written outside the view
@@ -211,6 +211,6 @@ def test_blocked_dot_without_vecdot(monkeypatch: pytest.MonkeyPatch) -> None:
     """numpy < 2.0 has no vecdot: the blocks are then summed by einsum, same values."""
     v = np.random.default_rng(3).normal(size=6 * 4096 + 18)
     with_vecdot = al.sum_of_products(v)
-    monkeypatch.setattr(al, "_vecdot", None)
+    monkeypatch.setattr(al, "vecdot", None)
     assert al.sum_of_products(v) == pytest.approx(with_vecdot, rel=1e-13)
     assert al.sum_of_products(v[::2], v[1::2]) == pytest.approx(float(v[::2] @ v[1::2]), rel=1e-12, abs=1e-12)

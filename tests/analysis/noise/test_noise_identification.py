@@ -20,14 +20,14 @@ def test_expected_lag1_matches_simulation(n: int) -> None:
             z = np.cumsum(z, axis=1)
         z -= z.mean(axis=1, keepdims=True)
         sim = np.mean(np.sum(z[:, :-1] * z[:, 1:], axis=1)) / np.mean(np.sum(z * z, axis=1)) * (n - 1) / n
-        assert ci._expected_lag1(n, rw) == pytest.approx(sim, abs=0.01)
+        assert ci.expected_lag1(n, rw) == pytest.approx(sim, abs=0.01)
 
 
 def test_lag1_averaged_over_decimation_phases_equals_single_phase_at_m1() -> None:
     x = np.random.default_rng(3).normal(size=1000)
     z = x - x.mean()
     single = float(np.dot(z[:-1], z[1:]) / np.dot(z, z)) * 999 / 1000
-    assert ci._lag1(x[:, None]) == pytest.approx(single, rel=1e-12)
+    assert ci.lag1(x[:, None]) == pytest.approx(single, rel=1e-12)
 
 
 @pytest.mark.parametrize("alpha", [2, 1, 0, -1, -2])
@@ -78,7 +78,7 @@ def test_totvar_white_pm_shape_matches_simulated_cumulants() -> None:
     n, m = 256, 32
     x = np.random.default_rng(11).normal(size=(n, 20_000))
     v = stability(x, 1.0, ("totdev",), [float(m)], "phase", confidence=None).estimates["totdev"].dev[0] ** 2
-    expected = ci._totvar_wpm_b(n, m).diagonal().sum() / (2.0 * m * m * (n - 2))  # E[S] = tr B for unit noise
+    expected = ci.totvar_wpm_b(n, m).diagonal().sum() / (2.0 * m * m * (n - 2))  # E[S] = tr B for unit noise
     y = v / expected
     a, b, nu = ci.totvar_wpm_shape(n, m)
     assert np.mean(y) == pytest.approx(a + b * nu, rel=0.05)

@@ -9,12 +9,13 @@ import pytest
 
 from analysis import units
 from analysis.noise.allan import allan_variances
+from analysis.noise.slope import slope_readings
 from analysis.noise.terms import (
     B_FLOOR,
     FIT_ESTIMATORS,
+    GAINS,
     analyse_noise,
     fit_noise_terms,
-    slope_terms,
     to_display,
 )
 from tests.noise_synth import pink
@@ -75,7 +76,9 @@ def test_pink_noise_floor_and_bias_instability_within_15_percent() -> None:
     mid = (res.tau > 1.0) & (res.tau < 300.0)
     np.testing.assert_allclose(np.sqrt(res.var["oavar"][mid, 0]), B_FLOOR * b, rtol=0.2)
     assert fit.terms["B"][0] == pytest.approx(b, rel=0.15)
-    assert slope_terms(res.tau, np.sqrt(res.var["oavar"][:, 0]))["B"]["value"] == pytest.approx(b, rel=0.2)
+    reading = slope_readings(res.tau, np.sqrt(res.var["oavar"][:, 0]), res.m, y.size + 1, "oadev", GAINS)["B"]
+    assert reading["value"] == pytest.approx(b, rel=0.2)
+    assert reading["hi"] >= b
 
 
 def test_rate_random_walk_with_arw_and_quantisation_k_within_40_percent() -> None:

@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import analysis.noise.stability as st
+from analysis.noise import closed_forms as cf
+from analysis.noise import direct, fftkit, mtot, record, theo1
 from analysis.noise.stability import stability
 
 
@@ -54,60 +55,60 @@ def _series(n: int, seed: int, kind: str) -> np.ndarray:
 @pytest.mark.parametrize(("n", "seed"), [(211, 1), (390, 2), (517, 3)])
 def test_total_family_closed_form_equals_the_window_loop(n: int, seed: int, kind: str) -> None:
     s = _series(n, seed, kind)
-    sd, a = st._detrend_quadratic(s)
-    r = st._autocorr(sd, n - 1)
+    sd, a = fftkit.detrend_quadratic(s)
+    r = fftkit.autocorr(sd, n - 1)
     for m in sorted({8, 9, 13, 16, n // 6, n // 3}):
         if 3 * m > n:
             continue
         ref = _mtot_reference(s, m)
-        v, err = st._mtot_fft(sd, m, r, a)
-        assert err < st._FFT_MAX_ERR
+        v, err = mtot.mtot_fft(sd, m, r, a)
+        assert err < cf.FFT_MAX_ERR
         assert v == pytest.approx(ref, rel=1e-10), m
-        d, k = st._reflected_sumsq(s[None, :], m, None)  # the chunked direct sum
+        d, k = direct.reflected_sumsq(s[None, :], m, None)  # the chunked direct sum
         assert d[0] == pytest.approx(ref, rel=1e-10) and k[0] == n - 3 * m + 1
 
 
 @pytest.mark.parametrize(("n", "seed"), [(300, 4), (455, 5)])
 def test_theo1_closed_form_equals_the_definition(n: int, seed: int) -> None:
     x = _series(n, seed, "phase")
-    xd, a = st._detrend_quadratic(x)
-    r = st._autocorr(xd, n - 1, 2)  # Theo1 reads the even lags only
+    xd, a = fftkit.detrend_quadratic(x)
+    r = fftkit.autocorr(xd, n - 1, 2)  # Theo1 reads the even lags only
     for m in (64, 66, 98, 2 * ((n - 3) // 2)):
         ref = _theo1_reference(x, m)
-        v, err = st._theo1_fft(xd, m, r, a)
-        assert err < st._FFT_MAX_ERR
+        v, err = theo1.theo1_fft(xd, m, r, a)
+        assert err < cf.FFT_MAX_ERR
         assert v == pytest.approx(ref, rel=1e-10), m
-        d, k = st._theo1_sumsq(x[None, :], m, None)
+        d, k = direct.theo1_sumsq(x[None, :], m, None)
         assert d[0] == pytest.approx(ref, rel=1e-10) and k[0] == (n - m) * (m // 2)
 
 
 @pytest.mark.parametrize("n", [2, 7, 64, 1001, 4096])
 def test_autocorrelation_equals_direct_lag_products(n: int) -> None:
     s = np.random.default_rng(n).normal(size=n) + 5.0
-    r = st._autocorr(s, n - 1)
+    r = fftkit.autocorr(s, n - 1)
     ref = np.array([s[: n - d] @ s[d:] for d in range(n)])
     np.testing.assert_allclose(r, ref, rtol=0, atol=1e-12 * ref[0])
-    assert st._autocorr(s, n // 2).size == n // 2 + 1
-    np.testing.assert_allclose(st._autocorr(s, n - 1, 2), ref[::2], rtol=0, atol=1e-12 * ref[0])
-    np.testing.assert_allclose(st._autocorr(s, n // 3, 3), ref[: n // 3 + 1 : 3], rtol=0, atol=1e-12 * ref[0])
+    assert fftkit.autocorr(s, n // 2).size == n // 2 + 1
+    np.testing.assert_allclose(fftkit.autocorr(s, n - 1, 2), ref[::2], rtol=0, atol=1e-12 * ref[0])
+    np.testing.assert_allclose(fftkit.autocorr(s, n // 3, 3), ref[: n // 3 + 1 : 3], rtol=0, atol=1e-12 * ref[0])
 
 
 def test_chunked_direct_sums_cross_chunk_boundaries(monkeypatch: pytest.MonkeyPatch) -> None:
     s = _series(700, 6, "freq")
-    ref = {m: st._reflected_sumsq(s[None, :], m, None)[0][0] for m in (1, 2, 5)}
-    th = {m: st._theo1_sumsq(s[None, :], m, None)[0][0] for m in (2, 8)}
-    monkeypatch.setattr(st, "_CHUNK", 1024)  # the floor of the chunk: several chunks below
+    ref = {m: direct.reflected_sumsq(s[None, :], m, None)[0][0] for m in (1, 2, 5)}
+    th = {m: direct.theo1_sumsq(s[None, :], m, None)[0][0] for m in (2, 8)}
+    monkeypatch.setattr(direct, "CHUNK", 1024)  # the floor of the chunk: several chunks below
     s2 = np.concatenate([s] * 3)
     for m in ref:
-        one = st._reflected_sumsq(s[None, :], m, None)[0][0]
+        one = direct.reflected_sumsq(s[None, :], m, None)[0][0]
         assert one == pytest.approx(ref[m], rel=1e-13)
         ok = np.ones((1, s2.size - 3 * m + 1), dtype=bool)
         ok[0, 5:9] = False
-        full, k = st._reflected_sumsq(s2[None, :], m, None)
-        part, kk = st._reflected_sumsq(s2[None, :], m, ok)
+        full, k = direct.reflected_sumsq(s2[None, :], m, None)
+        part, kk = direct.reflected_sumsq(s2[None, :], m, ok)
         assert kk[0] == k[0] - 4 and part[0] < full[0]
     for m in th:
-        assert st._theo1_sumsq(s[None, :], m, None)[0][0] == pytest.approx(th[m], rel=1e-13)
+        assert direct.theo1_sumsq(s[None, :], m, None)[0][0] == pytest.approx(th[m], rel=1e-13)
 
 
 @pytest.mark.parametrize("data_type", ["freq", "phase"])
@@ -131,30 +132,30 @@ def test_several_channels_equal_one_at_a_time(data_type: str) -> None:
 def test_record_phase_is_lazy_and_equals_the_integrated_frequency() -> None:
     rng = np.random.default_rng(8)
     y = rng.normal(size=(200_003, 2)) + 3.0
-    rec = st._Record(y, 10.0, "freq")
-    assert rec._x is None and not rec.has_gaps
+    rec = record.Record(y, 10.0, "freq")
+    assert not rec.phase_formed and not rec.has_gaps
     x = rec.x
     ref = np.concatenate([np.zeros((1, 2)), np.cumsum(y - y.mean(axis=0), axis=0)], axis=0).T / 10.0
     np.testing.assert_allclose(x, ref, rtol=0, atol=1e-9 * np.abs(ref).max())
     assert rec.frequency()[0] is rec.freq_raw  # gap-free frequency: no copy
     phase = np.ascontiguousarray(ref[0])
-    prec = st._Record(phase, 10.0, "phase")
+    prec = record.Record(phase, 10.0, "phase")
     assert np.shares_memory(prec.x, phase)  # gap-free phase input: used as given
     yg = y.copy()
     yg[5, 1] = np.nan
-    grec = st._Record(yg, 10.0, "freq")
+    grec = record.Record(yg, 10.0, "freq")
     assert grec.has_gaps and int(grec.gap_samples[1]) == 1 and np.isfinite(grec.x).all()
 
 
 def test_blocked_closed_form_equals_the_definition(monkeypatch: pytest.MonkeyPatch) -> None:
     """The block-by-block closed form (used where the record-wide rounding estimate is too large) sums the same
     windows: several blocks, the last one partial."""
-    monkeypatch.setattr(st, "_BLOCK_MIN", 37)
+    monkeypatch.setattr(cf, "BLOCK_MIN", 37)
     x = _series(610, 9, "phase")
     for m in (8, 11, 20):
-        assert st._blocked_sum(x, m, "mtot") == pytest.approx(_mtot_reference(x, m), rel=1e-10)
+        assert cf.blocked_sum(x, m, "mtot") == pytest.approx(_mtot_reference(x, m), rel=1e-10)
     for m in (64, 70):
-        assert st._blocked_sum(x, m, "theo1") == pytest.approx(_theo1_reference(x, m), rel=1e-10)
+        assert cf.blocked_sum(x, m, "theo1") == pytest.approx(_theo1_reference(x, m), rel=1e-10)
 
 
 @pytest.mark.parametrize("n", [7, 40, 257])
@@ -163,10 +164,10 @@ def test_gap_free_totdev_from_oadev_terms_equals_the_reflected_definition(n):
     terms; it must equal the term-by-term reflected definition (_tot_sumsq) at every m up to N−2."""
     rng = np.random.default_rng(n)
     x = np.cumsum(rng.standard_normal((2, n)), axis=1)
-    rec = st._Record(x.T, 1.0, "phase")
+    rec = record.Record(x.T, 1.0, "phase")
     for m in range(1, n):
-        ref_s, ref_k = st._tot_sumsq(rec, m)
-        s, k = st._tot_sumsq_central(rec, m, {})
+        ref_s, ref_k = direct.tot_sumsq(rec, m)
+        s, k = direct.tot_sumsq_central(rec, m, {})
         np.testing.assert_allclose(s, ref_s, rtol=1e-12, atol=0.0)
         np.testing.assert_array_equal(k, ref_k)
 
@@ -178,40 +179,40 @@ def test_gap_free_totdev_from_oadev_terms_equals_the_reflected_definition(n):
 def small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
     """Force the blocked / in-place code paths that N = 10⁷ takes at long τ onto records of a few hundred points:
     in-place FFTs at every size, FFT blocks of a few dozen points, checkpoints every few values."""
-    monkeypatch.setattr(st, "_IP_SMALL", 0)
-    monkeypatch.setattr(st, "_IP_STEP", 3)
-    monkeypatch.setattr(st, "_LEAN_MIN", 16)
-    monkeypatch.setattr(st, "_TRI_BASE", 8)
-    monkeypatch.setattr(st._ParityCumsum, "CH", 8)
-    monkeypatch.setattr(st._Prefix, "CH", 6)
+    monkeypatch.setattr(fftkit, "IP_SMALL", 0)
+    monkeypatch.setattr(fftkit, "IP_STEP", 3)
+    monkeypatch.setattr(theo1, "LEAN_MIN", 16)
+    monkeypatch.setattr(theo1, "TRI_BASE", 8)
+    monkeypatch.setattr(mtot.ParityCumsum, "CH", 8)
+    monkeypatch.setattr(mtot.Prefix, "CH", 6)
 
 
 @pytest.mark.parametrize("nf", [2, 4, 6, 10, 64, 130, 1000, 4620])
 def test_inplace_real_fft_equals_scipy(nf: int, small_blocks: None) -> None:
     x = np.random.default_rng(nf).normal(size=nf)
     ref = np.fft.rfft(x)
-    z = st._rfft_ip(x.copy())
+    z = fftkit.rfft_ip(x.copy())
     got = np.concatenate([[z[0].real], z[1:], [z[0].imag]])
     want = np.concatenate([[ref[0].real], ref[1:-1], [ref[-1].real]])
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-13 * np.abs(ref).max())
-    np.testing.assert_allclose(st._irfft_ip(z), x, rtol=0, atol=1e-14 * nf)
+    np.testing.assert_allclose(fftkit.irfft_ip(z), x, rtol=0, atol=1e-14 * nf)
 
 
 @pytest.mark.parametrize("m", [1, 2, 3, 5, 8, 13])
 def test_kernel_closed_forms_equal_the_arrays(m: int, small_blocks: None) -> None:
-    rho = st._kernel_rho(m)
-    assert np.array_equal(st._rho_slice(m, 0, 6 * m), rho)
+    rho = mtot.kernel_rho(m)
+    assert np.array_equal(mtot.rho_slice(m, 0, 6 * m), rho)
     spec = np.fft.rfft(rho)
-    np.testing.assert_allclose(st._rho_spectrum(m, 0, 3 * m + 1), spec.real, rtol=0, atol=1e-13 * np.abs(spec).max())
+    np.testing.assert_allclose(mtot.rho_spectrum(m, 0, 3 * m + 1), spec.real, rtol=0, atol=1e-13 * np.abs(spec).max())
     rc = np.zeros(6 * m + 2)
     rc[2::2] = np.cumsum(rho[0::2])
     rc[3::2] = np.cumsum(rho[1::2])
-    pc = st._ParityCumsum(m)  # checkpoints every 8 values (or the whole array when 6m ≤ 8)
+    pc = mtot.ParityCumsum(m)  # checkpoints every 8 values (or the whole array when 6m ≤ 8)
     for j0 in range(0, 6 * m + 2, 3):
         for j1 in range(j0 + 1, 6 * m + 3, 5):
             assert np.array_equal(pc.get(j0, j1), rc[j0:j1])
     v = np.random.default_rng(m).normal(size=3 * m + 4)
-    pre = st._Prefix(lambda i, j: v[i:j], v.size)
+    pre = mtot.Prefix(lambda i, j: v[i:j], v.size)
     s = np.concatenate([[0.0], np.cumsum(v)])
     for j0 in range(-5, v.size + 3, 2):
         j1 = j0 + 9
@@ -231,7 +232,7 @@ def test_blocked_correlation_sum_equals_the_double_sum(small_blocks: None) -> No
             return np.where((ll >= lo) & (ll < hi), kern[np.clip(ll + 100, 0, 199)], 0.0)
 
         for cap in (16, 30, 1 << 10):  # blocks of 8 and 15 points, one FFT
-            got = st._corr_sum(lambda i, j: a[i:j], a.size, lambda i, j: b[i:j], b.size, k, lo, hi, cap)
+            got = theo1.corr_sum(lambda i, j: a[i:j], a.size, lambda i, j: b[i:j], b.size, k, lo, hi, cap)
             assert got == pytest.approx(ref, rel=1e-12, abs=1e-12), (lo, hi, cap)
 
 
@@ -245,11 +246,11 @@ def test_total_family_lean_paths_equal_the_window_loop(n: int, seed: int, kind: 
         if 3 * m > n:
             continue
         ref = _mtot_reference(s, m)
-        d = st._Detrended(s)
-        r = st._autocorr(d, 3 * m - 1)
+        d = fftkit.Detrended(s)
+        r = fftkit.autocorr(d, 3 * m - 1)
         assert r.size == 3 * m
-        v, err = st._mtot_fft(d, m, [r], d.a)
-        assert err < st._FFT_MAX_ERR
+        v, err = mtot.mtot_fft(d, m, [r], d.a)
+        assert err < cf.FFT_MAX_ERR
         assert v == pytest.approx(ref, rel=1e-10), m
 
 
@@ -257,12 +258,12 @@ def test_total_family_lean_paths_equal_the_window_loop(n: int, seed: int, kind: 
 def test_theo1_blocked_paths_equal_the_definition(n: int, seed: int, small_blocks: None) -> None:
     """Kernel pieces in the overlap-save correlation, blocked triangle squares (FFTs of ≤ 16–56 points here)."""
     x = _series(n, seed, "phase")
-    xd, a = st._detrend_quadratic(x)
-    r = st._autocorr(xd, n - 1, 2)
+    xd, a = fftkit.detrend_quadratic(x)
+    r = fftkit.autocorr(xd, n - 1, 2)
     for m in (64, 66, 98, 2 * ((n - 3) // 2)):
         ref = _theo1_reference(x, m)
-        v, err = st._theo1_fft(xd, m, r, a)
-        assert err < st._FFT_MAX_ERR
+        v, err = theo1.theo1_fft(xd, m, r, a)
+        assert err < cf.FFT_MAX_ERR
         assert v == pytest.approx(ref, rel=1e-10), m
 
 
@@ -281,10 +282,11 @@ def test_stability_lean_paths_equal_the_default_ones(data_type: str, monkeypatch
     names = ("mtotdev", "ttotdev", "htotdev", "theo1")
     taus = np.array([2, 8, 16, 64, 100, 128, 200, 256, 330, 398]) / 50.0  # windows up to 3m ≈ N and m ≈ N/3
     ref = [stability(d, 50.0, names, taus, data_type, confidence=None) for d in (data, gappy)]
-    for attr, val in (("_IP_SMALL", 0), ("_IP_STEP", 64), ("_LEAN_MIN", 16), ("_TRI_BASE", 8)):
-        monkeypatch.setattr(st, attr, val)
-    monkeypatch.setattr(st._ParityCumsum, "CH", 8)
-    monkeypatch.setattr(st._Prefix, "CH", 10)
+    lean = ((fftkit, "IP_SMALL", 0), (fftkit, "IP_STEP", 64), (theo1, "LEAN_MIN", 16), (theo1, "TRI_BASE", 8))
+    for mod, attr, val in lean:
+        monkeypatch.setattr(mod, attr, val)
+    monkeypatch.setattr(mtot.ParityCumsum, "CH", 8)
+    monkeypatch.setattr(mtot.Prefix, "CH", 10)
     for d, want in zip((data, gappy), ref, strict=True):
         got = stability(d, 50.0, names, taus, data_type, confidence=None)
         for k in names:

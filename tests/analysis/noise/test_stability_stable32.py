@@ -128,3 +128,36 @@ def test_theoh_reproduces_stable32() -> None:
         lo_r, hi_r = ci.chi2_interval(np.array(1.0), np.array(e), 0.683)
         assert float(lo_r) == pytest.approx(lo / value[j], rel=0.02)
         assert float(hi_r) == pytest.approx(hi / value[j], rel=0.02)
+
+
+@pytest.mark.parametrize("name", WITH_CI)
+def test_noise_type_set_by_hand_reproduces_every_stable32_bound(name: str) -> None:
+    """With the α Stable32 printed set by hand per τ (``noise_type`` as τ ranges), every row's bounds equal
+    Stable32's within 1 %, and TOTDEV/HTOTDEV values with Stable32's bias for that α to print precision."""
+    x = np.loadtxt(DATA / "phase_data.txt", comments="#")
+    ref = _table(name)
+    ranges = [(tau, tau, int(alpha)) for tau, alpha in zip(ref[:, 1], ref[:, 3], strict=True)]
+    est = stability(x, 1.0 / TAU0, (name,), "decade", "phase", noise_type=ranges).estimates[name]
+    j = np.searchsorted(est.m, ref[:, 0].astype(int))
+    np.testing.assert_array_equal(est.alpha[j, 0], ref[:, 3].astype(int))
+    np.testing.assert_allclose(est.lo[j, 0], ref[:, 4], rtol=0.01)
+    np.testing.assert_allclose(est.hi[j, 0], ref[:, 6], rtol=0.01)
+    np.testing.assert_allclose(est.unbiased()[j, 0], ref[:, 5], rtol=1e-4)
+
+
+def test_one_noise_type_for_every_tau_reproduces_stable32_theo1_widths() -> None:
+    """Stable32's Theo1 run (one α = −1 for the run): Theo1's relative bounds with ``noise_type=-1`` equal
+    Stable32's within 1 % on every row (Stable32 scales Theo1's EDF interval onto its printed TheoBR value)."""
+    x = np.loadtxt(DATA / "phase_data.txt", comments="#")
+    ref = _table("theo1")
+    est = stability(x, 1.0 / TAU0, ("theo1",), ref[:, 0] * TAU0, "phase", noise_type=-1).estimates["theo1"]
+    np.testing.assert_array_equal(est.m, ref[:, 0].astype(int))
+    assert np.all(est.alpha == -1)
+    np.testing.assert_allclose(est.lo[:, 0] / est.dev[:, 0], ref[:, 4] / ref[:, 5], rtol=0.01)
+    np.testing.assert_allclose(est.hi[:, 0] / est.dev[:, 0], ref[:, 6] / ref[:, 5], rtol=0.01)
+
+
+def test_bad_noise_type_is_refused() -> None:
+    x = np.loadtxt(DATA / "phase_data.txt", comments="#")
+    with pytest.raises(ValueError, match="noise type"):
+        stability(x, 1.0 / TAU0, ("adev",), "decade", "phase", noise_type=3)

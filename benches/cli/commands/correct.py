@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from analysis.identification.model import correct
-from benches.analysis_input import InputError, recording_path
 from benches.calibration_result import CalibrationResult
+from benches.cli.analysis_input import InputError, recording_path
 from core.errors import OutputError, UsageError
 
 EXAMPLES = """examples:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from benches.analysis_input import InputError, add_input_arguments, load_input, output_dir
+from benches.cli.analysis_input import InputError, add_input_arguments, load_input, output_dir
 from core.errors import UsageError
 from core.jsonio import write_json
 
@@ -22,8 +22,17 @@ estimators: adev oadev mdev tdev hdev ohdev totdev mtotdev ttotdev htotdev theo1
 the published total-family/Theo1 fits, χ² intervals: analysis/noise/stability.py, analysis/noise/confidence.py).
 NaN samples are gaps: terms touching them are skipped (the count per τ is in noise.json).
 
-output: a table of noise terms per channel (weighted non-negative least squares on --fit-estimator, each with
-its standard uncertainty 1σ), and with --out DIR: noise.json (per estimator and τ: value, term count, EDF,
+output: a table of noise terms per channel, read two ways:
+  fit         weighted non-negative least squares of σ²(τ) = 3Q²/τ² + N²/τ + (2 ln2/π)B² + K²τ/3 + R²τ²/2 on
+              --fit-estimator over every τ, each term with its standard uncertainty 1σ;
+  slope-line  IEEE Std 952 Annex C: a line of the term's slope (−1, −½, 0, +½, +1 in log-log for Q, N, B, K,
+              R) moved up until it touches the curve, the term read off it (N = σ√τ, B = σ/0.664, K = σ√(3/τ)…).
+              Each term's line lies under the curve, so the reading is an UPPER BOUND. Read only at τ where the
+              deviation is known well whatever the noise type (≥ 200 degrees of freedom for every plausible type);
+              "≤ value (≤ hi)" gives the reading and the top of its 95 % interval (Bonferroni over the points
+              read); "(observed)": the curve's slope there matches the term's, the term dominates at that τ;
+              "BELOW FIT": even the top of the interval is under the fitted term — check the fit.
+and with --out DIR: noise.json (per estimator and τ: value, term count, EDF,
 interval, noise type α; SI, deviations in the data's rate unit) and noise.png (every chosen estimator with its
 intervals, fitted terms). Gyro terms are shown in arcsec, deg/√h, deg/h, deg/h/√h, deg/h²; accelerometer
 terms in mm/s, µg/√Hz, µg, µg/√s, µg/s.
@@ -85,6 +94,22 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="two-sided probability of the confidence intervals (default 0.683)",
     )
     p.add_argument(
+        "--noise-type",
+        default=None,
+        metavar="TYPE[@LO:HI],…",
+        help="set the power-law noise type by hand instead of identifying it (as Stable32 allows); the intervals "
+        "and the fit use it: one type for every τ (e.g. wfm or 0), or types per τ range in seconds "
+        "(e.g. wpm@0.01:0.5,wfm@0.5:20,rwfm@20:1e4; τ outside every range keep the identified type). Types: "
+        "wpm (α=2), fpm (1), wfm (0), ffm (-1), rwfm (-2)",
+    )
+    p.add_argument(
+        "--remove-drift",
+        default=None,
+        choices=("linear", "quadratic"),
+        help="remove a least-squares linear or quadratic frequency drift from each channel first (phase data: the "
+        "quadratic or cubic phase it means); the removed coefficients are written to noise.json",
+    )
+    p.add_argument(
         "--published-itotvar",
         action="store_true",
         help="also report the published 'improved total variance' (paper reproduction; no better than ADEV)",
@@ -106,7 +131,9 @@ def format_table(result: dict) -> str:
             slope = ""
             if s:
                 sv = to_display_value(t, s["value"], ch["unit"])
-                slope = f"   slope-line ≤ {_fmt(sv)}{' (observed)' if s.get('observed') else ''}"
+                hv = to_display_value(t, s["hi"], ch["unit"])
+                flags = (" (observed)" if s.get("observed") else "") + (" BELOW FIT" if s.get("below_fit") else "")
+                slope = f"   slope-line ≤ {_fmt(sv)} (≤ {_fmt(hv)} at 95 %, τ = {s['tau']:.3g} s){flags}"
             lines.append(f"  {t}  {_fmt(d['value']):>10} ± {_fmt(d['sigma']):<9} {d['unit']:<10}{slope}")
     return "\n".join(lines)
 
@@ -133,6 +160,50 @@ def _parse_taus(text: str) -> str | list[float]:
     if not vals or not all(math.isfinite(v) and v > 0 for v in vals):
         raise UsageError(f"--taus {text!r}: τ values must be positive seconds")
     return vals
+
+
+NOISE_TYPES = {"wpm": 2, "fpm": 1, "wfm": 0, "ffm": -1, "rwfm": -2}
+"""``--noise-type`` names → α (S_y ∝ f^α)."""
+
+
+def _alpha(text: str, whole: str) -> int:
+    t = text.strip().lower()
+    if t in NOISE_TYPES:
+        return NOISE_TYPES[t]
+    try:
+        a = int(t)
+    except ValueError:
+        a = None
+    if a is None or not -2 <= a <= 2:
+        raise UsageError(
+            f"--noise-type {whole!r}: {text!r} is not a noise type; use wpm, fpm, wfm, ffm, rwfm or α from -2 to 2"
+        )
+    return a
+
+
+def parse_noise_type(text: str | None) -> int | list[tuple[float, float, int]] | None:
+    """``--noise-type``: one type for every τ, or TYPE@LO:HI per τ range (s), comma-separated."""
+    if text is None:
+        return None
+    parts = [s.strip() for s in text.split(",") if s.strip()]
+    if not parts:
+        raise UsageError("--noise-type is empty; e.g. --noise-type wfm or --noise-type wpm@0.01:1,wfm@1:100")
+    if len(parts) == 1 and "@" not in parts[0]:
+        return _alpha(parts[0], text)
+    ranges = []
+    for s in parts:
+        kind, sep, span = s.partition("@")
+        lo, sep2, hi = span.partition(":")
+        try:
+            tau_lo, tau_hi = float(lo), float(hi)
+        except ValueError:
+            tau_lo = tau_hi = math.nan
+        if not sep or not sep2 or not (math.isfinite(tau_lo) and math.isfinite(tau_hi) and 0 <= tau_lo <= tau_hi):
+            raise UsageError(
+                f"--noise-type {text!r}: {s!r} needs TYPE@LO:HI with 0 ≤ LO ≤ HI in seconds (e.g. wfm@0.5:20)"
+            )
+        ranges.append((tau_lo, tau_hi, _alpha(kind, text)))
+    return ranges
 
 
 def _parse_estimators(text: str) -> tuple[str, ...]:
@@ -180,6 +251,7 @@ def run(args: argparse.Namespace) -> int:
     taus = _parse_taus(args.taus)
     estimators = _parse_estimators(args.estimators)
     fit_estimator = _parse_fit_estimator(args.fit_estimator)
+    noise_type = parse_noise_type(args.noise_type)
     data = load_input(
         args.input, rate=args.rate, channels=args.channels, step=args.step, min_samples=MIN_SAMPLES, allow_gaps=True
     )
@@ -203,6 +275,8 @@ def run(args: argparse.Namespace) -> int:
             estimators=estimators,
             data_type=args.data_type,
             fit_estimator=fit_estimator,
+            noise_type=noise_type,
+            remove_drift=args.remove_drift,
         )
     except ValueError as exc:
         raise InputError(f"{data.source}: {exc}") from None

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from benches.arguments import add_bench_argument, add_procedure_arguments, parse_overrides
+from benches.cli.arguments import add_bench_argument, add_procedure_arguments, parse_overrides
 from benches.session import prepare
 from core.errors import UsageError
 

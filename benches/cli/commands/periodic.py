@@ -8,7 +8,7 @@ import math
 
 from analysis import units
 from analysis.periodic.model import PeriodicInputError
-from benches.analysis_input import add_input_arguments, load_input, output_dir
+from benches.cli.analysis_input import add_input_arguments, load_input, output_dir
 from core.errors import UsageError
 from core.jsonio import write_json, write_text_atomic
 

@@ -18,8 +18,8 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, TextIO
 
 from analysis.units import DEG
-from benches.arguments import add_bench_argument, check_seed
 from benches.bench_config import load_bench
+from benches.cli.arguments import add_bench_argument, check_seed
 from core.errors import UsageError
 from drivers.protocols import AxisLimits, LinkError, TableError, TableState, TableStatus, Turntable
 from procedures.paths import default_bench_path, resolve_bench
@@ -133,6 +133,7 @@ def _wait(
     table: Turntable, done: Callable[[TableState], bool], timeout: float, pause: Callable[[float], None], what: str
 ) -> TableState:
     waited = 0.0
+    table.heartbeat()
     s = table.read_state()
     while not done(s):
         if s.status & TableStatus.FAULT:
@@ -142,6 +143,7 @@ def _wait(
             raise TableError(f"the table did not finish {what} within {timeout:.0f} s")
         pause(POLL_S)
         waited += POLL_S
+        table.heartbeat()  # a PLC's watchdog is fed on every reading (nothing is sent where there is none)
         s = table.read_state()
     return s
 
@@ -166,6 +168,7 @@ def execute(
         idn = getattr(table, "idn", None)
         print(idn() if idn else f"{bench.describe()} (this controller has no identification query)", file=out)
         return 0
+    table.heartbeat()  # before anything: a strict PLC's watchdog runs from power-up
     if action == "status":
         table.read_state()
         pause(getattr(table, "settle_time", 0.0) + POLL_S)  # the settled / at-rest flags need a window of readings
@@ -195,6 +198,7 @@ def execute(
         (target,) = demand
         start = table.read_state()
         t_max = timeout or 3 * move_time(start.angles, target, table.limits()) + 30.0
+        table.heartbeat()
         table.move_to(list(target))
         s = _wait(
             table,
@@ -208,6 +212,7 @@ def execute(
     if action == "spin":
         ax, rate = demand
         lim = table.limits()[ax]
+        table.heartbeat()
         table.spin(ax, rate)
         s = _wait(
             table,
@@ -222,6 +227,12 @@ def execute(
             f"the {AXES[ax]} axis is turning at {rate / DEG:g} °/s ({_describe_state(s)}); stop it with: {stop_hint}",
             file=out,
         )
+        if getattr(getattr(table, "map", None), "has_heartbeat", False):
+            print(
+                "note: this controller has a watchdog; with no heartbeat once this command exits it will bring "
+                "the table to rest and latch COMMUNICATION_LOST (a long spin belongs in a procedure)",
+                file=out,
+            )
         return 0
     # stop
     table.stop()

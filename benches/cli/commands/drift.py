@@ -10,8 +10,8 @@ from collections.abc import Callable
 
 from analysis.drift.preprocess import DriftInputError
 from analysis.units import DISPLAY_UNITS
-from benches.analysis_input import InputError, add_input_arguments, load_input, output_dir
-from benches.arguments import bounded
+from benches.cli.analysis_input import InputError, add_input_arguments, load_input, output_dir
+from benches.cli.arguments import bounded
 from core.errors import UsageError
 from core.jsonio import write_json
 

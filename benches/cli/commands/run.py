@@ -9,7 +9,7 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from benches.arguments import add_bench_argument, add_procedure_arguments, check_seed, parse_overrides
+from benches.cli.arguments import add_bench_argument, add_procedure_arguments, check_seed, parse_overrides
 from benches.progress import ProgressDisplay
 from benches.session import (
     Prepared,
@@ -194,7 +194,7 @@ def _finish(
     done: list[str] = []
     try:
         with _StopSignalsRaise():
-            identify_and_certify(folder, todo, live=live[0] if live else None, say=_say, done=done)
+            identify_and_certify(folder, todo, live=live[0] if live else None, say=_say, done=done, prep=prep)
     except KeyboardInterrupt:
         left = [t for t in todo if t not in done]
         _say(

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from benches.arguments import bounded
 from benches.bench_config import load_bench, unit_frame_format
+from benches.cli.arguments import bounded
 from benches.recording import write_decoded_samples
 from core.errors import UsageError
 from drivers.imu_unit.decoder import DecodeStats, FrameDecoder

@@ -1,6 +1,6 @@
 """The ``tablebench`` command line.
 
-Every subcommand lives in its own module under :mod:`benches.commands` and defines::
+Every subcommand lives in its own module under :mod:`benches.cli.commands` and defines::
 
     def register(subparsers: argparse._SubParsersAction) -> None:
         p = subparsers.add_parser("noise", help=..., description=..., epilog=EXAMPLES,
@@ -28,7 +28,7 @@ import pkgutil
 import sys
 from collections.abc import Sequence
 
-import benches.commands as commands_pkg
+import benches.cli.commands as commands_pkg
 from core.errors import UserError
 from core.provenance import software_version
 
@@ -46,7 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
     for info in sorted(pkgutil.iter_modules(commands_pkg.__path__), key=lambda m: m.name):
         if info.name.startswith("_"):
             continue
-        module = importlib.import_module(f"benches.commands.{info.name}")
+        module = importlib.import_module(f"benches.cli.commands.{info.name}")
         register = getattr(module, "register", None)
         if register is not None:
             register(sub)

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from analysis.units import format_hms
-from benches.arguments import add_bench_argument, add_procedure_arguments, parse_overrides
+from benches.cli.arguments import add_bench_argument, add_procedure_arguments, parse_overrides
 from benches.session import prepare
 from procedures.paths import shipped_procedures
 

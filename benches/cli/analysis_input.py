@@ -15,6 +15,7 @@ with a message that names the file and the fix.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import sys
 from dataclasses import dataclass
@@ -23,7 +24,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from benches.recording import Recording, RecordingError, open_recording, recording_file
+from benches.recorded_run import RecordedRun, run_of
+from benches.recording import Recording, RecordingError, recording_file
 from core.errors import UserError
 
 READ_CHUNK_ROWS = 1 << 18
@@ -160,15 +162,14 @@ def _load_array(path: Path, rate: float | None, wanted: str | None, allow_gaps: 
 
 
 def _load_recording(
-    path: Path, rate: float | None, wanted: str | None, step: str | None, allow_gaps: bool = False
+    path: Path | RecordedRun, rate: float | None, wanted: str | None, step: str | None, allow_gaps: bool = False
 ) -> AnalysisInput:
-
-    source = str(path)
-    try:
-        rec = open_recording(path)
-    except RecordingError as exc:
-        raise InputError(str(exc)) from None
-    with rec:
+    source = str(path.path if isinstance(path, RecordedRun) else path)
+    with contextlib.ExitStack() as stack:
+        try:
+            rec = stack.enter_context(run_of(path)).recording
+        except RecordingError as exc:
+            raise InputError(str(exc)) from None
         file_rate = rec.header.sample_rate_hz
         if rate is not None and abs(rate - file_rate) > 1e-9 * file_rate:
             raise InputError(f"{source}: --rate {rate} disagrees with the recording's {file_rate} Hz; omit --rate")
@@ -229,7 +230,7 @@ def recording_path(path: str | Path) -> Path:
 
 
 def load_input(
-    path: str | Path,
+    path: str | Path | RecordedRun,
     rate: float | None = None,
     channels: str | None = None,
     step: str | None = None,
@@ -238,7 +239,10 @@ def load_input(
 ) -> AnalysisInput:
     """Load a recording, ``.npy`` or ``.csv`` into named SI channels; see the module docstring.
 
-    ``allow_gaps``: NaN samples are kept (the analysis treats them as gaps); ±inf is still refused."""
+    ``allow_gaps``: NaN samples are kept (the analysis treats them as gaps); ±inf is still refused. ``path`` may
+    also be an open :class:`benches.recorded_run.RecordedRun` (read, left open)."""
+    if isinstance(path, RecordedRun):
+        return _checked(_load_recording(path, rate, channels, step, allow_gaps), path.path, min_samples)
     p = recording_path(path)
     if not p.exists():
         raise InputError(f"{p}: no such file or run folder")
@@ -251,6 +255,10 @@ def load_input(
         result = _load_recording(p, rate, channels, step, allow_gaps)
     else:
         raise InputError(f"{p}: unknown input type {suffix or '(no extension)'}; give a run folder, .h5, .npy or .csv")
+    return _checked(result, p, min_samples)
+
+
+def _checked(result: AnalysisInput, p: Path, min_samples: int) -> AnalysisInput:
     if not result.channels:
         raise InputError(f"{p}: no channels selected")
     n = len(next(iter(result.channels.values())))

@@ -1,0 +1,234 @@
+"""Encoding of the stored values: quantised counts with exact residuals, per-step SHA-256, Fletcher-32 and
+the background chunk encoder of the writer.
+
+Part of the package :mod:`benches.recording`, the one place that knows the HDF5 layout.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import zlib
+from collections import deque
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+import h5py
+import numpy as np
+from numpy.typing import NDArray
+
+from .layout import _IMU_DTYPES, _TABLE_DTYPES, IMU_FIELDS, TABLE_FIELDS
+
+EXC_DTYPE = np.dtype([("row", np.int64), ("col", np.int8), ("value", np.float64)])
+
+
+def _quantise(v: NDArray[np.float64], lsb: float, dtype: Any = np.int32) -> tuple[NDArray[Any], NDArray[Any]]:
+    """Counts ``c`` with ``c * lsb == v`` bit for bit, and the exceptions (row, col, value) where it is not."""
+    v = np.ascontiguousarray(v, dtype=np.float64)
+    with np.errstate(invalid="ignore", over="ignore"):
+        c = np.rint(v / lsb).astype(dtype)  # NaN, inf, out of range: garbage counts, caught just below
+        back = c * lsb
+    bad = back.view(np.uint64) != v.view(np.uint64)
+    if not bad.any():
+        return c, np.zeros(0, EXC_DTYPE)
+    c[bad] = 0
+    pos = np.nonzero(bad.reshape(v.shape[0], -1))
+    exc = np.zeros(pos[0].size, EXC_DTYPE)
+    exc["row"], exc["col"] = pos[0], pos[1]
+    exc["value"] = v.reshape(v.shape[0], -1)[pos]
+    return c, exc
+
+
+def _dequantise(c: NDArray[Any], lsb: float, exc: NDArray[Any] | None, rows: NDArray[np.int64]) -> NDArray[np.float64]:
+    """Values of counts ``c`` at recording rows ``rows`` (sorted), exceptions applied."""
+    v = c.astype(np.float64) * lsb
+    if exc is not None and exc.size:
+        lo, hi = np.searchsorted(exc["row"], [rows[0], rows[-1] + 1]) if rows.size else (0, 0)
+        if hi > lo:
+            e = exc[lo:hi]
+            where = np.searchsorted(rows, e["row"])
+            hit = (where < rows.size) & (rows[np.minimum(where, rows.size - 1)] == e["row"])
+            v2 = v.reshape(v.shape[0], -1)
+            v2[where[hit], e["col"][hit]] = e["value"][hit]
+    return v
+
+
+_COUNT_DTYPE = {"time": np.int64, "accel": np.int32, "gyro": np.int32}
+
+
+class _StepHasher:
+    """SHA-256 of one step: sha256 over the per-dataset SHA-256 digests of its rows, in the fixed order
+    /imu/{counter,time,accel,gyro,temperature,status}, /table/{time,angles,rates,status} (little-endian,
+    C order, the values as read back: counts already scaled)."""
+
+    def __init__(self) -> None:
+        self.parts = {("imu", n): hashlib.sha256() for n in IMU_FIELDS}
+        self.parts.update({("table", n): hashlib.sha256() for n in TABLE_FIELDS})
+
+    def update(self, group: str, name: str, data: NDArray[Any]) -> None:
+        dt = (_IMU_DTYPES if group == "imu" else _TABLE_DTYPES)[name]
+        self.parts[(group, name)].update(np.ascontiguousarray(data, dtype=np.dtype(dt).newbyteorder("<")).tobytes())
+
+    def hexdigest(self) -> str:
+        h = hashlib.sha256()
+        for key in [("imu", n) for n in IMU_FIELDS] + [("table", n) for n in TABLE_FIELDS]:
+            h.update(self.parts[key].digest())
+        return h.hexdigest()
+
+
+# ---- writing -------------------------------------------------------------------------------------------------------
+
+
+def _fletcher32(data: bytes) -> int:
+    """HDF5's Fletcher-32 (``H5_checksum_fletcher32``): 16-bit big-endian words, sums in one's-complement
+    arithmetic modulo 65535 (the library folds every 360 words; folding keeps the sums congruent and a
+    non-zero sum never folds to 0, so the result is the residue in 1 … 65535, or 0 for an all-zero input).
+
+    Vectorised in a few numpy passes (each releasing the GIL): it runs in the recorder's encoder thread.
+    """
+    b = np.frombuffer(data, np.uint8)
+    n = b.size // 2
+    sum1 = sum2 = 0
+    block = 1 << 20  # words per pass: the weighted sum stays below 2⁶⁴ (65535 · 2²⁰ · 2²⁰ / 2)
+    for start in range(0, n, block):
+        stop = min(n, start + block)
+        w = (b[2 * start : 2 * stop : 2].astype(np.uint64) << np.uint64(8)) | b[2 * start + 1 : 2 * stop : 2]
+        k = stop - start
+        s1 = int(w.sum())
+        s2 = int(np.dot(w, np.arange(k, 0, -1, dtype=np.uint64)))
+        sum2 += k * sum1 + s2  # each word adds the running sum1 to sum2
+        sum1 += s1
+    if b.size % 2:
+        sum1 += int(b[-1]) << 8
+        sum2 += sum1
+    r1 = (sum1 - 1) % 65535 + 1 if sum1 else 0
+    r2 = (sum2 - 1) % 65535 + 1 if sum2 else 0
+    return (r2 << 16) | r1
+
+
+_RLE_FIELDS = frozenset({"accel", "gyro", "temperature"})
+"""Datasets deflated with zlib's run-length strategy: their low byte planes are noise (no long matches to
+find), their high planes runs; Z_RLE is about twice as fast as the default match search there and no larger.
+Counters and time stamps (long arithmetic runs) keep the default strategy."""
+
+
+def _encode_chunk(chunk: NDArray[Any], rle: bool = False) -> bytes:
+    """One chunk through HDF5's pipeline shuffle → deflate (level 1) → Fletcher-32, as the library would.
+
+    ``rle``: deflate with zlib's Z_RLE strategy (still a standard deflate stream: HDF5's filter inflates it).
+    """
+    it = chunk.dtype.itemsize
+    raw = np.ascontiguousarray(chunk).view(np.uint8).reshape(-1, it).T.tobytes()
+    if rle:
+        enc = zlib.compressobj(1, zlib.DEFLATED, zlib.MAX_WBITS, 8, zlib.Z_RLE)
+        z = enc.compress(raw) + enc.flush()
+    else:
+        z = zlib.compress(raw, 1)
+    return z + _fletcher32(z).to_bytes(4, "little")
+
+
+def _append_rows(d: h5py.Dataset, data: NDArray[Any]) -> None:
+    """Append rows to an extendable dataset."""
+    n0 = d.shape[0]
+    d.resize(n0 + data.shape[0], axis=0)
+    d[n0:] = data
+
+
+def _stored_rows(
+    name: str, data: NDArray[Any], hasher: _StepHasher, quanta: dict[str, float], row0: int
+) -> tuple[NDArray[Any], NDArray[Any] | None]:
+    """Hash recording rows ``row0 …`` of /imu dataset ``name`` (recorded values) into the step's SHA-256 and
+    return what is stored: counts and their exceptions (recording rows) for a quantised dataset, else the
+    values and None."""
+    hasher.update("imu", name, data)
+    if name not in quanta:
+        return data, None
+    counts, exc = _quantise(data, quanta[name], _COUNT_DTYPE[name])
+    exc["row"] += row0
+    return counts, exc
+
+
+class _ChunkWriter:
+    """The /imu writing pipeline of the compressed storage: everything but the HDF5 calls runs in one worker
+    thread, in submission order, so the runner's thread never waits for it (zlib and numpy release the GIL;
+    h5py does not, so chunk writes stay on the calling thread).
+
+    Per batch of rows (:meth:`submit`) the worker hashes the rows into the step's SHA-256, quantises the
+    count datasets (exceptions kept), and encodes whole chunks through the pipeline the file declares
+    (shuffle → deflate → Fletcher-32, so any HDF5 reader decodes them). Rows of the last, partly filled chunk
+    are kept (``tail``) and that chunk is re-encoded when rows follow. :meth:`after` queues an action (a
+    step row) that runs once everything submitted before it is on disk; :meth:`drain` writes results in
+    order: those ready, or all of them with ``wait``.
+    """
+
+    def __init__(self, f: h5py.File, names: Sequence[str], chunk: int, quanta: dict[str, float]) -> None:
+        self.chunk = chunk
+        self.names = tuple(names)
+        self.quanta = dict(quanta)
+        self.ds = {n: f["imu"][n] for n in names}
+        self.exc_ds = {n: f["imu/exceptions"][n] for n in self.quanta}
+        self.dtypes = {n: d.dtype for n, d in self.ds.items()}
+        self.shapes = {n: d.shape[1:] for n, d in self.ds.items()}
+        self.rows = {n: int(d.shape[0]) for n, d in self.ds.items()}
+        self.tail = {n: d[self.rows[n] - self.rows[n] % chunk : self.rows[n]] for n, d in self.ds.items()}
+        self.pending: Any = deque()
+        self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="recording-encoder")
+
+    def submit(self, cols: dict[str, NDArray[Any]], row0: int, hasher: _StepHasher) -> None:
+        """Queue rows ``row0 …`` of every dataset (recorded values) for hashing, quantising and encoding."""
+        self.pending.append((self.pool.submit(self._encode, cols, row0, hasher), None))
+
+    def after(self, action: Callable[[], None]) -> None:
+        """Run ``action`` (on the draining thread) once everything submitted so far is written."""
+        self.pending.append((None, action))
+
+    def _encode(
+        self, cols: dict[str, NDArray[Any]], row0: int, hasher: _StepHasher
+    ) -> tuple[list[tuple[str, int, int, bytes]], dict[str, NDArray[Any]]]:
+        """Worker thread: the encoded chunks (dataset, first row, end row, bytes) and the count exceptions."""
+        out: list[tuple[str, int, int, bytes]] = []
+        excs: dict[str, NDArray[Any]] = {}
+        for name in self.names:
+            data, exc = _stored_rows(name, cols[name], hasher, self.quanta, row0)
+            if exc is not None and exc.size:
+                excs[name] = exc
+            new = np.asarray(data, dtype=self.dtypes[name])
+            tail = self.tail[name]
+            rows = np.concatenate([tail, new]) if len(tail) else new
+            r0 = self.rows[name] - len(tail)
+            for off in range(0, len(rows), self.chunk):
+                part = rows[off : off + self.chunk]
+                if len(part) < self.chunk:
+                    buf = np.zeros((self.chunk, *self.shapes[name]), dtype=self.dtypes[name])
+                    buf[: len(part)] = part
+                    part_bytes = _encode_chunk(buf, name in _RLE_FIELDS)
+                else:
+                    part_bytes = _encode_chunk(part, name in _RLE_FIELDS)
+                out.append((name, r0 + off, r0 + off + min(self.chunk, len(rows) - off), part_bytes))
+            left = len(rows) % self.chunk
+            self.tail[name] = rows[len(rows) - left :] if left else rows[:0]
+            self.rows[name] += len(new)
+        return out, excs
+
+    def drain(self, wait: bool) -> None:
+        """Write the encoded chunks and run the queued actions (in order): those ready, or all with ``wait``."""
+        while self.pending and (wait or self.pending[0][0] is None or self.pending[0][0].done()):
+            fut, action = self.pending.popleft()
+            if fut is None:
+                action()
+                continue
+            chunks, excs = fut.result()
+            for name, r0, r1, data in chunks:
+                d = self.ds[name]
+                if d.shape[0] < r1:
+                    d.resize(r1, axis=0)
+                d.id.write_direct_chunk((r0,) + (0,) * (d.ndim - 1), data, 0)
+            for name, exc in excs.items():
+                _append_rows(self.exc_ds[name], exc)
+
+    def close(self) -> None:
+        """Write everything pending and stop the worker."""
+        try:
+            self.drain(True)
+        finally:
+            self.pool.shutdown(wait=True)

@@ -1,0 +1,497 @@
+"""Writing a run (:class:`Hdf5Recorder`): incremental, checkpointed, checksummed (``benches/RECORDING.md``).
+
+Part of the package :mod:`benches.recording`, the one place that knows the HDF5 layout.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any, Protocol
+
+import h5py
+import numpy as np
+from numpy.typing import NDArray
+
+from drivers.protocols import ImuBlock, TableState
+
+from .encoding import _COUNT_DTYPE, EXC_DTYPE, _append_rows, _ChunkWriter, _quantise, _StepHasher, _stored_rows
+from .layout import (
+    _GROUP_LEN,
+    _H5_ERRORS,
+    _IMU_DTYPES,
+    _KIND_LEN,
+    _MSG_LEN,
+    _NAME_LEN,
+    _STATUS_LEN,
+    _TABLE_DTYPES,
+    _WIDTH,
+    EVENT_DTYPE,
+    FORMAT,
+    FORMAT_VERSION,
+    IMU_CHUNK,
+    IMU_FIELDS,
+    QUANTISED_FIELDS,
+    STATUS_VALUES,
+    STEP_DTYPE,
+    TABLE_CHUNK,
+    TABLE_FIELDS,
+    RecordingError,
+    StepRecord,
+    _clip_utf8,
+    _fixed,
+    _utc_now,
+)
+from .reader import open_recording
+
+
+class Recorder(Protocol):
+    """What the runner writes a run through."""
+
+    @property
+    def n_samples(self) -> int:
+        """Samples recorded so far (including buffered ones)."""
+        ...
+
+    def add_samples(self, block: ImuBlock) -> None:
+        """Append unit samples (body frame, SI)."""
+        ...
+
+    def add_table(self, state: TableState) -> None:
+        """Append one table reading."""
+        ...
+
+    def event(self, time: float, level: str, message: str) -> None:
+        """Append an event-log line (bench time, s)."""
+        ...
+
+    def end_step(self, record: StepRecord) -> None:
+        """Append a step row and flush everything to disk."""
+        ...
+
+    def set_status(self, status: str) -> None:
+        """Set the run status ("running", "complete", "interrupted", "failed") and flush."""
+        ...
+
+    def close(self) -> None:
+        """Flush and close (always safe to call twice)."""
+        ...
+
+
+_FILTERS: dict[str, Any] = {"fletcher32": True, "shuffle": True, "compression": "gzip", "compression_opts": 1}
+
+
+def storage_filters(compression: str | None = "gzip") -> dict[str, Any]:
+    """HDF5 filter options of every dataset: Fletcher-32 always; shuffle + ``compression`` unless None."""
+    if compression is None:
+        return {"fletcher32": True}
+    if compression == "lzf":
+        return {"fletcher32": True, "shuffle": True, "compression": "lzf"}
+    return dict(_FILTERS)
+
+
+class Hdf5Recorder:
+    """Write a run to ``path`` (see ``benches/RECORDING.md``).
+
+    Parameters
+    ----------
+    path : Path
+        The ``recording.h5`` file. Created (must not exist) unless ``resume`` is True.
+    attrs : dict
+        Root attributes for a new file (bench_name, procedure_name, procedure_sha256, procedure_overrides
+        (a dict), seed, sample_rate_hz, simulated, software_version, …).
+    bench_text, procedure_text : str
+        The bench and procedure files, verbatim.
+    truth : dict or None
+        Simulated benches: the 18 accelerometer parameters by name (SI) and extra truth arrays.
+    resume : bool
+        Open an existing recording to continue it: it is verified first (a damaged file is refused), then
+        everything after the last complete step (samples and table readings) is truncated.
+    checkpoint_samples : int
+        Write buffered samples to disk at least every this many samples.
+    quanta : dict or None
+        ``{"accel": lsb, "gyro": lsb}`` (m/s², rad/s per count): store these as int32 counts + exact residual.
+    compression : {"gzip", "lzf", None}
+        Lossless compression after the shuffle filter (Fletcher-32 is always on).
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        attrs: dict[str, Any] | None = None,
+        bench_text: str = "",
+        procedure_text: str = "",
+        truth: dict[str, Any] | None = None,
+        resume: bool = False,
+        checkpoint_samples: int = 60_000,
+        quanta: dict[str, float] | None = None,
+        compression: str | None = "gzip",
+    ) -> None:
+        self.path = Path(path)
+        self.checkpoint_samples = int(checkpoint_samples)
+        self._buf_imu: list[ImuBlock] = []
+        self._buf_table: list[TableState] = []
+        self._buf_events: list[tuple[float, str, str, str]] = []
+        self._buffered = 0
+        self._closed = False
+        self._filters = storage_filters(compression)
+        self._hasher = _StepHasher()
+        self._quanta: dict[str, float] = {}
+        self._deferred: dict[str, float] = {}
+        try:
+            if resume:
+                self._file = self._open_resume()
+            else:
+                if self.path.exists():
+                    raise RecordingError(f"{self.path}: already exists; choose a new --out folder or use --resume")
+                try:
+                    self.path.parent.mkdir(parents=True, exist_ok=True)
+                except OSError as exc:
+                    raise RecordingError(f"{self.path.parent}: cannot create the run folder ({exc.strerror})") from None
+                self._file = self._create(attrs or {}, bench_text, procedure_text, truth, quanta or {})
+        except _H5_ERRORS as exc:
+            if isinstance(exc, RecordingError):
+                raise
+            raise RecordingError(f"{self.path}: cannot write the recording ({exc})") from None
+        self._written = int(self._file["imu/counter"].shape[0])
+        self._table_written = int(self._file["table/time"].shape[0])
+        self._table_step_start = self._table_written
+        self._chunks: _ChunkWriter | None = None
+        if not self._deferred:
+            self._start_chunk_writer()
+
+    def _start_chunk_writer(self) -> None:
+        if self._filters.get("compression") == "gzip":
+            self._chunks = _ChunkWriter(self._file, IMU_FIELDS, IMU_CHUNK, self._quanta)
+
+    def _counts_dataset(self, imu: h5py.Group, name: str, lsb: float) -> None:
+        self._dataset(imu, name, _COUNT_DTYPE[name], _WIDTH.get(name), IMU_CHUNK)
+        imu[name].attrs["lsb"] = lsb
+        exg = imu["exceptions"] if "exceptions" in imu else _group(imu, "exceptions")
+        exg.create_dataset(name, shape=(0,), maxshape=(None,), dtype=EXC_DTYPE, chunks=(1024,), **self._filters)
+        self._quanta[name] = lsb
+
+    def _materialise(self, cols: dict[str, NDArray[Any]] | None) -> None:
+        """Decide the storage of the quantisable sample datasets on the first samples (before any row is
+        written): counts if they sit on the unit's count grid (≤ 0.1 % exceptions), else float64 (a unit
+        sending floats). The (empty) counts datasets exist from the start, so an early kill leaves a readable
+        file."""
+        imu = self._file["imu"]
+        for name, lsb in self._deferred.items():
+            if cols is None or not len(cols[name]):
+                continue
+            _c, exc = _quantise(cols[name], lsb, _COUNT_DTYPE[name])
+            if exc.size > 1e-3 * cols[name].size:
+                del imu[name]
+                del imu["exceptions"][name]
+                self._quanta.pop(name, None)
+                self._dataset(imu, name, _IMU_DTYPES[name], _WIDTH.get(name), IMU_CHUNK)
+        self._deferred = {}
+        self._start_chunk_writer()
+
+    # ---- creation / resume -------------------------------------------------------------------------------
+    def _dataset(self, g: h5py.Group, name: str, dtype: Any, width: int | None, chunk: int) -> None:
+        shape = (0,) if width is None else (0, width)
+        maxshape = (None,) if width is None else (None, width)
+        chunks = (chunk,) if width is None else (chunk, width)
+        g.create_dataset(name, shape=shape, maxshape=maxshape, dtype=dtype, chunks=chunks, **self._filters)
+
+    def _create(
+        self,
+        attrs: dict[str, Any],
+        bench_text: str,
+        procedure_text: str,
+        truth: dict[str, Any] | None,
+        quanta: dict[str, float],
+    ) -> h5py.File:
+        f = _new_file(self.path)
+        root = {
+            "format": FORMAT,
+            "format_version": FORMAT_VERSION,
+            "created_utc": _utc_now(),
+            "status": "running",
+            "integrity": "fletcher32+sha256-per-step",
+        }
+        for k, v in {**attrs, **root}.items():
+            if k == "procedure_overrides" and not isinstance(v, str):
+                v = json.dumps(dict(v or {}), sort_keys=True)
+            _set_attr(f, k, "" if v is None else v)
+        _write_text(f, "bench_yaml", bench_text, self._filters)
+        _write_text(f, "procedure_yaml", procedure_text, self._filters)
+        imu = _group(f, "imu")
+        for name in IMU_FIELDS:
+            lsb = quanta.get(name) if name in QUANTISED_FIELDS else None
+            if lsb is not None and math.isfinite(lsb) and lsb > 0:
+                self._counts_dataset(imu, name, float(lsb))
+                self._deferred[name] = float(lsb)  # kept as counts, or float64: decided on the first samples
+            else:
+                self._dataset(imu, name, _IMU_DTYPES[name], _WIDTH.get(name), IMU_CHUNK)
+        tab = _group(f, "table")
+        for name in TABLE_FIELDS:
+            self._dataset(tab, name, _TABLE_DTYPES[name], _WIDTH.get(name), TABLE_CHUNK)
+        f.create_dataset("steps", shape=(0,), maxshape=(None,), dtype=STEP_DTYPE, chunks=(64,), fletcher32=True)
+        f.create_dataset("events", shape=(0,), maxshape=(None,), dtype=EVENT_DTYPE, chunks=(64,), fletcher32=True)
+        if truth is not None:
+            g = _group(f, "truth")
+            for k, v in truth.items():
+                arr = np.asarray(v, dtype=np.float64)
+                g.attrs[k] = float(arr) if arr.ndim == 0 else arr  # attributes: in the checksummed header
+        f.flush()
+        return f
+
+    def _open_resume(self) -> h5py.File:
+        if not self.path.exists():
+            raise RecordingError(f"{self.path}: no recording to resume")
+        with open_recording(self.path) as rec:  # verifies every checksum first
+            if rec.header.format_version != FORMAT_VERSION:
+                raise RecordingError(
+                    f"{self.path}: format version {rec.header.format_version} cannot be continued by this "
+                    f"version (writes {FORMAT_VERSION}); start a new run"
+                )
+            steps = rec.steps
+        complete = [s for s in steps if s.status == "complete"]
+        # the step table is append-only and complete rows precede the (single) interrupted one
+        cut = complete[-1].end_sample if complete else 0
+        keep_t = complete[-1].table_end if complete else 0
+        try:
+            f = h5py.File(self.path, "r+")
+        except OSError as exc:
+            raise RecordingError(f"{self.path}: cannot open the recording to resume it ({exc})") from None
+        try:
+            for name, d in f["imu"].items():
+                if not isinstance(d, h5py.Dataset):
+                    continue
+                d.resize(min(cut, d.shape[0]), axis=0)
+                if name in QUANTISED_FIELDS and "lsb" in d.attrs:
+                    self._quanta[name] = float(d.attrs["lsb"])
+            for name in list(self._quanta):
+                d = f["imu/exceptions"][name]
+                rows = d["row"] if d.shape[0] else np.zeros(0, np.int64)
+                d.resize(int(np.searchsorted(rows, cut)), axis=0)
+            for d in f["table"].values():
+                d.resize(min(keep_t, d.shape[0]), axis=0)
+            f["steps"].resize(len(complete), axis=0)
+            _set_attr(f, "status", "running")
+            f.flush()
+        except _H5_ERRORS as exc:
+            f.close()
+            raise RecordingError(f"{self.path}: cannot truncate the interrupted step to resume ({exc})") from None
+        return f
+
+    # ---- appending ---------------------------------------------------------------------------------------
+    @property
+    def n_samples(self) -> int:
+        """Samples recorded so far, including buffered ones."""
+        return self._written + self._buffered
+
+    def add_samples(self, block: ImuBlock) -> None:
+        """Buffer unit samples (hashed and written at the next checkpoint)."""
+        if len(block) == 0:
+            return
+        self._buf_imu.append(block)
+        self._buffered += len(block)
+        if self._buffered >= self.checkpoint_samples:
+            self.checkpoint(full=False)
+        elif self._chunks is not None and self._chunks.pending:
+            with self._writing():
+                self._chunks.drain(wait=False)  # chunks (and step rows) the encoder has finished
+
+    def add_table(self, state: TableState) -> None:
+        """Buffer one table reading (hashed and written at the next step-boundary checkpoint)."""
+        self._buf_table.append(state)
+
+    def event(self, time: float, level: str, message: str) -> None:
+        """Buffer an event-log line."""
+        self._buf_events.append((float(time), _utc_now(), level, message))
+
+    def checkpoint(self, full: bool = True, wait: bool = True) -> None:
+        """Write buffered samples, table readings and events, then flush the file (RecordingError if it fails).
+
+        With the compressed storage, samples are encoded by a worker thread; ``wait`` False does not wait
+        for it (the chunks are written by a later checkpoint, :meth:`add_samples` or :meth:`close`).
+        """
+        with self._writing():
+            self._checkpoint(full, wait)
+
+    @contextlib.contextmanager
+    def _writing(self) -> Iterator[None]:
+        try:
+            yield
+        except RecordingError:
+            raise
+        except _H5_ERRORS as exc:
+            msg = str(exc).split("\n")[0]
+            raise RecordingError(
+                f"{self.path}: cannot write the recording ({exc.__class__.__name__}: {msg}); is the disk full? "
+                "The completed steps are kept; free space and resume the run"
+            ) from None
+
+    def _checkpoint(self, full: bool = True, wait: bool = True) -> None:
+        """Write buffered samples, table readings and events, then flush the file.
+
+        ``full=False`` (the periodic checkpoint inside a long step) writes only whole chunks of samples, so a
+        compressed chunk is not rewritten (and its old copy left as dead space) at every checkpoint.
+        """
+        f = self._file
+        if self._buf_imu:
+            n = sum(len(b) for b in self._buf_imu)
+            cols = {name: np.concatenate([getattr(b, name) for b in self._buf_imu]) for name in IMU_FIELDS}
+            k = n if full else ((self._written + n) // IMU_CHUNK) * IMU_CHUNK - self._written
+            if self._deferred:
+                self._materialise(cols)
+            if k > 0 and self._chunks is not None:
+                self._chunks.submit({name: cols[name][:k] for name in IMU_FIELDS}, self._written, self._hasher)
+            elif k > 0:
+                for name in IMU_FIELDS:
+                    data, exc = _stored_rows(name, cols[name][:k], self._hasher, self._quanta, self._written)
+                    if exc is not None and exc.size:
+                        _append_rows(f["imu/exceptions"][name], exc)
+                    _append_rows(f["imu"][name], data)
+            if k > 0:
+                self._written += k
+                self._buf_imu.clear()
+                self._buffered = n - k
+                if k < n:
+                    self._buf_imu.append(ImuBlock(**{name: cols[name][k:] for name in IMU_FIELDS}))
+        if self._chunks is not None:
+            self._chunks.drain(wait=full and wait)
+        if not full:
+            f.flush()
+            return
+        if self._buf_table:
+            b = self._buf_table
+            tcols = {
+                "time": np.array([s.time for s in b], dtype=np.float64),
+                "angles": np.array([s.angles for s in b], dtype=np.float64).reshape(-1, 3),
+                "rates": np.array([s.rates for s in b], dtype=np.float64).reshape(-1, 3),
+                "status": np.array([int(s.status) for s in b], dtype=np.uint16),
+            }
+            for name, data in tcols.items():
+                self._hasher.update("table", name, data)
+                _append_rows(f["table"][name], data)
+            self._table_written += len(b)
+            self._buf_table.clear()
+        if self._buf_events:
+            rows = np.array(
+                [
+                    (t, w.encode(), _clip_utf8(lv, 16), _clip_utf8(m, _MSG_LEN))
+                    for t, w, lv, m in self._buf_events
+                ],
+                dtype=EVENT_DTYPE,
+            )
+            _append_rows(f["events"], rows)
+            self._buf_events.clear()
+        f.flush()
+
+    def end_step(self, record: StepRecord) -> None:
+        """Append a step row with the SHA-256 of the step's rows (the step boundary checkpoint).
+
+        The row is written (and the file flushed) only once every row of the step is on disk: at once with
+        the uncompressed storages; with the compressed one, as soon as the encoder has finished the step's
+        chunks (the runner does not wait for it; :meth:`set_status` and :meth:`close` do).
+        """
+        self.checkpoint(wait=False)
+        hasher, table_start, table_end = self._hasher, self._table_step_start, self._table_written
+
+        def write_row() -> None:
+            row = np.array(
+                [
+                    (
+                        record.index,
+                        _clip_utf8(record.name, _NAME_LEN),
+                        _clip_utf8(record.kind, _KIND_LEN),
+                        _clip_utf8(record.group, _GROUP_LEN),
+                        record.start_sample,
+                        record.acq_start,
+                        record.acq_end,
+                        record.end_sample,
+                        _clip_utf8(record.status, _STATUS_LEN),
+                        record.axis,
+                        record.rate,
+                        record.angles,
+                        table_start,
+                        table_end,
+                        hasher.hexdigest().encode(),
+                    )
+                ],
+                dtype=STEP_DTYPE,
+            )
+            _append_rows(self._file["steps"], row)
+            self._file.flush()
+
+        with self._writing():
+            if self._chunks is not None:
+                self._chunks.after(write_row)
+                self._chunks.drain(wait=False)
+            else:
+                write_row()
+        self._hasher = _StepHasher()
+        self._table_step_start = self._table_written
+
+    def set_status(self, status: str) -> None:
+        """Set the run status and flush."""
+        if status not in STATUS_VALUES:
+            raise ValueError(f"status must be one of {STATUS_VALUES}")
+        self.checkpoint()
+        with self._writing():
+            _set_attr(self._file, "status", status)
+            _set_attr(self._file, "updated_utc", _utc_now())
+            self._file.flush()
+
+    def close(self) -> None:
+        """Flush and close; safe to call more than once."""
+        if self._closed:
+            return
+        try:
+            self.checkpoint()
+        finally:
+            try:
+                if self._chunks is not None:
+                    with self._writing():
+                        self._chunks.close()
+            finally:
+                self._file.close()
+                self._closed = True
+
+
+_COMPACT = (4096, 4000)  # attributes kept in the (checksummed) object header, never in a fractal heap
+
+
+def _new_file(path: Path) -> h5py.File:
+    """A new file in HDF5 1.8 format (metadata checksums, no consistency flags that a killed writer would leave)
+    whose root group keeps its attributes and links compact (inside its checksummed object header)."""
+    fcpl = h5py.h5p.create(h5py.h5p.FILE_CREATE)
+    fcpl.set_attr_phase_change(*_COMPACT)  # (the root's 7 links stay compact by HDF5's default of ≤ 8)
+    fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
+    fapl.set_libver_bounds(h5py.h5f.LIBVER_V18, h5py.h5f.LIBVER_V18)
+    fid = h5py.h5f.create(str(path).encode(), h5py.h5f.ACC_EXCL, fcpl=fcpl, fapl=fapl)
+    return h5py.File(fid)
+
+
+def _group(parent: h5py.Group, name: str) -> h5py.Group:
+    """A group whose attributes stay compact (checksummed object header); callers keep ≤ 8 links per group."""
+    gcpl = h5py.h5p.create(h5py.h5p.GROUP_CREATE)
+    gcpl.set_attr_phase_change(*_COMPACT)  # links: every group holds ≤ 8, compact by HDF5's default
+    h5py.h5g.create(parent.id, name.encode(), gcpl=gcpl)
+    return parent[name]
+
+
+def _set_attr(f: h5py.File, key: str, value: Any) -> None:
+    """Strings as fixed-length UTF-8 (stored inside the checksummed object header, not the global heap)."""
+    if isinstance(value, str):
+        b = value.encode("utf-8")
+        f.attrs.create(key, np.array(b, dtype=_fixed(max(1, len(b)))))
+    elif isinstance(value, bool | np.bool_):
+        f.attrs[key] = bool(value)
+    else:
+        f.attrs[key] = value
+
+
+def _write_text(f: h5py.File, name: str, text: str, filters: dict[str, Any]) -> None:
+    b = text.encode("utf-8")
+    n = max(1, len(b))
+    f.create_dataset(name, data=np.array([b], dtype=_fixed(n)), chunks=(1,), fletcher32=True)
