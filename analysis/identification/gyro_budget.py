@@ -11,8 +11,8 @@ depends on
 * **latitude** δφ (one): Ω^n = Ω [0, cos φ, sin φ] moves by Ω [0, −sin φ, cos φ] δφ: e_k = C_n^b that.
 * **time base**, when the identification inputs carry an estimate (the time-base analysis): a unit clock
   off by a relative ε scales every gyro output by 1 + ε (e_k = ω_ib,k per unit ε: S_g 1:1), and a residual
-  offset δt turns the reference during a spin by ω δt (e_k = [ω×]-shapes of f and of Ω in the body frame:
-  misalignment and size effect through the spins).
+  offset δt turns the reference during a spin by ω δt (gyro rows: the Earth rate turned, [Ω_b×] ω δt; the
+  accelerometer rows are the time-base analysis's own, already in the identification's covariance).
 * **table axis orthogonality and wobble** (per gimbal axis, one for the run): the spin axis is off its
   nominal direction by a small tilt δn ⊥ n: e_k = |ω| δn in the body frame (T_g against the table frame,
   the accelerometer sees it through f only to second order).
@@ -72,7 +72,8 @@ def earth_rate_inputs(
     return [
         BudgetInput(
             "azimuth", "Table azimuth alignment (Earth rate)",
-            f"u = {u_azimuth / ARCSEC:.3g}″ about the vertical ({azimuth_source}), one for the run", np.array([[u_azimuth**2]]),
+            f"u = {u_azimuth / ARCSEC:.3g}″ about the vertical ({azimuth_source}), one for the run",
+            np.array([[u_azimuth**2]]),
             azimuth,
         ),
         BudgetInput(
@@ -101,10 +102,9 @@ def time_base_inputs(model: ModelSpec, u_rate: float, u_offset: float, source: s
     if u_offset > 0:
 
         def offset(geo: StepGeometry) -> NDArray[np.float64] | None:
-            if geo.spin_axis is None:
+            if geo.spin_axis is None or g is None or geo.earth is None:
                 return None
-            vecs = model.attitude_vectors(geo.f, geo.omega, geo.earth)  # (m, t, 3): each triad's turned vector
-            return np.cross(vecs, geo.omega[:, None, :]).reshape(geo.f.shape[0], -1)[:, :, None]
+            return _place(model, g, np.cross(geo.earth, geo.omega)[:, :, None])  # Ω_b turned by ω δt
 
         out.append(
             BudgetInput(
