@@ -338,6 +338,11 @@ def _acl(d: dict | None, smap: SourceMap, p: KeyPath, resource: str | None, simu
         time_scale_s=get_number(d, smap, p, "time_scale_s", 0.001, minimum=0, exclusive_minimum=True),
         error_queue=get_str(d, smap, p, "error_queue", "QERROR"),
         open_interlocks_at_end=oi,
+        source=(
+            f"{smap.file}:{smap.line(p + ('reply_profile',))} turntable.acl.reply_profile"
+            if "reply_profile" in d
+            else f"{smap.file}:{smap.line(p[:-1] + ('resource',))} (the default for turntable.resource)"
+        ),
     )
 
 

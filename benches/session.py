@@ -31,6 +31,8 @@ from .bench_config import BenchConfig, load_bench
 from .progress import ProgressDisplay
 from .recorded_run import RecordedRun, open_run
 from .recording import Hdf5Recorder, RecordingError, open_recording
+from .results.chain import sinks_for_run
+from .results.sink import CalibrationDocument, ResultSinks
 from .runner import Runner, RunResult, SampleObserver
 
 if TYPE_CHECKING:
@@ -289,6 +291,7 @@ def identify_and_certify(
     say: Callable[..., None] = print,
     done: list[str] | None = None,
     prep: Prepared | None = None,
+    sinks: ResultSinks | None = None,
 ) -> list[str]:
     """The end of the session: identify the complete recording (calibration.json) and issue its certificate.
 
@@ -307,6 +310,9 @@ def identify_and_certify(
     prep : Prepared, optional
         The bench and procedure the run was prepared with: the recording is opened once
         (:class:`benches.recorded_run.RecordedRun`) and its bench and procedure are not parsed again.
+    sinks : benches.results.ResultSinks, optional
+        Where the calibration and the certificate go (default: the run folder, then the registry;
+        :func:`benches.results.sinks_for_run`).
     """
     done = [] if done is None else done
     try:
@@ -319,7 +325,8 @@ def identify_and_certify(
     except RecordingError:
         recorded = None  # identification and certificate name the problem themselves
     try:
-        return _identify_and_certify(folder, todo, recorded, live, say, done)
+        sinks = sinks if sinks is not None else sinks_for_run(folder, say=say)
+        return _identify_and_certify(folder, todo, recorded, live, say, done, sinks)
     finally:
         if recorded is not None:
             recorded.close()
@@ -332,6 +339,7 @@ def _identify_and_certify(
     live: LiveIdentifier | None,
     say: Callable[..., None],
     done: list[str],
+    sinks: ResultSinks,
 ) -> list[str]:
     from benches.identify import IdentificationError, identify_run  # lazy: filterpy, scipy (--help time)
 
@@ -346,14 +354,14 @@ def _identify_and_certify(
             # the live filter saw the same samples and readings (except replayed ones on resume)
             u_white = np.array([p.u_white for p in result.parameters.values()])
             result.live_vs_offline_max_u = float(np.max(np.abs(live.filter.estimate - result.x) / u_white))
-        path = result.save(folder / "calibration.json")
+        path = sinks.calibration(CalibrationDocument(run=folder, result=result)).path
         done.append("identification")
         say(result.summary())
         say(f"calibration: {path}", err=False)
     if "certificate" in todo:
         from benches.certificate import issue_certificate  # lazy: fpdf, matplotlib, filterpy (--help time)
 
-        pdf, js, verdict = issue_certificate(folder, recorded=recorded)
+        pdf, js, verdict = issue_certificate(folder, recorded=recorded, sinks=sinks)
         done.append("certificate")
         say(f"certificate: {pdf} ({verdict})", err=False)
         for line in verdict_explanation(js, verdict):

@@ -6,9 +6,10 @@ table accuracy, site), and the optional analyses ``RUN/noise/noise.json``, ``RUN
 ``RUN/drift/drift.json`` (with their PNG plots), and returns a :class:`Certificate`. The PDF
 (:mod:`benches.certificate.pdf`) and the JSON (:meth:`Certificate.to_json`) are two renderings of it.
 
-Document control: :func:`issue_certificate` takes the certificate number from the register in the runs
-folder (:mod:`benches.certificate_register`: monotonic, never reused); a re-issue gets a new number and names
-the one it supersedes; an existing certificate file is never overwritten.
+Document control: :func:`issue_certificate` publishes the certificate through the result sinks
+(:mod:`benches.results`); the first, the run folder, takes the number from the register in the runs folder
+(:mod:`benches.certificate_register`: monotonic, never reused); a re-issue gets a new number and names the one
+it supersedes; an existing certificate file is never overwritten.
 
 Determinism: everything on the certificate is derived from the run folder except the issue date and the
 number (a :class:`Certificate` built by :func:`build_certificate` carries a provisional ``TB-`` + 10 hex digits
@@ -44,9 +45,10 @@ from analysis.identification.decision import (
 from analysis.units import ARCSEC, display_unit, kelvin_to_celsius, to_display
 from benches.bench_config import BenchConfig, load_bench_text
 from benches.calibration_result import SI_UNITS, CalibrationFormatError, CalibrationResult
-from benches.certificate_register import CertificateRegister, RegisterError, free_paths, write_new
 from benches.recorded_run import RecordedRun, run_of
 from benches.recording import RecordingError, StepRecord
+from benches.results.chain import sinks_for_run
+from benches.results.sink import CertificateDocument, ResultSinks
 from core.provenance import file_sha256, software_version
 
 from .budget import (
@@ -64,7 +66,6 @@ from .content import (
     ParameterResult,
     format_with_uncertainty,
 )
-from .pdf import render_pdf
 from .plots import plot_convergence, plot_coverage, plot_residuals
 
 
@@ -690,8 +691,12 @@ def issue_certificate(
     issue_date: str | None = None,
     allow_incomplete: bool = False,
     recorded: RecordedRun | None = None,
+    sinks: ResultSinks | None = None,
 ) -> tuple[Path, Path, str]:
-    """Build and write the certificate of a run: ``RUN/certificate.pdf`` and ``RUN/certificate.json`` by default.
+    """Build the certificate of a run and publish it through the result sinks (:mod:`benches.results`).
+
+    The run folder sink allocates the number and writes ``RUN/certificate.pdf`` and ``RUN/certificate.json``
+    by default (or ``out_pdf``/``out_json``); further sinks (the calibration registry) record it.
 
     Returns
     -------
@@ -701,28 +706,17 @@ def issue_certificate(
     given = Path(run_dir)
     run = given.parent if given.is_file() else given
     cert = build_certificate(given, issue_date=issue_date, allow_incomplete=allow_incomplete, recorded=recorded)
-
-    def paths(number: str) -> tuple[Path, Path]:
-        if out_pdf is None:
-            return free_paths(run, number)
-        pdf = Path(out_pdf)
-        return pdf, Path(out_json) if out_json is not None else pdf.with_suffix(".json")
-
-    if out_pdf is not None:
-        for p in paths(""):
-            if p.exists():
-                raise CertificateError(f"{p}: already exists; a certificate is never overwritten (choose another name)")
-    try:
-        reg = CertificateRegister.for_run(run).allocate(run, str(cert.recording.get("sha256", "")), paths)
-        cert.number, cert.supersedes = reg.number, reg.supersedes
-        pdf_path, json_path = Path(reg.pdf), Path(reg.json)
-        for p in (pdf_path, json_path):
-            p.parent.mkdir(parents=True, exist_ok=True)
-        write_new(pdf_path, render_pdf(cert))
-        write_new(json_path, cert.to_json().encode("utf-8"))
-    except (RegisterError, OSError) as exc:
-        raise CertificateError(str(exc)) from None
-    return pdf_path, json_path, cert.verdict
+    sinks = sinks if sinks is not None else sinks_for_run(run)
+    doc = sinks.certificate(
+        CertificateDocument(
+            run=run,
+            certificate=cert,
+            out_pdf=None if out_pdf is None else Path(out_pdf),
+            out_json=None if out_json is None else Path(out_json),
+        )
+    )
+    assert doc.pdf is not None and doc.json is not None  # the run folder sink always writes both
+    return doc.pdf, doc.json, cert.verdict
 
 
 __all__ = ["Decision", "Gathered", "assemble", "bench_info", "build_certificate", "decide_conformity", "gather",

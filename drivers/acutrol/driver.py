@@ -1,6 +1,6 @@
 """Turntable driver for an ACUTROL3000 controller speaking the ACUTROL command language (ACL).
 
-Facts from ``/work/shared/spec/acutrol-acl.md`` (TM-8004 sections in brackets); the open points are
+Facts from docs/protocols/acutrol-acl.md (TM-8004 sections in brackets); the open points are
 :class:`~drivers.acutrol.settings.AclSettings`. The driver receives an open
 :class:`~drivers.transport.MessageTransport` (pyvisa-py TCPIP SOCKET / GPIB / ASRL, or the simulator's
 in-memory link) and never opens it. Angles are degrees and °/s on the wire, rad and rad/s in the API
@@ -8,8 +8,10 @@ in-memory link) and never opens it. Angles are degrees and °/s on the wire, rad
 
 Messages the driver sends (``a1 a2 a3`` = controller axes of outer, middle, inner)::
 
-    enable (before the first motion)  *CLS;:Interlock:Reset;:Mode:Off a1;Off a2;Off a3;
-                                      :Interlock:Close a1;Close a2;Close a3                     [§4.5.6, §4.5.1]
+    session start (first contact)     :Status:STB?  (a latched fault refuses motion; old errors are drained)
+    enable (before the first motion)  *CLS;:Mode:Off a1;Off a2;Off a3;
+                                      :Interlock:Close a1;Close a2;Close a3                     [§4.5.1]
+    reset a latched fault (operator)  :Interlock:Reset, then enable                             [§4.5.6]
     move (one frame, synchronous)     :Demand:Position a1,X;Position a2,Y;Position a3,Z;
                                       :Mode:Position a1;Position a2;Position a3                 [§4.3.5, §4.7.4]
     spin                              :Demand:Rate a,R;:Mode:Rate a                             [§4.3.6, §4.7.5]
@@ -17,15 +19,26 @@ Messages the driver sends (``a1 a2 a3`` = controller axes of outer, middle, inne
     read (one frame)                  :Read:Position? a1;Position? a2;Position? a3;Rate? a1;Rate? a2;Rate? a3;
                                       :Mode? a1;:Mode? a2;:Mode? a3;:Status:STB?[;:Read:Variable? N]
     after every command               :Status:STB?  (does not clear; *STB? would)               [§4.11.6]
-    error queue not empty (bit 7)     :Status:MSG? <error_queue>                                [§4.11.4]
-    interlock summary set (bit 0)     :Interlock? a1;:Interlock? a2;:Interlock? a3  (reported verbatim)
+    error queue not empty (bit 7)     :Status:MSG? <error_queue>;:Status:STB?  until bit 7 clears [§4.11.4]
+    interlock state (bit 0; status)   :Interlock? a1;:Interlock? a2;:Interlock? a3  (reported verbatim)
     end of session (bench setting)    :Interlock:Open a1;Open a2;Open a3                        [§4.5.5]
 
 Reply profiles: ``gpib`` — plain commands get no reply; ``tcp`` — plain commands are answered by an empty
-line, which the driver reads (a non-empty answer is a LinkError naming the setting). Queries are answered by
-one line, fields separated by ``;``. A query without an answer within the transport timeout is a
-:class:`LinkError`; errors are detected the ACL way (status byte, error queue) and raised as
-:class:`TableError` with what the controller reported — never by expecting an ``ERR`` text.
+line, which the driver reads (a non-empty answer, or none, is a LinkError naming the setting and where the bench
+file sets it). Queries are answered by one line, fields separated by ``;``. Errors are detected the ACL way
+(status byte, error queue) and raised as :class:`TableError` with what the controller reported — never by
+expecting an ``ERR`` text. The whole error queue is drained after every message, so each error is reported
+with the message that caused it (three errors are reported as three); errors left from before the session are
+drained at its start and kept in :attr:`AclTurntable.stale_errors`, never blamed on a command. A query without
+an answer is told apart: if the controller still answers ``:Status:STB?`` and its error queue says why, the
+query was **refused** (:class:`TableError` with the controller's errors); if it answers but reports nothing,
+the reply framing is wrong (LinkError naming the reply-profile setting); if it does not answer, the **link is
+dead** (LinkError: cable, power, resource).
+
+A latched interlock fault (status bit 0) is never reset silently: motion is refused until an operator
+acknowledges it (:meth:`AclTurntable.clear_fault`, ``tablebench table reset-fault``, which reports what the
+fault was). The interlock state reported by :meth:`read_state` before this session closed them is read from
+the controller (``:Interlock?``), not assumed.
 
 Positions wrap at ±full_scale/2; the driver unwraps them (turn count from the previous reading and the
 rates, so a spin read every block is never mis-counted). A continuous axis in position mode takes the
@@ -83,6 +96,8 @@ _LETTER_MODES = {"P": AxisMode.POSITION, "R": AxisMode.RATE, "O": AxisMode.STOP}
 _WORD_MODES = {"position": AxisMode.POSITION, "rate": AxisMode.RATE, "off": AxisMode.STOP, "arate": AxisMode.RATE}
 _OTHER_LETTERS = set("ASTH")  # synthesis, track, abort, home: not a tablebench mode → reported as STOP
 _OTHER_WORDS = {"synthesis", "track", "abort", "home"}
+MAX_QUEUE = 32
+"""Most error-queue entries read after one message (a controller that keeps reporting is named as such)."""
 _NUMBER = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
 
@@ -170,6 +185,9 @@ class AclTurntable:
         self._rate_cmd: list[float | None] = [None, None, None]  # rad/s
         self._since: list[float | None] = [None, None, None]
         self.fault_report = ""
+        self.stale_errors: list[str] = []
+        self._session_checked = False
+        self._interlocks: list[str] | None = None  # ':Interlock?' replies while this session has not enabled
         self._read_msg = self._build_read_message()
 
     # ---- wire primitives ---------------------------------------------------------------------------------------
@@ -182,27 +200,69 @@ class AclTurntable:
         self._check_open()
         self.t.write(message)
         if self.settings.reply_profile == "tcp":
-            ack = self.t.read()
+            try:
+                ack = self.t.read()
+            except LinkError as exc:
+                raise self._silent(message, exc, command=True) from exc
             if ack.strip():
-                raise LinkError(
-                    f"ACUTROL: expected an empty line after {message!r}, got {ack[:60]!r}; check "
-                    "turntable.acl.reply_profile (tcp: empty line after commands; gpib: nothing)"
-                )
+                raise LinkError(f"ACUTROL: expected an empty line after {message!r}, got {ack[:60]!r}; {self._hint}")
+
+    @property
+    def _hint(self) -> str:
+        return self.settings.profile_hint
 
     def query(self, message: str, fields: int | None = None) -> list[str]:
-        """Send a message with queries; return the reply's ``;``-separated fields (LinkError on no/garbled reply)."""
+        """Send a message with queries; return the reply's ``;``-separated fields.
+
+        A missing answer is told apart (see the module docstring): refused (TableError with the controller's
+        errors), wrong reply framing or a dead link (LinkError).
+        """
         self._check_open()
         self.t.write(message)
-        reply = self.t.read()
-        if self.settings.reply_profile == "tcp":
-            while not reply.strip():  # a late empty acknowledgement never hides the data line
-                reply = self.t.read()
+        try:
+            reply = self.t.read()
+            if self.settings.reply_profile == "tcp":
+                while not reply.strip():  # a late empty acknowledgement never hides the data line
+                    reply = self.t.read()
+        except LinkError as exc:
+            raise self._silent(message, exc) from exc
+        if not reply.strip() and self.settings.reply_profile == "gpib":
+            raise LinkError(f"ACUTROL: an empty line answered {message!r}; {self._hint}")
         parts = [p.strip() for p in reply.strip().split(";")]
         if fields is not None and len(parts) != fields:
             raise LinkError(
                 f"ACUTROL: reply to {message!r} should have {fields} field(s) separated by ';', got {reply[:120]!r}"
             )
         return parts
+
+    def _raw_stb(self) -> int:
+        """``:Status:STB?`` without the diagnosis of :meth:`query` (LinkError if unanswered)."""
+        self.t.write(":Status:STB?")
+        reply = self.t.read()
+        while not reply.strip() and self.settings.reply_profile == "tcp":
+            reply = self.t.read()
+        f = reply.strip()
+        if not f.isdigit():
+            raise LinkError(f"ACUTROL: status byte should be an integer 0-255, got {f!r}")
+        return int(f)
+
+    def _silent(self, message: str, exc: LinkError, command: bool = False) -> Exception:
+        """Why ``message`` got no answer: refused (its errors), wrong framing, or a dead link."""
+        try:
+            stb = self._raw_stb()
+        except LinkError as probe:
+            return LinkError(
+                f"ACUTROL: no answer to {message!r}, nor to a status query: the link is dead (check the cable, "
+                f"the controller's power and turntable.resource): {exc}; {probe}"
+            )
+        if stb & STB_EQ:
+            errors = self._drain_errors()
+            return TableError(f"ACUTROL refused {message!r}: {self._errors_text(errors)} (status byte {stb})")
+        what = "acknowledge the command" if command else "answer the query"
+        return LinkError(
+            f"ACUTROL: the controller answers status queries (status byte {stb}, no error) but did not {what} "
+            f"{message!r}; {self._hint}"
+        )
 
     @staticmethod
     def _number(text: str, what: str) -> float:
@@ -216,27 +276,72 @@ class AclTurntable:
             raise LinkError(f"ACUTROL: status byte should be an integer 0-255, got {f!r}")
         return int(f)
 
-    def _error_text(self) -> str:
-        text = ";".join(self.query(f":Status:MSG? {self.settings.error_queue}"))
-        return text or "(the error queue was empty)"
+    def _drain_errors(self) -> list[str]:
+        """Read the whole error queue: one entry and the status byte per message, until bit 7 (EQ) clears."""
+        errors: list[str] = []
+        q = f":Status:MSG? {self.settings.error_queue};:Status:STB?"
+        for _ in range(MAX_QUEUE):
+            f = self.query(q)
+            stb_text = f[-1] if len(f) >= 2 else ""
+            if not stb_text.isdigit():
+                raise LinkError(f"ACUTROL: reply to {q!r} should end with the status byte, got {';'.join(f)!r}")
+            text = ";".join(f[:-1])
+            if text:
+                errors.append(text)
+            if not int(stb_text) & STB_EQ:
+                return errors
+        errors.append(f"(more than {MAX_QUEUE} entries: the controller keeps reporting errors)")
+        return errors
 
-    def _interlock_text(self) -> str:
+    @staticmethod
+    def _errors_text(errors: list[str]) -> str:
+        if not errors:
+            return "(the error queue was empty)"
+        if len(errors) == 1:
+            return errors[0]
+        return f"{len(errors)} errors: " + "; ".join(f"[{i}] {e}" for i, e in enumerate(errors, 1))
+
+    def _interlock_fields(self) -> list[str]:
         q = ";".join(f":Interlock? {a}" for a in self._ax)
-        fields = self.query(q)
+        return self.query(q, 3)
+
+    def _interlock_text(self, fields: list[str] | None = None) -> str:
+        fields = fields if fields is not None else self._interlock_fields()
         return ", ".join(
             f"{name} ':Interlock? {a}' → {f!r}" for name, a, f in zip(AXIS_NAMES, self._ax, fields, strict=False)
         )
 
     def check_errors(self, what: str, *, interlock_ok: bool = False) -> int:
-        """Read the status byte after ``what``; TableError with the controller's report if it flags an error."""
+        """Read the status byte after ``what``; TableError with the controller's report if it flags an error
+        (the whole error queue, attributed to ``what``) or a latched interlock fault."""
         stb = self._status_byte()
-        if stb & STB_EQ:
-            raise TableError(f"ACUTROL refused {what}: {self._error_text()} (status byte {stb})")
+        errors = self._drain_errors() if stb & STB_EQ else []
         if stb & STB_SI and not interlock_ok:
+            refused = f"; it refused {what}: {self._errors_text(errors)}" if errors else ""
+            self.fault_report = f"interlock fault latched (status byte {stb}; {self._interlock_text()})"
             raise TableError(
-                f"ACUTROL: interlock fault latched (status byte {stb}; {self._interlock_text()}); nothing moves "
-                "until it is reset (tablebench table status shows it; clear_fault resets and re-closes)"
+                f"ACUTROL: {self.fault_report}{refused}; nothing moves until an operator acknowledges it: "
+                "tablebench table reset-fault"
             )
+        if errors:
+            raise TableError(f"ACUTROL refused {what}: {self._errors_text(errors)} (status byte {stb})")
+        return stb
+
+    def _refuse_if_latched(self) -> None:
+        if self.fault_report:
+            raise TableError(
+                f"ACUTROL: {self.fault_report}; nothing was sent: an operator acknowledges it with "
+                "tablebench table reset-fault"
+            )
+
+    def _start_session(self, stb: int) -> int:
+        """First contact (``stb`` the first status byte read): errors left from before the session are drained
+        into :attr:`stale_errors` (logged, never blamed on a command); returns the status byte without them."""
+        if not self._session_checked and stb & STB_EQ:
+            self.stale_errors = self._drain_errors()
+            log.warning("ACUTROL: errors left from before this session: %s", self._errors_text(self.stale_errors))
+            stb &= ~STB_EQ
+        self._session_checked = True
         return stb
 
     # ---- session -------------------------------------------------------------------------------------------------
@@ -259,12 +364,28 @@ class AclTurntable:
         return out
 
     def enable(self) -> None:
-        """Reset latched interlocks, set Off mode and close the interlocks of the three axes (servo on)."""
+        """Set Off mode and close the interlocks of the three axes (servo on).
+
+        A latched interlock fault is **not** reset here: it refuses motion (TableError) until an operator
+        acknowledges it with :meth:`clear_fault` (``tablebench table reset-fault``).
+        """
+        stb = self._start_session(self._status_byte())
+        if stb & STB_EQ:
+            raise TableError(f"ACUTROL reported errors before enable: {self._errors_text(self._drain_errors())}")
+        if stb & STB_SI:
+            raise TableError(
+                f"ACUTROL: interlock fault latched (status byte {stb}; {self._interlock_text()}); nothing moves "
+                "until an operator acknowledges it: tablebench table reset-fault"
+            )
+        self._send_enable()
+
+    def _send_enable(self) -> None:
         a1, a2, a3 = self._ax
-        msg = f"*CLS;:Interlock:Reset;:Mode:Off {a1};Off {a2};Off {a3};:Interlock:Close {a1};Close {a2};Close {a3}"
+        msg = f"*CLS;:Mode:Off {a1};Off {a2};Off {a3};:Interlock:Close {a1};Close {a2};Close {a3}"
         self.command(msg)
         self.check_errors("enable (" + msg + ")")
         self._enabled = True
+        self._interlocks = None
         self._set_all_off()
 
     def _ensure_enabled(self) -> None:
@@ -290,6 +411,7 @@ class AclTurntable:
         """Command absolute (unwrapped) gimbal angles, rad: one message, one controller frame."""
         a = check_position(angles, self._limits)  # type: ignore[arg-type]
         self._check_open()
+        self._refuse_if_latched()
         self._ensure_enabled()
         if self._u is None:
             self.read_state()
@@ -324,6 +446,7 @@ class AclTurntable:
         """Command a constant rate (rad/s, signed) on gimbal ``axis`` (0 outer, 1 middle, 2 inner)."""
         ax, r = check_rate(axis, rate, self._limits)  # type: ignore[arg-type]
         self._check_open()
+        self._refuse_if_latched()
         self._ensure_enabled()
         a = self._ax[ax]
         msg = f":Demand:Rate {a},{format_number(r / DEG)};:Mode:Rate {a}"
@@ -386,7 +509,7 @@ class AclTurntable:
         modes = tuple(self._mode(m, a) for m, a in zip(f[6:9], self._ax, strict=True))
         if not f[9].isdigit():
             raise LinkError(f"ACUTROL: status byte should be an integer 0-255, got {f[9]!r}")
-        stb = int(f[9])
+        stb = self._start_session(int(f[9])) if not self._session_checked else int(f[9])
         if self.settings.time_variable is not None:
             t = self._number(f[10], "time clock") * self.settings.time_scale_s
         else:
@@ -398,7 +521,8 @@ class AclTurntable:
         self._advance_waypoints(angles)
         status, fault = self._status(t, angles, rates, modes, stb)  # type: ignore[arg-type]
         if stb & STB_EQ:
-            raise TableError(f"ACUTROL reported an error: {self._error_text()} (status byte {stb})")
+            errors = self._errors_text(self._drain_errors())
+            raise TableError(f"ACUTROL reported an error while reading the table: {errors} (status byte {stb})")
         return TableState(time=t, angles=angles, rates=rates, status=status, fault_code=fault, modes=modes)  # type: ignore[arg-type]
 
     def _unwrap(self, raw: list[float], vel: list[float], t: float) -> None:
@@ -475,19 +599,32 @@ class AclTurntable:
                 log.info("ACUTROL: %s", self.fault_report)
         else:
             self.fault_report = ""
-            if not self._enabled:
-                status |= TableStatus.INTERLOCK_OPEN
+            if not self._enabled:  # this session has not closed them: ask the controller, once
+                if self._interlocks is None:
+                    self._interlocks = self._interlock_fields()
+                if not all(f.strip().lower().startswith("clos") for f in self._interlocks):
+                    status |= TableStatus.INTERLOCK_OPEN
         return status, fault
 
     def heartbeat(self) -> None:
         """Nothing to send: ACL has no host heartbeat or watchdog; the host stops the axes on every exit path."""
         self._check_open()
 
-    def clear_fault(self) -> None:
-        """``:Interlock:Reset`` (unfreezes latched faults), then Off mode and interlocks closed again."""
+    def clear_fault(self) -> str:
+        """An operator's acknowledgement: ``:Interlock:Reset`` (unfreezes a latched fault), then Off mode and
+        the interlocks closed again. Returns what the fault was (the controller's interlock report), or "" if
+        none was latched."""
         self._check_open()
+        stb = self._start_session(self._status_byte())
+        what = ""
+        if stb & STB_SI:
+            what = f"interlock fault latched (status byte {stb}; {self._interlock_text()})"
+        self.command(":Interlock:Reset")
+        self.check_errors("reset (:Interlock:Reset)", interlock_ok=True)
         self._enabled = False
-        self.enable()
+        self.fault_report = ""
+        self._send_enable()
+        return what
 
     def close(self) -> None:
         """Release the driver: Off on every axis if motion was commanded (unless :meth:`leave_running`), then

@@ -8,7 +8,7 @@ Both the driver (:mod:`drivers.acutrol.driver`) and the simulated controller
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 ReplyProfile = Literal["gpib", "tcp"]
@@ -41,6 +41,9 @@ class AclSettings:
         Queue mnemonic for ``:Status:MSG? <qid>`` when the status byte says the error queue is not empty.
     open_interlocks_at_end : bool
         Send ``:Interlock:Open`` on every axis when the session ends (after ``:Mode:Off``).
+    source : str
+        Where the reply profile was set (``bench.yaml:17 turntable.acl.reply_profile``), named in the errors a
+        reply-profile mismatch causes; not part of the settings' identity.
     """
 
     reply_profile: ReplyProfile = "tcp"
@@ -52,6 +55,16 @@ class AclSettings:
     time_scale_s: float = 0.001
     error_queue: str = "QERROR"
     open_interlocks_at_end: bool = False
+    source: str = field(default="", compare=False)
+
+    @property
+    def profile_hint(self) -> str:
+        """``check turntable.acl.reply_profile (now 'tcp'; set at …)``: the fix for a reply-profile mismatch."""
+        where = f"; set at {self.source}" if self.source else ""
+        return (
+            f"check turntable.acl.reply_profile (now {self.reply_profile!r}{where}; tcp: an empty line after every "
+            "command, gpib: nothing)"
+        )
 
     def __post_init__(self) -> None:
         if self.reply_profile not in ("gpib", "tcp"):

@@ -21,9 +21,11 @@ LIMITS = (
     AxisLimits(rate_max=R(200), accel_max=R(100), position_min=R(-170), position_max=R(170)),
     AxisLimits(rate_max=R(400), accel_max=R(100)),
 )
-ENABLE = "*CLS;:Interlock:Reset;:Mode:Off 1;Off 2;Off 3;:Interlock:Close 1;Close 2;Close 3"
+ENABLE = "*CLS;:Mode:Off 1;Off 2;Off 3;:Interlock:Close 1;Close 2;Close 3"
 READ = ":Read:Position? 1;Position? 2;Position? 3;Rate? 1;Rate? 2;Rate? 3;:Mode? 1;:Mode? 2;:Mode? 3;:Status:STB?"
 STB = ":Status:STB?"
+INTL = ":Interlock? 1;:Interlock? 2;:Interlock? 3"
+MSG = ":Status:MSG? QERROR;:Status:STB?"
 NO_REPLY = None
 
 
@@ -52,6 +54,7 @@ def test_enable_move_spin_stop(profile):
     a = ack(profile)
     drv, t = table(
         [
+            (STB, "0"),
             (ENABLE, a),
             (STB, "0"),
             (READ, "0.0000;0.0000;0.0000;0.0000;0.0000;0.0000;O;O;O;0"),
@@ -74,7 +77,10 @@ def test_enable_move_spin_stop(profile):
 @pytest.mark.parametrize("profile", ["gpib", "tcp"])
 def test_read_is_one_message_one_frame(profile):
     drv, t = table(
-        [(READ + ";:Read:Variable? 7", "10.0001;44.1250;-0.0001;0.0000;0.5000;-15.0000;P;P;R;0;1234.5")],
+        [
+            (READ + ";:Read:Variable? 7", "10.0001;44.1250;-0.0001;0.0000;0.5000;-15.0000;P;P;R;0;1234.5"),
+            (INTL, "Closed;Closed;Closed"),  # a new session: the interlock state is read, not assumed
+        ],
         profile,
         time_variable=7,
         time_scale_s=0.001,
@@ -84,14 +90,22 @@ def test_read_is_one_message_one_frame(profile):
     np.testing.assert_allclose(np.degrees(s.rates), [0.0, 0.5, -15.0], atol=1e-12)
     assert s.modes == (AxisMode.POSITION, AxisMode.POSITION, AxisMode.RATE)
     assert s.time == pytest.approx(1.2345) and s.fault_code == FaultCode.NONE
+    assert not s.status & TableStatus.INTERLOCK_OPEN  # closed and servoed by an earlier session
     t.done()
 
 
 def test_word_mode_replies_and_axis_numbers():
     msg = ":Read:Position? 3;Position? 1;Position? 2;Rate? 3;Rate? 1;Rate? 2;:Mode? 3;:Mode? 1;:Mode? 2;:Status:STB?"
-    drv, t = table([(msg, "1.0;2.0;3.0;0;0;0;Position;Rate;Off;0")], mode_reply="word", axes=(3, 1, 2))
+    drv, t = table(
+        [
+            (msg, "1.0;2.0;3.0;0;0;0;Position;Rate;Off;0"),
+            (":Interlock? 3;:Interlock? 1;:Interlock? 2", "Open;Open;Open"),
+        ],
+        mode_reply="word",
+        axes=(3, 1, 2),
+    )
     s = drv.read_state()
-    assert s.modes == (AxisMode.POSITION, AxisMode.RATE, AxisMode.STOP)
+    assert s.modes == (AxisMode.POSITION, AxisMode.RATE, AxisMode.STOP) and s.status & TableStatus.INTERLOCK_OPEN
     t.done()
     drv, t = table([(READ, "0;0;0;0;0;0;Position;P;P;0")])  # letter expected, word received
     with pytest.raises(LinkError, match="mode_reply"):
@@ -103,6 +117,7 @@ def test_positions_unwrapped_across_the_wrap():
     drv, t = table(
         [
             (READ, "0;0;170.0000;0;0;100.0000;O;O;R;0"),
+            (INTL, "Closed;Closed;Closed"),
             (READ, "0;0;-170.0000;0;0;100.0000;O;O;R;0"),
             (READ, "0;0;-150.0000;0;0;100.0000;O;O;R;0"),
         ],
@@ -116,6 +131,7 @@ def test_positions_unwrapped_across_the_wrap():
 def test_far_move_on_a_continuous_axis_goes_through_way_points():
     drv, t = table(
         [
+            (STB, "0"),
             (ENABLE, ""),
             (STB, "0"),
             (READ, "0;0;0;0;0;0;O;O;O;0"),
@@ -149,6 +165,7 @@ def test_far_move_on_a_continuous_axis_goes_through_way_points():
 def test_settled_and_at_rate_decided_from_readings():
     drv, t = table(
         [
+            (STB, "0"),
             (ENABLE, ""),
             (STB, "0"),
             (READ, "0;0;0;0;0;0;O;O;O;0"),
@@ -168,24 +185,39 @@ def test_settled_and_at_rate_decided_from_readings():
 
 
 @pytest.mark.parametrize("profile", ["gpib", "tcp"])
-def test_latched_interlock_fault_is_reported_with_the_controllers_words(profile):
+def test_latched_interlock_fault_requires_an_acknowledgement(profile):
     a = ack(profile)
-    intl = ":Interlock? 1;:Interlock? 2;:Interlock? 3"
     drv, t = table(
         [
             (READ, "1.0;2.0;3.0;0;0;0;O;O;O;65"),  # *STB? bit 0 (SI) + bit 6 (MSS): the public client's "65"
-            (intl, "Fault;Fault;Fault"),
+            (INTL, "Fault;Fault;Fault"),
+            # a motion command now is refused before anything is sent (no :Interlock:Reset behind the back)
+            (STB, "65"),  # reset-fault: what the fault was, then :Interlock:Reset, then enable
+            (INTL, "Fault;Closed;Closed"),
+            (":Interlock:Reset", a),
+            (STB, "0"),
             (ENABLE, a),
-            (STB, "65"),
-            (intl, "Fault;Closed;Closed"),
+            (STB, "0"),
         ],
         profile,
     )
     s = drv.read_state()
     assert s.status & TableStatus.FAULT and s.fault_code == FaultCode.INTERLOCK
     assert "'Fault'" in drv.fault_report and "65" in drv.fault_report
-    with pytest.raises(TableError, match=r"interlock fault latched \(status byte 65.*'Fault'"):
-        drv.move_to([0.0, 0.0, 0.0])  # the enable message cannot close a latched interlock
+    with pytest.raises(
+        TableError, match=r"interlock fault latched \(status byte 65.*'Fault'.*nothing was sent.*reset-fault"
+    ):
+        drv.move_to([0.0, 0.0, 0.0])
+    what = drv.clear_fault()
+    assert "status byte 65" in what and "outer ':Interlock? 1' → 'Fault'" in what
+    t.done()
+
+
+@pytest.mark.parametrize("profile", ["gpib", "tcp"])
+def test_a_fault_latched_in_a_new_session_is_not_reset_by_enable(profile):
+    drv, t = table([(STB, "65"), (INTL, "Fault;Closed;Closed")], profile)
+    with pytest.raises(TableError, match=r"status byte 65.*'Fault'.*reset-fault"):
+        drv.spin(2, R(10))
     t.done()
 
 
@@ -194,16 +226,84 @@ def test_refused_command_raises_with_the_error_queue_text(profile):
     a = ack(profile)
     drv, t = table(
         [
+            (STB, "0"),
             (ENABLE, a),
             (STB, "0"),
             (":Demand:Rate 1,250;:Mode:Rate 1", a),
             (STB, "224"),  # EQ + MSS + ESB
-            (":Status:MSG? QERROR", '-222,"Data out of range"'),
+            (MSG, '-222,"Data out of range";0'),
         ],
         profile,
     )
     with pytest.raises(TableError, match="Data out of range.*status byte 224"):
         drv.spin(0, R(250))
+    t.done()
+
+
+def test_a_queue_of_three_errors_is_reported_as_three():
+    drv, t = table(
+        [
+            (STB, "0"),
+            (ENABLE, ""),
+            (STB, "0"),
+            (":Demand:Rate 1,25;:Mode:Rate 1", ""),
+            (STB, "128"),
+            (MSG, '-222,"Data out of range";128'),
+            (MSG, '-221,"Settings conflict";128'),
+            (MSG, '-100,"Command error";0'),
+            (":Mode:Off 1;Off 2;Off 3", ""),  # the stop that follows is not blamed for them
+            (STB, "0"),
+        ]
+    )
+    with pytest.raises(TableError) as e:
+        drv.spin(0, R(25))
+    msg = str(e.value)
+    assert msg.startswith("ACUTROL refused spin") and "3 errors: [1] -222" in msg
+    assert '[2] -221,"Settings conflict"' in msg and '[3] -100,"Command error"' in msg
+    drv.stop()
+    t.done()
+
+
+def test_errors_left_from_before_the_session_are_not_blamed():
+    drv, t = table(
+        [
+            (READ, "0;0;0;0;0;0;O;O;O;128"),
+            (MSG, '-113,"Undefined header";0'),
+            (INTL, "Open;Open;Open"),
+            (STB, "0"),
+            (ENABLE, ""),
+            (STB, "0"),
+        ]
+    )
+    s = drv.read_state()
+    assert s.status & TableStatus.INTERLOCK_OPEN and drv.stale_errors == ['-113,"Undefined header"']
+    drv.enable()
+    t.done()
+
+
+def test_refused_query_dead_link_and_wrong_framing_are_told_apart():
+    drv, t = table([(READ, NO_REPLY), (STB, "128"), (MSG, '-113,"Undefined header";0')], "gpib")
+    with pytest.raises(TableError, match=r"ACUTROL refused ':Read:Position\? 1.*-113,\"Undefined header\""):
+        drv.read_state()
+    t.done()
+    drv, t = table([(READ, NO_REPLY), (STB, NO_REPLY)], "gpib")
+    with pytest.raises(LinkError, match="nor to a status query: the link is dead"):
+        drv.read_state()
+    t.done()
+    drv, t = table([(READ, NO_REPLY), (STB, "0")], "gpib")
+    with pytest.raises(LinkError, match="answers status queries .* but did not answer the query.*reply_profile"):
+        drv.read_state()
+    t.done()
+
+
+def test_a_reply_profile_mismatch_names_the_bench_file():
+    drv, t = table(
+        [(STB, "0"), (ENABLE, NO_REPLY), (STB, "0")],  # a GPIB-like controller behind a tcp setting
+        "tcp",
+        source="bench.yaml:17 turntable.acl.reply_profile",
+    )
+    with pytest.raises(LinkError, match=r"did not acknowledge.*now 'tcp'; set at bench.yaml:17 turntable.acl"):
+        drv.enable()
     t.done()
 
 
@@ -216,17 +316,14 @@ def test_demands_checked_before_sending():
     assert t.sent == []
 
 
-def test_query_without_answer_is_a_link_error():
-    drv, t = table([(READ, NO_REPLY)], "gpib")
-    with pytest.raises(LinkError, match="no reply"):
-        drv.read_state()
+def test_a_short_reading_is_a_link_error():
     drv, t = table([(READ, "1.0;2.0")], "gpib")
     with pytest.raises(LinkError, match="10 fields.*turntable.acl"):
         drv.read_state()
 
 
 def test_tcp_profile_acknowledgement_must_be_empty():
-    drv, t = table([(ENABLE, "OK")], "tcp")
+    drv, t = table([(STB, "0"), (ENABLE, "OK")], "tcp")
     with pytest.raises(LinkError, match="reply_profile"):
         drv.enable()
 
@@ -236,6 +333,7 @@ def test_close_stops_and_opens_interlocks_when_asked(profile):
     a = ack(profile)
     drv, t = table(
         [
+            (STB, "0"),
             (ENABLE, a),
             (STB, "0"),
             (":Demand:Rate 2,5;:Mode:Rate 2", a),
@@ -255,7 +353,7 @@ def test_close_stops_and_opens_interlocks_when_asked(profile):
 
 
 def test_leave_running_sends_nothing_on_close():
-    drv, t = table([(ENABLE, ""), (STB, "0"), (":Demand:Rate 1,-2.25;:Mode:Rate 1", ""), (STB, "0")])
+    drv, t = table([(STB, "0"), (ENABLE, ""), (STB, "0"), (":Demand:Rate 1,-2.25;:Mode:Rate 1", ""), (STB, "0")])
     drv.spin(0, R(-2.25))
     drv.leave_running()
     drv.close()

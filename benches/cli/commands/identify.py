@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:  # pragma: no cover
     pass
 
+from benches.results import CalibrationDocument, sinks_for_run
 from core.errors import UsageError
 
 EXAMPLES = """examples:
@@ -44,18 +45,16 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench identify``."""
-    from benches.identify import (  # lazy: filterpy, scipy (--help time)
-        IdentificationError,
-        identify_run,
-        write_calibration,
-    )
+    from benches.identify import IdentificationError, identify_run  # lazy: filterpy, scipy (--help time)
 
     try:
         result = identify_run(args.run, method=args.method, noise=args.noise)
     except IdentificationError as exc:
         raise UsageError(str(exc)) from None
     folder = Path(args.run) if Path(args.run).is_dir() else Path(args.run).parent
-    out = write_calibration(result, args.out or folder / "calibration.json")
+    out = sinks_for_run(folder).calibration(
+        CalibrationDocument(run=folder, result=result, path=Path(args.out) if args.out else None)
+    ).path
     print(result.summary())
     print(f"calibration: {out}", file=sys.stderr)
     return 0

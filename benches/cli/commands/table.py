@@ -34,6 +34,7 @@ EXAMPLES = """examples:
   tablebench table --bench benches/example-real.yaml move 0 90 45
   tablebench table --bench benches/example-real.yaml spin inner 10
   tablebench table --bench benches/example-real.yaml stop
+  tablebench table --bench benches/example-real.yaml reset-fault   # acknowledge a latched fault (says which)
 
 exit codes: 0 done, 1 the table faulted or the link failed (axes commanded Off where the link allows),
 2 bad input (nothing was sent), 130 interrupted (axes commanded Off)
@@ -56,11 +57,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``table`` subcommand."""
     p = sub.add_parser(
         "table",
-        help="check and jog a bench's turntable (status, idn, move, spin, stop)",
+        help="check and jog a bench's turntable (status, idn, move, spin, stop, reset-fault)",
         description="Talk to the turntable of a bench alone: read its state, identify the controller, move to "
         "gimbal angles (degrees; returns when settled), spin one axis (°/s; returns with the axis turning) or "
-        "stop every axis. Every demand is checked against the bench's limits before it is sent; Ctrl-C, "
-        "SIGTERM or SIGHUP during a command stops the axes.",
+        "stop every axis, or acknowledge a latched fault (reset-fault: says what the fault was; a latched fault "
+        "is never reset by a motion command). Every demand is checked against the bench's limits before it is "
+        "sent; Ctrl-C, SIGTERM or SIGHUP during a command stops the axes.",
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -73,7 +75,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--seed", type=int, default=None, help="simulator seed (simulated benches)")
     p.add_argument("--timeout", type=float, default=None, metavar="S", help="longest wait for settling, s")
-    p.add_argument("action", choices=("status", "idn", "move", "spin", "stop"), help="what to do")
+    p.add_argument("action", choices=("status", "idn", "move", "spin", "stop", "reset-fault"), help="what to do")
     p.add_argument("values", nargs="*", help="move: OUTER MIDDLE INNER (°); spin: AXIS RATE (outer|middle|inner, °/s)")
     p.set_defaults(func=run)
 
@@ -169,6 +171,8 @@ def execute(
         print(idn() if idn else f"{bench.describe()} (this controller has no identification query)", file=out)
         return 0
     table.heartbeat()  # before anything: a strict PLC's watchdog runs from power-up
+    if action == "reset-fault":
+        return _reset_fault(table, out)
     if action == "status":
         table.read_state()
         pause(getattr(table, "settle_time", 0.0) + POLL_S)  # the settled / at-rest flags need a window of readings
@@ -177,6 +181,9 @@ def execute(
         print(f"t = {s.time:.3f} s: {_describe_state(s)}", file=out)
         if s.status & TableStatus.FAULT:
             print(f"fault: {getattr(table, 'fault_report', '') or s.fault_code.name}", file=out)
+            print("acknowledge it with: tablebench table reset-fault", file=out)
+        for e in getattr(table, "stale_errors", []):
+            print(f"error left in the controller's queue from before this session: {e}", file=out)
         if hasattr(table, "controller_limits"):
             for name, lim, bench_lim in zip(AXES, table.controller_limits(), table.limits(), strict=True):
                 line = (
@@ -244,6 +251,23 @@ def execute(
         "stopping",
     )
     print(f"at rest: {_describe_state(s)}", file=out)
+    return 0
+
+
+def _reset_fault(table: Turntable, out: TextIO) -> int:
+    """``reset-fault``: an operator's acknowledgement of a latched fault; says what the fault was."""
+    s = table.read_state()
+    if not s.status & TableStatus.FAULT:
+        print(f"no fault is latched; nothing to acknowledge ({_describe_state(s)})", file=out)
+        return 0
+    what = getattr(table, "fault_report", "") or f"fault {s.fault_code.name}"
+    said = table.clear_fault()
+    what = said if isinstance(said, str) and said else what
+    s = table.read_state()
+    if s.status & TableStatus.FAULT:
+        raise TableError(f"the fault is still latched after the reset ({what}); find its cause at the table")
+    print(f"acknowledged and reset: {what}", file=out)
+    print(f"now: {_describe_state(s)}", file=out)
     return 0
 
 
