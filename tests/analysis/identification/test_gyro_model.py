@@ -185,3 +185,16 @@ def test_against_imucal_ferraris_closed_form_without_earth_rate() -> None:
     np.testing.assert_allclose(e["G"], np.asarray(cal.K_ga) * DEG, rtol=0, atol=1e-12)  # rad/s per m/s²
     # and both are the truth (noise-free, exact models)
     np.testing.assert_allclose(res.x, gyr, rtol=0, atol=1e-12)
+
+
+def test_whole_unit_correction_is_the_exact_joint_inverse() -> None:
+    """correct_outputs(predict(x, f, ω)) = (f, ω) for a unit with the rate-transfer terms (rounding level)."""
+    m = UnitModel((get_model("accelerometer"), get_model("gyro", full_g=True, quadratic=True, asymmetry=True)))
+    rng = np.random.default_rng(9)
+    x = np.concatenate([ACC_TRUTH, rng.normal(0, 1e-4, m.n_params - 18)])
+    f = rng.normal(0, 9.8, (500, 3))
+    om = rng.normal(0, 2.0, (500, 3))
+    y = m.predict(x, f, om)
+    back = m.correct_outputs(x, y)
+    np.testing.assert_allclose(back[:, :3], f, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(back[:, 3:], om, rtol=0, atol=1e-14)
