@@ -514,7 +514,7 @@ def _identification_data(rr: RecordedRun, with_gyro: bool | None = None) -> Iden
     tr = rec.truth()
     truth = None
     if tr is not None and all(n_ in tr.parameters for n_ in ACCEL_MODEL.names):
-        truth = {n_: float(tr.parameters[n_]) for n_ in model.names if n_ in tr.parameters}
+        truth = {n_: float(v) for n_, v in tr.parameters.items()}  # the truth check uses the model's names
     temp = rec.samples(fields=("temperature",), index=np.arange(0, n, max(1, n // 10000))).temperature
     temp = temp if temp is not None else np.zeros(0)
     if not windows:

@@ -79,12 +79,16 @@ class GyroTruth:
     scale : (3,) scale-factor errors (dimensionless).
     misalignment : (6,) τ_xy τ_xz τ_yx τ_yz τ_zx τ_zy, rad; δω_i += τ_ij ω_j (same convention as accel).
     g_sensitivity : (3, 3) rad/s per m/s²; δω = G f (f the specific force at the reference point).
+    quadratic : (3,) s/rad; δω_i += S2_i ω_i² (the scale factor's second-order nonlinearity).
+    asymmetry : (3,) dimensionless; δω_i += A_i |ω_i| (scale factor 1 + S ± A for ± rates).
     """
 
     bias: Vec3 = (0.0, 0.0, 0.0)
     scale: Vec3 = (0.0, 0.0, 0.0)
     misalignment: tuple[float, float, float, float, float, float] = (0.0,) * 6
     g_sensitivity: Mat3 = _Z3
+    quadratic: Vec3 = (0.0, 0.0, 0.0)
+    asymmetry: Vec3 = (0.0, 0.0, 0.0)
 
 
 def gyro_truth(gyro: GyroTruth) -> dict[str, float]:
