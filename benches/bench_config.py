@@ -160,6 +160,15 @@ class TurntableSpec:
     resource: str | None = None  # VISA resource string (driver acutrol)
     acl: AclSettings | None = None  # ACL open points (driver acutrol, or a simulated ACUTROL)
     rate_tolerance: float = 0.01 * DEG  # rad/s: at-rate / at-rest window of host-decided settling
+    azimuth_uncertainty: float | None = None
+    """Standard uncertainty of the outer gimbal's zero azimuth (East), rad (``azimuth_uncertainty_arcsec``);
+    None: not stated (the certificate then assumes one and says so)."""
+
+    @property
+    def at_rate_tolerance(self) -> float:
+        """The host's at-rate window, rad/s: the stated tolerance plus the table's stated rate accuracy at its
+        fastest axis (a table that turns 300 ppm fast at 60 °/s is 0.018 °/s off its command, and at rate)."""
+        return self.rate_tolerance + self.rate_accuracy * max(lim.rate_max for lim in self.limits)
     sim_controller: str = "acutrol"  # simulated benches: which controller the simulator speaks
 
 
@@ -365,6 +374,7 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
             "in_position_time_s",
             "attitude_accuracy_arcsec",
             "rate_accuracy_ppm",
+            "azimuth_uncertainty_arcsec",
             "heartbeat_period_s",
             "watchdog_s",
             "float_word_order",
@@ -457,6 +467,10 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
         serial_number=str(d.get("serial_number") or ""),
         float_word_order=word_order,
         rate_accuracy=get_number(d, smap, p, "rate_accuracy_ppm", 0.0, minimum=0, maximum=1e5) * 1e-6,
+        azimuth_uncertainty=(
+            None if d.get("azimuth_uncertainty_arcsec") is None
+            else get_number(d, smap, p, "azimuth_uncertainty_arcsec", minimum=0, maximum=36000) * ARCSEC
+        ),
         modbus_map=modbus_map,
         resource=resource,
         acl=acl,

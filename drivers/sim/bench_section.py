@@ -81,6 +81,7 @@ class Table(Protocol):
     watchdog: float | None
     attitude_accuracy: float
     rate_accuracy: float
+    azimuth_uncertainty: float | None
 
 
 class UnitNoise(Protocol):
@@ -345,6 +346,7 @@ def _budget_inputs(d: dict, smap: SourceMap, p: KeyPath, site: Site, table: Tabl
         gravity_anomaly_std=site.g_uncertainty,
         attitude_error_bound=table.attitude_accuracy,
         rate_error_bound=table.rate_accuracy,
+        azimuth_std=float(getattr(table, "azimuth_uncertainty", None) or 0.0),
     )
 
 

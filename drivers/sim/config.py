@@ -254,11 +254,14 @@ class BudgetInputs:
         C_b^n,true = (I + [δφ×]) C_b^n,reported, δφ uniform in ±bound per navigation axis, until the next one.
     rate_error_bound : relative. The reported rate of gimbal axis j is (1 + ε_j) × the true rate, ε_j uniform
         in ±bound, once per run and axis.
+    azimuth_std : rad. The outer gimbal's zero is off East by δψ ~ N(0, std²), once per run: the true
+        C_b^n = R_z(δψ) C_b^n,reported (the Earth rate is seen in the true frame; gravity is vertical either way).
     """
 
     gravity_anomaly_std: float = 0.0
     attitude_error_bound: float = 0.0
     rate_error_bound: float = 0.0
+    azimuth_std: float = 0.0
 
 
 @dataclass(frozen=True)

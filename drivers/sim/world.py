@@ -114,6 +114,9 @@ class SimulatedWorld:
         self._g = config.local_g + self._g_anomaly
         rb = float(bi.rate_error_bound) if bi is not None else 0.0
         self._rate_error = self._rng_budget.uniform(-rb, rb, 3) if rb > 0 else np.zeros(3)
+        az = float(getattr(bi, "azimuth_std", 0.0) or 0.0) if bi is not None else 0.0
+        self._azimuth_error = float(self._rng_budget.normal(0.0, az)) if az > 0 else 0.0  # drawn last: the
+        # earlier draws (g anomaly, rate errors) are the same with or without it
         self._model = InertialModel(config, unit_ss)
         self.chamber: ChamberPhysics | None = None
         if config.chamber is not None:
@@ -496,6 +499,9 @@ class SimulatedWorld:
             )
             # ω̇ from perfect-gimbal kinematics (the arcsec-level tilt/wobble effect on ω̇ is neglected)
         c_bn = c_tn @ self._mount
+        if self._azimuth_error != 0.0:
+            # installation: the outer gimbal's zero is δψ off East (a rotation about the local vertical)
+            c_bn = gimbal._rz(np.full(1, self._azimuth_error))[0] @ c_bn
         if np.any(self._dphi):
             # realised table attitude error: C_b^n,true = R(δφ) C_b^n,reported (navigation-frame rotation)
             from scipy.spatial.transform import Rotation
@@ -644,6 +650,7 @@ class SimulatedWorld:
             "g": np.array(self._g),
             "gravity_anomaly": np.array(self._g_anomaly),
             "table_rate_error": self._rate_error.copy(),
+            "table_azimuth_error": np.array(self._azimuth_error),
             "latitude": np.array(c.latitude),
             "earth_rate_enu": self._earth_n.copy(),
             "non_orthogonality": np.asarray(c.table.non_orthogonality, float),
