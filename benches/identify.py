@@ -338,6 +338,11 @@ class LiveIdentifier:
         if self._n >= self._flush_n and not self._spin:
             self.flush()
 
+    def parameter_kinds(self) -> list[tuple[str, str]]:
+        """(name, quantity kind) of every state the filter estimates, in its order (for the live view)."""
+        m = self.filter.model
+        return list(zip(m.names, m.kinds, strict=True))
+
     def on_step_end(self, step: Step, record: StepRecord) -> None:
         """Fuse what is buffered for the step."""
         self.flush()

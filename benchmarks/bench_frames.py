@@ -82,17 +82,25 @@ def best(fmt, data: bytes, expected: int, chunk: int, repeat: int = 3) -> tuple[
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--quick", action="store_true", help="10 s of data per format instead of 60 s")
+    ap.add_argument(
+        "--only",
+        nargs="+",
+        metavar="FORMAT",
+        help="only these formats, written to their own section (frames-more-units) of RESULTS.md",
+    )
     args = ap.parse_args(argv)
     seconds = 10.0 if args.quick else 60.0
     rows = []
+    per: dict[str, dict[str, float]] = {}
     worst = {"block": np.inf, "second": np.inf, "block_cpu": np.inf, "second_cpu": np.inf}
     load0 = os.getloadavg()[0]
-    for name in shipped_frames():
+    for name in args.only or shipped_frames():
         fmt, data, expected = stream(name, seconds)
         w_b, c_b = best(fmt, data, expected, int(0.2 * RATE * fmt.length))
         w_s, c_s = best(fmt, data, expected, int(RATE * fmt.length))
         w_w, _c_w = best(fmt, data, expected, len(data))
         r = {"block": seconds / w_b, "second": seconds / w_s, "block_cpu": seconds / c_b, "second_cpu": seconds / c_s}
+        per[name] = r
         for k, v in r.items():
             worst[k] = min(worst[k], v)
         rows.append(
@@ -123,7 +131,24 @@ def main(argv: list[str] | None = None) -> None:
         "`stim300` (all 24 STIM300 datagrams; the stream is its primary 0x93) against `stim300-0x93` alone, and "
         "`kvh-1750-a/b/c` (each with the two built-in-test layouts) show that cost.",
     ]
-    write_section("frames", "Frame decoding (every shipped format, 1 kHz)", "\n".join(body))
+    if args.only:
+        body = body[:-2]  # the multi-layout note is about the full table
+        ref = per.get("kvh-1750-a")
+        if ref is not None:
+            ratios = ", ".join(
+                f"`{n}` {r['block_cpu'] / ref['block_cpu']:.2f}× / {r['second_cpu'] / ref['second_cpu']:.2f}×"
+                for n, r in per.items()
+                if n != "kvh-1750-a"
+            )
+            body += [
+                "",
+                "Speed relative to `kvh-1750-a` decoded in the same run (CPU time; 0.2 s / 1 s feeds): "
+                f"{ratios}. The absolute figures scale with the machine's load (see the full `frames` section, "
+                "measured on a quiet machine, for `kvh-1750-a` alone).",
+            ]
+        write_section("frames-more-units", "Frame decoding, further units (1 kHz)", "\n".join(body))
+    else:
+        write_section("frames", "Frame decoding (every shipped format, 1 kHz)", "\n".join(body))
 
 
 if __name__ == "__main__":

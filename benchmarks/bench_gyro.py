@@ -24,7 +24,7 @@ from analysis.identification.batch import batch_identify
 from analysis.identification.kalman import StreamingIdentifier
 from analysis.identification.specification import UnitModel, get_model
 from analysis.units import ARCSEC, DEG, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, G0, MM, PPM, UG, UG_PER_G2
-from benchmarks._results import machine_line, write_section
+from benchmarks._results import write_section
 
 ACC = np.array(
     [100 * UG, -80 * UG, 120 * UG, 200 * PPM, -150 * PPM, 250 * PPM]
@@ -90,7 +90,6 @@ def main(argv: list[str] | None = None) -> None:
     _, x33 = _kf(unit, data, r, p_unit)
     n = sum(d[1].shape[0] for d in data)
     body = (
-        f"_{machine_line()}; `python -m benchmarks.bench_gyro{' --quick' if args.quick else ''}`_\n\n"
         f"Synthetic ten-step-fast-spin ({n} samples at {rate:g} Hz, ±60 °/s, 10 rev each way), best of "
         f"{args.repeat}, interleaved in one process.\n\n"
         "| identification | 18 states (accelerometer) | 33 states (accelerometer + gyro) | ratio |\n|---|---|---|---|\n"
@@ -101,7 +100,7 @@ def main(argv: list[str] | None = None) -> None:
         f"Target ≤ 2×. The accelerometer block of the 33-state estimate equals the 18-state one to "
         f"{np.max(np.abs(x33[:18] - x18) / np.abs(x18)):.1e} relative.\n"
     )
-    write_section("gyro_identification", "## Whole-unit identification cost (issue 25)", body)
+    write_section("gyro_identification", "Whole-unit identification cost (issue 25)", body)
     print(body)
 
 

@@ -88,6 +88,16 @@ class AxisLimits:
         """True for an axis without position limits."""
         return self.position_min is None and self.position_max is None
 
+    @classmethod
+    def absent_axis(cls) -> AxisLimits:
+        """The limits of a gimbal the table does not have (a single-axis table's other two): fixed at 0, no rate."""
+        return cls(rate_max=0.0, accel_max=0.0, position_min=0.0, position_max=0.0)
+
+    @property
+    def absent(self) -> bool:
+        """True for a gimbal the table does not have (:meth:`absent_axis`)."""
+        return self.rate_max == 0.0 and self.position_min == 0.0 and self.position_max == 0.0
+
     def position_bounds(self) -> tuple[float, float]:
         """Allowed gimbal angles [low, high], rad, tolerance included (±inf where unlimited)."""
         lo = -math.inf if self.position_min is None else self.position_min - _slack(self.position_min)
@@ -114,6 +124,8 @@ class AxisLimits:
         """The position limits in degrees for messages, e.g. ``"[-90°, 90°]"`` or ``"continuous"``."""
         if self.continuous:
             return "continuous"
+        if self.absent:
+            return "absent (the table has no such axis)"
         lo = "-inf" if self.position_min is None else f"{math.degrees(self.position_min):g}°"
         hi = "+inf" if self.position_max is None else f"{math.degrees(self.position_max):g}°"
         return f"[{lo}, {hi}]"

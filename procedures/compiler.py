@@ -44,13 +44,27 @@ from .loader import (
     NoteSpec,
     OrientSpec,
     Procedure,
+    RampSpec,
     RepeatSpec,
+    SoakSpec,
     SpinSpec,
     StepRotateSpec,
     StepSpec,
     WarmupSpec,
 )
-from .steps import CompiledProcedure, Hold, Move, Note, Spin, Step, Warmup, describe_attitude, spin_angle
+from .steps import (
+    CompiledProcedure,
+    Hold,
+    Move,
+    Note,
+    Ramp,
+    Soak,
+    Spin,
+    Step,
+    Warmup,
+    describe_attitude,
+    spin_angle,
+)
 
 ALIGN_TOL = 1e-9
 """Gimbal/body axis alignment tolerance on 1 − |cos| (≈ 0.009°)."""
@@ -146,7 +160,9 @@ class _Compiler:
         limits: Sequence[AxisLimits],
         mounting: np.ndarray | None,
         settle: float,
+        chamber: tuple[float, float] | None = None,
     ) -> None:
+        self.chamber = chamber
         self.proc = proc
         self.file = proc.path or "<procedure>"
         self.limits = tuple(limits)
@@ -255,6 +271,10 @@ class _Compiler:
                 self.step_rotate(spec, group, suffix)
             elif isinstance(spec, SpinSpec):
                 self.spin(spec, group, suffix)
+            elif isinstance(spec, SoakSpec):
+                self.soak(spec, group, suffix)
+            elif isinstance(spec, RampSpec):
+                self.ramp(spec, group, suffix)
             else:  # pragma: no cover - the loader allows no other leaf kinds
                 raise self.err(spec.line, spec.label, f"cannot compile step kind {spec.kind!r}")
         m = None if self.mounting is None else tuple(tuple(float(x) for x in row) for row in self.mounting)
@@ -277,6 +297,11 @@ class _Compiler:
             elif isinstance(spec, RepeatSpec):
                 for k in range(1, spec.count + 1):
                     self.flatten(spec.steps, group, f"{suffix}@{k}" if spec.count > 1 else suffix, out)
+            elif isinstance(spec, RampSpec):
+                out.append(_Leaf(spec, group, suffix))
+                count = self.ramp_repeats(spec)
+                for k in range(1, count + 1):
+                    self.flatten(spec.steps, group, f"{suffix}~{k}", out)
             else:
                 out.append(_Leaf(spec, group, suffix))
                 if len(out) > MAX_STEPS:
@@ -294,6 +319,69 @@ class _Compiler:
             if isinstance(leaf.spec, OrientSpec) or (isinstance(leaf.spec, WarmupSpec) and leaf.spec.at is not None):
                 return None
         return None
+
+    # ---- chamber steps (docs/methods/thermal.md) -------------------------------------------------------
+    def check_temperature(self, t: float, line: int | None, name: str) -> None:
+        if self.chamber is None:
+            raise self.err(
+                line, name, "this step needs a temperature chamber; the bench has none (add a chamber: section)"
+            )
+        lo, hi = self.chamber
+        if not lo - 1e-9 <= t <= hi + 1e-9:
+            raise self.err(
+                line,
+                name,
+                f"{t - 273.15:g} °C is outside the chamber's set-point limits [{lo - 273.15:g}, {hi - 273.15:g}] °C "
+                "of the bench; allowed: a temperature inside them",
+            )
+
+    def soak(self, spec: SoakSpec, group: str, suffix: str, base: str | None = None) -> None:
+        name = self.full(group, base or spec.name or "soak", suffix)
+        self.check_temperature(spec.setpoint, spec.line, name)
+        self.add(
+            Soak,
+            name=name,
+            group=group,
+            line=spec.line,
+            text=f"soak at {spec.setpoint - 273.15:g} °C",
+            setpoint=spec.setpoint,
+            target=spec.setpoint + spec.self_heating,
+            tolerance=spec.tolerance,
+            rate_limit=spec.rate_limit,
+            dwell=spec.dwell,
+            timeout=spec.timeout,
+        )
+
+    def ramp_repeats(self, spec: RampSpec) -> int:
+        """How many times the ramp's table sequence runs to cover the ramp (its bench time estimated)."""
+        from dataclasses import replace
+
+        sub = _Compiler(replace(self.proc, steps=spec.steps), self.limits, self.mounting, self.settle, self.chamber)
+        seq = sub.compile()
+        t, cur = 0.0, None
+        for st in seq.steps:
+            dt, cur = st.bench_time(self.limits, cur)
+            t += dt
+        if t <= 0:
+            raise self.err(spec.line, spec.label, "the ramp's steps take no time; give a table sequence that acquires")
+        return max(1, math.ceil(abs(spec.end - spec.start) / spec.rate / t))
+
+    def ramp(self, spec: RampSpec, group: str, suffix: str) -> None:
+        base = spec.name or "ramp"
+        self.check_temperature(spec.end, spec.line, self.full(group, base, suffix))
+        assert spec.soak is not None
+        self.soak(spec.soak, group, suffix, base=f"{base}-soak")
+        self.add(
+            Ramp,
+            name=self.full(group, f"{base}-start", suffix),
+            group=group,
+            line=spec.line,
+            text=f"ramp to {spec.end - 273.15:g} °C",
+            start=spec.start,
+            end=spec.end,
+            ramp_rate=spec.rate,
+            ramp_time=abs(spec.end - spec.start) / spec.rate,
+        )
 
     def warmup(self, spec: WarmupSpec, group: str, suffix: str, next_axis: str | None) -> None:
         name = self.full(group, spec.name or "warmup", suffix)
@@ -453,6 +541,7 @@ def compile_procedure(
     limits: Sequence[AxisLimits],
     mounting: np.ndarray | None = None,
     settle: float = DEFAULT_SETTLE,
+    chamber: tuple[float, float] | None = None,
 ) -> CompiledProcedure:
     """Compile a loaded procedure for a table and a unit mounting (pure: no I/O).
 
@@ -466,6 +555,8 @@ def compile_procedure(
         C_b^t, the unit's body frame expressed in the inner-gimbal frame (identity if None).
     settle : float
         Settling time after IN_POSITION / AT_RATE, s, used where neither the step nor ``defaults`` sets one.
+    chamber : (float, float) or None
+        The bench chamber's set-point limits (K); None: the bench has no chamber (``soak`` / ``ramp`` refused).
 
     Returns
     -------
@@ -486,4 +577,4 @@ def compile_procedure(
             raise ValueError("mounting: expected a proper rotation matrix C_b^t (3×3, orthonormal, det +1)")
     if not settle >= 0:
         raise ValueError(f"settle: expected seconds >= 0, got {settle!r}")
-    return _Compiler(proc, limits, m, float(settle)).compile()
+    return _Compiler(proc, limits, m, float(settle), chamber).compile()

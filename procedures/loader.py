@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from analysis.gimbal import ENU_DIRECTIONS
-from analysis.units import from_display
+from analysis.units import celsius_to_kelvin, from_display
 from core.provenance import text_sha256
 from core.yaml_source import ConfigError, KeyPath, SourceMap, load_yaml, load_yaml_text
 
@@ -157,6 +157,32 @@ class NoteSpec(StepSpec):
 
 
 @dataclass(frozen=True)
+class SoakSpec(StepSpec):
+    """Chamber set point and the soak criterion of the unit's temperature, SI (K, K/s, s)."""
+
+    kind: ClassVar[str] = "soak"
+    setpoint: float = 0.0
+    tolerance: float = 0.5
+    rate_limit: float = 0.1 / 60.0
+    dwell: float = 600.0
+    timeout: float = 4 * 3600.0
+    self_heating: float = 0.0
+
+
+@dataclass(frozen=True)
+class RampSpec(StepSpec):
+    """A set-point ramp ``start`` → ``end`` (K) at ``rate`` (K/s), soaked at ``start`` first, with ``steps`` (the
+    table sequence) repeated until the ramp ends."""
+
+    kind: ClassVar[str] = "ramp"
+    start: float = 0.0
+    end: float = 0.0
+    rate: float = 0.0
+    soak: SoakSpec | None = None
+    steps: tuple[StepSpec, ...] = ()
+
+
+@dataclass(frozen=True)
 class Defaults:
     """Procedure-wide defaults, s (None: not given, the compiler's default applies)."""
 
@@ -189,6 +215,8 @@ SPEC_TYPES: tuple[type[StepSpec], ...] = (
     RepeatSpec,
     GroupSpec,
     NoteSpec,
+    SoakSpec,
+    RampSpec,
 )
 """The step specifications a procedure file may contain (each class' ``kind`` is its key in the file)."""
 _KINDS: tuple[str, ...] = tuple(t.kind for t in SPEC_TYPES)
@@ -472,6 +500,8 @@ def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
             ctx, body, bpath, label, "settle_s", required=False, minimum=0.0, maximum=MAX_SECONDS, what="seconds >= 0"
         )
         return SpinSpec(line, label, name, axis=axis, rates=rates, revolutions=revs, duration=dur, settle=settle)
+    if kind in (SoakSpec.kind, RampSpec.kind):
+        return _parse_thermal(ctx, kind, body, bpath, label, line, name, prefix)
     if kind == RepeatSpec.kind:
         _keys(ctx, body, bpath, label, ("count", "steps"))
         count = _num(
@@ -490,6 +520,77 @@ def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
     gname = f"{prefix}/{name}" if prefix else name
     steps = _parse_steps(ctx, body["steps"], bpath + ("steps",), gname)
     return GroupSpec(line, label, name, group=gname, steps=steps)
+
+
+SOAK_KEYS = ("tolerance_k", "rate_k_per_min", "dwell_s", "timeout_s", "self_heating_k")
+TEMPERATURE_RANGE_C = (-100.0, 300.0)
+"""Plausible chamber temperatures, °C (the bench's own limits are checked by the compiler)."""
+
+
+def _soak_criterion(
+    ctx: _Ctx, body: Mapping[str, Any], bpath: KeyPath, label: str, line: int | None, name: str | None, sp: float
+) -> SoakSpec:
+    tol = _num(ctx, body, bpath, label, "tolerance_k", required=False, positive=True, maximum=50.0, what="kelvin > 0")
+    rate = _num(
+        ctx, body, bpath, label, "rate_k_per_min", required=False, positive=True, maximum=100.0, what="K/min > 0"
+    )
+    dwell = _num(ctx, body, bpath, label, "dwell_s", required=False, minimum=0.0, maximum=MAX_SECONDS, what="s >= 0")
+    tout = _num(ctx, body, bpath, label, "timeout_s", required=False, positive=True, maximum=MAX_SECONDS, what="s > 0")
+    heat = _num(ctx, body, bpath, label, "self_heating_k", required=False, minimum=-50.0, maximum=50.0, what="kelvin")
+    d = SoakSpec(line, label, name)
+    return SoakSpec(
+        line,
+        label,
+        name,
+        setpoint=sp,
+        tolerance=d.tolerance if tol is None else tol,
+        rate_limit=d.rate_limit if rate is None else rate / 60.0,
+        dwell=d.dwell if dwell is None else dwell,
+        timeout=d.timeout if tout is None else tout,
+        self_heating=0.0 if heat is None else heat,
+    )
+
+
+def _parse_thermal(
+    ctx: _Ctx,
+    kind: str,
+    body: Mapping[str, Any],
+    bpath: KeyPath,
+    label: str,
+    line: int | None,
+    name: str | None,
+    prefix: str,
+) -> StepSpec:
+    """``soak: {setpoint_c, tolerance_k, rate_k_per_min, dwell_s, timeout_s, self_heating_k}`` or
+    ``ramp: {from_c, to_c, rate_k_per_min, steps, + the soak keys for the soak at from_c}``."""
+    lo, hi = TEMPERATURE_RANGE_C
+    temp = "°C"
+    if kind == SoakSpec.kind:
+        _keys(ctx, body, bpath, label, ("name", "setpoint_c") + SOAK_KEYS)
+        sp = _num(ctx, body, bpath, label, "setpoint_c", minimum=lo, maximum=hi, what=temp)
+        assert sp is not None
+        return _soak_criterion(ctx, body, bpath, label, line, name, celsius_to_kelvin(sp))
+    _keys(ctx, body, bpath, label, ("name", "from_c", "to_c", "rate_k_per_min", "steps") + SOAK_KEYS)
+    t0 = _num(ctx, body, bpath, label, "from_c", minimum=lo, maximum=hi, what=temp)
+    t1 = _num(ctx, body, bpath, label, "to_c", minimum=lo, maximum=hi, what=temp)
+    rate = _num(ctx, body, bpath, label, "rate_k_per_min", positive=True, maximum=100.0, what="K/min > 0")
+    assert t0 is not None and t1 is not None and rate is not None
+    if t0 == t1:
+        raise ctx.err(bpath + ("to_c",), label, "to_c must differ from from_c (a ramp needs a temperature change)")
+    if "steps" not in body:
+        raise ctx.err(bpath, label, "steps is required (the table sequence repeated during the ramp)")
+    steps = _parse_steps(ctx, body["steps"], bpath + ("steps",), prefix)
+    soak = _soak_criterion(ctx, body, bpath, label, line, name, celsius_to_kelvin(t0))
+    return RampSpec(
+        line,
+        label,
+        name,
+        start=celsius_to_kelvin(t0),
+        end=celsius_to_kelvin(t1),
+        rate=rate / 60.0,
+        soak=soak,
+        steps=steps,
+    )
 
 
 def _settle(ctx: _Ctx, body: Mapping[str, Any], bpath: KeyPath, label: str) -> float | None:

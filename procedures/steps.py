@@ -15,7 +15,7 @@ from typing import ClassVar
 import numpy as np
 
 from analysis.gimbal import body_to_nav, direction_word
-from analysis.units import DEG, format_hms
+from analysis.units import CELSIUS_ZERO, DEG, format_hms
 from drivers.protocols import AXIS_NAMES, AxisLimits
 
 Vec3 = tuple[float, float, float]
@@ -177,6 +177,56 @@ class Note(Step):
 
     def describe(self, mounting: np.ndarray | None) -> str:
         return f"note: {self.text}"
+
+
+@dataclass(frozen=True, kw_only=True)
+class Soak(Step):
+    """Chamber to ``setpoint`` (K), then wait until the unit's own temperature has soaked (docs/methods/thermal.md):
+    within ``tolerance`` (K) of ``target`` and changing by less than ``rate_limit`` (K/s) for ``dwell`` s; the
+    step fails after ``timeout`` s. The table holds still; samples are recorded but do not count."""
+
+    kind: ClassVar[str] = "soak"
+    setpoint: float = 0.0
+    target: float = 0.0
+    tolerance: float = 0.5
+    rate_limit: float = 0.1 / 60.0
+    dwell: float = 600.0
+    timeout: float = 4 * 3600.0
+
+    def bench_time(self, limits: Sequence[AxisLimits], current: np.ndarray | None) -> tuple[float, np.ndarray | None]:
+        """At least the dwell (the lag of the unit is the bench's, unknown here)."""
+        return self.dwell, current
+
+    def describe(self, mounting: np.ndarray | None) -> str:
+        return (
+            f"soak at {self.setpoint - CELSIUS_ZERO:g} °C (unit within {self.tolerance:g} K, "
+            f"< {self.rate_limit * 60:g} K/min for {format_hms(self.dwell)}; time-out {format_hms(self.timeout)})"
+        )
+
+
+@dataclass(frozen=True, kw_only=True)
+class Ramp(Step):
+    """Start a set-point ramp from ``start`` to ``end`` (K) at ``ramp_rate`` (K/s) that runs while the steps after
+    it (the repeated table sequence) execute; ``ramp_time`` s long."""
+
+    kind: ClassVar[str] = "ramp"
+    start: float = 0.0
+    end: float = 0.0
+    ramp_rate: float = 0.0
+    ramp_time: float = 0.0
+
+    def bench_time(self, limits: Sequence[AxisLimits], current: np.ndarray | None) -> tuple[float, np.ndarray | None]:
+        return 0.0, current
+
+    def describe(self, mounting: np.ndarray | None) -> str:
+        return (
+            f"ramp {self.start - CELSIUS_ZERO:g} → {self.end - CELSIUS_ZERO:g} °C at {self.ramp_rate * 60:g} K/min "
+            f"({format_hms(self.ramp_time)}) while the sequence repeats"
+        )
+
+
+THERMAL_STEPS: tuple[type[Step], ...] = (Soak, Ramp)
+"""Steps that command the chamber (a bench without one cannot run them)."""
 
 
 def limit_problems(steps: Sequence[Step], limits: Sequence[AxisLimits]) -> list[str]:

@@ -8,8 +8,11 @@ so ``procedures`` may import the seam :mod:`drivers.protocols` (``AxisLimits``, 
 
 from __future__ import annotations
 
+import argparse
 import ast
 import re
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -177,7 +180,7 @@ def test_commands_import_neither_each_other_nor_the_cli() -> None:
 
 LAZY_COMMENT = re.compile(r"#\s*lazy: [^()]+ \(--help time\)")
 """The mark of a justified function-level import: ``# lazy: <heavy library> (--help time)``."""
-HEAVY = ("scipy", "matplotlib", "fpdf", "filterpy", "statsmodels", "pyvisa", "pymodbus", "tqdm")
+HEAVY = ("scipy", "matplotlib", "fpdf", "filterpy", "statsmodels", "pyvisa", "pymodbus", "tqdm", "starlette", "uvicorn")
 """Third-party libraries that cost ≥ 15 ms each to import, kept off the ``tablebench --help`` path. Not h5py
 (≈ 35 ms): the one HDF5 package, benches/recording/, uses it at import time and is imported at the top of the
 session and of most commands; taking it off the path is that module's change (import h5py where files are
@@ -281,14 +284,39 @@ def test_every_lazy_import_keeps_a_heavy_library_out_of_help() -> None:
 
 
 def test_no_test_skips() -> None:
-    """A missing module, dependency or shipped file fails the suite instead of silently skipping its tests."""
+    """A missing module, dependency or shipped file fails the suite instead of silently skipping its tests; the only
+    skip is ``tests.not_run_here`` (a browser or database server missing here), which prints a visible line."""
     skip = re.compile(r"importorskip|pytest\.skip\(|mark\.skip")
     here = Path(__file__).resolve()
     bad = [
         f"{path.relative_to(REPO_ROOT)}:{i}"
         for path in sorted((REPO_ROOT / "tests").rglob("*.py"))
-        if path.resolve() != here
+        if path.resolve() not in (here, (REPO_ROOT / "tests" / "__init__.py").resolve())  # not_run_here: visible
         for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
         if skip.search(line)
     ]
     assert bad == [], "tests that skip: " + ", ".join(bad)
+
+
+def test_command_summaries_name_every_command_with_its_help() -> None:
+    """``tablebench --help`` lists the commands from ``SUMMARIES`` without importing them: it must name every
+    command module, with the one-line help the module itself registers."""
+    from benches.cli import build_parser
+    from benches.cli.commands import SUMMARIES
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    registered = {ca.dest: ca.help for ca in sub._choices_actions}
+    assert SUMMARIES == registered, (
+        "benches/cli/commands/__init__.py SUMMARIES must list every command with the help its module registers"
+    )
+
+
+def test_help_imports_no_command_and_no_numpy() -> None:
+    """``tablebench --help`` imports no command module and nothing numerical (issue 32: ≤ 8× ``python -c pass``)."""
+    code = (
+        "import sys\nfrom benches.cli import main\ntry:\n    main(['--help'])\nexcept SystemExit:\n    pass\n"
+        "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('numpy', 'h5py', 'yaml', 'scipy') "
+        "or m.startswith('benches.cli.commands.'))\nprint('IMPORTED:' + ','.join(bad))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO_ROOT, check=True)
+    assert out.stdout.strip().splitlines()[-1] == "IMPORTED:"

@@ -11,13 +11,12 @@ Every subcommand lives in its own module under :mod:`benches.cli.commands` and d
 Modules are discovered automatically. Every user error derives from
 :class:`core.errors.UserError` and is printed as one clear line with exit code 2, never a traceback.
 
-Imports: building this parser imports every command module, so what they import at the top is what
-``tablebench --help`` pays for. Modules import at the top, except where that would load a heavy library
-(scipy, matplotlib, fpdf, filterpy, pymodbus, tqdm): the identification, the certificate, the bench factory
-and the analyses are imported inside the function that needs them, marked ``# lazy: <library> (--help time)``
-(``tests/test_architecture.py`` checks both: every function-level import in ``benches/`` carries the mark, and
-every marked one keeps a heavy library out of ``--help``). ``tablebench --help`` takes ≈ 0.3 s this way,
-≈ 1.5 s with everything loaded.
+Imports: ``tablebench --help`` lists the commands from :data:`benches.cli.commands.SUMMARIES` and imports none
+of their modules; ``tablebench COMMAND …`` imports that command's module only. Inside a command module, imports
+sit at the top, except where that would load a heavy library (scipy, matplotlib, fpdf, filterpy, pymodbus, tqdm,
+starlette, uvicorn) before the command needs it: those are imported inside the function, marked
+``# lazy: <library> (--help time)`` (``tests/test_architecture.py`` checks the marks, that ``SUMMARIES`` names
+every command module with its help, and that ``--help`` imports no command module and nothing numerical).
 """
 
 from __future__ import annotations
@@ -29,12 +28,28 @@ import sys
 from collections.abc import Sequence
 
 import benches.cli.commands as commands_pkg
+from benches.cli.commands import SUMMARIES
 from core.errors import UserError
 from core.provenance import software_version
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The top-level parser with every discovered subcommand."""
+def _modules() -> list[str]:
+    """The command modules present (``SUMMARIES`` should name them all; one it does not is imported to list it)."""
+    return sorted(m.name for m in pkgutil.iter_modules(commands_pkg.__path__) if not m.name.startswith("_"))
+
+
+def build_parser(command: str | None = None, *, everything: bool = True) -> argparse.ArgumentParser:
+    """The top-level parser.
+
+    Parameters
+    ----------
+    command : str, optional
+        The one subcommand whose module is imported and registered in full; the others are listed by their
+        one-line help only (:data:`benches.cli.commands.SUMMARIES`), without importing them.
+    everything : bool
+        With no ``command``: import and register every command module (tests, documentation); False lists
+        them only (what ``tablebench --help`` needs).
+    """
     parser = argparse.ArgumentParser(
         prog="tablebench",
         description="Calibrate inertial units on a three-axis turntable: run procedures, record, identify, "
@@ -43,21 +58,30 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"tablebench {software_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for info in sorted(pkgutil.iter_modules(commands_pkg.__path__), key=lambda m: m.name):
-        if info.name.startswith("_"):
-            continue
-        module = importlib.import_module(f"benches.cli.commands.{info.name}")
-        register = getattr(module, "register", None)
-        if register is not None:
-            register(sub)
+    for name in _modules():
+        if name == command or (command is None and everything) or name not in SUMMARIES:
+            register = getattr(importlib.import_module(f"benches.cli.commands.{name}"), "register", None)
+            if register is not None:
+                register(sub)
+        else:
+            sub.add_parser(name, help=SUMMARIES[name], add_help=False)
     for name, command_parser in sub.choices.items():
         command_parser.set_defaults(_parser=command_parser, command=name)
     return parser
 
 
+def _command_of(argv: Sequence[str]) -> str | None:
+    """The subcommand named on the command line (the first word that is not an option), if any."""
+    for word in argv:
+        if not word.startswith("-"):
+            return word
+    return None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the console script; returns the process exit code."""
-    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(_command_of(argv), everything=False)
     args, extra = parser.parse_known_args(argv)
     if extra:  # name the command in the message, as its own parser does for its other errors
         getattr(args, "_parser", parser).error(f"unrecognized arguments: {' '.join(extra)}")

@@ -176,6 +176,7 @@ class CounterDesc:
 @dataclass(frozen=True)
 class StatusDesc:
     """A status field. ``valid``: ``bits_set`` (bit set = channel valid, ``bits`` map channel → bit),
+    ``bits_clear`` (bit set = channel invalid, e.g. a clipping flag; ``bits`` map channel → bit),
     ``zero`` (0 = valid, anything else invalidates ``channels``), ``flags`` (the project's flag bits)."""
 
     field: str
@@ -510,7 +511,7 @@ def _parse_counter(d: dict, smap: SourceMap, names: set[str]) -> CounterDesc | N
 
 
 def _parse_status(d: dict, smap: SourceMap, names: set[str]) -> tuple[StatusDesc, ...]:
-    """``status``: list of {field, valid: bits_set|zero|flags, bits, channels}."""
+    """``status``: list of {field, valid: bits_set|bits_clear|zero|flags, bits, channels}."""
     status: list[StatusDesc] = []
     sl = d.get("status") or []
     if not isinstance(sl, list):
@@ -520,10 +521,10 @@ def _parse_status(d: dict, smap: SourceMap, names: set[str]) -> tuple[StatusDesc
         sd = get_mapping(sd, smap, p)
         check_keys(sd, smap, p, ["field", "valid", "bits", "channels"])
         sf = get_str(sd, smap, p, "field", choices=sorted(names))
-        valid = get_str(sd, smap, p, "valid", choices=["bits_set", "zero", "flags"])
+        valid = get_str(sd, smap, p, "valid", choices=["bits_set", "bits_clear", "zero", "flags"])
         bits: list[tuple[str, int]] = []
         chans: tuple[str, ...] = ()
-        if valid == "bits_set":
+        if valid in ("bits_set", "bits_clear"):
             bd = get_mapping(sd.get("bits"), smap, p + ("bits",))
             for ch in bd:
                 if ch not in FLAG_BITS:

@@ -237,6 +237,12 @@ class SampleConverter:
             elif st.valid == "zero":
                 if mask and raw.any():
                     status[raw != 0] |= mask
+            elif st.valid == "bits_clear":
+                r = raw.astype(np.int64)
+                bad_bits = sum(1 << bit for _ch, bit in st.bits)
+                if (r & bad_bits).any():  # some channel flagged (clipping…): flag it
+                    for ch, bit in st.bits:
+                        status[((r >> bit) & 1) == 1] |= np.uint16(1 << FLAG_BITS[ch])
             else:
                 r = raw.astype(np.int64)
                 valid_bits = sum(1 << bit for _ch, bit in st.bits)

@@ -11,7 +11,19 @@ from drivers.protocols import AxisLimits
 from procedures.compiler import compile_procedure
 from procedures.loader import load_procedure
 from procedures.paths import resolve_procedure, shipped_procedures
-from procedures.steps import Hold, Move, Note, Spin, Step, Warmup, limit_problems, move_time, trapezoid_time
+from procedures.steps import (
+    Hold,
+    Move,
+    Note,
+    Ramp,
+    Soak,
+    Spin,
+    Step,
+    Warmup,
+    limit_problems,
+    move_time,
+    trapezoid_time,
+)
 
 D = math.pi / 180
 LIMITS = (
@@ -20,12 +32,13 @@ LIMITS = (
     AxisLimits(rate_max=400 * D, accel_max=200 * D),
 )
 CONTINUOUS = tuple(AxisLimits(rate_max=lim.rate_max, accel_max=lim.accel_max) for lim in LIMITS)
-TYPES = (Move, Warmup, Hold, Spin, Note)
+TYPES = (Move, Warmup, Hold, Spin, Note, Soak, Ramp)
+CHAMBER = (273.15 - 40.0, 273.15 + 150.0)  # set-point limits, K (thermal procedures need a chamber)
 
 
 @pytest.mark.parametrize("name", shipped_procedures())
 def test_shipped_procedures_compile_to_typed_steps(name: str) -> None:
-    comp = compile_procedure(load_procedure(resolve_procedure(name)), limits=CONTINUOUS)
+    comp = compile_procedure(load_procedure(resolve_procedure(name)), limits=CONTINUOUS, chamber=CHAMBER)
     for s in comp.steps:
         assert type(s) in TYPES
         assert s.acquires == isinstance(s, (Warmup, Hold, Spin))

@@ -10,6 +10,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from benches.cli.arguments import add_bench_argument, add_procedure_arguments, check_seed, parse_overrides
+from benches.live.run_view import RunView
+from benches.live.server import DEFAULT_HOST, DEFAULT_PORT, parse_address
 from benches.progress import ProgressDisplay
 from benches.session import (
     Prepared,
@@ -27,6 +29,7 @@ from core.errors import UsageError
 
 if TYPE_CHECKING:
     from benches.identify import LiveIdentifier
+    from benches.runner import SampleObserver
 
 EXAMPLES = """examples:
   tablebench run                                   # ten-step procedure on the simulated bench
@@ -65,6 +68,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-identify", action="store_true", help="only record (no plan, no identification)")
     p.add_argument("--no-certificate", action="store_true", help="do not issue a certificate at the end")
     p.add_argument("--plain", action="store_true", help="plain progress lines even on a terminal")
+    p.add_argument(
+        "--live",
+        nargs="?",
+        const="",
+        default=None,
+        metavar="[HOST:]PORT",
+        help=f"serve a read-only live view of the run in a browser (default {DEFAULT_HOST}:{DEFAULT_PORT}; "
+        "another HOST only if you name it); every run also writes RUN/live.jsonl for 'tablebench view RUN'",
+    )
+    p.add_argument(
+        "--live-linger",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="with --live: keep serving the finished run's results this long before exiting (default 0)",
+    )
     p.set_defaults(func=run)
 
 
@@ -98,7 +117,17 @@ class _StopSignalsRaise:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Execute ``tablebench run``."""
+    """Execute ``tablebench run`` (with its live view: RUN/live.jsonl, and the page with ``--live``)."""
+    if not 0 <= args.live_linger < 86400:
+        raise UsageError(f"--live-linger {args.live_linger}: must be 0 or more seconds, less than a day")
+    view = RunView(parse_address(args.live) if args.live is not None else None, args.live_linger, say=_say)
+    try:
+        return _run(args, view)
+    finally:
+        view.close()
+
+
+def _run(args: argparse.Namespace, view: RunView) -> int:
     from benches.identify import IdentificationError, LiveIdentifier, plan_for  # lazy: filterpy, scipy (--help time)
 
     check_seed(args.seed)
@@ -128,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
                 )
             _say(f"{folder}: the recording is complete; finishing what was not done: {', '.join(todo)}")
             prep = prepare(folder / "bench.yaml", folder / "procedure.yaml", recorded_overrides(folder))
-            return _finish(args, folder, prep, [], todo)
+            return _finish(args, folder, prep, [], todo, view)
         prep = prepare(folder / "bench.yaml", folder / "procedure.yaml", recorded_overrides(folder))
     else:
         prep = prepare(args.bench, args.procedure, parse_overrides(args.set))
@@ -150,16 +179,21 @@ def run(args: argparse.Namespace) -> int:
             _say("pre-run plan (predicted 1σ):")
             _say(plan.table())
 
-    def observers(progress: ProgressDisplay) -> list[LiveIdentifier]:
-        if not identify:
-            return []
-        live.append(LiveIdentifier(prep.config, progress))
-        return live
+    def observers(progress: ProgressDisplay) -> list[SampleObserver]:
+        out: list[SampleObserver] = []
+        if identify:
+            live.append(LiveIdentifier(prep.config, progress))
+            out.append(live[0])
+        info = {"bench": prep.config.name, "procedure": prep.compiled.name, "run_folder": str(folder)}
+        rate = float(prep.config.unit.sample_rate)
+        out.append(view.make_observer(prep.compiled.steps, rate, prep.estimated_s, info, live[0] if live else None))
+        return out
 
     try:
         folder = folder if args.resume is not None else new_run_folder(args.out, Path(prep.procedure_path).stem)
         copy_inputs(prep, folder)
         _say(f"run folder: {folder}")
+        view.open(folder)
         result = execute(
             prep,
             folder,
@@ -171,6 +205,7 @@ def run(args: argparse.Namespace) -> int:
         )
     except SessionError as exc:
         raise UsageError(str(exc)) from None
+    view.run_ended(result.status, result.reason)
     if result.status != "complete":
         _say(f"run {result.status}: {result.reason}")
         _say(f"the table was brought to rest; the recording keeps every completed step: {folder}/recording.h5")
@@ -181,11 +216,16 @@ def run(args: argparse.Namespace) -> int:
     if not identify:
         return 0
     todo = ["identification"] + ([] if args.no_certificate else ["certificate"])
-    return _finish(args, folder, prep, live, todo)
+    return _finish(args, folder, prep, live, todo, view)
 
 
 def _finish(
-    args: argparse.Namespace, folder: Path, prep: Prepared, live: list[LiveIdentifier], todo: list[str]
+    args: argparse.Namespace,
+    folder: Path,
+    prep: Prepared,
+    live: list[LiveIdentifier],
+    todo: list[str],
+    view: RunView,
 ) -> int:
     """Identify and certify a run whose recording is complete (:func:`benches.session.identify_and_certify`);
     an interruption says what is left to do."""
@@ -203,4 +243,5 @@ def _finish(
         )
         _say(f"finish with: tablebench run --resume {folder}   (or: tablebench certificate {folder})")
         return 130
+    view.publish_results()
     return 0
