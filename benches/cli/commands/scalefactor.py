@@ -1,4 +1,4 @@
-"""``tablebench rate-transfer``: gyro scale factor, nonlinearity and asymmetry from a rate-transfer run."""
+"""``tablebench scalefactor``: gyro scale factor, nonlinearity and asymmetry from a rate-transfer run."""
 
 from __future__ import annotations
 
@@ -10,14 +10,14 @@ from core.errors import OutputError, UsageError
 
 EXAMPLES = """examples:
   tablebench run --procedure gyro-rate-transfer                     # the test itself (≈ 2.5 h of bench time)
-  tablebench rate-transfer runs/RUN                                  # writes RUN/rate_transfer.json
+  tablebench scalefactor runs/RUN                                    # writes RUN/rate_transfer.json
 """
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    """Add the ``rate-transfer`` subcommand."""
+    """Add the ``scalefactor`` subcommand."""
     p = sub.add_parser(
-        "rate-transfer",
+        "scalefactor",
         help="gyro scale factor, nonlinearity and asymmetry (IEEE 952/1431) from a rate-transfer run",
         description="For each gyro axis spun about (procedure gyro-rate-transfer): the least-squares line of the "
         "mean output against the reference rate (encoder angle over time + Earth rate), the scale-factor "
@@ -32,16 +32,18 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Execute ``tablebench rate-transfer``."""
+    """Execute ``tablebench scalefactor``."""
     from benches.identify import IdentificationError  # lazy: scipy (--help time)
     from benches.rate_transfer import rate_transfer_run, write_rate_transfer
 
+    folder = Path(args.run) if Path(args.run).is_dir() else Path(args.run).parent
+    out = Path(args.out) if args.out else folder / "rate_transfer.json"
+    if args.out and not out.parent.is_dir():
+        raise OutputError(f"{out}: its folder {out.parent} does not exist or is not a folder; choose another --out")
     try:
         report = rate_transfer_run(args.run)
     except (IdentificationError, ValueError) as exc:
         raise UsageError(f"{args.run}: {exc}") from None
-    folder = Path(args.run) if Path(args.run).is_dir() else Path(args.run).parent
-    out = Path(args.out) if args.out else folder / "rate_transfer.json"
     try:
         write_rate_transfer(report, out)
     except OSError as exc:
