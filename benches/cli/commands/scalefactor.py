@@ -34,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench scalefactor``."""
     from benches.identify import IdentificationError  # lazy: scipy (--help time)
-    from benches.rate_transfer import rate_transfer_run, write_rate_transfer
+    from benches.rate_transfer import rate_transfer_run, write_rate_transfer  # lazy: scipy (--help time)
 
     folder = Path(args.run) if Path(args.run).is_dir() else Path(args.run).parent
     out = Path(args.out) if args.out else folder / "rate_transfer.json"
