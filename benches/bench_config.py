@@ -467,16 +467,18 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
         serial_number=str(d.get("serial_number") or ""),
         float_word_order=word_order,
         rate_accuracy=get_number(d, smap, p, "rate_accuracy_ppm", 0.0, minimum=0, maximum=1e5) * 1e-6,
-        azimuth_uncertainty=(
-            None if d.get("azimuth_uncertainty_arcsec") is None
-            else get_number(d, smap, p, "azimuth_uncertainty_arcsec", minimum=0, maximum=36000) * ARCSEC
-        ),
+        azimuth_uncertainty=_optional_arcsec(d, smap, p, "azimuth_uncertainty_arcsec"),
         modbus_map=modbus_map,
         resource=resource,
         acl=acl,
         rate_tolerance=get_number(d, smap, p, "rate_tolerance_dps", 0.01, minimum=0, exclusive_minimum=True) * DEG,
         sim_controller=sim_controller or "acutrol",
     )
+
+
+def _optional_arcsec(d: dict, smap: SourceMap, p: KeyPath, key: str) -> float | None:
+    """An optional angle in arcsec (0 … 10°) as rad; None when the bench does not state it."""
+    return None if d.get(key) is None else get_number(d, smap, p, key, minimum=0, maximum=36000) * ARCSEC
 
 
 def _param_map(d: dict | None, smap: SourceMap, p: KeyPath, positive: bool) -> dict[str, float]:

@@ -547,6 +547,27 @@ def _recording_block(g: Gathered) -> dict[str, Any]:
     }
 
 
+def relative_misalignment(names: list[str], x: np.ndarray, cov: np.ndarray) -> dict[str, Any]:
+    """The gyro triad's misalignment relative to the accelerometer triad, τ_g,ij − τ_a,ij, with U (k = 2).
+
+    Both come from one recording against one table, so the table's own non-orthogonality and the unit's
+    mounting cancel in the difference (docs/methods/gyro-calibration.md); u from the certificate's full
+    covariance (the two triads' terms are correlated through the shared type-B inputs).
+    """
+    pairs = [p for p in ("xy", "xz", "yx", "yz", "zx", "zy") if f"gyro_tau_{p}" in names and f"tau_{p}" in names]
+    if not pairs:
+        return {}
+    out = {}
+    for p in pairs:
+        i, j = names.index(f"gyro_tau_{p}"), names.index(f"tau_{p}")
+        var = cov[i, i] + cov[j, j] - 2 * cov[i, j]
+        u = float(np.sqrt(max(var, 0.0)))
+        out[f"tau_{p}"] = {"value": float(x[i] - x[j]), "u": u, "expanded_uncertainty": 2 * u,
+                           "display_value": float((x[i] - x[j]) / ARCSEC), "display_expanded": 2 * u / ARCSEC,
+                           "display_unit": "arcsec"}  # fmt: skip
+    return {"gyro_to_accelerometer_misalignment": out}
+
+
 def assemble(g: Gathered, d: Decision, issue_date: str, with_plots: bool = True) -> Certificate:
     """The certificate's content model from what was gathered and decided (figures when ``with_plots``)."""
     cal, budget = g.cal, d.budget
@@ -577,6 +598,7 @@ def assemble(g: Gathered, d: Decision, issue_date: str, with_plots: bool = True)
             "information": written.get("information", {}),
             "measurement_noise": written["measurement_noise"],
             "steps_used": [geo.name for geo in g.geometry],
+            **relative_misalignment(list(cal.names), cal.x, budget.covariance),
         },
         parameters=d.results,
         budget_components=[

@@ -388,6 +388,14 @@ def _results_page(pdf: _CertificatePdf, c: Certificate) -> None:
         "covariance are in the machine-readable certificate (JSON). µg = 9.80665e-6 m/s²; ppm = 1e-6; ″ = arcsecond.",
         size=7.6,
     )
+    rel = c.identification.get("gyro_to_accelerometer_misalignment") or {}
+    if rel:
+        pairs = "; ".join(f"{k} {v['display_value']:.2f}″ ± {v['display_expanded']:.2f}″" for k, v in rel.items())
+        pdf.para(
+            "Gyro triad relative to the accelerometer triad (τ_g,ij − τ_ij; the table's orthogonality and the "
+            f"mounting cancel): {pairs} (U, k = 2).",
+            size=7.6,
+        )
 
 
 def _budget_page(pdf: _CertificatePdf, c: Certificate) -> None:
