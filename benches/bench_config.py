@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -47,6 +47,8 @@ from core.yaml_source import get_list_of_maps as _list_of_maps
 from core.yaml_source import get_matrix as _matrix
 from core.yaml_source import get_section as _section
 from drivers.acutrol.settings import AclSettings, default_profile
+from drivers.aerosmith.settings import AerosmithSettings
+from drivers.chamber.bench_section import ChamberSection, parse_chamber
 from drivers.imu_unit.counts import CountScale
 from drivers.imu_unit.description import (
     DEFAULT_FRAME,
@@ -66,6 +68,7 @@ from drivers.sim.config import (
     ACCEL_PARAM_NAMES,
     SimConfig,
 )
+from drivers.sim.thermal_config import ChamberSim
 
 __all__ = [
     "BenchConfig",
@@ -170,6 +173,7 @@ class TurntableSpec:
         fastest axis (a table that turns 300 ppm fast at 60 °/s is 0.018 °/s off its command, and at rate)."""
         return self.rate_tolerance + self.rate_accuracy * max(lim.rate_max for lim in self.limits)
     sim_controller: str = "acutrol"  # simulated benches: which controller the simulator speaks
+    aerosmith: AerosmithSettings | None = None  # Ideal Aerosmith open points (driver ideal-aerosmith or simulated)
 
 
 @dataclass(frozen=True)
@@ -221,6 +225,8 @@ class BenchConfig:
     limits: dict[str, float]
     simulation: SimConfig | None
     reference_standards: tuple[ReferenceStandard, ...] = ()
+    chamber: ChamberSection | None = None
+    """The temperature chamber (``chamber:`` section, docs/protocols/chambers.md), None without one."""
 
 
 @dataclass(frozen=True)
@@ -294,10 +300,25 @@ def _axis(d: dict, smap: SourceMap, p: KeyPath) -> AxisLimits:
     )
 
 
-TURNTABLE_DRIVERS = ["sim", "acutrol", "modbus-tcp"]
-SIM_CONTROLLERS = ["acutrol", "modbus", "modbus-strict"]
-"""Simulated controllers: an ACUTROL (ACL), the tablebench Modbus controller, or a strict PLC (same register map
-and world, its watchdog running from power-up, not from the first heartbeat)."""
+TURNTABLE_DRIVERS = ["sim", "acutrol", "modbus-tcp", "ideal-aerosmith"]
+SIM_CONTROLLERS = ["acutrol", "modbus", "modbus-strict", "ideal-aerosmith"]
+"""Simulated controllers: an ACUTROL (ACL), the tablebench Modbus controller, a strict PLC (same register map
+and world, its watchdog running from power-up, not from the first heartbeat), or an Ideal Aerosmith single-axis
+table (in-process)."""
+
+
+def _aerosmith(d: dict | None, smap: SourceMap, p: KeyPath) -> AerosmithSettings:
+    """The ``turntable.aerosmith`` section: the open points of the Ideal Aerosmith table language."""
+    d = d or {}
+    check_keys(d, smap, p, ["axis", "command_terminator", "prompt", "position_query", "rate_query"])
+    dflt = AerosmithSettings()
+    return AerosmithSettings(
+        axis=get_str(d, smap, p, "axis", dflt.axis, choices=list(AXIS_NAMES)),
+        command_terminator=get_str(d, smap, p, "command_terminator", dflt.command_terminator),
+        prompt=get_str(d, smap, p, "prompt", dflt.prompt),
+        position_query=get_str(d, smap, p, "position_query", dflt.position_query),
+        rate_query=get_str(d, smap, p, "rate_query", dflt.rate_query),
+    )
 
 
 def _acl(d: dict | None, smap: SourceMap, p: KeyPath, resource: str | None, simulated: bool) -> AclSettings:
@@ -379,12 +400,24 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
             "watchdog_s",
             "float_word_order",
             "modbus_map",
+            "aerosmith",
         ],
     )
     driver = get_str(d, smap, p, "driver", choices=TURNTABLE_DRIVERS)
     address = _opt_str(d, smap, p, "address")
     resource = _opt_str(d, smap, p, "resource")
     acl_speaker = driver == "acutrol" or (driver == "sim" and (sim_controller or "acutrol") == "acutrol")
+    aero = driver == "ideal-aerosmith" or (driver == "sim" and sim_controller == "ideal-aerosmith")
+    if driver == "ideal-aerosmith" and not address:
+        raise smap.error(
+            p + ("address",),
+            "is required for driver 'ideal-aerosmith': the serial port (e.g. '/dev/ttyUSB0', 'COM3' or "
+            "'socket://host:port' for a device server; 9600 8N1)",
+        )
+    if d.get("aerosmith") is not None and not aero:
+        raise smap.error(
+            p + ("aerosmith",), "is only for an Ideal Aerosmith table (driver 'ideal-aerosmith' or simulated)"
+        )
     if driver == "modbus-tcp" and not address:
         raise smap.error(p + ("address",), "is required for driver 'modbus-tcp' (e.g. '192.168.0.10:502')")
     if driver == "acutrol" and not resource:
@@ -412,19 +445,32 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
         modbus_map = load_modbus_map(map_path)
     if d.get("acl") is not None and not acl_speaker:
         raise smap.error(p + ("acl",), "is only for an ACUTROL table (driver 'acutrol' or a simulated ACUTROL)")
-    if acl_speaker:
+    if acl_speaker or aero:
         for key in ("heartbeat_period_s", "watchdog_s"):
             if d.get(key) is not None:
                 raise smap.error(
                     p + (key,),
-                    "the ACUTROL command language has no host heartbeat or watchdog; remove this key "
-                    "(the host stops the axes itself on every exit path)",
+                    f"the {'ACUTROL command language' if acl_speaker else 'Ideal Aerosmith command set'} has no host "
+                    "heartbeat or watchdog; remove this key (the host stops the axes itself on every exit path)",
                 )
+    aerosmith = None
+    if aero:
+        ap = p + ("aerosmith",)
+        aerosmith = _aerosmith(get_mapping(d["aerosmith"], smap, ap) if d.get("aerosmith") else None, smap, ap)
     axes = _section(d, smap, p, "axes")
     assert axes is not None
     check_keys(axes, smap, p + ("axes",), list(AXIS_NAMES))
     limits = []
     for name in AXIS_NAMES:
+        if axes.get(name) == "absent":  # a gimbal the table does not have (a single-axis table's other two)
+            limits.append(AxisLimits.absent_axis())
+            continue
+        if aerosmith is not None and name != aerosmith.axis:
+            raise smap.error(
+                p + ("axes", name),
+                f"an Ideal Aerosmith table has one axis ({aerosmith.axis}, turntable.aerosmith.axis); write "
+                f"'{name}: absent'",
+            )
         ad = _section(axes, smap, p + ("axes",), name)
         assert ad is not None
         limits.append(_axis(ad, smap, p + ("axes", name)))
@@ -462,7 +508,7 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
         in_position_time=get_number(d, smap, p, "in_position_time_s", 0.2, minimum=0),
         attitude_accuracy=get_number(d, smap, p, "attitude_accuracy_arcsec", 1.0, minimum=0) * ARCSEC,
         heartbeat_period=hb,
-        watchdog=None if acl_speaker else (wd or None),
+        watchdog=None if acl_speaker or aero else (wd or None),
         model=str(d.get("model") or ""),
         serial_number=str(d.get("serial_number") or ""),
         float_word_order=word_order,
@@ -473,6 +519,7 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
         acl=acl,
         rate_tolerance=get_number(d, smap, p, "rate_tolerance_dps", 0.01, minimum=0, exclusive_minimum=True) * DEG,
         sim_controller=sim_controller or "acutrol",
+        aerosmith=aerosmith,
     )
 
 
@@ -560,7 +607,8 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
         nd, smap, npth, ["vrw_ug_per_sqrt_hz", "bias_instability_ug", "arw_deg_per_sqrt_h", "gyro_bias_instability_dph"]
     )
     noise = NoiseSpec(
-        vrw=np.array(_vec(nd, smap, npth, "vrw_ug_per_sqrt_hz", UG_PER_SQRT_HZ, minimum=0)),
+        # > 0: the identification weights every sample by it (R = VRW² fs); 0 would claim a noise-free unit
+        vrw=np.array(_vec(nd, smap, npth, "vrw_ug_per_sqrt_hz", UG_PER_SQRT_HZ, minimum=0, exclusive_minimum=True)),
         bias_instability=np.array(_vec(nd, smap, npth, "bias_instability_ug", UG, (0.0,) * 3, minimum=0)),
         arw=np.array(_vec(nd, smap, npth, "arw_deg_per_sqrt_h", DEG_PER_SQRT_HOUR, (0.0,) * 3, minimum=0)),
         gyro_bias_instability=np.array(
@@ -653,7 +701,9 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
     if data is None:
         raise ConfigError(smap.file, None, "the bench file is empty; see benches/BENCH_FORMAT.md")
     root = get_mapping(data, smap, ())
-    check_keys(root, smap, (), ["name", "site", "turntable", "unit", "limits", "simulation", "reference_standards"])
+    check_keys(
+        root, smap, (), ["name", "site", "turntable", "unit", "limits", "simulation", "reference_standards", "chamber"]
+    )
     name = get_str(root, smap, (), "name")
     site = _site(_section(root, smap, (), "site"), smap)  # type: ignore[arg-type]
     sim_raw = root.get("simulation")
@@ -670,6 +720,14 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
     if sim_d is not None and not (table.driver == "sim" and unit.driver == "sim"):
         raise smap.error(("simulation",), "is only allowed when both turntable.driver and unit.driver are 'sim'")
     sim = parse_simulation(sim_d, smap, site, table, unit) if sim_d is not None else None
+    chamber = parse_chamber(root["chamber"], smap) if root.get("chamber") is not None else None
+    if chamber is not None and chamber.simulated:
+        if sim is None:
+            raise smap.error(("chamber", "driver"), "sim is only allowed on a simulated bench (simulation: section)")
+        s = chamber.config.settings
+        sim = replace(sim, chamber=ChamberSim(setpoint_min=s.setpoint_min, setpoint_max=s.setpoint_max))
+    elif chamber is not None and sim is not None:
+        raise smap.error(("chamber", "driver"), "a simulated bench needs driver: sim for its chamber")
     return BenchConfig(
         name=name,
         path=path,
@@ -680,7 +738,17 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
         limits=limits,
         simulation=sim,
         reference_standards=_reference_standards(root, smap),
+        chamber=chamber,
     )
+
+
+def chamber_limits(config: Any) -> tuple[float, float] | None:
+    """A bench's chamber set-point limits (K) for the procedure compiler; None without a chamber."""
+    chamber = getattr(config, "chamber", None)
+    if chamber is None:
+        return None
+    s = chamber.config.settings
+    return s.setpoint_min, s.setpoint_max
 
 
 def _reference_standards(d: dict, smap: SourceMap) -> tuple[ReferenceStandard, ...]:

@@ -537,7 +537,11 @@ class CalibrationResult:
             d = json.loads(p.read_text(encoding="utf-8"))
         except FileNotFoundError:
             raise CalibrationFormatError(f"{p}: no such calibration file; identify the run first") from None
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        except IsADirectoryError:
+            raise CalibrationFormatError(f"{p}: is a folder; give its calibration.json") from None
+        except OSError as exc:
+            raise CalibrationFormatError(f"{p}: cannot be read ({exc.strerror or exc})") from None
+        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise CalibrationFormatError(f"{p}: not readable JSON ({exc.__class__.__name__}: {exc})") from None
         return cls.from_dict(d, str(p))
 

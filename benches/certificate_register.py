@@ -21,6 +21,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from core.errors import UserError
+from core.outputs import check_output
 
 REGISTER_NAME = "certificate-register.jsonl"
 LOCK_NAME = "certificate-register.lock"
@@ -202,6 +203,7 @@ def free_paths(run: Path, number: str) -> tuple[Path, Path]:
 
 def write_new(path: Path, data: bytes) -> None:
     """Write ``data`` to a file that must not exist yet (atomic: temporary file + link; never overwrites)."""
+    check_output(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
         tmp.write_bytes(data)

@@ -40,9 +40,11 @@ from typing import Any, BinaryIO
 from core.yaml_source import ConfigError
 from drivers import connect
 from drivers.acutrol import AclTurntable
+from drivers.aerosmith import AerosmithTable
 from drivers.protocols import InertialUnit, Turntable
 from drivers.sim.acl_controller import AclController
 from drivers.sim.acl_server import AclTableServer
+from drivers.sim.aerosmith_controller import AerosmithController
 from drivers.sim.inprocess import SimInertialUnit, SimTurntable
 from drivers.sim.loopback import Loopback
 from drivers.sim.modbus_controller import ModbusTableServer
@@ -168,8 +170,22 @@ def _open_simulated(
     world = SimulatedWorld.from_bench(config, seed)
     tt = config.turntable
     acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
+    aero = getattr(tt, "sim_controller", "") == "ideal-aerosmith"
+    if aero and transport != "in-process":
+        raise _bad(config, "the simulated Ideal Aerosmith table runs in-process only: use --transport in-process")
     if transport == "in-process":
         unit = SimInertialUnit(world)
+        if aero:
+            table = aerosmith_table(AerosmithController(world, tt.aerosmith).stream(DEFAULT_TIMEOUT_S), tt)
+            what = "simulated Ideal Aerosmith (in-memory)"
+            return Bench(
+                table,
+                unit,
+                world,
+                "in-process",
+                f"{config.name}: simulated bench, {what}",
+                [table.close, unit.close],
+            )
         if acl:
             table: Turntable = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
             what = "simulated ACUTROL (ACL, in-memory)"
@@ -225,6 +241,17 @@ def _acl_options(tt: TurntableSpec) -> dict[str, Any]:
     }
 
 
+def aerosmith_table(stream: Any, tt: TurntableSpec) -> AerosmithTable:
+    """The Ideal Aerosmith driver for a bench's turntable section on an open byte stream."""
+    return AerosmithTable(
+        stream,
+        tuple(tt.limits),  # type: ignore[arg-type]
+        settings=tt.aerosmith,
+        position_tolerance=tt.position_tolerance,
+        rate_tolerance=tt.rate_tolerance,
+    )
+
+
 def acl_turntable(transport: MessageTransport, tt: TurntableSpec) -> AclTurntable:
     """The ACL driver for a bench's turntable section on an open transport (settings and tolerances from the bench)."""
     return AclTurntable(transport, tuple(tt.limits), **_acl_options(tt))  # type: ignore[arg-type]
@@ -254,6 +281,11 @@ def _hardware_table(config: BenchConfig) -> connect.Connection[Any]:
     elif tt.driver == "acutrol":
         conn = _acutrol_connection(tt.resource, tt)
         conn.where = f"ACUTROL (ACL) at {tt.resource}"
+    elif tt.driver == "ideal-aerosmith":
+        conn = connect.aerosmith_table(
+            tt.address, lambda stream: aerosmith_table(stream, tt), timeout=DEFAULT_TIMEOUT_S
+        )
+        conn.where = f"Ideal Aerosmith at {tt.address} (9600 8N1)"
     else:
         raise _bad(config, f"turntable.driver {tt.driver!r} needs a simulation section; real: acutrol, modbus-tcp")
     return conn
@@ -277,10 +309,17 @@ def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str)
     world = SimulatedWorld.from_bench(config, seed)
     tt = config.turntable
     acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
+    aero = getattr(tt, "sim_controller", "") == "ideal-aerosmith"
+    if aero and transport != "in-process":
+        raise _bad(config, "the simulated Ideal Aerosmith table runs in-process only: use --transport in-process")
     closers: list[Callable[[], None]] = []
     ok = False
     try:
-        if transport == "in-process":
+        if aero:
+            table = aerosmith_table(AerosmithController(world, tt.aerosmith).stream(DEFAULT_TIMEOUT_S), tt)
+            what = "simulated Ideal Aerosmith (in-memory)"
+            closers.append(table.close)
+        elif transport == "in-process":
             if acl:
                 table: Turntable = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
                 what = "simulated ACUTROL (ACL, in-memory)"

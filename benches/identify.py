@@ -370,10 +370,14 @@ class LiveIdentifier:
         del self._readings[:-3]
         if self.progress is not None:
             x, s = self.filter.estimate, self.filter.sigma
+            unseen = set(unobservable_parameters(self.filter.information, self.filter.r_var, model=self.model))
             parts = []
             for name in self.show:
                 k = self.model.index(name)
                 unit, one = DISPLAY_UNITS[self.model.kinds[k]]
+                if name in unseen:  # the motion so far does not see it: its value is only the prior's
+                    parts.append(f"{name} not identified yet")
+                    continue
                 parts.append(f"{name} {x[k] / one:.4g}±{s[k] / one:.2g} {unit}")
             self.progress.extra(", ".join(parts) + " (± = filter white-noise 1σ, k = 1)")
 

@@ -69,10 +69,13 @@ class ProgressDisplay:
         speed = bench_elapsed_s / wall if wall > 0 else float("nan")
         bench_left = max(self.total - bench_elapsed_s, 0.0)
         wall_left = bench_left / speed if speed and speed == speed and speed > 0 else float("nan")
-        text = (
-            f"{self._step} | bench {_hms(bench_elapsed_s)}/{_hms(self.total)} ETA {_hms(bench_left)} | "
-            f"wall {_hms(wall)} ETA {_hms(wall_left)} ({speed:.0f}x real time)"
-        )
+        if bench_elapsed_s <= self.total:
+            bench_txt = f"bench {_hms(bench_elapsed_s)}/{_hms(self.total)} ETA {_hms(bench_left)}"
+            wall_txt = f"wall {_hms(wall)} ETA {_hms(wall_left)}"
+        else:  # past the estimate (settling, a slow controller): never "0:53:58/0:53:31", never a negative ETA
+            bench_txt = f"bench {_hms(bench_elapsed_s)}, past the {_hms(self.total)} estimate, ETA unknown"
+            wall_txt = f"wall {_hms(wall)}"
+        text = f"{self._step} | {bench_txt} | {wall_txt} ({speed:.0f}x real time)"
         if self._extra:
             text += f" | {self._extra}"
         if self._bar is not None:

@@ -26,7 +26,7 @@ from procedures.compiler import compile_procedure
 from procedures.loader import load_procedure_text
 from procedures.steps import CompiledProcedure
 
-from .bench_config import BenchConfig, load_bench_text
+from .bench_config import BenchConfig, chamber_limits, load_bench_text
 from .recording import Recording, RunHeader, StepRecord, open_recording
 
 
@@ -126,7 +126,9 @@ class RecordedRun:
                 return None
             cfg = self.config
             proc = load_procedure_text(self.procedure_text, f"{self.path}:/procedure_yaml", overrides or None)
-            return compile_procedure(proc, limits=cfg.turntable.limits, mounting=cfg.unit.mounting)
+            return compile_procedure(
+                proc, limits=cfg.turntable.limits, mounting=cfg.unit.mounting, chamber=chamber_limits(cfg)
+            )
         except (UserError, ValueError):
             return None
 

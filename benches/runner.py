@@ -72,6 +72,10 @@ class RunResult:
     samples: int = 0
     bench_seconds: float = 0.0
     reason: str = ""
+    at_rest: bool = True
+    """False when the final stop could not be commanded or rest could not be confirmed (the table may still be
+    moving); ``rest_problem`` says why."""
+    rest_problem: str = ""
 
 
 STOP_SIGNALS: tuple[signal.Signals, ...] = tuple(
@@ -278,15 +282,16 @@ class Runner:
         return rec
 
     # ---- the run -----------------------------------------------------------------------------------------------
-    def _safe_stop(self) -> None:
-        """Stop the table under control and wait (bounded) for rest; never raises."""
+    def _safe_stop(self) -> str:
+        """Stop the table under control and wait (bounded) for rest; never raises. Returns "" when the table was
+        seen at rest, else what went wrong (the table may still be moving)."""
         try:
             self.table.stop()
         except Exception as exc:  # noqa: BLE001 - cleanup must go on
             log.error("could not command stop: %s", exc)
             if self._recording:
                 self.rec.event(self._time(), "error", f"stop command failed: {exc}")
-            return
+            return f"the stop command failed ({exc})"
         limit = self._sample + int(self.stop_timeout_s * self.rate)
         try:
             state = self.table.read_state()
@@ -298,16 +303,20 @@ class Runner:
                 state = self.table.read_state()
                 if self._recording:
                     self.rec.add_table(state)
+            rest = self._at_rest(state)
             if self._recording:
-                self.rec.event(state.time, "info", "table at rest" if self._at_rest(state) else "table not at rest")
+                self.rec.event(state.time, "info", "table at rest" if rest else "table not at rest")
+            return "" if rest else f"the table did not come to rest within {self.stop_timeout_s:g} s of the stop"
         except KeyboardInterrupt:  # a second Ctrl-C: the stop was sent; do not wait for rest
             log.warning("stop sent; not waiting for the table to come to rest (second interrupt)")
             if self._recording:
                 self.rec.event(self._time(), "warning", "stop sent; wait for rest abandoned by a second interrupt")
+            return "the stop was sent but the wait for rest was abandoned (second interrupt)"
         except Exception as exc:  # noqa: BLE001 - cleanup must go on
             log.error("while waiting for rest: %s", exc)
             if self._recording:
                 self.rec.event(self._time(), "error", f"could not confirm rest: {exc}")
+            return f"the stop was sent but rest could not be confirmed ({exc})"
 
     def run(self, *, replay: Iterable[int] = (), start_sample: int = 0) -> RunResult:
         """Run the steps; those in ``replay`` are executed without recording (simulated resume).
@@ -328,6 +337,7 @@ class Runner:
         self._sample = 0
         current: Step | None = None
         unexpected: Exception | None = None
+        rest_problem = ""
         with _InterruptFlag() as flag:
             self._interrupt = flag
             try:
@@ -364,20 +374,22 @@ class Runner:
                 self._recording = True
                 if status != "complete":
                     self.rec.event(self._time(), "error", f"run stopped: {reason}")
-                    self._safe_stop()
+                    rest_problem = self._safe_stop()
                     if current is not None:
                         try:
                             self._record_step(current, status)
                         except Exception as exc:  # noqa: BLE001
                             log.error("could not record the interrupted step: %s", exc)
                 else:
-                    self._safe_stop()
+                    rest_problem = self._safe_stop()
                 self.rec.set_status(status)
                 self._interrupt = None
                 self._show(self.progress.update, self._progress_base, force=True)
         if unexpected is not None:
             raise unexpected
-        return RunResult(status, completed, self._sample, self._sample / self.rate, reason)
+        return RunResult(
+            status, completed, self._sample, self._sample / self.rate, reason, not rest_problem, rest_problem
+        )
 
     def _show(self, fn: Callable[..., None], *args: Any, **kw: Any) -> None:
         """Progress output; a closed terminal (SIGHUP, EIO/EPIPE) silences it instead of stopping the run."""

@@ -27,7 +27,7 @@ from procedures.loader import load_procedure
 from procedures.paths import default_bench_path, resolve_bench, resolve_procedure
 from procedures.steps import CompiledProcedure
 
-from .bench_config import BenchConfig, load_bench
+from .bench_config import BenchConfig, chamber_limits, load_bench
 from .progress import ProgressDisplay
 from .recorded_run import RecordedRun, open_run
 from .recording import Hdf5Recorder, RecordingError, open_recording
@@ -68,7 +68,9 @@ def prepare(
     procedure_path = resolve_procedure(procedure or DEFAULT_PROCEDURE)
     config = load_bench(bench_path)
     proc = load_procedure(procedure_path, overrides or None)
-    compiled = compile_procedure(proc, limits=config.turntable.limits, mounting=config.unit.mounting)
+    compiled = compile_procedure(
+        proc, limits=config.turntable.limits, mounting=config.unit.mounting, chamber=chamber_limits(config)
+    )
     check_against_unit(compiled, float(config.unit.sample_rate))
     return Prepared(
         bench_path,
@@ -171,6 +173,14 @@ def execute(
                     "continue with the same seed (omit --seed)"
                 )
             seed = rec.header.seed
+            recorded = rec.header.transport
+            if transport is not None and recorded and transport != recorded:
+                raise SessionError(
+                    f"{folder}: --transport {transport} differs from the run's recorded transport {recorded}; a "
+                    f"resumed run continues on its own transport (omit --transport)"
+                )
+            if recorded:
+                transport = recorded  # a loopback run resumes on loopback, never silently in-process
         start_sample = done[-1].end_sample if done else 0
         done_idx = [s.index for s in done]
         if config.simulation is not None:
@@ -266,6 +276,7 @@ def recording_status(path: Path) -> dict[str, object]:
                 "overrides": dict(h.procedure_overrides),
                 "seed": h.seed,
                 "integrity": "verified" if rec.integrity_verified else "not verifiable",
+                "tail": rec.unfinished_tail,
             }
     except RecordingError as exc:
         return {"path": str(path.parent), "status": "DAMAGED", "problem": str(exc)}
@@ -364,13 +375,23 @@ def _identify_and_certify(
         pdf, js, verdict = issue_certificate(folder, recorded=recorded, sinks=sinks)
         done.append("certificate")
         say(f"certificate: {pdf} ({verdict})", err=False)
-        for line in verdict_explanation(js, verdict):
+        for line in verdict_explanation(js, verdict, spins=_has_spins(folder)):
             say(line)
     return done
 
 
-def verdict_explanation(certificate_json: Path, verdict: str) -> list[str]:
-    """Plain words for the run's closing lines: why the certificate says what it says, and what to do."""
+def _has_spins(folder: Path) -> bool | None:
+    """Whether the run's recording holds a spin step (None if unreadable)."""
+    try:
+        with open_recording(folder / "recording.h5") as rec:
+            return any(s.kind == "spin" for s in rec.complete_steps())
+    except RecordingError:
+        return None
+
+
+def verdict_explanation(certificate_json: Path, verdict: str, *, spins: bool | None = True) -> list[str]:
+    """Plain words for the run's closing lines: why the certificate says what it says, and what to do.
+    ``spins``: whether the run had spin steps (a static record cannot see the size effect at all)."""
     if verdict != "INCONCLUSIVE":
         return []
     try:
@@ -384,7 +405,15 @@ def verdict_explanation(certificate_json: Path, verdict: str) -> list[str]:
            "conformity could not be shown for all of them."]  # fmt: skip
     if not_eval:
         sizes = [n for n in not_eval if n.startswith("r_")]
-        if sizes:
+        if sizes and spins is False:
+            out.append(
+                f"  {', '.join(sizes)}: the size effect (the accelerometers' offsets from the rotation centre) "
+                "needs the unit to spin; this procedure has no spin steps (a static record), so it cannot see it."
+            )
+            out.append(
+                "  To calibrate it, run a procedure with fast spins: tablebench run --procedure ten-step-fast-spin"
+            )
+        elif sizes:
             out.append(
                 f"  {', '.join(sizes)}: the size effect (the accelerometers' offsets from the rotation centre) "
                 "cannot be identified by this procedure: its spins are too slow (at the published 1.6 °/s the "

@@ -16,6 +16,7 @@ from typing import Any, Literal
 import numpy as np
 
 from core.errors import OutputError
+from core.outputs import check_output
 
 NonFinite = Literal["error", "null"]
 
@@ -51,9 +52,10 @@ def dumps(obj: Any, nonfinite: NonFinite = "error", indent: int = 1) -> str:
 def write_text_atomic(path: str | Path, text: str | bytes, *, overwrite: bool = True) -> Path:
     """Write ``text`` to ``path`` through a temporary file in the same folder and a rename, so a reader never
     sees a half-written file. With ``overwrite=False`` an existing file raises ``FileExistsError``. A path
-    that cannot be created (a file where a folder is needed, no permission, a folder given) raises
+    that cannot be created (a file where a folder is needed, no permission, a folder given), or that would
+    replace an input of the running command or a recording (:func:`core.outputs.check_output`), raises
     :class:`core.errors.OutputError`, naming it."""
-    p = Path(path)
+    p = check_output(path, "output")
     data = text.encode("utf-8") if isinstance(text, str) else text
     try:
         if p.is_dir():

@@ -179,6 +179,14 @@ def load_yaml_text(text: str, file: str | Path = "<input>") -> tuple[Any, Source
         line = mark.line + 1 if mark is not None else None
         problem = exc.problem or str(exc)
         raise ConfigError(file, line, f"YAML syntax error: {problem} (check indentation, colons and quotes)") from None
+    except yaml.reader.ReaderError as exc:  # a control character or bad byte: its position → line and column
+        pos = min(max(int(exc.position), 0), len(text))
+        line = text.count("\n", 0, pos) + 1
+        column = pos - (text.rfind("\n", 0, pos) + 1) + 1
+        what = f"character #x{exc.character:04x}" if isinstance(exc.character, int) else f"byte {exc.character!r}"
+        raise ConfigError(
+            file, line, f"column {column}: {what} is not allowed in YAML ({exc.reason}); delete or retype it"
+        ) from None
     except yaml.YAMLError as exc:  # pragma: no cover - non-marked errors are rare
         raise ConfigError(file, None, f"YAML error: {exc}") from None
     except RecursionError:
@@ -333,9 +341,14 @@ def get_components(
     else:
         vals = get_vector(data, smap, path, key, length)
         lo, hi = bounds.get("minimum"), bounds.get("maximum")
+        open_lo = bool(bounds.get("exclusive_minimum"))
         for i, x in enumerate(vals):
-            if (lo is not None and x < lo) or (hi is not None and x > hi):
-                raise smap.error(path + (key, i), f"{x:g} is out of range; allowed [{lo}, {hi}]")
+            below = lo is not None and (x <= lo if open_lo else x < lo)
+            if below or (hi is not None and x > hi):
+                bracket = "(" if open_lo else "["
+                lo_txt = "-inf" if lo is None else f"{lo:g}"
+                hi_txt = "+inf" if hi is None else f"{hi:g}"
+                raise smap.error(path + (key, i), f"{x:g} is out of range; allowed {bracket}{lo_txt}, {hi_txt}]")
     return tuple(x * si for x in vals)
 
 

@@ -88,6 +88,21 @@ def _serial_port(what: str, url: str, **kw: Any) -> Any:
         raise LinkError(f"{what}: cannot open {url!r}: {exc}") from exc
 
 
+def aerosmith_table(
+    url: str, make: Callable[[Any], Any], *, timeout: float = 2.0, wrap: Wrap = _same
+) -> Connection[Any]:
+    """An Ideal Aerosmith controller on the serial port ``url`` (9600 8N1, pyserial URL: ``/dev/ttyUSB0``, ``COM3``,
+    ``socket://host:port`` through a device server); ``make(stream)`` builds the driver on the open stream."""
+    port = _serial_port("turntable", url, baudrate=9600, bytesize=8, parity="N", stopbits=1, timeout=timeout)
+    stream = wrap(port)
+    try:
+        table = make(stream)
+    except BaseException:
+        port.close()
+        raise
+    return Connection(table, stream, [table.close, port.close])
+
+
 def acutrol_table(
     resource: str,
     limits: Limits,

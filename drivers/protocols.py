@@ -66,6 +66,12 @@ absorbs the rounding of unit conversions, so what the compiler accepts the runne
 simulated controllers accept too."""
 
 
+CONTINUOUS_DEMAND_MAX: float = 20 * math.pi
+"""Largest |angle| (rad) an operator may demand of a continuous axis: ten turns either way. One turn reaches
+every attitude (procedures compile continuous axes into (−π, π]); an unwrapped demand a few turns out is a
+deliberate jog, but ``move 0 0 1e9`` (2.8 million turns, ~87 days of way-points) is a typing error."""
+
+
 def _slack(limit: float) -> float:
     return LIMIT_TOLERANCE * max(1.0, abs(limit))
 
@@ -110,6 +116,14 @@ class AxisLimits:
         lo, hi = self.position_bounds()
         return math.isfinite(a) and lo <= a <= hi
 
+    def allows_demand(self, angle: float) -> bool:
+        """May an operator demand gimbal angle ``angle`` (rad) (``tablebench table move``)? Within the position
+        limits and, on a continuous axis, within ±:data:`CONTINUOUS_DEMAND_MAX` (drivers and controllers unwrap
+        their own targets freely; an operator's demand never needs more)."""
+        a = float(angle)
+        hi = CONTINUOUS_DEMAND_MAX + _slack(CONTINUOUS_DEMAND_MAX)
+        return self.allows_position(a) and (not self.continuous or -hi <= a <= hi)
+
     def allows_rate(self, rate: float) -> bool:
         """Is gimbal rate ``rate`` (rad/s, signed) within the rate limit? (False for NaN / inf.)"""
         r = float(rate)
@@ -123,7 +137,7 @@ class AxisLimits:
     def position_range_text(self) -> str:
         """The position limits in degrees for messages, e.g. ``"[-90°, 90°]"`` or ``"continuous"``."""
         if self.continuous:
-            return "continuous"
+            return f"continuous (a demand within ±{math.degrees(CONTINUOUS_DEMAND_MAX):g}°)"
         if self.absent:
             return "absent (the table has no such axis)"
         lo = "-inf" if self.position_min is None else f"{math.degrees(self.position_min):g}°"

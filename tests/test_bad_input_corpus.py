@@ -131,7 +131,36 @@ def corpus(tmp_path_factory: pytest.TempPathFactory) -> Corpus:
     f["prior-1e300"].write_text(sim.replace("    bias_ug: 300.0\n", "    bias_ug: 1e300\n", 1), encoding="utf-8")
     f["a-file"] = root / "a-file.txt"
     f["a-file"].write_text("not a folder\n", encoding="utf-8")
+    _issue_26_files(root, run, sim, f)
     return Corpus(root, run, npy, tiny, capture, f)
+
+
+def _issue_26_files(root: Path, run: Path, sim: str, f: dict[str, Path]) -> None:
+    """The bad and edge inputs of issue 26 ("Nothing lost, nothing false")."""
+    rng = np.random.default_rng(26)
+    assert "    vrw_ug_per_sqrt_hz: [15.0, 15.0, 15.0]\n" in sim
+    f["vrw0"] = root / "vrw0.yaml"  # accepted by check, crashed plan and run
+    f["vrw0"].write_text(sim.replace("vrw_ug_per_sqrt_hz: [15.0, 15.0, 15.0]", "vrw_ug_per_sqrt_hz: [0, 0, 0]", 1))
+    f["huge-header"] = root / "huge-header.npy"  # a header claiming 2.2 TiB over 800 bytes of data
+    with f["huge-header"].open("wb") as fh:
+        np.lib.format.write_array_header_1_0(fh, {"descr": "<f8", "fortran_order": False, "shape": (10**11, 3)})
+        fh.write(bytes(800))
+    f["dup-csv"] = root / "dup.csv"
+    f["dup-csv"].write_text("a,a\n" + "".join(f"{x:.6g},{y:.6g}\n" for x, y in rng.standard_normal((1500, 2))))
+    f["empty-csv"] = root / "empty.csv"
+    f["empty-csv"].write_bytes(b"")
+    f["complex-npy"] = root / "complex.npy"
+    np.save(f["complex-npy"], rng.standard_normal((1500, 3)) + 1j)
+    f["constant-npy"] = root / "constant.npy"
+    np.save(f["constant-npy"], np.full((1500, 1), 9.80665))
+    f["raw3"] = root / "raw3.npy"
+    np.save(f["raw3"], np.tile([0.0, 0.0, G0], (50, 1)))
+    f["ctrl-yaml"] = root / "ctrl.yaml"
+    f["ctrl-yaml"].write_text("name: ctrl\nsteps: \x07\n  - warmup: {duration_s: 1}\n", encoding="utf-8")
+    f["rec-json"] = root / "rec-copy.json"  # a recording under a .json name: still a recording
+    shutil.copyfile(run / "recording.h5", f["rec-json"])
+    f["capture-csv"] = root / "capture.csv"  # a binary capture under a name decode writes CSV to
+    shutil.copyfile(root / "capture.bin", f["capture-csv"])
 
 
 # ---- cases ---------------------------------------------------------------------------------------------------
@@ -147,6 +176,8 @@ class Case:
 
 
 GOOD_POSITIONAL = {
+    ("chamber", "action"): "status",
+    ("chamber", "temperature"): "20",
     ("certificate", "run"): "{run}",
     ("check", "procedure"): "{tiny}",
     ("correct", "calibration"): "{run}/calibration.json",
@@ -256,6 +287,40 @@ for _kind in DAMAGED:
         Case(f"periodic/{_kind}", ("periodic", f"{{{_kind}}}"), f"{{{_kind}}}"),
     ]
 
+# issue 26: outputs that would replace an input or a recording (see also test_no_output_replaces_an_input)
+OVERWRITES = [
+    Case("identify/--out=its-recording", ("identify", "{run}", "--out", "{run}/recording.h5"), "recording.h5"),
+    Case("identify/--out=a-recording", ("identify", "{run}", "--out", "{rec-json}"), "rec-copy.json"),
+    Case(
+        "certificate/--json=its-calibration",
+        ("certificate", "{run}", "--out", "{root}/cert-26.pdf", "--json", "{run}/calibration.json"),
+        "calibration.json",
+    ),
+    Case("correct/--out=its-input", ("correct", "{run}/calibration.json", "{raw3}", "--out", "{raw3}"), "raw3.npy"),
+    Case(
+        "decode/--out=its-capture",
+        ("decode", "{capture-csv}", "--frame", "kvh-1750-a", "--out", "{capture-csv}"),
+        "capture.csv",
+    ),
+]
+SPECIFIC += OVERWRITES
+SPECIFIC += [
+    Case("correct/--out=X.json", ("correct", "{run}/calibration.json", "{raw3}", "--out", "{root}/X.json"), "--out"),
+    Case("certificate/--out=/proc/nope", ("certificate", "{run}", "--out", "/proc/nope/x.pdf"), "/proc/nope/x.pdf"),
+    Case("check/--bench=vrw0", ("check", "{tiny}", "--bench", "{vrw0}"), "vrw_ug_per_sqrt_hz"),
+    Case("plan/--bench=vrw0", _argv("plan", {}, {"--bench": "{vrw0}"}), "vrw_ug_per_sqrt_hz"),
+    Case("run/--bench=vrw0", _argv("run", {}, {"--bench": "{vrw0}"}), "vrw_ug_per_sqrt_hz"),
+    Case("table/move-1e9", ("table", "move", "0", "0", "1e9"), "inner"),
+    Case("check/yaml-control-character", ("check", "{ctrl-yaml}"), "{ctrl-yaml}:2"),
+    *(
+        Case(f"correct/{k}", ("correct", "{run}/calibration.json", f"{{{k}}}", "--out", "{root}/h.npy"), f"{{{k}}}")
+        for k in ("huge-header", "complex-npy")
+    ),
+]
+for _cmd in ("noise", "periodic", "drift"):
+    for _kind in ("huge-header", "dup-csv", "empty-csv", "complex-npy", "constant-npy"):
+        SPECIFIC.append(Case(f"{_cmd}/{_kind}", _argv(_cmd, {"input": f"{{{_kind}}}"}, {}), f"{{{_kind}}}"))
+
 KNOWN: dict[str, str] = {
 }
 """Case id → owner and reason, for failures in areas other changes own (xfail, not strict)."""
@@ -338,8 +403,201 @@ def test_bad_input_is_one_clear_line_and_exit_2(case: Case, corpus: Corpus, monk
     assert named, f"the error does not name {place!r}: {err.strip()[-600:]}"
     last = err.strip().splitlines()[-1]
     assert last.startswith(f"tablebench {argv[0]}: error: "), f"the last line is not the one error line: {last!r}"
+    assert "[Errno" not in err, f"a raw errno reaches the user: {last!r}"
 
 
 def test_every_command_is_covered() -> None:
     ids = {c.values[0].id.split("/")[0] for c in _params()}
     assert ids == set(COMMANDS), f"commands without cases: {set(COMMANDS) - ids}"
+
+
+# ---- issue 26: nothing lost, nothing false ---------------------------------------------------------------------
+
+
+def _digest(path: Path) -> str:
+    import hashlib
+
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+@pytest.mark.parametrize("case", [pytest.param(c, id=c.id) for c in OVERWRITES])
+def test_no_output_replaces_an_input_or_a_recording(case: Case, corpus: Corpus, monkeypatch) -> None:
+    """The one output guard (core.outputs): the file named by --out/--json is untouched, byte for byte."""
+    monkeypatch.chdir(corpus.root)
+    argv = [_fill(a, corpus, case.id) for a in case.argv]
+    target = Path(argv[argv.index("--json" if "--json" in argv else "--out") + 1])
+    before = _digest(target)
+    code, _out, err = run_cli(argv)
+    assert code == 2, err[-1500:]
+    assert _digest(target) == before, f"{target} was written over by: {' '.join(argv)}"
+    assert "never" in err.strip().splitlines()[-1], err[-500:]
+
+
+def test_run_refuses_a_bad_out_before_printing_the_plan(corpus: Corpus, monkeypatch) -> None:
+    monkeypatch.chdir(corpus.root)
+    code, out, err = run_cli(["run", "--procedure", str(corpus.tiny), "--out", str(corpus.bad("a-file") / "sub")])
+    assert code == 2 and "a-file.txt" in err
+    assert "pre-run plan" not in out + err and "procedure:" not in out + err, err[-1500:]
+
+
+def test_runs_prints_each_damage_once(corpus: Corpus, tmp_path: Path) -> None:
+    shutil.copytree(corpus.bad("no-steps"), tmp_path / "runs" / "damaged")
+    shutil.copytree(corpus.run, tmp_path / "runs" / "good")
+    code, out, err = run_cli(["runs", str(tmp_path / "runs")])
+    problem = "no-steps"  # the damage names the dataset: printed once, in its row
+    text = out + err
+    assert code == 2 and "Traceback" not in text
+    lines = [ln for ln in text.splitlines() if "damaged" in ln.lower() and "recording.h5:" in ln]
+    assert len(lines) == 1, f"the damage is printed {len(lines)} times:\n{text}"
+    assert "--salvage" in err.strip().splitlines()[-1] and problem not in err.strip().splitlines()[-1]
+
+
+class _FullDiskDataset:
+    """An /imu dataset whose chunk writes fail with ENOSPC once ``budget`` chunks have been written."""
+
+    def __init__(self, d, state: dict) -> None:
+        self._d, self._state = d, state
+
+    def __getattr__(self, name):
+        return getattr(self._d, name)
+
+    def resize(self, *a, **k):
+        return self._d.resize(*a, **k)
+
+    @property
+    def id(self):
+        outer = self
+
+        class _Id:
+            def __getattr__(self, name):
+                return getattr(outer._d.id, name)
+
+            def write_direct_chunk(self, *a, **k):
+                outer._state["n"] += 1
+                if outer._state["full"] and outer._state["n"] > outer._state["budget"]:
+                    import errno
+
+                    raise OSError(errno.ENOSPC, "No space left on device")
+                return outer._d.id.write_direct_chunk(*a, **k)
+
+        return _Id()
+
+
+@pytest.fixture(scope="module")
+def short_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[str], Path]:
+    """A bench (200 Hz), a short ten-step procedure, and its uninterrupted reference recording."""
+    from tests.simbench import bench_variant, short_ten_step
+
+    tmp = tmp_path_factory.mktemp("short-run")
+    bench = bench_variant(tmp, rate=200.0)
+    proc = tmp / "short.yaml"
+    proc.write_text(short_ten_step(hold_s=3, warmup_s=5), encoding="utf-8")
+    common = ["--bench", str(bench), "--procedure", str(proc), "--seed", "5", "--plain", "--no-identify"]
+    code, _out, err = run_cli(["run", *common, "--out", str(tmp / "ref")])
+    assert code == 0, err[-2000:]
+    return tmp, common, tmp / "ref" / "recording.h5"
+
+
+def _same_recording(a: Path, b: Path) -> None:
+    from benches.recording import open_recording
+
+    with open_recording(a) as ra, open_recording(b) as rb:
+        assert ra.header.status == rb.header.status == "complete"
+        assert [s.sha256 for s in ra.steps] == [s.sha256 for s in rb.steps]
+        sa, sb = ra.samples(), rb.samples()
+        for name in ("counter", "time", "accel", "gyro", "temperature", "status"):
+            np.testing.assert_array_equal(getattr(sa, name), getattr(sb, name), err_msg=name)
+        ta, tb = ra.table(), rb.table()
+        for name in ("time", "angles", "rates", "status"):
+            np.testing.assert_array_equal(getattr(ta, name), getattr(tb, name), err_msg=f"table {name}")
+
+
+def test_disk_full_then_resume_and_salvage_recover_the_completed_steps(short_run, monkeypatch) -> None:
+    """ENOSPC injected into the recorder's chunk writes: the run stops saying so; after 'freeing space' both
+    ``run --resume`` and ``runs --salvage`` + ``--resume`` give the uninterrupted recording bit for bit."""
+    import benches.recording.encoding as recording
+
+    tmp, common, ref = short_run
+    state = {"n": 0, "budget": 150, "full": True}
+    real_init = recording._ChunkWriter.__init__  # noqa: SLF001
+
+    def init(self, *a, **k):
+        real_init(self, *a, **k)
+        self.ds = {n: _FullDiskDataset(d, state) for n, d in self.ds.items()}
+
+    monkeypatch.setattr(recording._ChunkWriter, "__init__", init)  # noqa: SLF001
+    out = tmp / "full"
+    code, _o, err = run_cli(["run", *common, "--out", str(out)])
+    assert code in (1, 2) and "Traceback" not in err and "disk full" in err, err[-1500:]
+    shutil.copytree(out, tmp / "full-copy")
+    state["full"] = False  # space freed
+    code, o, err = run_cli(["runs", str(tmp)])
+    assert "DAMAGED" not in o + err and "resume" in o, o + err
+    code, _o, err = run_cli(["run", "--resume", str(out), "--plain", "--no-identify"])
+    assert code == 0, err[-2000:]
+    _same_recording(ref, out / "recording.h5")
+    code, _o, err = run_cli(["runs", "--salvage", str(tmp / "full-copy")])
+    assert code == 0, err[-2000:]
+    salvaged = tmp / "full-copy-salvaged"
+    code, _o, err = run_cli(["run", "--resume", str(salvaged), "--plain", "--no-identify"])
+    assert code == 0, err[-2000:]
+    _same_recording(ref, salvaged / "recording.h5")
+
+
+def test_link_lost_and_stop_failed_says_the_table_may_still_be_moving(short_run, monkeypatch) -> None:
+    import benches.factory as factory
+    from drivers.protocols import LinkError
+
+    tmp, common, _ref = short_run
+    real_open = factory.open_bench
+
+    class _LosingTable:
+        def __init__(self, table) -> None:
+            self._t, self._reads = table, 0
+
+        def __getattr__(self, name):
+            return getattr(self._t, name)
+
+        def read_state(self):
+            self._reads += 1
+            if self._reads > 300:
+                raise LinkError("table link lost: [Errno 32] Broken pipe")
+            return self._t.read_state()
+
+        def stop(self):
+            raise BrokenPipeError(32, "Broken pipe")
+
+    def open_bench(*a, **k):
+        bench = real_open(*a, **k)
+        bench.turntable = _LosingTable(bench.turntable)
+        return bench
+
+    monkeypatch.setattr(factory, "open_bench", open_bench)
+    code, _o, err = run_cli(["run", *common, "--out", str(tmp / "lost")])
+    assert code == 1, err[-1500:]
+    assert "brought to rest" not in err, err[-1500:]
+    assert "MAY STILL BE MOVING" in err and "stop command failed" in err, err[-1500:]
+
+
+def test_resuming_a_loopback_run_continues_on_loopback(short_run, monkeypatch) -> None:
+    import h5py
+
+    import benches.factory as factory
+
+    tmp, common, _ref = short_run
+    run = tmp / "loopback-run"
+    shutil.copytree(tmp / "ref", run)
+    with h5py.File(run / "recording.h5", "r+") as f:  # as if recorded on loopback and interrupted
+        f.attrs["transport"] = "loopback"
+        f.attrs["status"] = "interrupted"
+    seen = {}
+
+    def open_bench(config, *, seed=None, transport=None, run_folder=None):
+        seen["transport"] = transport
+        raise factory.ConfigError("bench", None, "stop here (test)")
+
+    monkeypatch.setattr(factory, "open_bench", open_bench)
+    code, _o, err = run_cli(["run", "--resume", str(run), "--plain", "--no-identify"])
+    assert seen.get("transport") == "loopback", (seen, err[-800:])
+    code, _o, err = run_cli(["run", "--resume", str(run), "--transport", "in-process", "--plain", "--no-identify"])
+    assert code == 2 and "loopback" in err.strip().splitlines()[-1], err[-800:]

@@ -116,35 +116,115 @@ def _select(channels: dict[str, NDArray[np.float64]], wanted: str | None, source
     return names
 
 
+MAX_ARRAY_BYTES = 1 << 36
+"""Largest data file an analysis loads into memory (64 GiB): a header claiming more is refused unread."""
+
+
+def _npy_header(path: Path, fh) -> tuple[tuple[int, ...], np.dtype, bool]:
+    """(shape, dtype, fortran_order) of an open ``.npy`` file, read from its header alone."""
+    source = str(path)
+    try:
+        major, _minor = np.lib.format.read_magic(fh)
+        if major == 1:
+            shape, fortran, dtype = np.lib.format.read_array_header_1_0(fh)
+        elif major in (2, 3):
+            shape, fortran, dtype = np.lib.format.read_array_header_2_0(fh)
+        else:
+            raise ValueError(f"unknown .npy format version {major}")
+    except Exception as exc:  # a damaged header raises ValueError, EOFError, SyntaxError...
+        raise InputError(f"{source}: not a readable .npy array ({exc}); save it with numpy.save") from None
+    return tuple(int(n) for n in shape), dtype, bool(fortran)
+
+
+def read_npy(path: str | Path) -> NDArray[np.float64]:
+    """THE loader of ``.npy`` data files (analyses and ``correct``): the header's shape and dtype are checked
+    against the file's size before anything is allocated, so a lying or truncated header is one clear line
+    (not a MemoryError or a half-read array); only real numeric arrays are accepted; returns float64."""
+    p = Path(path)
+    source = str(p)
+    try:
+        size = p.stat().st_size
+        with p.open("rb") as fh:
+            shape, dtype, fortran = _npy_header(p, fh)
+            offset = fh.tell()
+            if dtype.hasobject or not (np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.floating)):
+                what = "complex" if np.issubdtype(dtype, np.complexfloating) else str(dtype)
+                raise InputError(f"{source}: expected a real numeric array, got dtype {what}; save real numbers")
+            claimed = int(np.prod(shape, dtype=object)) * dtype.itemsize
+            if claimed != size - offset:
+                raise InputError(
+                    f"{source}: the .npy header claims shape {shape} of {dtype} ({claimed:,} bytes) but the file "
+                    f"holds {size - offset:,} bytes of data; the file is damaged or truncated, save it again"
+                )
+            if claimed > MAX_ARRAY_BYTES:
+                raise InputError(f"{source}: {claimed:,} bytes is more than this command loads ({MAX_ARRAY_BYTES:,})")
+            count = int(np.prod(shape))
+            data = np.fromfile(fh, dtype=dtype, count=count)
+    except OSError as exc:
+        raise InputError(f"{source}: cannot be read ({exc.strerror or exc})") from None
+    data = data.reshape(shape, order="F" if fortran else "C")
+    return np.asarray(data, dtype=np.float64)
+
+
+def _all_numbers(fields: list[str]) -> bool:
+    try:
+        [float(f) for f in fields]
+    except ValueError:
+        return False
+    return True
+
+
+def read_csv(path: str | Path) -> tuple[NDArray[np.float64], list[str] | None]:
+    """THE loader of ``.csv`` data files: (samples × columns float64, header names or None). An empty file, a
+    header with repeated or empty names, ragged rows and non-numeric cells are each one clear line."""
+    p = Path(path)
+    source = str(p)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{source}: cannot read as text CSV ({exc})") from None
+    lines = [(k + 1, ln) for k, ln in enumerate(text.splitlines()) if ln.strip() and not ln.lstrip().startswith("#")]
+    if not lines:
+        raise InputError(f"{source}: empty CSV; expected one numeric column per channel")
+    header: list[str] | None = None
+    fields = [f.strip() for f in lines[0][1].split(",")]
+    if not _all_numbers(fields):
+        header = fields
+        lines = lines[1:]
+        dup = sorted({n for n in header if header.count(n) > 1})
+        if dup or "" in header:
+            what = f"repeated column name(s) {', '.join(map(repr, dup))}" if dup else "an empty column name"
+            raise InputError(f"{source}:1: the header has {what}; give every column its own name")
+        if not lines:
+            raise InputError(f"{source}: a header but no data rows; expected one numeric column per channel")
+    width = len(header) if header else len(fields)
+    try:  # the fast path; on any failure the rows are checked one by one to name the line
+        data = np.loadtxt([ln for _k, ln in lines], delimiter=",", ndmin=2, dtype=np.float64)
+        if data.shape[1] == width:
+            return data, header
+    except ValueError:
+        pass
+    for lineno, ln in lines:
+        cells = ln.split(",")
+        if len(cells) != width:
+            raise InputError(f"{source}:{lineno}: {len(cells)} value(s), expected {width} (one per column)")
+        try:
+            [float(c) for c in cells]
+        except ValueError:
+            raise InputError(
+                f"{source}:{lineno}: non-numeric value in {ln.strip()[:60]!r}; expected one number per column"
+            ) from None
+    raise InputError(f"{source}: not a CSV of numbers; expected one numeric column per channel")
+
+
 def _load_array(path: Path, rate: float | None, wanted: str | None, allow_gaps: bool = False) -> AnalysisInput:
     source = str(path)
     rate_v = _check_rate(rate, source)
     header: list[str] | None = None
     if path.suffix.lower() == ".npy":
-        try:
-            data = np.load(path, allow_pickle=False)
-        except Exception as exc:
-            raise InputError(f"{source}: not a readable .npy array ({exc})") from None
-        if not np.issubdtype(data.dtype, np.number) or np.iscomplexobj(data):
-            raise InputError(f"{source}: expected a real numeric array, got dtype {data.dtype}")
+        data = read_npy(path)
     else:
-        try:
-            with path.open("r", encoding="utf-8") as fh:
-                first = fh.readline()
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InputError(f"{source}: cannot read as text CSV ({exc})") from None
-        fields = [f.strip() for f in first.split(",")]
-        skip = 0
-        try:
-            [float(f) for f in fields]
-        except ValueError:
-            header, skip = fields, 1
-        try:
-            data = np.loadtxt(path, delimiter=",", skiprows=skip, ndmin=2, dtype=np.float64)
-        except ValueError as exc:
-            raise InputError(
-                f"{source}: non-numeric CSV content ({exc}); expected one numeric column per channel"
-            ) from None
+        data, header = read_csv(path)
     data = np.asarray(data, dtype=np.float64)
     if data.ndim == 1:
         data = data[:, None]
@@ -264,6 +344,13 @@ def _checked(result: AnalysisInput, p: Path, min_samples: int) -> AnalysisInput:
     n = len(next(iter(result.channels.values())))
     if n < min_samples:
         raise InputError(f"{p}: only {n} samples; this analysis needs at least {min_samples}")
+    for name, x in result.channels.items():  # nothing to analyse (and every estimate would be 0/0)
+        finite = x[np.isfinite(x)]
+        if finite.size and np.all(finite == finite[0]):
+            raise InputError(
+                f"{p}: channel {name!r} is constant ({finite[0]:g} in all {n} samples); the analysis needs a "
+                "varying signal (check the channel selection, --channels, or the sensor's quantisation)"
+            )
     return result
 
 

@@ -30,6 +30,7 @@ from collections.abc import Sequence
 import benches.cli.commands as commands_pkg
 from benches.cli.commands import SUMMARIES
 from core.errors import UserError
+from core.outputs import clear_inputs, protect_inputs
 from core.provenance import software_version
 
 
@@ -89,6 +90,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if func is None:
         parser.print_help()
         return 2
+    protect_inputs(_inputs(args))
     try:
         return int(func(args) or 0)
     except UserError as exc:
@@ -97,6 +99,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"tablebench {args.command}: interrupted", file=sys.stderr)
         return 130
+    finally:
+        clear_inputs()
+
+
+OUTPUT_DESTS = ("out", "json")
+"""Arguments that name outputs; every other path-valued argument names an input (core.outputs)."""
+
+
+def _inputs(args: argparse.Namespace) -> list[str]:
+    """The files and folders named on the command line other than outputs: no output may replace them."""
+    return [
+        v
+        for k, v in vars(args).items()
+        if isinstance(v, str) and k not in OUTPUT_DESTS and not k.startswith("_") and k != "command"
+    ]
 
 
 if __name__ == "__main__":  # pragma: no cover

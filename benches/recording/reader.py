@@ -74,8 +74,16 @@ class Recording:
                 f"{path}: recording format version {version} is not readable by this version of tablebench "
                 f"(reads {', '.join(map(str, READABLE_VERSIONS))}); use the version that wrote it"
             )
-        with self._guard("/imu, /table (layout)"):
-            self._check_layout()
+        self._step_rows: int | None = None
+        self.unfinished_tail = ""
+        """Non-empty when rows after the last step row were left unfinished by a failed write (disk full) of a
+        run that did not complete: they are ignored (``--resume`` and ``runs --salvage`` drop them)."""
+        try:
+            with self._guard("/imu, /table (layout)"):
+                self._check_layout()
+        except RecordingDamaged:
+            if not self._unfinished_tail():
+                raise
         with self._guard("/steps"):
             self.steps = self._read_steps()
         self._check_steps()
@@ -178,18 +186,46 @@ class Recording:
             extra={k: v for k, v in a.items() if k not in known},
         )
 
-    def _check_layout(self) -> None:
+    def _unfinished_tail(self) -> bool:
+        """A run stopped by a failed write (ENOSPC) leaves its datasets ragged or a chunk unwritten AFTER its last
+        step row (step rows are written only once their rows are on disk). If the recording did not complete and
+        the layout is sound up to the last step row's end, read it as ending there (True); else False."""
+        if self.header.status == "complete" or self.header.format_version < 2:
+            return False
+        try:
+            rows = self._f["steps"][()]
+            ends = [(k + 1, int(r["end_sample"]), int(r["table_end"])) for k, r in enumerate(rows)]
+            ends = [e for e, r in zip(ends, rows, strict=True) if _text(r["status"]) == "complete"]
+        except (RecordingError, *_H5_ERRORS):
+            return False
+        for n_rows, end, t_end in [*ends[::-1], (0, 0, 0)]:  # the last complete step whose rows are all there
+            try:
+                with self._guard("/imu, /table (layout)"):
+                    self._check_layout(end, t_end)
+            except (RecordingError, *_H5_ERRORS):
+                continue
+            self._step_rows = n_rows
+            self.unfinished_tail = (
+                f"the rows after sample {end} (the end of the last complete step) were left unfinished by a failed "
+                "write (disk full?) and are ignored"
+            )
+            return True
+        return False
+
+    def _check_layout(self, limit: int | None = None, table_limit: int | None = None) -> None:
+        """The datasets' extents, chunk indexes and exception rows; ``limit``/``table_limit``: check only the
+        rows before these (every dataset must hold at least as many), the rest being an unfinished tail."""
         f = self._f
         if "imu" not in f or "accel" not in f["imu"]:
             raise RecordingError(f"{self.path}: the recording holds no unit samples (/imu/accel missing)")
-        self.n_samples = int(f["imu/accel"].shape[0])
+        self.n_samples = int(f["imu/accel"].shape[0]) if limit is None else limit
         self.sample_fields: tuple[str, ...] = tuple(n for n in IMU_FIELDS if n in f["imu"])
         self._quanta: dict[str, float] = {}
         self._exc: dict[str, NDArray[Any]] = {}
         for name, d in f["imu"].items():
             if not isinstance(d, h5py.Dataset):
                 continue
-            if d.shape[0] != self.n_samples:
+            if d.shape[0] != self.n_samples if limit is None else d.shape[0] < limit:
                 raise RecordingDamaged(
                     f"{self.path}: dataset /imu/{name} has {d.shape[0]} rows but /imu/accel {self.n_samples}; "
                     f"the file is damaged or truncated; {self._fix()}"
@@ -202,6 +238,8 @@ class Recording:
                 self._quanta[name] = lsb
                 with self._guard(f"/imu/exceptions/{name}"):
                     exc = np.asarray(f["imu/exceptions"][name][()], dtype=EXC_DTYPE)
+                if limit is not None and exc.size:
+                    exc = exc[: int(np.searchsorted(exc["row"], limit))]
                 width = 1 if d.ndim == 1 else d.shape[1]
                 if exc.size and (
                     np.any(np.diff(exc["row"]) < 0)
@@ -212,9 +250,9 @@ class Recording:
                     raise RecordingDamaged(f"{self.path}: dataset /imu/exceptions/{name}: rows out of order or range")
                 self._exc[name] = exc
         if "table" in f and "time" in f["table"]:
-            self.n_table = int(f["table/time"].shape[0])
+            self.n_table = int(f["table/time"].shape[0]) if table_limit is None else table_limit
             for name, d in f["table"].items():
-                if d.shape[0] != self.n_table:
+                if d.shape[0] != self.n_table if table_limit is None else d.shape[0] < table_limit:
                     raise RecordingDamaged(
                         f"{self.path}: dataset /table/{name} has {d.shape[0]} rows but /table/time {self.n_table}; "
                         f"{self._fix()}"
@@ -234,15 +272,28 @@ class Recording:
                         f"{self.path}: dataset /{name} has no Fletcher-32 checksum in a format-2 recording; "
                         f"{self._fix()}"
                     )
-                self._check_chunks(name, obj)
+                self._check_chunks(name, obj, self._tail_rows(name, limit, table_limit))
 
-    def _check_chunks(self, name: str, d: h5py.Dataset) -> None:
+    def _tail_rows(self, name: str, limit: int | None, table_limit: int | None) -> int | None:
+        """Rows of dataset ``name`` that must be intact when the recording ends at ``limit`` (None: all)."""
+        if limit is None:
+            return None
+        if name.startswith("imu/exceptions/"):
+            exc = self._exc.get(name.rsplit("/", 1)[-1])
+            return None if exc is None else int(exc.size)
+        if name.startswith("imu/"):
+            return limit
+        return table_limit if name.startswith("table/") else None
+
+    def _check_chunks(self, name: str, d: h5py.Dataset, limit: int | None = None) -> None:
         """Every chunk of the dataset's extent is indexed exactly once, at its place, with every filter applied.
 
         The chunk index (a B-tree) carries no checksum of its own: a damaged key would silently turn a chunk
         into fill values, a damaged filter mask would skip the Fletcher-32 check.
         """
         rows = int(d.shape[0]) if d.shape else 1
+        if limit is not None and d.shape:
+            rows = min(rows, limit)  # an unfinished tail: its chunks may be missing
         step = int(d.chunks[0]) if d.chunks else rows
         want = list(range(0, rows, step)) if d.shape else [0]
         n = d.id.get_num_chunks()
@@ -252,7 +303,9 @@ class Recording:
             if info.filter_mask != 0 or any(info.chunk_offset[1:]) or info.size <= 0:
                 got = None
                 break
-            got.append(int(info.chunk_offset[0]) if d.shape else 0)
+            off = int(info.chunk_offset[0]) if d.shape else 0
+            if limit is None or off < rows:
+                got.append(off)
         if got is None or sorted(got) != want:
             raise RecordingDamaged(
                 f"{self.path}: dataset /{name}: its chunk index is damaged (chunks missing, misplaced or unfiltered); "
@@ -263,6 +316,8 @@ class Recording:
         if "steps" not in self._f:
             return []
         rows = self._f["steps"][()]
+        if self._step_rows is not None:  # an unfinished tail: the step rows after the last intact step
+            rows = rows[: self._step_rows]
         names = rows.dtype.names or ()
         need = {"index", "name", "kind", "start_sample", "acq_start", "acq_end", "end_sample", "status"}
         if not need <= set(names):

@@ -25,8 +25,9 @@ def test_position_rate_acceleration_with_one_tolerance() -> None:
     for bad in (math.nan, math.inf, -math.inf):
         assert not lim.allows_position(bad) and not lim.allows_rate(bad) and not lim.allows_acceleration(bad)
     free = AxisLimits(rate_max=1.0, accel_max=1.0)
-    assert free.continuous and free.allows_position(1e9) and free.position_bounds() == (-math.inf, math.inf)
-    assert free.position_range_text() == "continuous"
+    assert free.continuous and free.position_bounds() == (-math.inf, math.inf)
+    assert free.allows_position(1e9) and free.allows_demand(-20 * math.pi) and not free.allows_demand(1e9)
+    assert free.position_range_text().startswith("continuous")
     assert lim.position_range_text() == f"[{math.degrees(-1.5):g}°, {math.degrees(1.5):g}°]"
 
 

@@ -8,6 +8,7 @@ same help the module registers.
 
 SUMMARIES: dict[str, str] = {
     "certificate": "issue the calibration certificate (PDF + JSON) of a run",
+    "chamber": "check a bench's temperature chamber (status, set T, stop)",
     "check": "validate a procedure against a bench (limits, attitudes, rates, duration); nothing moves",
     "correct": "apply a calibration to raw unit data (accelerometer, and gyro with a whole-unit calibration)",
     "decode": "decode a raw unit capture (frames → SI samples) and summarise the link",

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from benches.recording import RecordingError
 from core.errors import UsageError
+from core.outputs import check_output
 
 EXAMPLES = """examples:
   tablebench certificate runs/20261122-101500-ten-step
@@ -51,6 +53,15 @@ def run(args: argparse.Namespace) -> int:
 
     if args.out is not None and not str(args.out).lower().endswith(".pdf"):
         raise UsageError(f"--out {args.out}: give a .pdf file name")
+    if args.json is not None and not str(args.json).lower().endswith(".json"):
+        raise UsageError(f"--json {args.json}: give a .json file name")
+    run_dir = Path(args.run).parent if Path(args.run).is_file() else Path(args.run)
+    own = [run_dir / "calibration.json", *run_dir.glob("*/*.json"), *run_dir.glob("*.json")]  # its inputs
+    if args.out is not None:
+        check_output(args.out, "--out", inputs=own)
+        check_output(args.json or Path(args.out).with_suffix(".json"), "--json", inputs=own)
+    elif args.json is not None:
+        check_output(args.json, "--json", inputs=own)
     try:
         pdf, js, verdict = issue_certificate(
             args.run,

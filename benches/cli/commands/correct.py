@@ -16,8 +16,9 @@ import numpy as np
 
 from analysis.identification.model import correct
 from benches.calibration_result import CalibrationResult
-from benches.cli.analysis_input import InputError, recording_path
-from core.errors import OutputError, UsageError
+from benches.cli.analysis_input import InputError, read_npy, recording_path
+from core.errors import UsageError
+from core.outputs import check_output, save_npy
 
 EXAMPLES = """examples:
   tablebench correct runs/RUN/calibration.json raw.npy --out corrected.npy
@@ -57,16 +58,11 @@ def load_calibration_vector(path: str | Path) -> tuple[np.ndarray, list[str]]:
     return CalibrationResult.load(path).compensation_vector()
 
 
-def _save(path: str | Path, array: np.ndarray) -> None:
-    """``np.save`` with an unwritable path as one :class:`core.errors.OutputError` naming it."""
-    try:
-        np.save(path, array)
-    except OSError as exc:
-        raise OutputError(f"{path}: cannot be written ({exc.strerror or exc}); choose another --out path") from None
-
-
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench correct``."""
+    if not str(args.out).lower().endswith(".npy"):
+        raise UsageError(f"--out {args.out}: give a .npy file name (the corrected samples are a NumPy array)")
+    check_output(args.out)  # before the work: never over an input or a recording
     cal = CalibrationResult.load(args.calibration)
     x, skipped = cal.compensation_vector()
     model = cal.error_model
@@ -94,13 +90,10 @@ def run(args: argparse.Namespace) -> int:
             line = f"  {w.name:<24s} {w.kind:<5s} {w.t[0]:10.3f} – {w.t[-1]:10.3f} s  ({len(w.t)} samples)"
             print(line, file=sys.stderr)
     else:
-        try:
-            data = np.load(src, allow_pickle=False)
-        except FileNotFoundError:
-            raise InputError(f"{src}: no such file") from None
-        except (OSError, ValueError, EOFError) as exc:  # EOFError: an empty or truncated file
-            raise InputError(f"{src}: not a readable .npy array ({exc.__class__.__name__}: {exc})") from None
-        if data.ndim != 2 or data.shape[1] not in (3, 6) or not np.issubdtype(data.dtype, np.number):
+        if not src.exists():
+            raise InputError(f"{src}: no such file")
+        data = read_npy(src)  # the one loader: shape checked against the file size before allocating
+        if data.ndim != 2 or data.shape[1] not in (3, 6):
             raise InputError(f"{src}: expected a numeric (n, 3) or (n, 6) array in SI units, got {data.shape}")
         if not np.all(np.isfinite(data)):
             raise InputError(f"{src}: contains NaN/inf; remove them first")
@@ -115,10 +108,10 @@ def run(args: argparse.Namespace) -> int:
             f = correct(x[:18], f_out, omega)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
-    _save(args.out, f)
+    save_npy(args.out, f)
     if times is not None:
         t_path = Path(args.out).with_name(Path(args.out).stem + "_time.npy")
-        _save(t_path, times)
+        save_npy(t_path, times)
         print(f"sample times (bench s) → {t_path}", file=sys.stderr)
     if skipped:
         print(f"not applied (not identified): {', '.join(skipped)}", file=sys.stderr)

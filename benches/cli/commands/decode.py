@@ -17,6 +17,7 @@ from benches.bench_config import load_bench, unit_frame_format
 from benches.cli.arguments import bounded
 from benches.recording import write_decoded_samples
 from core.errors import UsageError
+from core.outputs import check_output
 from drivers.imu_unit.decoder import DecodeStats, FrameDecoder
 from drivers.imu_unit.description import FrameFormat, compile_format, load_frame, shipped_frames
 from drivers.imu_unit.samples import SampleConverter, Samples
@@ -206,7 +207,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"samples {n} over {span:.3f} s; flagged invalid by the unit's status: {invalid}")
     if args.out is not None:
         names, table = columns(samples)
-        out = Path(args.out)
+        out = check_output(args.out)
         try:
             out.parent.mkdir(parents=True, exist_ok=True)
             if out.suffix.lower() == ".npy":

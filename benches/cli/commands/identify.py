@@ -12,6 +12,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
 from benches.results import CalibrationDocument, sinks_for_run
 from core.errors import UsageError
+from core.outputs import check_output
 
 EXAMPLES = """examples:
   tablebench identify runs/20261121-101500-ten-step                 # writes RUN/calibration.json
@@ -52,15 +53,18 @@ def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench identify``."""
     from benches.identify import IdentificationError, identify_run  # lazy: filterpy, scipy (--help time)
 
+    folder = Path(args.run) if Path(args.run).is_dir() else Path(args.run).parent
+    target = check_output(args.out or folder / "calibration.json")  # before the work: never over an input
+    if not target.name.lower().endswith(".json"):
+        raise UsageError(f"--out {args.out}: give a .json file name (the calibration is JSON)")
     try:
         result = identify_run(
             args.run, method=args.method, noise=args.noise, with_gyro=False if args.accelerometer_only else None
         )
     except IdentificationError as exc:
         raise UsageError(str(exc)) from None
-    folder = Path(args.run) if Path(args.run).is_dir() else Path(args.run).parent
     out = sinks_for_run(folder).calibration(
-        CalibrationDocument(run=folder, result=result, path=Path(args.out) if args.out else None)
+        CalibrationDocument(run=folder, result=result, path=target if args.out else None)
     ).path
     print(result.summary())
     print(f"calibration: {out}", file=sys.stderr)

@@ -161,6 +161,10 @@ def _run(args: argparse.Namespace, view: RunView) -> int:
         prep = prepare(folder / "bench.yaml", folder / "procedure.yaml", recorded_overrides(folder))
     else:
         prep = prepare(args.bench, args.procedure, parse_overrides(args.set))
+        try:  # a bad --out is refused before the plan is printed and before anything moves
+            folder = new_run_folder(args.out, Path(prep.procedure_path).stem)
+        except SessionError as exc:
+            raise UsageError(str(exc)) from None
     _say(f"bench: {prep.config.name} ({prep.bench_path})")
     ov = ", ".join(f"{k}={v:g}" for k, v in sorted(prep.overrides.items()))
     _say(
@@ -190,7 +194,6 @@ def _run(args: argparse.Namespace, view: RunView) -> int:
         return out
 
     try:
-        folder = folder if args.resume is not None else new_run_folder(args.out, Path(prep.procedure_path).stem)
         copy_inputs(prep, folder)
         _say(f"run folder: {folder}")
         view.open(folder)
@@ -208,10 +211,19 @@ def _run(args: argparse.Namespace, view: RunView) -> int:
     view.run_ended(result.status, result.reason)
     if result.status != "complete":
         _say(f"run {result.status}: {result.reason}")
-        _say(f"the table was brought to rest; the recording keeps every completed step: {folder}/recording.h5")
+        if result.at_rest:
+            _say(f"the table was brought to rest; the recording keeps every completed step: {folder}/recording.h5")
+        else:
+            _say(
+                f"WARNING: THE TABLE MAY STILL BE MOVING: {result.rest_problem}. Check the table and stop it at its "
+                "controller (emergency stop) before anyone approaches it."
+            )
+            _say(f"the recording keeps every completed step: {folder}/recording.h5")
         _say(f"resume with: tablebench run --resume {folder}")
         return 130 if result.status == "interrupted" else 1
     _say(f"run complete: {result.samples} samples ({result.bench_seconds / 60:.1f} min of bench time)")
+    if not result.at_rest:
+        _say(f"WARNING: THE TABLE MAY STILL BE MOVING: {result.rest_problem}. Check the table before approaching it.")
     _say(f"recording: {folder}/recording.h5", err=False)
     if not identify:
         return 0

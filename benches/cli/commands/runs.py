@@ -17,6 +17,8 @@ EXAMPLES = """examples:
   tablebench runs --salvage runs/20261121-101500-ten-step
         # a damaged recording: copy its intact steps to runs/20261121-101500-ten-step-salvaged,
         # then continue it with: tablebench run --resume runs/20261121-101500-ten-step-salvaged
+
+exit codes: 0 listed, every recording intact; 2 bad input, or listed with some recording DAMAGED
 """
 
 
@@ -88,13 +90,17 @@ def run(args: argparse.Namespace) -> int:
         )
         if r["status"] == "DAMAGED":
             print(f"{'':50s} {r['problem']}")
+        elif r.get("tail"):
+            print(f"{'':50s} {r['tail']}")
         elif r.get("integrity") == "not verifiable":
             print(f"{'':50s} integrity cannot be verified (recording without checksums)")
         if r["status"] in ("interrupted", "failed", "running"):
             print(f"{'':50s} resume: tablebench run --resume {r['path']}")
     damaged = [r for r in rows if r["status"] == "DAMAGED"]
-    if damaged:
-        more = f" (and {len(damaged) - 1} more damaged recording(s), listed above)" if len(damaged) > 1 else ""
-        print(f"tablebench runs: error: {damaged[0]['problem']}{more}", file=sys.stderr)
-        return 2
+    if damaged:  # each damage is printed once, in its row; the error line only counts and says what to do
+        where = ", ".join(f"{r['path']}/recording.h5" for r in damaged[:3]) + (", ..." if len(damaged) > 3 else "")
+        raise UsageError(
+            f"{len(damaged)} of {len(rows)} recording(s) DAMAGED, listed above ({where}); copy the intact steps "
+            f"of one with: tablebench runs --salvage {damaged[0]['path']}"
+        )
     return 0

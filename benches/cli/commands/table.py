@@ -100,7 +100,7 @@ def parse_demand(action: str, values: list[str], limits: Sequence[AxisLimits]) -
     if action == "move":
         deg = _numbers(values, 3, "move OUTER MIDDLE INNER")
         for name, x, lim in zip(AXES, deg, limits, strict=True):
-            if not lim.allows_position(x * DEG):
+            if not lim.allows_demand(x * DEG):
                 raise UsageError(
                     f"move: {name} {x:g}° is outside the bench limits {lim.position_range_text()}; nothing was sent"
                 )
@@ -112,6 +112,8 @@ def parse_demand(action: str, values: list[str], limits: Sequence[AxisLimits]) -
         if name not in AXES:
             raise UsageError(f"spin: axis {values[0]!r} is not one of outer, middle, inner")
         ax = AXES.index(name)
+        if limits[ax].absent:
+            raise UsageError(f"spin: the table has no {name} axis; nothing was sent")
         (rate,) = _numbers(values[1:], 1, "spin RATE")
         if not limits[ax].allows_rate(rate * DEG):
             raise UsageError(

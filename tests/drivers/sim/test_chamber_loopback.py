@@ -11,7 +11,8 @@ import pytest
 from analysis.thermal.soak import SoakCriterion, SoakMonitor
 from analysis.units import celsius_to_kelvin as C
 from drivers.chamber.base import ChamberError, ChamberSettings
-from drivers.chamber.connect import ChamberConfig, ChamberLink, open_chamber
+from drivers.chamber.config import ChamberConfig, ChamberLink
+from drivers.chamber.connect import open_chamber
 from drivers.chamber.espec import EspecSettings
 from drivers.chamber.safety import leave_safe
 from drivers.chamber.simserv import SimservSettings

@@ -1,0 +1,137 @@
+"""THE output guard: no command writes over one of its inputs or over a recording.
+
+One rule in one place. Every writer of a command output (:func:`core.jsonio.write_text_atomic`, hence every
+JSON and PNG written through it; :func:`save_npy`; the certificate's PDF and JSON; a salvaged copy) calls
+:func:`check_output` on the path before it writes, and the commands call it once more up front so that a bad
+``--out`` is refused before any long work starts. The rule:
+
+- an output path must not be the same file as an input of the running command (the CLI registers the files
+  and run folders named on the command line with :func:`protect_inputs`; a run folder protects its
+  ``recording.h5``, ``bench.yaml`` and ``procedure.yaml``);
+- an output path must not be an existing HDF5 file (a recording: nothing but the recorder appends to one);
+- an output path must be creatable: it is not a folder, and its folder exists or can be created (the check
+  creates it).
+
+Each refusal is a :class:`core.errors.OutputError` naming the option and the path, one line, exit 2.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Iterable
+from pathlib import Path
+
+import numpy as np
+
+from core.errors import OutputError
+
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+"""The first 8 bytes of an HDF5 file (a recording)."""
+RUN_FOLDER_INPUTS = ("recording.h5", "bench.yaml", "procedure.yaml")
+"""The files of a run folder that a command reading the folder uses as inputs."""
+
+_protected: list[Path] = []
+
+
+def protect_inputs(paths: Iterable[str | Path | None]) -> None:
+    """Register the inputs of the running command (files, or run folders) until :func:`clear_inputs`."""
+    for p in paths:
+        if p is None or str(p) == "":
+            continue
+        path = Path(p)
+        try:
+            if path.is_dir():
+                _protected.extend(path / name for name in RUN_FOLDER_INPUTS if (path / name).exists())
+            elif path.exists():
+                _protected.append(path)
+        except (OSError, ValueError):  # a name too long, a NUL byte: not a file, so nothing to protect
+            continue
+
+
+def clear_inputs() -> None:
+    """Forget the registered inputs (the CLI calls it when a command ends)."""
+    _protected.clear()
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def is_recording_file(path: Path) -> bool:
+    """True if ``path`` is an existing file that starts with the HDF5 signature."""
+    try:
+        with path.open("rb") as fh:
+            return fh.read(len(HDF5_SIGNATURE)) == HDF5_SIGNATURE
+    except OSError:
+        return False
+
+
+def check_output(path: str | Path, option: str = "--out", *, inputs: Iterable[str | Path] = ()) -> Path:
+    """Refuse an output ``path`` that would replace an input or a recording, or cannot be created.
+
+    Parameters
+    ----------
+    path : str or Path
+        The output file.
+    option : str
+        The command-line option that named it (for the message).
+    inputs : iterable of paths
+        Inputs of this command beyond the registered ones (e.g. a run's ``calibration.json``).
+
+    Returns
+    -------
+    Path
+        ``path`` as a Path.
+    """
+    p = Path(path)
+    if p.exists():
+        if p.is_dir():
+            raise OutputError(f"{option} {p}: is a folder; give a file name")
+        for q in [*_protected, *(Path(i) for i in inputs)]:
+            if _same_file(p, q):
+                raise OutputError(
+                    f"{option} {p}: is an input of this command ({q}); an output never replaces an input, "
+                    "choose another path"
+                )
+        if is_recording_file(p):
+            raise OutputError(
+                f"{option} {p}: is a recording (HDF5); a recording is never overwritten, choose another path"
+            )
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(
+            f"{option} {p}: its folder cannot be created ({exc.strerror or exc}); choose another path"
+        ) from None
+    if not os.access(p.parent, os.W_OK | os.X_OK):
+        raise OutputError(f"{option} {p}: the folder {p.parent} is not writable; choose another path")
+    return p
+
+
+def save_npy(path: str | Path, array: np.ndarray, option: str = "--out") -> Path:
+    """``np.save`` to exactly ``path`` (no ``.npy`` appended), atomically, through :func:`check_output`."""
+    p = check_output(path, option)
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+    except OSError as exc:
+        raise OutputError(f"{option} {p}: cannot be written ({exc.strerror or exc}); choose another path") from None
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.save(fh, array, allow_pickle=False)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, p)
+    except OSError as exc:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise OutputError(f"{option} {p}: cannot be written ({exc.strerror or exc}); choose another path") from None
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return p
