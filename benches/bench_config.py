@@ -210,6 +210,7 @@ class UnitSpec:
     frame_desc: FrameDescription | None = None
     keep_raw: bool = False  # keep the raw serial stream as RUN_DIR/unit-raw.bin
     gyro_g_sensitivity: str = "diagonal"  # identify the gyro's g-sensitivity as its diagonal or the "full" 3 × 3
+    time_reference: str | None = None  # hardware timing: "pps" or "time_tag" (one clock); None: estimated
 
 
 @dataclass(frozen=True)
@@ -350,7 +351,8 @@ def _acl(d: dict | None, smap: SourceMap, p: KeyPath, resource: str | None, simu
             raise smap.error(p + ("axes",), f"outer, middle and inner need three different axis numbers, got {axes}")
     tv = d.get("time_variable")
     if tv is None:
-        time_variable = SIM_TIME_VARIABLE if simulated else None
+        # absent: a simulated controller serves its clock; an explicit null: readings stamped by the host
+        time_variable = SIM_TIME_VARIABLE if simulated and "time_variable" not in d else None
     else:
         time_variable = _int(d, smap, p, "time_variable", 0, 0, 99999)
     oi = d.get("open_interlocks_at_end", False)
@@ -374,6 +376,44 @@ def _acl(d: dict | None, smap: SourceMap, p: KeyPath, resource: str | None, simu
             else f"{smap.file}:{smap.line(p[:-1] + ('resource',))} (the default for turntable.resource)"
         ),
     )
+
+
+def _modbus_map(d: dict, smap: SourceMap, p: KeyPath, not_modbus: bool) -> ModbusMap | None:
+    """``turntable.modbus_map``: the register map file (a path relative to the bench file), or None."""
+    if d.get("modbus_map") is None:
+        return None
+    if not_modbus:
+        raise smap.error(p + ("modbus_map",), "is only for a Modbus table (driver 'modbus-tcp' or a simulated one)")
+    map_path = Path(get_str(d, smap, p, "modbus_map"))
+    if not map_path.is_absolute():
+        map_path = Path(smap.file).parent / map_path
+    if not map_path.is_file():
+        raise smap.error(
+            p + ("modbus_map",), f"register map file {map_path} not found (a path relative to the bench file)"
+        )
+    return load_modbus_map(map_path)
+
+
+def _table_axes(d: dict, smap: SourceMap, p: KeyPath, aerosmith: AerosmithSettings | None) -> list[AxisLimits]:
+    """``turntable.axes``: the limits of each gimbal, or ``absent`` for one the table does not have."""
+    axes = _section(d, smap, p, "axes")
+    assert axes is not None
+    check_keys(axes, smap, p + ("axes",), list(AXIS_NAMES))
+    limits = []
+    for name in AXIS_NAMES:
+        if axes.get(name) == "absent":  # a gimbal the table does not have (a single-axis table's other two)
+            limits.append(AxisLimits.absent_axis())
+            continue
+        if aerosmith is not None and name != aerosmith.axis:
+            raise smap.error(
+                p + ("axes", name),
+                f"an Ideal Aerosmith table has one axis ({aerosmith.axis}, turntable.aerosmith.axis); write "
+                f"'{name}: absent'",
+            )
+        ad = _section(axes, smap, p + ("axes",), name)
+        assert ad is not None
+        limits.append(_axis(ad, smap, p + ("axes", name)))
+    return limits
 
 
 def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> TurntableSpec:
@@ -430,19 +470,7 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
         raise smap.error(p + ("resource",), f"is only for driver 'acutrol' (this table is {driver!r})")
     if driver == "acutrol" and address:
         raise smap.error(p + ("address",), "is not used by driver 'acutrol'; name the controller with resource:")
-    modbus_map = None
-    if d.get("modbus_map") is not None:
-        if acl_speaker:
-            raise smap.error(p + ("modbus_map",), "is only for a Modbus table (driver 'modbus-tcp' or a simulated one)")
-
-        map_path = Path(get_str(d, smap, p, "modbus_map"))
-        if not map_path.is_absolute():
-            map_path = Path(smap.file).parent / map_path
-        if not map_path.is_file():
-            raise smap.error(
-                p + ("modbus_map",), f"register map file {map_path} not found (a path relative to the bench file)"
-            )
-        modbus_map = load_modbus_map(map_path)
+    modbus_map = _modbus_map(d, smap, p, acl_speaker or aero)
     if d.get("acl") is not None and not acl_speaker:
         raise smap.error(p + ("acl",), "is only for an ACUTROL table (driver 'acutrol' or a simulated ACUTROL)")
     if acl_speaker or aero:
@@ -457,23 +485,7 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
     if aero:
         ap = p + ("aerosmith",)
         aerosmith = _aerosmith(get_mapping(d["aerosmith"], smap, ap) if d.get("aerosmith") else None, smap, ap)
-    axes = _section(d, smap, p, "axes")
-    assert axes is not None
-    check_keys(axes, smap, p + ("axes",), list(AXIS_NAMES))
-    limits = []
-    for name in AXIS_NAMES:
-        if axes.get(name) == "absent":  # a gimbal the table does not have (a single-axis table's other two)
-            limits.append(AxisLimits.absent_axis())
-            continue
-        if aerosmith is not None and name != aerosmith.axis:
-            raise smap.error(
-                p + ("axes", name),
-                f"an Ideal Aerosmith table has one axis ({aerosmith.axis}, turntable.aerosmith.axis); write "
-                f"'{name}: absent'",
-            )
-        ad = _section(axes, smap, p + ("axes",), name)
-        assert ad is not None
-        limits.append(_axis(ad, smap, p + ("axes", name)))
+    limits = _table_axes(d, smap, p, aerosmith)
     acl = None
     if acl_speaker:
         ap = p + ("acl",)
@@ -572,6 +584,7 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
             "frame",
             "frame_options",
             "keep_raw",
+            "time_reference",
         ],
     )
     driver = get_str(d, smap, p, "driver", choices=["sim", "serial"])
@@ -581,7 +594,9 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
     frame = get_str(d, smap, p, "frame", DEFAULT_FRAME)
     sc = _section(d, smap, p, "scale", required=frame == DEFAULT_FRAME)
     if sc is None:  # another frame format carries its own scale; the simulator's internal counts are fine
-        scale = CountScale(accel_lsb=0.01 * UG, gyro_lsb=1e-4 * DEG_PER_HOUR, temperature_lsb=0.01)
+        # internal counts are int32: 1e-3 °/h per count reaches ±596 °/s (a KVH 1750 ±490 °/s, a STIM300
+        # ±400 °/s); 1e-4 °/h clipped every rate above 59.65 °/s (a 90° step peaks at 85 °/s)
+        scale = CountScale(accel_lsb=0.01 * UG, gyro_lsb=1e-3 * DEG_PER_HOUR, temperature_lsb=0.01)
     else:
         sp = p + ("scale",)
         check_keys(sc, smap, sp, ["accel_ug_per_count", "gyro_dph_per_count", "temperature_c_per_count"])
@@ -633,6 +648,7 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
         frame_desc=frame_desc,
         keep_raw=keep_raw,
         gyro_g_sensitivity=get_str(d, smap, p, "gyro_g_sensitivity", "diagonal", choices=("diagonal", "full")),
+        time_reference=get_str(d, smap, p, "time_reference", None, choices=["pps", "time_tag"]),
     )
 
 

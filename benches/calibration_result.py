@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from analysis.identification.specification import ModelSpec, get_model, model_for_names
+from analysis.timebase import TimeBase
 from analysis.units import DISPLAY_UNITS
 from core.errors import UserError
 from core.jsonio import write_json
@@ -199,6 +200,38 @@ class RunInfo(_Block):
     temperature_k: dict[str, float | None] | None = None
 
 
+@dataclass(frozen=True, kw_only=True)
+class TimeBaseBlock(_Block):
+    """``time_base``: the run's t_table = t₀ + (1 + ε) t_unit (docs/methods/time-base.md) with its u and method
+    (the members of :meth:`analysis.timebase.TimeBase.as_dict`, non-finite numbers as null), its effect on the
+    18 parameters (``effect_u``: u contributed, SI, included in the covariance; ``sensitivity``: ∂x/∂(t₀, ε) per
+    parameter) and on a gyro scale factor (``gyro_scale_factor_u`` = u(ε), 1 : 1)."""
+
+    KEY: ClassVar[str] = "time_base"
+    offset_s: float | None = None
+    rate: float | None = None
+    u_offset_s: float | None = None
+    u_rate: float | None = None
+    covariance: list[list[float | None]] | None = None
+    method: str | None = None
+    model: str | None = None
+    misfit: float | None = None
+    events: list[dict[str, Any]] | None = None
+    check: dict[str, Any] | None = None
+    notes: list[str] | None = None
+    effect_u: dict[str, float] | None = None
+    sensitivity: dict[str, list[float]] | None = None
+    gyro_scale_factor_u: float | None = None
+
+    @property
+    def estimate(self) -> TimeBase:
+        """The typed estimate (:class:`analysis.timebase.TimeBase`; null numbers read as NaN)."""
+        d = {k: (math.nan if v is None else v) for k, v in self.to_mapping().items()}
+        cov = self.covariance or [[0.0, 0.0], [0.0, 0.0]]
+        d["covariance"] = [[math.nan if x is None else x for x in row] for row in cov]
+        return TimeBase.from_dict(d)
+
+
 _BLOCKS: dict[str, type[_Block]] = {
     "information": InformationSummary,
     "residuals": Residuals,
@@ -206,6 +239,7 @@ _BLOCKS: dict[str, type[_Block]] = {
     "truth": TruthCheck,
     "history": FilterHistory,
     "run": RunInfo,
+    "time_base": TimeBaseBlock,
 }
 
 
@@ -266,6 +300,8 @@ class CalibrationResult:
     run: RunInfo | None = None
     warnings: list[str] = field(default_factory=list)
     live_vs_offline_max_u: float | None = None
+    time_base: TimeBaseBlock | None = None
+    """The run's time base (t_table = t₀ + (1 + ε) t_unit) and its effect; ``time_base.estimate`` is typed."""
     """Largest |live filter − offline| / u_white of ``tablebench run`` (None: no live filter)."""
 
     def __post_init__(self) -> None:
@@ -352,6 +388,8 @@ class CalibrationResult:
             "u = the identification's combined standard uncertainty (white noise ⊕ correlated bias instability, "
             "k = 1); the certificate adds table, gravity and model components and states U = 2u"
         )
+        if self.time_base is not None:
+            lines.append(self.time_base.estimate.summary())
         if truth is not None and (truth.to_mapping()):
             lines.append(f"NEES {truth.nees:.2f} over {truth.dof} identified states (simulator truth)")
         else:
@@ -406,6 +444,8 @@ class CalibrationResult:
         blocks["warnings"] = list(self.warnings)
         if self.live_vs_offline_max_u is not None:
             blocks["live_vs_offline_max_u"] = self.live_vs_offline_max_u
+        if self.time_base is not None:
+            blocks["time_base"] = self.time_base.to_mapping()
         extra = dict(self.extra)
         noise = {"variance": self.noise_variance.tolist()}
         if self.noise_source is not None:

@@ -187,7 +187,9 @@ def _open_simulated(
                 [table.close, unit.close],
             )
         if acl:
-            table: Turntable = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
+            table: Turntable = acl_turntable(
+                AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt, clock=world.host_time
+            )
             what = "simulated ACUTROL (ACL, in-memory)"
         else:
             table, what = SimTurntable(world), "in-process drivers"
@@ -201,13 +203,18 @@ def _open_simulated(
             [table.close, unit.close],
         )
     wd = getattr(tt, "watchdog", None)
+    realtime = bool(getattr(config.simulation, "realtime", False))
     closers: list[Callable[[], None]] = []
     raw, raw_name = _raw_sink(config, run_folder, closers)
     try:
         lb = Loopback(
             world,
             dialect="acutrol" if acl else "modbus",
-            make_acl_table=(lambda transport: acl_turntable(transport, tt)) if acl else None,
+            make_acl_table=(
+                (lambda transport: acl_turntable(transport, tt, clock=None if realtime else world.host_time))
+                if acl
+                else None
+            ),
             acl=tt.acl,
             word_order=getattr(tt, "float_word_order", None),
             register_map=getattr(tt, "modbus_map", None),
@@ -216,6 +223,7 @@ def _open_simulated(
             unit_frame=unit_frame_format(config.unit),
             unit_raw=raw,
             unit_raw_name=raw_name,
+            realtime=realtime,
         )
     except BaseException:
         for fn in closers:
@@ -252,9 +260,13 @@ def aerosmith_table(stream: Any, tt: TurntableSpec) -> AerosmithTable:
     )
 
 
-def acl_turntable(transport: MessageTransport, tt: TurntableSpec) -> AclTurntable:
-    """The ACL driver for a bench's turntable section on an open transport (settings and tolerances from the bench)."""
-    return AclTurntable(transport, tuple(tt.limits), **_acl_options(tt))  # type: ignore[arg-type]
+def acl_turntable(
+    transport: MessageTransport, tt: TurntableSpec, clock: Callable[[], float] | None = None
+) -> AclTurntable:
+    """The ACL driver for a bench's turntable section on an open transport (settings and tolerances from the bench);
+    ``clock``: the host clock (a simulated bench's world clock; None: the host's monotonic clock)."""
+    extra = {} if clock is None else {"clock": clock}
+    return AclTurntable(transport, tuple(tt.limits), **_acl_options(tt), **extra)  # type: ignore[arg-type]
 
 
 def _acutrol_connection(resource: str, tt: TurntableSpec) -> connect.Connection[AclTurntable]:
@@ -321,7 +333,9 @@ def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str)
             closers.append(table.close)
         elif transport == "in-process":
             if acl:
-                table: Turntable = acl_turntable(AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt)
+                table: Turntable = acl_turntable(
+                    AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt, clock=world.host_time
+                )
                 what = "simulated ACUTROL (ACL, in-memory)"
             else:
                 table, what = SimTurntable(world), "simulated table, in-process driver"

@@ -33,6 +33,7 @@ from analysis.identification.bias_drift import flicker_components, window_mean_c
 from analysis.identification.kalman import StreamingIdentifier, estimate_measurement_noise
 from analysis.identification.plan import IdentificationPlan, PlanStep, plan_identification
 from analysis.identification.specification import ModelSpec, UnitModel, get_model
+from analysis.timebase import IDENTITY, TimeBase, misfit_cause
 from analysis.units import ARCSEC, DEG, DEG_PER_HOUR, DISPLAY_UNITS, G0, PPM
 from core.errors import UserError
 from drivers.protocols import ImuBlock, TableState
@@ -49,12 +50,14 @@ from .calibration_result import (
     Residuals,
     RunInfo,
     StepResiduals,
+    TimeBaseBlock,
     TruthCheck,
 )
 from .progress import ProgressDisplay
 from .recorded_run import RecordedRun, run_of
-from .recording import RecordingError, StepRecord
+from .recording import RecordingError, StepRecord, TableReadings
 from .reference import reference_at, reference_for_samples
+from .timebase import run_time_base, table_in_unit_time, time_base_sensitivity
 
 ACCEL_MODEL: ModelSpec = get_model("accelerometer")
 """The accelerometer model (:mod:`analysis.identification.specification` registry)."""
@@ -288,9 +291,11 @@ class LiveIdentifier:
     step end (one exact information-form update per batch: with Q = 0 grouping samples changes nothing).
     The reference for the buffered samples interpolates the table readings taken during (and just before)
     the buffer at the sample times less the unit's latency — the same readings offline identification
-    interpolates, so the live result equals the offline one. A spin is fused once, at its end: its gyro
-    reference rate is the slope of the encoder angles over the whole acquisition (:func:`window_reference`).
-    The model is the unit's (:func:`unit_model`), with the gyro when ``with_gyro``.
+    interpolates. The live filter cannot know the run's time base before its motions are over, so it takes
+    the table's and the unit's clocks as one: on a one-clock bench it equals offline identification with
+    ``time_base="none"``; calibration.json maps the clocks with the estimated time base. A spin is fused
+    once, at its end: its gyro reference rate is the slope of the encoder angles over the whole acquisition
+    (:func:`window_reference`). The model is the unit's (:func:`unit_model`), with the gyro when ``with_gyro``.
     """
 
     def __init__(
@@ -419,6 +424,8 @@ class IdentificationData:
     truth: dict[str, float] | None
     incomplete_steps: list[str]
     temperature: NDArray[np.float64]
+    time_base: TimeBase = IDENTITY
+    table: TableReadings | None = None  # the readings on the unit's clock (benches.recording.TableReadings)
     warmup_gyro: NDArray[np.float64] | None = None
     model: ModelSpec = ACCEL_MODEL
     """The model identified from this recording (:func:`unit_model`: with the gyro when it has gyro data)."""
@@ -441,15 +448,19 @@ GYRO_INVALID = 0b111000
 """``/imu/status`` bits of the gyro channels (with the gyro model, a row with either triad flagged is left out)."""
 
 
-def load_run(run: str | Path | RecordedRun, with_gyro: bool | None = None) -> IdentificationData:
+def load_run(
+    run: str | Path | RecordedRun, time_base: str = "estimate", with_gyro: bool | None = None
+) -> IdentificationData:
     """Read a recording's acquisition windows and reference; clear errors for unusable recordings.
 
     ``run`` is a run folder, a recording file or an open :class:`RecordedRun` (left open). The recording is
-    verified when it is opened (every checksum): identification never runs on damaged data. ``with_gyro``:
-    identify the gyro triad too (default: when the recording has gyro data, :func:`has_gyro_data`).
+    verified when it is opened (every checksum): identification never runs on damaged data. ``time_base``:
+    "estimate" puts the table's readings on the unit's clock with the run's estimated time base
+    (benches.timebase), "none" takes the two clocks as one. ``with_gyro``: identify the gyro triad too
+    (default: when the recording has gyro data, :func:`has_gyro_data`).
     """
     with _opened(run) as rr:
-        return _identification_data(rr, with_gyro)
+        return _identification_data(rr, time_base, with_gyro)
 
 
 @contextlib.contextmanager
@@ -493,7 +504,9 @@ def _read_window(rec: Any, s: StepRecord, config: BenchConfig, table: Any, with_
     return StepWindow(s.name, s.kind, t, fo, fr, om, ang, gy if with_gyro else None, earth)
 
 
-def _identification_data(rr: RecordedRun, with_gyro: bool | None = None) -> IdentificationData:
+def _identification_data(
+    rr: RecordedRun, time_base: str = "estimate", with_gyro: bool | None = None
+) -> IdentificationData:
     path, rec = rr.path, rr.recording
     if not rr.bench_text or rec.n_table == 0:
         raise IdentificationError(f"{path}: the recording lacks its bench text, samples or table readings")
@@ -502,7 +515,17 @@ def _identification_data(rr: RecordedRun, with_gyro: bool | None = None) -> Iden
     if not steps:
         raise IdentificationError(f"{path}: no completed step in the recording (was the run stopped at once?)")
     n = rec.n_samples
-    table = rec.table()
+    latency = unit_latency(config)
+    if time_base == "none":
+        tb = TimeBase(method="none (not estimated: table and unit times taken as one clock)")
+    elif time_base == "estimate":
+        tb = run_time_base(
+            rec, rec.table(), g=config.site.g, mounting=config.unit.mounting, latency=latency,
+            declared=getattr(config.unit, "time_reference", None),
+        )  # fmt: skip
+    else:
+        raise IdentificationError(f"unknown time base {time_base!r}; use estimate or none")
+    table = table_in_unit_time(rec.table(), tb)  # every reference on the unit's clock
     gyro = has_gyro_data(rec, steps) if with_gyro is None else with_gyro
     model = unit_model(config, gyro)
     windows: list[StepWindow] = []
@@ -531,7 +554,9 @@ def _identification_data(rr: RecordedRun, with_gyro: bool | None = None) -> Iden
             f"{path}: no complete hold or spin step to identify from (procedure {rr.header.procedure_name!r}); "
             "run a calibration procedure such as ten-step"
         )
-    return IdentificationData(rr, windows, warm, truth, incomplete, temp, warm_g, model)
+    return IdentificationData(
+        rr, windows, warm, truth, incomplete, temp, time_base=tb, table=table, warmup_gyro=warm_g, model=model
+    )
 
 
 def _windows_as_plan_steps(windows: list[StepWindow], max_points: int = 4000) -> list[PlanStep]:
@@ -582,6 +607,8 @@ class Uncertainty:
     rank: int
     condition: float
     unidentifiable: set[str]
+    time_covariance: NDArray[np.float64] | None = None  # J Σ Jᵀ of the time base (included in ``covariance``)
+    time_sensitivity: NDArray[np.float64] | None = None  # J = ∂x/∂(t₀, ε), (18, 2)
 
 
 def measurement_noise(data: IdentificationData, noise: str) -> NDArray[np.float64]:
@@ -662,11 +689,70 @@ def combined_uncertainty(data: IdentificationData, est: Estimate) -> Uncertainty
         offset_covariance=offset_covariance([(float(w.t[0]), float(w.t[-1])) for w in data.windows], b),
         model=model,
     )
-    p_total = est.covariance_white + (actual.covariance_total - actual.covariance_white)
+    p_time, jac = _time_base_covariance(data, est.noise_variance, est.prior)
+    p_total = est.covariance_white + (actual.covariance_total - actual.covariance_white) + p_time
     p_total = 0.5 * (p_total + p_total.T)
     rank, cond = information_rank(est.information, est.noise_variance, model=model)
     unobs = set(unobservable_parameters(est.information, est.noise_variance, model=model)) | set(actual.unidentifiable)
-    return Uncertainty(p_total, actual, int(rank), float(cond), unobs)
+    return Uncertainty(p_total, actual, int(rank), float(cond), unobs, p_time, jac)
+
+
+def _time_base_covariance(
+    data: IdentificationData, r_var: NDArray[np.float64], p0: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The identified parameters' covariance from the time base's uncertainty, J Σ Jᵀ, and J = ∂x/∂(t₀, ε) (n, 2).
+
+    J is the accelerometer's (the time-base analysis's sensitivities); the gyro rows are 0 here — the gyro's
+    time-base terms (ε → S_g 1:1) are the certificate budget's (analysis.identification.gyro_budget).
+    """
+    tb = data.time_base
+    cov = np.asarray(tb.covariance, dtype=float)
+    n = data.model.n_params
+    if data.table is None or not np.all(np.isfinite(cov)) or not np.any(cov):
+        return np.zeros((n, n)), np.zeros((n, 2))
+    cfg = data.config
+    lat = unit_latency(cfg)
+    fs = float(cfg.unit.sample_rate)
+    wins = [(w.t, w.f_out, acquisition_span(float(w.t[0]), float(w.t[-1]), lat, fs)) for w in data.windows]
+    jac = np.zeros((n, 2))
+    jac[:18] = time_base_sensitivity(
+        wins, data.table, g=cfg.site.g, mounting=cfg.unit.mounting, latency=lat, r_var=r_var[:3], p0=p0[:18, :18]
+    )
+    return jac @ cov @ jac.T, jac
+
+
+def _time_base_warnings(data: IdentificationData) -> list[str]:
+    """Lines for calibration.json's warnings: a timing misfit beyond what the budget carries (naming its cause),
+    a host-clock check that disagrees, a time base that could not be measured.
+
+    Within a motion the budget carries a reading's timing error up to the table's attitude accuracy (its
+    rectangular u) over the run's fastest rate (analysis.timebase.misfit_cause)."""
+    tb = data.time_base
+    out = [n for n in tb.notes if "disagrees" in n or "without a stated uncertainty" in n]
+    host = tb.check.get("table_stamped_by") == "host"
+    w_max = float(np.max(np.abs(data.table.rates))) if data.table is not None and len(data.table) else 0.0
+    att = float(data.config.turntable.attitude_accuracy) / math.sqrt(3.0)
+    cause = misfit_cause(tb, host_stamped=host, carried=att / w_max if w_max > 0 else math.inf)
+    if cause:
+        out.append(cause)
+    return out
+
+
+def _time_base_block(data: IdentificationData, unc: Uncertainty) -> TimeBaseBlock:
+    """calibration.json's ``time_base``: the estimate, its u, the method, its effect on each parameter (u, SI,
+    included in the covariance; sensitivities) and on a gyro scale factor (ε 1:1)."""
+    d = data.time_base.as_dict()
+    for k in ("u_offset_s", "u_rate", "misfit"):
+        if not math.isfinite(d[k]):
+            d[k] = None
+    d["covariance"] = [[x if math.isfinite(x) else None for x in row] for row in d["covariance"]]
+    n = data.model.n_params
+    p_time = unc.time_covariance if unc.time_covariance is not None else np.zeros((n, n))
+    jac = unc.time_sensitivity if unc.time_sensitivity is not None else np.zeros((n, 2))
+    d["effect_u"] = {nm: float(math.sqrt(max(p_time[k, k], 0.0))) for k, nm in enumerate(ACCEL_MODEL.names)}
+    d["sensitivity"] = {nm: [float(jac[k, 0]), float(jac[k, 1])] for k, nm in enumerate(ACCEL_MODEL.names)}
+    d["gyro_scale_factor_u"] = d["u_rate"]  # a gyro scale factor measured as angle over time inherits ε 1:1
+    return TimeBaseBlock.from_mapping(d)
 
 
 def truth_check(
@@ -758,6 +844,7 @@ def calibration_result(
             f"the bench file states no prior for {', '.join(dflt)}: tactical-grade defaults used "
             "(10 °/h, 1000 ppm, 100″, 1 °/h/g); give unit.prior gyro_* keys from the datasheet"
         )
+    warnings += _time_base_warnings(data)
     if data.incomplete_steps:
         warnings.insert(0, f"recording incomplete: step(s) {', '.join(data.incomplete_steps)} not completed")
     if not data.run.integrity_verified:
@@ -790,11 +877,17 @@ def calibration_result(
         history=est.history,
         run=_run_info(data),
         warnings=warnings,
+        time_base=_time_base_block(data, unc),
     )
 
 
 def identify_run(
-    run: str | Path | RecordedRun, method: str = "kalman", noise: str = "configured", *, with_gyro: bool | None = None
+    run: str | Path | RecordedRun,
+    method: str = "kalman",
+    noise: str = "configured",
+    time_base: str = "estimate",
+    *,
+    with_gyro: bool | None = None,
 ) -> CalibrationResult:
     """Identify the unit's parameters from a recording; returns the typed calibration result.
 
@@ -809,11 +902,14 @@ def identify_run(
         The streaming filter over all windows in order, or batch least squares (same prior, same model).
     noise : {"configured", "warm-up"}
         R from the bench's configured VRW (and ARW), or estimated from the run's warm-up record.
+    time_base : {"estimate", "none"}
+        Map the table's clock to the unit's with the run's estimated time base (benches.timebase), or take
+        them as one clock (what the live filter during the run does; for comparisons).
     """
     if method not in ("kalman", "batch"):
         raise IdentificationError(f"unknown method {method!r}; use kalman or batch")
     with _opened(run) as rr:
-        data = _identification_data(rr, with_gyro)
+        data = _identification_data(rr, time_base, with_gyro)
         est = estimate(data, method, noise)
         residuals = residual_statistics(data, est)
         unc = combined_uncertainty(data, est)

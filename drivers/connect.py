@@ -154,6 +154,7 @@ def serial_unit(
     raw_sink: BinaryIO | None = None,
     raw_name: str = "",
     wrap: Wrap = _same,
+    clock: Any = None,
 ) -> Connection[SerialInertialUnit]:
     """A serial inertial unit on a device or URL: free-running stream, or polled bursts (``polled``); ``frame``
     is its frame format (a bare count scale means the project's own ``tablebench-v1`` frame); ``raw_sink``
@@ -173,6 +174,7 @@ def serial_unit(
             name=name,
             raw_sink=raw_sink,
             raw_name=raw_name,
+            **({} if clock is None else {"clock": clock}),
         )
     except BaseException:
         port.close()

@@ -152,7 +152,8 @@ class TableState:
     Attributes
     ----------
     time : float
-        Controller time stamp, s (bench time).
+        The reading's time stamp, s: the controller's own clock when it reports one, else the host's clock when
+        the answer arrived (time-base.md; the recording keeps every source raw).
     angles : ndarray (3,)
         Reported gimbal angles (outer, middle, inner), rad, encoder-quantised, unwrapped (a continuous
         axis that has spun two turns reports ≈ 4π).
@@ -161,6 +162,10 @@ class TableState:
     status : TableStatus
     fault_code : FaultCode
     modes : tuple of AxisMode
+    controller_time : float
+        The controller's own clock for this reading, s (NaN: the controller reported none).
+    host_request, host_answer : float
+        The host's clock when the reading was requested and when its answer arrived, s (NaN: not known).
     """
 
     time: float
@@ -169,6 +174,9 @@ class TableState:
     status: TableStatus
     fault_code: FaultCode = FaultCode.NONE
     modes: tuple[AxisMode, AxisMode, AxisMode] = (AxisMode.STOP, AxisMode.STOP, AxisMode.STOP)
+    controller_time: float = math.nan
+    host_request: float = math.nan
+    host_answer: float = math.nan
 
 
 class TableError(RuntimeError):
@@ -245,6 +253,8 @@ class ImuBlock:
         Frames repeating the previous counter in this block (dropped, never used twice).
     events : list of str
         Link events the driver wants in the recording's event log.
+    host_time : float
+        The host's clock when the block's last frame arrived, s (NaN: not known).
     """
 
     counter: NDArray[np.uint32]
@@ -258,6 +268,7 @@ class ImuBlock:
     events: list[str] = field(default_factory=list)
     resets: int = 0
     duplicates: int = 0
+    host_time: float = math.nan
 
     def __len__(self) -> int:
         return int(self.time.shape[0])

@@ -26,10 +26,12 @@ from analysis.identification.budget import (
     default_g_uncertainty,
 )
 from analysis.identification.gyro_budget import axis_inputs, earth_rate_inputs, time_base_inputs
+from analysis.timebase import TimeBase
 from analysis.units import ARCSEC
 from benches.calibration_result import CalibrationResult
 from benches.identify import acquisition_span, earth_in_body
 from benches.reference import reference_for_samples
+from benches.timebase import table_in_unit_time
 
 if TYPE_CHECKING:  # pragma: no cover
     from benches.recording import Recording
@@ -54,6 +56,7 @@ def step_geometry(
     names: Sequence[str] | None = None,
     max_points: int = 400,
     latitude: float | None = None,
+    time_base: TimeBase | None = None,
 ) -> list[StepGeometry]:
     """Decimated reference geometry of the complete hold/spin steps of an open recording.
 
@@ -73,9 +76,12 @@ def step_geometry(
         Reference points per step (evenly spaced sample centres).
     latitude : float, optional
         Site latitude, rad: the geometry then carries the Earth rate in the body frame (gyro budgets).
+    time_base : analysis.timebase.TimeBase, optional
+        The run's time base (calibration.json): the readings are put on the unit's clock with it, as the
+        identification did (benches.timebase.table_in_unit_time).
     """
     wanted = set(names) if names is not None else None
-    table = f.table()
+    table = f.table() if time_base is None else table_in_unit_time(f.table(), time_base)
     tt, ta, tr = table.time, table.angles, table.rates
     fs = float(f.header.sample_rate_hz)
     out: list[StepGeometry] = []
@@ -165,6 +171,7 @@ def budget_for_run(
     notes: list[str] = []
     p_w = cal.covariance_white
     per_step = cal.per_step
+    p_tb, tb_source = time_base_covariance(cal)
     model = cal.error_model
     extra = []
     if model.n_axes == 6:
@@ -173,9 +180,10 @@ def budget_for_run(
         elif bias_instability is not None:
             bias_instability = None
             notes.append("the unit's gyro bias instability is unknown: no flicker share in the mismatch test")
-        extra = _gyro_inputs(cal, latitude, azimuth_uncertainty, attitude_accuracy, notes)
+        covered = bool(tb_source) and cal.time_base is not None and "gyro_S_x" in (cal.time_base.sensitivity or {})
+        extra = _gyro_inputs(cal, latitude, azimuth_uncertainty, attitude_accuracy, notes, covered)
     budget = build_budget(
-        p_id,
+        p_id - p_tb,
         p_w,
         geometry,
         nv,
@@ -190,6 +198,9 @@ def budget_for_run(
         model=model,
         extra_inputs=extra,
     )
+    if tb_source:
+        label = "Time base (unit clock vs table clock)"
+        budget.components.append(BudgetComponent("time_base", label, tb_source, "A", p_tb))
     budget.notes.extend(notes)
     return budget
 
@@ -202,7 +213,12 @@ DEFAULT_LATITUDE_U: float = 1.0 * ARCSEC
 
 
 def _gyro_inputs(
-    cal: CalibrationResult, latitude: float | None, u_az: float | None, attitude_accuracy: float, notes: list[str]
+    cal: CalibrationResult,
+    latitude: float | None,
+    u_az: float | None,
+    attitude_accuracy: float,
+    notes: list[str],
+    time_base_covered: bool = False,
 ) -> list[BudgetInput]:
     model = cal.error_model
     if latitude is None:
@@ -217,9 +233,35 @@ def _gyro_inputs(
     tb = getattr(cal, "time_base", None)
     u_rate = getattr(tb, "u_rate", None) if tb is not None else None
     u_off = getattr(tb, "u_offset_s", None) if tb is not None else None
-    if u_rate is not None or u_off is not None:
+    if time_base_covered:
+        pass  # the time-base component (its sensitivities cover every state, the gyro's scale included)
+    elif u_rate is not None or u_off is not None:
         out += time_base_inputs(model, float(u_rate or 0.0), float(u_off or 0.0), "time-base estimate of this run")
     else:
         notes.append("no time-base estimate in the calibration result: one clock assumed (time base not budgeted)")
     out += axis_inputs(model, attitude_accuracy / np.sqrt(3.0), "the table's attitude accuracy, rectangular")
     return out
+def time_base_covariance(cal: CalibrationResult) -> tuple[NDArray[np.float64], str]:
+    """The parameters' covariance from the run's estimated time base (J Σ Jᵀ, J = ∂x/∂(t₀, ε) from
+    calibration.json's ``time_base.sensitivity``; included in its covariance) and the budget line's source text
+    ("" when the file has none)."""
+    names = cal.names
+    z = np.zeros((len(names), len(names)))
+    blk = cal.time_base
+    if blk is None or not blk.sensitivity:
+        return z, ""
+    tb = blk.estimate
+    cov = np.asarray(tb.covariance, dtype=float)
+    if not np.all(np.isfinite(cov)):
+        return z, ""
+    if not any(n in blk.sensitivity for n in names):
+        return z, ""
+    # states the time-base analysis did not propagate to (e.g. the gyro's) get zero rows here; the gyro's
+    # own time-base inputs then carry them (analysis.identification.gyro_budget.time_base_inputs)
+    jac = np.array([blk.sensitivity.get(n, [0.0, 0.0]) for n in names], dtype=float)
+    src = (
+        f"t_table = t0 + (1 + eps) t_unit estimated from the run ({tb.method}, {len(tb.events)} motions): "
+        f"t0 = {tb.offset * 1e3:.4f} ms, u = {tb.u_offset * 1e6:.3g} µs; eps = {tb.rate * 1e6:+.3f} ppm, "
+        f"u = {tb.u_rate * 1e6:.3g} ppm; offset → misalignment and size effect through the spins"
+    )
+    return jac @ cov @ jac.T, src

@@ -367,8 +367,9 @@ def _gather_open(
     binfo = bench or bench_info_of(rr.config if bench_text.strip() else None, cal_run, attrs)
     used = [str(p.get("name")) for p in cal.per_step]
     lat = None if binfo.latitude_deg is None else math.radians(float(binfo.latitude_deg))
+    tb = cal.time_base.estimate if cal.time_base is not None else None
     geometry = step_geometry(f, binfo.g, None if binfo.mounting is None else np.asarray(binfo.mounting),
-                             latency=binfo.latency, names=used or None, latitude=lat)  # fmt: skip
+                             latency=binfo.latency, names=used or None, latitude=lat, time_base=tb)  # fmt: skip
     n_samples = f.n_samples
     ends = f.samples(fields=("time",), index=[0, n_samples - 1]).time if n_samples > 1 else None
     analyses, analysis_plots = _gather_analyses(run)

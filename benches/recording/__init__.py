@@ -39,6 +39,7 @@ from .layout import (
     Samples,
     StepRecord,
     TableReadings,
+    TimeSources,
     Truth,
     recording_file,
 )
@@ -47,6 +48,7 @@ from .salvage import salvage, write_decoded_samples
 from .writer import Hdf5Recorder, Recorder, storage_filters
 
 __all__ = [
+    "TimeSources",
     "FORMAT",
     "FORMAT_VERSION",
     "READABLE_VERSIONS",

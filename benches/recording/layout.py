@@ -37,6 +37,12 @@ _TABLE_DTYPES = {"time": np.float64, "angles": np.float64, "rates": np.float64, 
 _WIDTH = {"accel": 3, "gyro": 3, "angles": 3, "rates": 3}
 QUANTISED_FIELDS = ("time", "accel", "gyro")
 
+TIMING_TABLE = {"table_sample_index": np.int64, "table_controller_time": np.float64,
+                "table_host_request": np.float64, "table_host_answer": np.float64}  # fmt: skip
+"""``/timing`` datasets with one row per table reading (RECORDING.md, time sources)."""
+TIMING_BLOCK = {"block_end_sample": np.int64, "block_host_time": np.float64}
+"""``/timing`` datasets with one row per block of unit samples received."""
+
 IMU_CHUNK = 16384
 TABLE_CHUNK = 1024
 READ_CHUNK = 1 << 18
@@ -196,6 +202,20 @@ class TableReadings:
 
     def __len__(self) -> int:
         return int(self.time.shape[0])
+
+
+@dataclass(frozen=True)
+class TimeSources:
+    """Every time source of a run, raw (RECORDING.md): per table reading (rows as ``/table``) the number of unit
+    samples recorded before it, the controller's clock (NaN: not reported) and the host's request and answer
+    times; per block of unit samples its end (samples recorded after it) and the host's receive time. Seconds."""
+
+    table_sample_index: NDArray[np.int64]
+    table_controller_time: NDArray[np.float64]
+    table_host_request: NDArray[np.float64]
+    table_host_answer: NDArray[np.float64]
+    block_end_sample: NDArray[np.int64]
+    block_host_time: NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -29,6 +29,8 @@ from .layout import (
     READ_CHUNK,
     READABLE_VERSIONS,
     TABLE_FIELDS,
+    TIMING_BLOCK,
+    TIMING_TABLE,
     Event,
     RecordingDamaged,
     RecordingError,
@@ -36,6 +38,7 @@ from .layout import (
     Samples,
     StepRecord,
     TableReadings,
+    TimeSources,
     Truth,
     _plain,
     _text,
@@ -541,6 +544,35 @@ class Recording:
         stop = self.n_table if stop is None else min(int(stop), self.n_table)
         with self._guard("/table"):
             return self._table_rows(max(0, int(start)), stop)
+
+    def storage_bytes(self, name: str = "/") -> int:
+        """Bytes stored for a dataset or (recursively) a group, e.g. ``"timing"`` (benchmarks: size shares)."""
+        obj = self._f[name]
+        if isinstance(obj, h5py.Dataset):
+            return int(obj.id.get_storage_size())
+        total = 0
+
+        def add(_n: str, o: Any) -> None:
+            nonlocal total
+            if isinstance(o, h5py.Dataset):
+                total += int(o.id.get_storage_size())
+
+        obj.visititems(add)
+        return total
+
+    def timing(self) -> TimeSources | None:
+        """The raw time sources (``/timing``; RECORDING.md), or None for a recording made before they existed."""
+        if "timing" not in self._f:
+            return None
+        with self._guard("/timing"):
+            g = self._f["timing"]
+            cols = {name: g[name][()] for name in (*TIMING_TABLE, *TIMING_BLOCK)}
+        n = min(self.n_table, cols["table_sample_index"].shape[0])
+        return TimeSources(
+            **{k: v[:n] for k, v in cols.items() if k in TIMING_TABLE},
+            block_end_sample=cols["block_end_sample"],
+            block_host_time=cols["block_host_time"],
+        )
 
     def events(self) -> list[Event]:
         """The event log."""

@@ -39,6 +39,8 @@ from .layout import (
     STEP_DTYPE,
     TABLE_CHUNK,
     TABLE_FIELDS,
+    TIMING_BLOCK,
+    TIMING_TABLE,
     RecordingError,
     StepRecord,
     _clip_utf8,
@@ -135,6 +137,8 @@ class Hdf5Recorder:
         self.checkpoint_samples = int(checkpoint_samples)
         self._buf_imu: list[ImuBlock] = []
         self._buf_table: list[TableState] = []
+        self._buf_timing: list[tuple[int, float, float, float]] = []  # per reading: sample index, controller, host
+        self._buf_blocks: list[tuple[int, float]] = []  # per block: end sample, host receive time
         self._buf_events: list[tuple[float, str, str, str]] = []
         self._buffered = 0
         self._closed = False
@@ -233,6 +237,7 @@ class Hdf5Recorder:
         tab = _group(f, "table")
         for name in TABLE_FIELDS:
             self._dataset(tab, name, _TABLE_DTYPES[name], _WIDTH.get(name), TABLE_CHUNK)
+        self._timing_datasets(f)
         f.create_dataset("steps", shape=(0,), maxshape=(None,), dtype=STEP_DTYPE, chunks=(64,), fletcher32=True)
         f.create_dataset("events", shape=(0,), maxshape=(None,), dtype=EVENT_DTYPE, chunks=(64,), fletcher32=True)
         if truth is not None:
@@ -242,6 +247,13 @@ class Hdf5Recorder:
                 g.attrs[k] = float(arr) if arr.ndim == 0 else arr  # attributes: in the checksummed header
         f.flush()
         return f
+
+    def _timing_datasets(self, f: h5py.File) -> None:
+        """The raw time sources (``/timing``), created if missing (a recording made before they existed)."""
+        g = f["timing"] if "timing" in f else _group(f, "timing")
+        for name, dt in {**TIMING_TABLE, **TIMING_BLOCK}.items():
+            if name not in g:
+                self._dataset(g, name, dt, None, TABLE_CHUNK)
 
     def _open_resume(self) -> h5py.File:
         if not self.path.exists():
@@ -274,6 +286,14 @@ class Hdf5Recorder:
                 d.resize(int(np.searchsorted(rows, cut)), axis=0)
             for d in f["table"].values():
                 d.resize(min(keep_t, d.shape[0]), axis=0)
+            self._timing_datasets(f)
+            tg = f["timing"]
+            for name in TIMING_TABLE:
+                tg[name].resize(min(keep_t, tg[name].shape[0]), axis=0)
+            ends = tg["block_end_sample"][()]
+            n_keep = int(np.searchsorted(ends, cut, side="right"))
+            for name in TIMING_BLOCK:
+                tg[name].resize(min(n_keep, tg[name].shape[0]), axis=0)
             f["steps"].resize(len(complete), axis=0)
             _set_attr(f, "status", "running")
             f.flush()
@@ -294,6 +314,7 @@ class Hdf5Recorder:
             return
         self._buf_imu.append(block)
         self._buffered += len(block)
+        self._buf_blocks.append((self.n_samples, float(getattr(block, "host_time", math.nan))))
         if self._buffered >= self.checkpoint_samples:
             self.checkpoint(full=False)
         elif self._chunks is not None and self._chunks.pending:
@@ -301,8 +322,17 @@ class Hdf5Recorder:
                 self._chunks.drain(wait=False)  # chunks (and step rows) the encoder has finished
 
     def add_table(self, state: TableState) -> None:
-        """Buffer one table reading (hashed and written at the next step-boundary checkpoint)."""
+        """Buffer one table reading (hashed and written at the next step-boundary checkpoint), with its raw time
+        sources (the samples recorded before it, the controller's and the host's clocks)."""
         self._buf_table.append(state)
+        self._buf_timing.append(
+            (
+                self.n_samples,
+                float(getattr(state, "controller_time", math.nan)),
+                float(getattr(state, "host_request", math.nan)),
+                float(getattr(state, "host_answer", math.nan)),
+            )
+        )
 
     def event(self, time: float, level: str, message: str) -> None:
         """Buffer an event-log line."""
@@ -375,6 +405,15 @@ class Hdf5Recorder:
                 _append_rows(f["table"][name], data)
             self._table_written += len(b)
             self._buf_table.clear()
+            tim = np.array(self._buf_timing, dtype=np.float64).reshape(-1, 4)
+            for j, name in enumerate(TIMING_TABLE):
+                _append_rows(f["timing"][name], tim[:, j].astype(TIMING_TABLE[name]))
+            self._buf_timing.clear()
+        if self._buf_blocks:
+            blk = np.array(self._buf_blocks, dtype=np.float64).reshape(-1, 2)
+            for j, name in enumerate(TIMING_BLOCK):
+                _append_rows(f["timing"][name], blk[:, j].astype(TIMING_BLOCK[name]))
+            self._buf_blocks.clear()
         if self._buf_events:
             rows = np.array(
                 [

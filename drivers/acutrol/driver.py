@@ -136,7 +136,8 @@ class AclTurntable:
     rate_tolerance : float
         rad/s; at-rate and at-rest window.
     clock : callable
-        Host clock (s) used when the controller's time clock is not configured.
+        Host clock (s): every reading's request and answer times (recorded raw), and its time stamp when the
+        controller's time clock is not configured.
     """
 
     def __init__(
@@ -498,7 +499,9 @@ class AclTurntable:
     def read_state(self) -> TableState:
         """Positions, rates, modes and status byte of one controller frame (one message); settled decided here."""
         n = 10 + (self.settings.time_variable is not None)
+        h_req = float(self._clock())
         f = self.query(self._read_msg)
+        h_ans = float(self._clock())
         if len(f) != n:
             raise LinkError(
                 f"ACUTROL: the reading should have {n} fields separated by ';', got {';'.join(f)[:120]!r}; check "
@@ -510,10 +513,11 @@ class AclTurntable:
         if not f[9].isdigit():
             raise LinkError(f"ACUTROL: status byte should be an integer 0-255, got {f[9]!r}")
         stb = self._start_session(int(f[9])) if not self._session_checked else int(f[9])
+        tc = math.nan
         if self.settings.time_variable is not None:
-            t = self._number(f[10], "time clock") * self.settings.time_scale_s
+            t = tc = self._number(f[10], "time clock") * self.settings.time_scale_s
         else:
-            t = self._clock() - self._t0
+            t = h_ans - self._t0
         self._unwrap(raw, vel, t)
         assert self._u is not None
         angles = np.array(self._u) * DEG
@@ -523,7 +527,17 @@ class AclTurntable:
         if stb & STB_EQ:
             errors = self._errors_text(self._drain_errors())
             raise TableError(f"ACUTROL reported an error while reading the table: {errors} (status byte {stb})")
-        return TableState(time=t, angles=angles, rates=rates, status=status, fault_code=fault, modes=modes)  # type: ignore[arg-type]
+        return TableState(
+            time=t,
+            angles=angles,
+            rates=rates,
+            status=status,
+            fault_code=fault,
+            modes=modes,  # type: ignore[arg-type]
+            controller_time=tc,
+            host_request=h_req,
+            host_answer=h_ans,
+        )
 
     def _unwrap(self, raw: list[float], vel: list[float], t: float) -> None:
         fs = self._fs

@@ -33,6 +33,7 @@ re-decoding the raw stream (``tablebench decode``).
 from __future__ import annotations
 
 import logging
+import math
 import time
 from typing import Any, BinaryIO
 
@@ -129,6 +130,8 @@ class SerialInertialUnit:
         How the events name the raw file.
     start_index : int or None
         Sample index of the first frame (None: from its counter).
+    clock : callable
+        Host clock (s): each block carries the time its last chunk of bytes arrived (``ImuBlock.host_time``).
     """
 
     def __init__(
@@ -144,6 +147,7 @@ class SerialInertialUnit:
         raw_sink: BinaryIO | None = None,
         raw_name: str = "",
         start_index: int | None = None,
+        clock: Any = time.monotonic,
     ) -> None:
         if sample_rate <= 0:
             raise ValueError(f"{name}: sample_rate must be > 0 Hz, got {sample_rate}")
@@ -165,6 +169,8 @@ class SerialInertialUnit:
         self.raw_sink = raw_sink
         self.raw_name = raw_name
         self._pending: Samples = _empty()
+        self._clock = clock
+        self._rx_time = math.nan
         self.rejected_total = 0
         self.dropped_total = 0
         self.resets_total = 0
@@ -238,6 +244,7 @@ class SerialInertialUnit:
                 chunk = self._io(self.port.read, max(L, (n - have) * L - self.decoder.pending_bytes))
                 now = time.monotonic()
                 if chunk:
+                    self._rx_time = float(self._clock())
                     if self.raw_sink is not None:
                         self.raw_sink.write(chunk)
                     received_any = True
@@ -297,6 +304,7 @@ class SerialInertialUnit:
             rejected=stats.rejected,
             resets=s.resets,
             duplicates=s.duplicates,
+            host_time=self._rx_time,
         )
         if not self._announced:
             self._announced = True

@@ -47,6 +47,7 @@ from drivers.sim.config import (
     AccelTruth,
     ArmaDrift,
     BudgetInputs,
+    ClockModel,
     GyroTruth,
     NoiseTruth,
     PeriodicTerm,
@@ -136,6 +137,8 @@ def parse_simulation(d: dict, smap: SourceMap, site: Site, table: Table, unit: U
             "table",
             "faults",
             "realise_uncertainty_inputs",
+            "clocks",
+            "realtime",
         ],
     )
     fs = unit.sample_rate
@@ -331,6 +334,57 @@ def parse_simulation(d: dict, smap: SourceMap, site: Site, table: Table, unit: U
         seed=_int(d, smap, p, "seed", 0, 0, MAX_SEED),
         transport=get_str(d, smap, p, "transport", "in-process", choices=["in-process", "loopback"]),
         budget_inputs=_budget_inputs(d, smap, p, site, table),
+        clocks=parse_clocks(d, smap, p),
+        realtime=_realtime(d, smap, p),
+    )
+
+
+def _realtime(d: dict, smap: SourceMap, p: KeyPath) -> bool:
+    v = d.get("realtime", False)
+    if not isinstance(v, bool):
+        raise smap.error(p + ("realtime",), f"expected true or false, got {v!r}")
+    if v and d.get("transport", "in-process") != "loopback":
+        raise smap.error(p + ("realtime",), "a real-time unit needs transport: loopback (it streams over a socket)")
+    return v
+
+
+CLOCK_KEYS: dict[str, tuple[str, float, float]] = {
+    # key: (ClockModel field, SI factor, default in display units)
+    "unit_rate_ppm": ("unit_rate_bound", PPM, 50.0),
+    "controller_rate_ppm": ("controller_rate_bound", PPM, 10.0),
+    "controller_offset_ms": ("controller_offset_bound", 1e-3, 20.0),
+    "link_latency_ms": ("link_latency", 1e-3, 2.0),
+    "link_jitter_ms": ("link_jitter", 1e-3, 0.5),
+    "reading_latency_ms": ("reading_latency", 1e-3, 1.0),
+    "reading_jitter_ms": ("reading_jitter", 1e-3, 0.3),
+    "answer_latency_ms": ("answer_latency", 1e-3, 1.0),
+    "answer_jitter_ms": ("answer_jitter", 1e-3, 0.3),
+}
+
+
+def parse_clocks(d: dict, smap: SourceMap, p: KeyPath) -> ClockModel:
+    """``simulation.clocks``: ``ideal``, ``separate`` (the default, with the defaults of :data:`CLOCK_KEYS`), or a
+    mapping ``{mode: separate, unit_rate_ppm: …, batch_frames: …}`` (BENCH_FORMAT.md)."""
+    v = d.get("clocks", "separate")
+    cp = p + ("clocks",)
+    if isinstance(v, str):
+        if v not in ("ideal", "separate"):
+            raise smap.error(cp, f"expected ideal or separate (or a mapping with mode: separate), got {v!r}")
+        v = {"mode": v}
+    if not isinstance(v, dict):
+        raise smap.error(cp, f"expected ideal, separate or a mapping, got {v!r}")
+    check_keys(v, smap, cp, ["mode", "batch_frames", "unit_rate_value_ppm", *CLOCK_KEYS])
+    mode = get_str(v, smap, cp, "mode", "separate", choices=["ideal", "separate"])
+    values = {
+        fname: get_number(v, smap, cp, key, default, minimum=0, maximum=1e4) * si
+        for key, (fname, si, default) in CLOCK_KEYS.items()
+    }
+    exact = get_number(v, smap, cp, "unit_rate_value_ppm", None, minimum=-1e4, maximum=1e4)
+    return ClockModel(
+        mode=mode,
+        batch_frames=_int(v, smap, cp, "batch_frames", 8, 1, 100000),
+        unit_rate=None if exact is None else exact * PPM,
+        **values,
     )
 
 

@@ -265,6 +265,53 @@ class BudgetInputs:
 
 
 @dataclass(frozen=True)
+class ClockModel:
+    """The bench's clocks (time-base.md): the unit's oscillator, the controller's clock, the host's arrival times.
+
+    ``mode`` "ideal": one clock drives table and unit (the unit's sample clock is true time, the controller
+    reports it, nothing is late). "separate": each run draws (seeded, uniform within the stated bounds) the
+    unit's oscillator error ε_u and the controller clock's rate error ε_c and offset c₀; the unit's frames reach
+    the host in batches of ``batch_frames`` after a transport latency with jitter; every controller transaction
+    (a reading, a command) is latched ``reading_latency`` (+ jitter) after the host sends it and answered
+    ``answer_latency`` (+ jitter) later. Jitters are exponential with the given mean (latency only grows).
+
+    Physics: the true time of unit sample k is τ_k = k / (f_s (1 + ε_u)); the controller's clock reads
+    c = c₀ + (1 + ε_c) τ; the host's clock is true time τ. So a table time stamped by the controller maps to the
+    unit's sample time t_u = k / f_s by t_table = c₀ + (1 + ε) t_u with 1 + ε = (1 + ε_c)/(1 + ε_u).
+
+    Attributes
+    ----------
+    mode : "ideal" or "separate".
+    unit_rate_bound : relative; ε_u uniform in ±bound (a MEMS unit 20–100 ppm).
+    controller_rate_bound : relative; ε_c uniform in ±bound.
+    controller_offset_bound : s; c₀ uniform in ±bound.
+    link_latency, link_jitter : s; unit → host transport latency and the mean of its exponential jitter.
+    batch_frames : frames the link delivers at once (serial buffering, a device server).
+    reading_latency, reading_jitter : s; host request → controller latch.
+    answer_latency, answer_jitter : s; controller latch → host receives the answer.
+    unit_rate : relative or None; the unit's oscillator error exactly (None: drawn within ±unit_rate_bound).
+    """
+
+    mode: str = "ideal"
+    unit_rate_bound: float = 50e-6
+    controller_rate_bound: float = 10e-6
+    controller_offset_bound: float = 0.020
+    link_latency: float = 0.002
+    link_jitter: float = 0.0005
+    batch_frames: int = 8
+    reading_latency: float = 0.001
+    reading_jitter: float = 0.0003
+    answer_latency: float = 0.001
+    answer_jitter: float = 0.0003
+    unit_rate: float | None = None
+
+    @property
+    def separate(self) -> bool:
+        """True when the bench has separate clocks."""
+        return self.mode == "separate"
+
+
+@dataclass(frozen=True)
 class SimConfig:
     """Everything the simulated world needs, SI.
 
@@ -281,6 +328,9 @@ class SimConfig:
     drop_probability : probability that a frame is lost (its counter value is skipped).
     table : TableModel. faults : scheduled faults.
     seed : default seed. transport : "in-process" or "loopback".
+    clocks : ClockModel (the dataclass default is one ideal clock; a bench file's default is separate clocks).
+    realtime : loopback only: the unit streams from its own thread in real time at its own clock's rate, in
+        batches (``clocks.batch_frames``); the drivers use the host's real clock (not deterministic).
     chamber : ChamberSim or None — a simulated temperature chamber around the unit (its temperature then
         follows the chamber; ``temperature`` is ignored). thermal : ThermalTruth or None — the unit's errors
         as functions of its own temperature (:mod:`drivers.sim.thermal_config`).
@@ -307,6 +357,8 @@ class SimConfig:
     seed: int = 0
     transport: str = "in-process"
     budget_inputs: BudgetInputs | None = None
+    clocks: ClockModel = field(default_factory=ClockModel)
+    realtime: bool = False
     chamber: ChamberSim | None = None
     thermal: ThermalTruth | None = None
 
@@ -340,6 +392,7 @@ __all__ = [
     "AccelTruth",
     "ArmaDrift",
     "BudgetInputs",
+    "ClockModel",
     "GyroTruth",
     "NoiseTruth",
     "PeriodicTerm",

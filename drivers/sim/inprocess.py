@@ -91,7 +91,9 @@ class SimInertialUnit:
         dropped = counter_gaps(self._last, frames.counter)
         if len(frames):
             self._last = int(frames.counter[-1])
-        return frames_to_block(frames, self.world.scale, dropped=dropped)
+        block = frames_to_block(frames, self.world.scale, dropped=dropped)
+        block.host_time = self.world.host_time()
+        return block
 
     def close(self) -> None:
         """Release the driver."""

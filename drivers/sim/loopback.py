@@ -66,6 +66,11 @@ class Loopback:
         The frame format the simulated unit speaks and the driver decodes (None: ``tablebench-v1``).
     unit_raw : binary file or None
         Where the unit driver keeps the raw byte stream; ``unit_raw_name`` names it in events.
+    realtime : bool
+        The unit streams from its server thread in real time at its own clock's rate (1 + ε_u of the world's
+        clock model), in batches of ``clocks.batch_frames``; the drivers read it free-running and use the host's
+        real clock. Not deterministic (a real bench's timing); the default polls, so the world's clock advances
+        only with what the host reads and the world's simulated host clock stamps everything.
     """
 
     def __init__(
@@ -85,12 +90,15 @@ class Loopback:
         unit_frame: FrameFormat | None = None,
         unit_raw: BinaryIO | None = None,
         unit_raw_name: str = "",
+        realtime: bool = False,
     ) -> None:
         if dialect not in ("acutrol", "modbus"):
             raise ValueError(f"loopback dialect must be 'acutrol' or 'modbus', got {dialect!r}")
         self.world = world
         self.dialect = dialect
         self._closers: list[Callable[[], None]] = []
+        self.realtime = bool(realtime)
+        clock: dict[str, Any] = {} if realtime else {"clock": world.host_time}  # real time: the host's own clock
         self.table_server: ModbusTableServer | AclTableServer | None = None
         try:
             if dialect == "modbus":
@@ -120,7 +128,9 @@ class Loopback:
                     driver = (
                         make_acl_table(transport)
                         if make_acl_table is not None
-                        else connect.AclTurntable(transport, world.table_limits(), settings=self.table_server.settings)
+                        else connect.AclTurntable(
+                            transport, world.table_limits(), settings=self.table_server.settings, **clock
+                        )
                     )
                 except BaseException:
                     res.close()
@@ -129,17 +139,28 @@ class Loopback:
             self._closers.insert(0, table.close)
             self.client: Any = table.transport
             self.turntable: Turntable = table.driver
-            self.unit_server = SerialUnitServer(world, corruption=corruption, frame=unit_frame)
+            if realtime:
+                fs = float(world.sample_rate)
+                self.unit_server = SerialUnitServer(
+                    world,
+                    corruption=corruption,
+                    frame=unit_frame,
+                    stream_factor=world.unit_clock_factor,
+                    chunk_s=world.cfg.clocks.batch_frames / fs,
+                )
+            else:
+                self.unit_server = SerialUnitServer(world, corruption=corruption, frame=unit_frame)
             self._closers.append(self.unit_server.close)
             unit = connect.serial_unit(
                 self.unit_server.url,
                 self.unit_server.frame,
                 world.sample_rate,
-                polled=True,
+                polled=not realtime,
                 timeout=timeout,
                 name="simulated unit",
                 raw_sink=unit_raw,
                 raw_name=unit_raw_name,
+                **clock,
             )
             self._closers.insert(0, unit.close)
             self.unit_port = unit.transport

@@ -4,10 +4,18 @@
 (``drivers.sim.inprocess``) or through wire-level servers (Modbus, serial) running in other threads, so
 every public method holds one re-entrant lock.
 
-Time: the world's clock is the unit's sample clock. Sample k is taken at bench time t_k = k / f_s;
-``time`` is the time of the next sample; only :meth:`produce` advances it. Commands take effect at
-``time``; faults, limit hits and the watchdog act at sample instants, so the motion (piecewise analytic,
-``drivers.sim.motion``) and every random stream are independent of how :meth:`produce` calls are split.
+Time: ``time`` is the unit's sample clock, k / f_s for the next sample k; only :meth:`produce` advances it.
+With ideal clocks (``SimConfig.clocks.mode == "ideal"``) it is also the table's time: sample k is taken at
+t_k = k / f_s, commands take effect at ``time`` and readings are taken and stamped there. With separate clocks
+(time-base.md, :class:`~drivers.sim.config.ClockModel`) the physics runs on true time τ: sample k is taken at
+τ_k = k / (f_s (1 + ε_u)); the host's clock (true time) advances with the unit's deliveries (batches, transport
+latency) and with every controller transaction (a reading or a command, each latched after a request latency
+and answered after an answer latency); a command takes effect at its latch time (earlier samples keep the
+previous motion: each axis keeps the plans it replaced until no sample can need them); a reading is the table
+at its latch time, stamped with the controller's clock c₀ + (1 + ε_c) τ. Faults, limit hits and the watchdog
+act at sample instants, so the motion (piecewise analytic, ``drivers.sim.motion``) and every random stream are
+independent of how :meth:`produce` calls are split; the latencies come from one seeded stream drawn in call
+order (same seed and calls → same bytes).
 
 Frames: gimbal angles (outer ψ, middle θ, inner γ), rad, C_t^n = R_z(ψ) R_x(θ) R_y(γ) (``analysis.gimbal``),
 C_b^n = C_t^n C_b^t; navigation frame ENU; unit outputs in the body frame b.
@@ -96,6 +104,8 @@ class SimulatedWorld:
             plan_hold(0.0, 0.0, AxisMode.POSITION, target=0.0),
             plan_hold(0.0, 0.0, AxisMode.POSITION, target=0.0),
         ]
+        self._switch = [0.0, 0.0, 0.0]  # true time from which each axis's current plan applies
+        self._history: list[list[tuple[float, float, AxisPlan]]] = [[], [], []]  # (from, to, plan) replaced
         self._fault = FaultCode.NONE
         self._latched = TableStatus.NONE
         self._feed_k = 0
@@ -106,6 +116,8 @@ class SimulatedWorld:
         root = np.random.SeedSequence(self._seed)
         # a 4th child leaves the first three streams unchanged (spawn keys are indices)
         unit_ss, table_ss, reading_ss, budget_ss, chamber_ss = root.spawn(5)
+        (clock_ss,) = root.spawn(1)  # a 6th child: the first five streams are unchanged
+        self._init_clocks(config, clock_ss)
         bi = config.budget_inputs
         self._rng_budget = np.random.default_rng(budget_ss)
         self._att_bound = float(bi.attitude_error_bound) if bi is not None else 0.0
@@ -132,6 +144,91 @@ class SimulatedWorld:
         self._nonortho = (e1 != 0.0) or (e2 != 0.0) or self._wobble != 0.0
         self._e1 = _rot_small(1, e1)
         self._e2 = _rot_small(2, e2)
+
+    def _init_clocks(self, config: SimConfig, ss: np.random.SeedSequence) -> None:
+        ck = config.clocks
+        self._sep = ck.separate
+        rng = np.random.default_rng(ss)
+        draws = rng.uniform(-1.0, 1.0, 3)  # drawn even for ideal clocks: the latency stream stays the same
+        self._eps_u = float(draws[0] * ck.unit_rate_bound) if self._sep else 0.0
+        if self._sep and ck.unit_rate is not None:
+            self._eps_u = float(ck.unit_rate)
+        self._eps_c = float(draws[1] * ck.controller_rate_bound) if self._sep else 0.0
+        self._c0 = float(draws[2] * ck.controller_offset_bound) if self._sep else 0.0
+        self._fs_true = self._fs * (1.0 + self._eps_u)
+        self._rng_clock = rng
+        self._host = 0.0  # host clock now (= true time), s
+        self._latch_t = 0.0  # true time of the last controller transaction
+        self._last_request = self._last_answer = 0.0
+
+    def _tau(self, k: int | NDArray[np.int64]) -> float | NDArray[np.float64]:
+        """True time of unit sample ``k`` (ideal clocks: k / f_s)."""
+        return k / self._fs_true if self._sep else k / self._fs
+
+    def _controller_clock(self, tau: float) -> float:
+        return self._c0 + (1.0 + self._eps_c) * tau if self._sep else tau
+
+    def _jitter(self, mean: float) -> float:
+        return float(self._rng_clock.exponential(mean)) if mean > 0 else 0.0
+
+    def _transaction(self) -> float:
+        """One controller transaction now (a reading or a command): its latch time (true time, s)."""
+        if not self._sep:
+            self._latch_t = self._last_request = self._last_answer = self._host = self._k / self._fs
+            return self._latch_t
+        ck = self.cfg.clocks
+        self._last_request = self._host
+        self._latch_t = self._host + ck.reading_latency + self._jitter(ck.reading_jitter)
+        self._host = self._last_answer = self._latch_t + ck.answer_latency + self._jitter(ck.answer_jitter)
+        return self._latch_t
+
+    def _delivered(self, k_last: int) -> None:
+        """The host has received the frames up to sample ``k_last``: its clock moves to their arrival."""
+        if not self._sep:
+            self._host = (k_last + 1) / self._fs
+            return
+        ck = self.cfg.clocks
+        b = int(ck.batch_frames)
+        batch_end = (k_last // b + 1) * b - 1
+        arrival = float(self._tau(batch_end)) + ck.link_latency + self._jitter(ck.link_jitter)
+        self._host = max(self._host, arrival)
+
+    @property
+    def unit_clock_factor(self) -> float:
+        """Samples the unit takes per nominal sample period of true time: 1 + ε_u (a real-time stream's speed)."""
+        return 1.0 + self._eps_u
+
+    def host_time(self) -> float:
+        """The host's clock now, s (the simulated host clock: true time; ideal clocks: the unit's time)."""
+        with self._lock:
+            return self._host if self._sep else self._k / self._fs
+
+    def clock_truth(self) -> dict[str, float]:
+        """The realised clocks: ``offset`` c₀ (s) and ``rate`` ε of t_table = c₀ + (1 + ε) t_unit for readings the
+        controller stamps, the unit's and controller's own rate errors, and the host-stamped mapping
+        (t_host = offset_host + (1 + rate_host) t_unit, offset_host = the mean answer latency)."""
+        ck = self.cfg.clocks
+        return {
+            "clock_offset": self._c0,
+            "clock_rate": (1.0 + self._eps_c) / (1.0 + self._eps_u) - 1.0,
+            "unit_clock_rate": self._eps_u,
+            "controller_clock_rate": self._eps_c,
+            "host_clock_offset": (ck.answer_latency + ck.answer_jitter) if self._sep else 0.0,
+            "host_clock_rate": 1.0 / (1.0 + self._eps_u) - 1.0,
+        }
+
+    def _set_plan(self, axis: int, plan: AxisPlan, t: float) -> None:
+        """Axis ``axis`` follows ``plan`` from true time ``t``; the plan it replaces is kept for earlier times."""
+        t = max(float(t), self._switch[axis])
+        keep = float(self._tau(self._k)) - 1.0
+        hist = [h for h in self._history[axis] if h[1] > keep]
+        hist.append((self._switch[axis], t, self._plans[axis]))
+        self._history[axis] = hist
+        self._switch[axis] = t
+        self._plans[axis] = plan
+
+    def _command_time(self) -> float:
+        return self._transaction() if self._sep else self._k / self._fs
 
     @classmethod
     def from_bench(cls, config: SimulatedBench, seed: int | None = None) -> SimulatedWorld:
@@ -177,12 +274,12 @@ class SimulatedWorld:
         if self._fault != FaultCode.NONE:
             raise TableError(f"table fault {self._fault.name} is latched; clear_fault() before commanding motion")
 
-    def _plan_position(self, axis: int, target: float) -> None:
-        """Re-plan gimbal ``axis`` from its state now to a position move to ``target`` (rad; limits checked)."""
-        t = self._k / self._fs
+    def _plan_position(self, axis: int, target: float, t: float) -> None:
+        """Re-plan gimbal ``axis`` from its state at ``t`` (true time) to a position move to ``target`` (rad)."""
         tb = self.cfg.table
+        t = max(t, self._switch[axis])
         p0, v0 = self._plans[axis].state(t)
-        self._plans[axis] = plan_position(
+        plan = plan_position(
             t,
             p0,
             v0,
@@ -195,6 +292,7 @@ class SimulatedWorld:
             tolerance=tb.position_tolerance,
             in_position_time=tb.in_position_time,
         )
+        self._set_plan(axis, plan, t)
 
     def command_position(self, angles: ArrayLike) -> None:
         """Move to absolute gimbal angles (outer, middle, inner), rad.
@@ -215,8 +313,9 @@ class SimulatedWorld:
                     raise TableError(
                         f"axis {i} angle {math.degrees(x):.4f}° is outside its limits {lim.position_range_text()}"
                     )
+            t = self._command_time()
             for i in range(3):
-                self._plan_position(i, float(a[i]))
+                self._plan_position(i, float(a[i]), t)
             self._new_attitude_error()
             self._feed()
 
@@ -241,7 +340,7 @@ class SimulatedWorld:
                 raise TableError(
                     f"axis {axis} angle {math.degrees(x):.4f}° is outside its limits {lim.position_range_text()}"
                 )
-            self._plan_position(axis, x)
+            self._plan_position(axis, x, self._command_time())
             self._new_attitude_error()
             self._feed()
 
@@ -265,9 +364,9 @@ class SimulatedWorld:
                     f"rate {math.degrees(rate):.4f} °/s on axis {axis} exceeds its limit "
                     f"{math.degrees(lim.rate_max):.4f} °/s"
                 )
-            t = self._k / self._fs
+            t = max(self._command_time(), self._switch[axis])
             p0, v0 = self._plans[axis].state(t)
-            self._plans[axis] = plan_rate(t, p0, v0, rate, lim)
+            self._set_plan(axis, plan_rate(t, p0, v0, rate, lim), t)
             self._new_attitude_error()
             self._feed()
 
@@ -275,7 +374,7 @@ class SimulatedWorld:
         """Decelerate every axis to rest at its acceleration limit (always accepted)."""
         with self._lock:
             self._apply_due_events(self._k)
-            self._controlled_stop(self._k / self._fs)
+            self._controlled_stop(self._command_time())
             self._feed()
 
     def clear_fault(self) -> None:
@@ -301,13 +400,9 @@ class SimulatedWorld:
         """Controller reading at the current bench time (angles jittered + encoder-quantised, unwrapped)."""
         with self._lock:
             self._apply_due_events(self._k)
-            t = self._k / self._fs
-            tt = np.array([t])
-            p = np.empty(3)
-            v = np.empty(3)
-            for i, plan in enumerate(self._plans):
-                pi, vi, _ = plan.evaluate(tt)
-                p[i], v[i] = pi[0], vi[0]
+            t = self._transaction()
+            pa, va, _ = self._evaluate(np.array([t]))
+            p, v = pa[0], va[0]
             v = (v + self._jit_state * self._spin_mask()) * (1.0 + self._rate_error)
             tb = self.cfg.table
             if tb.position_jitter > 0:
@@ -315,13 +410,17 @@ class SimulatedWorld:
                 p = p + rng.standard_normal(3) * tb.position_jitter
             if self._enc_lsb > 0:
                 p = np.rint(p / self._enc_lsb) * self._enc_lsb
+            tc = self._controller_clock(t)
             return TableState(
-                time=t,
+                time=tc,
                 angles=p,
                 rates=v,
                 status=self._status(t),
                 fault_code=self._fault,
                 modes=tuple(pl.mode for pl in self._plans),  # type: ignore[arg-type]
+                controller_time=tc,
+                host_request=self._last_request,
+                host_answer=self._last_answer,
             )
 
     def table_acceleration(self) -> NDArray[np.float64]:
@@ -329,7 +428,8 @@ class SimulatedWorld:
         profile, no jitter): what a controller's acceleration feedback reads."""
         with self._lock:
             self._apply_due_events(self._k)
-            _, _, acc = self._evaluate(np.array([self._k / self._fs]))
+            t = self._latch_t if self._sep else self._k / self._fs
+            _, _, acc = self._evaluate(np.array([t]))
             return acc[0].copy()
 
     def _status(self, t: float) -> TableStatus:
@@ -393,7 +493,7 @@ class SimulatedWorld:
                 self._apply_due_events(k)
                 k1 = min(k_end, self._next_event(k), k + CHUNK)
                 idx = np.arange(k, k1, dtype=np.int64)
-                t = idx / self._fs
+                t = self._tau(idx)
                 ang, rat, acc = self._evaluate(t)
                 hit = self._limit_hit(ang)
                 if hit is not None:
@@ -407,15 +507,25 @@ class SimulatedWorld:
                 self._k = k1
                 if hit is not None:
                     self._limit_fault(hit[1], k1)
+            if n > 0:
+                self._delivered(k_end - 1)
             if self.chamber is not None:
                 self.chamber.forget_before(self._k / self._fs)
             return concat_frames(parts)
 
     def _evaluate(self, t: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
+        """Angles, rates, accelerations (n, 3) at sorted true times ``t``: each time by the plan that applied then."""
         n = t.shape[0]
         ang, rat, acc = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
         for i, plan in enumerate(self._plans):
-            ang[:, i], rat[:, i], acc[:, i] = plan.evaluate(t)
+            if n == 0 or t[0] >= self._switch[i] or not self._history[i]:
+                ang[:, i], rat[:, i], acc[:, i] = plan.evaluate(t)
+                continue
+            pieces = [*self._history[i], (self._switch[i], math.inf, plan)]
+            for j, (t_from, t_to, pl) in enumerate(pieces):
+                m = (t < t_to) if j == 0 else (t >= t_from) & (t < t_to)
+                if np.any(m):
+                    ang[m, i], rat[m, i], acc[m, i] = pl.evaluate(t[m])
         return ang, rat, acc
 
     def _spin_mask(self) -> NDArray[np.float64]:
@@ -536,7 +646,7 @@ class SimulatedWorld:
         w = self._watchdog_index()
         if w is not None and w <= k:
             self._wd_armed = False
-            t = w / self._fs
+            t = float(self._tau(w))
             if any(t < pl.t_still for pl in self._plans):
                 self._controlled_stop(t)
                 self._latch(FaultCode.COMMUNICATION_LOST, TableStatus.WATCHDOG)
@@ -548,18 +658,20 @@ class SimulatedWorld:
 
     def _controlled_stop(self, t: float) -> None:
         for i in range(3):
-            p0, v0 = self._plans[i].state(t)
-            self._plans[i] = plan_stop(t, p0, v0, self._limits[i])
+            ti = max(t, self._switch[i])
+            p0, v0 = self._plans[i].state(ti)
+            self._set_plan(i, plan_stop(ti, p0, v0, self._limits[i]), ti)
 
     def _halt(self, t: float, axes: Sequence[int] = (0, 1, 2)) -> None:
         for i in axes:
-            p0, _ = self._plans[i].state(t)
-            self._plans[i] = plan_hold(t, p0)
+            ti = max(t, self._switch[i])
+            p0, _ = self._plans[i].state(ti)
+            self._set_plan(i, plan_hold(ti, p0), ti)
 
     def _apply_fault(self, fault: FaultCode, k: int) -> None:
         if fault == FaultCode.NONE:
             return
-        t = k / self._fs
+        t = float(self._tau(k))
         if fault in _HALTING:
             self._halt(t)
         else:
@@ -588,16 +700,17 @@ class SimulatedWorld:
 
     def _limit_fault(self, axis: int, k: int) -> None:
         """Axis ``axis`` crossed a position limit at sample ``k``: hold it at the limit, stop the others."""
-        t = k / self._fs
+        t = max(float(self._tau(k)), self._switch[axis])
         lim = self._limits[axis]
         p, _ = self._plans[axis].state(t)
         lo = -math.inf if lim.position_min is None else lim.position_min
         hi = math.inf if lim.position_max is None else lim.position_max
-        self._plans[axis] = plan_hold(t, min(max(p, lo), hi))
+        self._set_plan(axis, plan_hold(t, min(max(p, lo), hi)), t)
         others = [i for i in range(3) if i != axis]
         for i in others:
-            p0, v0 = self._plans[i].state(t)
-            self._plans[i] = plan_stop(t, p0, v0, self._limits[i])
+            ti = max(t, self._switch[i])
+            p0, v0 = self._plans[i].state(ti)
+            self._set_plan(i, plan_stop(ti, p0, v0, self._limits[i]), ti)
         self._latch(FaultCode.POSITION_LIMIT, TableStatus.LIMIT)
 
     # ---- truth ---------------------------------------------------------------------------------------
@@ -656,6 +769,7 @@ class SimulatedWorld:
             "non_orthogonality": np.asarray(c.table.non_orthogonality, float),
             "wobble": np.array(c.table.wobble),
         }
+        out.update({k: np.array(v) for k, v in self.clock_truth().items()})
         if c.periodic:
             out["periodic_frequency_hz"] = np.array([p.frequency_hz for p in c.periodic])
             out["periodic_amplitude"] = np.array([p.amplitude for p in c.periodic])

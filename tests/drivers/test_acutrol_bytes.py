@@ -35,8 +35,10 @@ def ack(profile: str) -> str | None:
 
 
 def table(script, profile="tcp", clock=None, **settings) -> tuple[AclTurntable, MessageTranscript]:
+    """``clock``: the host clock at the driver's start, then at each reading (the driver reads it when it sends
+    the reading's request and when the answer arrives: each reading's value is given to both)."""
     t = MessageTranscript(script)
-    times = iter(clock or [0.0] * 100)
+    times = iter([clock[0], *(x for v in clock[1:] for x in (v, v))] if clock else [0.0] * 100)
     drv = AclTurntable(
         t,
         LIMITS,

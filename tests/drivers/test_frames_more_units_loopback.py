@@ -47,3 +47,26 @@ def test_ten_step_over_loopback_in_each_new_format_equals_in_process(tmp_path: P
     dev = np.max(np.abs(xa - xb) / sb)
     assert dev < 5e-3, f"largest difference {dev:.2e} σ"
     assert a["information"]["rank"] == b["information"]["rank"] == 18
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("frame", ["xsens-mti-mtdata2", "vectornav-vn100-imu"])
+def test_whole_ten_step_fast_spin_over_loopback_equals_in_process(tmp_path: Path, frame):
+    """The whole shipped ten-step-fast-spin (≈ 49 min of bench time, 250 Hz) in each new format."""
+    bench = bench_variant(
+        tmp_path,
+        rate=RATE,
+        source="sim-xsens.yaml",
+        name="bench.yaml",
+        frame=("frame: xsens-mti-mtdata2", f"frame: {frame}"),
+    )
+    wire = run_procedure(tmp_path, bench, "ten-step-fast-spin", seed=7, out="loopback", transport="loopback")
+    local = run_procedure(tmp_path, bench, "ten-step-fast-spin", seed=7, out="in-process", transport="in-process")
+    a = identify_run(wire).to_dict()
+    b = identify_run(local).to_dict()
+    xa = np.array([a["parameters"][p]["value"] for p in PARAM_NAMES])
+    xb = np.array([b["parameters"][p]["value"] for p in PARAM_NAMES])
+    sb = np.array([b["parameters"][p]["u_white"] for p in PARAM_NAMES])
+    dev = np.max(np.abs(xa - xb) / sb)
+    print(f"{frame}: largest difference {dev:.2e} sigma")
+    assert dev < 5e-3, f"largest difference {dev:.2e} σ"

@@ -42,6 +42,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="configured",
         help="measurement noise R: the bench's configured VRW, or estimated from the warm-up",
     )
+    p.add_argument(
+        "--time-base",
+        choices=("estimate", "none"),
+        default="estimate",
+        help="map the table's clock to the unit's with the time base estimated from the run's motions (default; "
+        "docs/methods/time-base.md), or take them as one clock (none: for comparisons)",
+    )
     p.add_argument("--out", default=None, metavar="FILE.json", help="default: RUN/calibration.json")
     p.add_argument(
         "--accelerometer-only", action="store_true", help="identify the 18 accelerometer parameters only"
@@ -59,13 +66,21 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--out {args.out}: give a .json file name (the calibration is JSON)")
     try:
         result = identify_run(
-            args.run, method=args.method, noise=args.noise, with_gyro=False if args.accelerometer_only else None
-        )
+            args.run, method=args.method, noise=args.noise, time_base=args.time_base,
+            with_gyro=False if args.accelerometer_only else None,
+        )  # fmt: skip
     except IdentificationError as exc:
         raise UsageError(str(exc)) from None
     out = sinks_for_run(folder).calibration(
         CalibrationDocument(run=folder, result=result, path=target if args.out else None)
     ).path
     print(result.summary())
+    tb = result.time_base.estimate if result.time_base is not None else None
+    if tb is not None and tb.events:
+        from analysis.timebase.plot import plot_timing_residuals  # lazy: matplotlib (--help time)
+
+        png = out.parent / "time-base.png"
+        plot_timing_residuals(tb).savefig(png, dpi=110)
+        print(f"timing residual around the motions: {png}", file=sys.stderr)
     print(f"calibration: {out}", file=sys.stderr)
     return 0
