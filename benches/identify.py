@@ -185,13 +185,16 @@ def window_reference(
     latency: float,
     span: tuple[float, float],
     spin: bool,
+    clock_rate: float = 0.0,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """The reference of one acquisition window (body frame, SI): f_ref, table rate ω, angles, and ``earth``.
 
     ``earth`` is what the gyro reference adds to ω: the Earth rate C_n^b Ω^n at the site, and during a spin
     the difference between the table rate from the encoder angles' slope over the window
     (:func:`angle_over_time`) and the interpolated reported rate — so the gyro sees ω_ib from angle over
-    time while the accelerometer's centripetal term keeps the reported rate.
+    time while the accelerometer's centripetal term keeps the reported rate. ``clock_rate`` is the time base's
+    ε when the readings' times are on the unit's clock (t_unit = (t_table − t₀)/(1 + ε)): the slope over unit
+    time is divided by 1 + ε, so the rate is the table's (its clock is the rate reference), not the unit's.
     """
     mnt = config.unit.mounting
     fr, om, ang = reference_for_samples(
@@ -201,6 +204,7 @@ def window_reference(
     if spin:
         slope = angle_over_time(t, table_time, table_angles, span)
         if slope is not None:
+            slope = slope / (1.0 + clock_rate)
             earth = earth + body_rate(ang, np.broadcast_to(slope, ang.shape), mnt) - om
     return fr, om, ang, earth
 
@@ -485,7 +489,9 @@ def has_gyro_data(rec: Any, steps: Sequence[StepRecord]) -> bool:
     return False
 
 
-def _read_window(rec: Any, s: StepRecord, config: BenchConfig, table: Any, with_gyro: bool) -> StepWindow | None:
+def _read_window(
+    rec: Any, s: StepRecord, config: BenchConfig, table: Any, with_gyro: bool, clock_rate: float = 0.0
+) -> StepWindow | None:
     """One hold/spin acquisition window with its reference (flagged samples left out); None when all flagged."""
     latency = unit_latency(config)
     smp = rec.samples(s.acq_start, s.acq_end, ("time", "accel", "status") + (("gyro",) if with_gyro else ()))
@@ -499,7 +505,7 @@ def _read_window(rec: Any, s: StepRecord, config: BenchConfig, table: Any, with_
             return None
     span = acquisition_span(float(t[0]), float(t[-1]), latency, float(config.unit.sample_rate))
     fr, om, ang, earth = window_reference(
-        t, table.time, table.angles, table.rates, config, latency, span, s.kind == Spin.kind
+        t, table.time, table.angles, table.rates, config, latency, span, s.kind == Spin.kind, clock_rate
     )
     return StepWindow(s.name, s.kind, t, fo, fr, om, ang, gy if with_gyro else None, earth)
 
@@ -540,7 +546,7 @@ def _identification_data(
             warm, warm_g = wsmp.accel, wsmp.gyro
             continue
         if s.kind in _IDENTIFIED_KINDS:
-            win = _read_window(rec, s, config, table, gyro)
+            win = _read_window(rec, s, config, table, gyro, float(tb.rate) if np.isfinite(tb.rate) else 0.0)
             if win is not None:
                 windows.append(win)
     tr = rec.truth()
