@@ -192,9 +192,11 @@ def window_reference(
     ``earth`` is what the gyro reference adds to ω: the Earth rate C_n^b Ω^n at the site, and during a spin
     the difference between the table rate from the encoder angles' slope over the window
     (:func:`angle_over_time`) and the interpolated reported rate — so the gyro sees ω_ib from angle over
-    time while the accelerometer's centripetal term keeps the reported rate. ``clock_rate`` is the time base's
-    ε when the readings' times are on the unit's clock (t_unit = (t_table − t₀)/(1 + ε)): the slope over unit
-    time is divided by 1 + ε, so the rate is the table's (its clock is the rate reference), not the unit's.
+    time while the accelerometer's centripetal term keeps the reported rate. ``clock_rate`` is the factor from
+    the readings' time scale to true time: with the readings on the unit's clock (t_unit = (t_table − t₀)/(1+ε))
+    and the controller's clock running (1 + ε_c) fast against the host's, the slope over unit time is
+    multiplied by (1 + ε_c)/(1 + ε) − 1 + 1 (:func:`reference_clock_factor`): the rate is per second of the
+    bench's reference clock, not of the unit's or the controller's.
     """
     mnt = config.unit.mounting
     fr, om, ang = reference_for_samples(
@@ -204,7 +206,7 @@ def window_reference(
     if spin:
         slope = angle_over_time(t, table_time, table_angles, span)
         if slope is not None:
-            slope = slope / (1.0 + clock_rate)
+            slope = slope * (1.0 + clock_rate)
             earth = earth + body_rate(ang, np.broadcast_to(slope, ang.shape), mnt) - om
     return fr, om, ang, earth
 
@@ -489,6 +491,16 @@ def has_gyro_data(rec: Any, steps: Sequence[StepRecord]) -> bool:
     return False
 
 
+def reference_clock_factor(tb: TimeBase) -> float:
+    """(1 + ε_c)/(1 + ε) − 1: from a slope over unit time (readings mapped by the time base, ε) to a slope over
+    the host's clock (the controller clock's rate against the host's, ε_c, from the time base's check; 0 when
+    the run has none). The host clock is the bench's reference second (NTP-disciplined on a real bench)."""
+    eps = float(tb.rate) if np.isfinite(tb.rate) else 0.0
+    eps_c = tb.check.get("controller_vs_host_rate") if isinstance(tb.check, dict) else None
+    eps_c = float(eps_c) if isinstance(eps_c, int | float) and np.isfinite(eps_c) else 0.0
+    return (1.0 + eps_c) / (1.0 + eps) - 1.0
+
+
 def _read_window(
     rec: Any, s: StepRecord, config: BenchConfig, table: Any, with_gyro: bool, clock_rate: float = 0.0
 ) -> StepWindow | None:
@@ -546,7 +558,7 @@ def _identification_data(
             warm, warm_g = wsmp.accel, wsmp.gyro
             continue
         if s.kind in _IDENTIFIED_KINDS:
-            win = _read_window(rec, s, config, table, gyro, float(tb.rate) if np.isfinite(tb.rate) else 0.0)
+            win = _read_window(rec, s, config, table, gyro, reference_clock_factor(tb))
             if win is not None:
                 windows.append(win)
     tr = rec.truth()

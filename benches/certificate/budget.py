@@ -232,6 +232,9 @@ def _gyro_inputs(
         out = earth_rate_inputs(model, latitude, u_az, DEFAULT_LATITUDE_U, src)
     tb = getattr(cal, "time_base", None)
     u_rate = getattr(tb, "u_rate", None) if tb is not None else None
+    u_c = (getattr(tb, "check", None) or {}).get("u_controller_vs_host_rate") if tb is not None else None
+    if u_rate is not None and isinstance(u_c, int | float) and np.isfinite(u_c):
+        u_rate = float(np.hypot(u_rate, u_c))  # the gyro's rate reference: controller clock against the host's
     u_off = getattr(tb, "u_offset_s", None) if tb is not None else None
     if time_base_covered:
         pass  # the time-base component (its sensitivities cover every state, the gyro's scale included)
