@@ -720,8 +720,9 @@ def _time_base_covariance(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The identified parameters' covariance from the time base's uncertainty, J Σ Jᵀ, and J = ∂x/∂(t₀, ε) (n, 2).
 
-    J is the accelerometer's (the time-base analysis's sensitivities); the gyro rows are 0 here — the gyro's
-    time-base terms (ε → S_g 1:1) are the certificate budget's (analysis.identification.gyro_budget).
+    The accelerometer rows are the time-base analysis's sensitivities; the gyro's scale factors take ε 1 : 1
+    (their rate reference is the encoder angle over the unit's time rescaled by 1 + ε, so δS_g = −δε), the
+    other gyro rows are 0 (the offset only turns the Earth rate during spins, well below their u).
     """
     tb = data.time_base
     cov = np.asarray(tb.covariance, dtype=float)
@@ -736,6 +737,9 @@ def _time_base_covariance(
     jac[:18] = time_base_sensitivity(
         wins, data.table, g=cfg.site.g, mounting=cfg.unit.mounting, latency=lat, r_var=r_var[:3], p0=p0[:18, :18]
     )
+    for a in ("x", "y", "z"):
+        if f"gyro_S_{a}" in data.model.names:
+            jac[data.model.index(f"gyro_S_{a}"), 1] = -1.0
     return jac @ cov @ jac.T, jac
 
 
@@ -767,8 +771,8 @@ def _time_base_block(data: IdentificationData, unc: Uncertainty) -> TimeBaseBloc
     n = data.model.n_params
     p_time = unc.time_covariance if unc.time_covariance is not None else np.zeros((n, n))
     jac = unc.time_sensitivity if unc.time_sensitivity is not None else np.zeros((n, 2))
-    d["effect_u"] = {nm: float(math.sqrt(max(p_time[k, k], 0.0))) for k, nm in enumerate(ACCEL_MODEL.names)}
-    d["sensitivity"] = {nm: [float(jac[k, 0]), float(jac[k, 1])] for k, nm in enumerate(ACCEL_MODEL.names)}
+    d["effect_u"] = {nm: float(math.sqrt(max(p_time[k, k], 0.0))) for k, nm in enumerate(data.model.names)}
+    d["sensitivity"] = {nm: [float(jac[k, 0]), float(jac[k, 1])] for k, nm in enumerate(data.model.names)}
     d["gyro_scale_factor_u"] = d["u_rate"]  # a gyro scale factor measured as angle over time inherits ε 1:1
     return TimeBaseBlock.from_mapping(d)
 
