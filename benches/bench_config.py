@@ -30,6 +30,7 @@ from analysis.units import (
     UG_PER_G2,
     UG_PER_SQRT_HZ,
 )
+from benches.results.recalibration import parse_configuration, parse_recalibration
 from core.yaml_source import (
     ConfigError,
     KeyPath,
@@ -585,6 +586,7 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
             "frame_options",
             "keep_raw",
             "time_reference",
+            "configuration",
         ],
     )
     driver = get_str(d, smap, p, "driver", choices=["sim", "serial"])
@@ -718,8 +720,14 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
         raise ConfigError(smap.file, None, "the bench file is empty; see benches/BENCH_FORMAT.md")
     root = get_mapping(data, smap, ())
     check_keys(
-        root, smap, (), ["name", "site", "turntable", "unit", "limits", "simulation", "reference_standards", "chamber"]
+        root,
+        smap,
+        (),
+        ["name", "site", "turntable", "unit", "limits", "simulation", "reference_standards", "chamber",
+         "recalibration"],
     )
+    parse_recalibration(root.get("recalibration"), smap)  # the registry's settings (docs/registry.md)
+    parse_configuration(root.get("unit"), smap)
     name = get_str(root, smap, (), "name")
     site = _site(_section(root, smap, (), "site"), smap)  # type: ignore[arg-type]
     sim_raw = root.get("simulation")

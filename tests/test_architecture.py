@@ -180,7 +180,20 @@ def test_commands_import_neither_each_other_nor_the_cli() -> None:
 
 LAZY_COMMENT = re.compile(r"#\s*lazy: [^()]+ \(--help time\)")
 """The mark of a justified function-level import: ``# lazy: <heavy library> (--help time)``."""
-HEAVY = ("scipy", "matplotlib", "fpdf", "filterpy", "statsmodels", "pyvisa", "pymodbus", "tqdm", "starlette", "uvicorn")
+HEAVY = (
+    "scipy",
+    "matplotlib",
+    "fpdf",
+    "filterpy",
+    "statsmodels",
+    "pyvisa",
+    "pymodbus",
+    "tqdm",
+    "starlette",
+    "uvicorn",
+    "sqlalchemy",
+    "alembic",
+)
 """Third-party libraries that cost ≥ 15 ms each to import, kept off the ``tablebench --help`` path. Not h5py
 (≈ 35 ms): the one HDF5 package, benches/recording/, uses it at import time and is imported at the top of the
 session and of most commands; taking it off the path is that module's change (import h5py where files are

@@ -83,3 +83,25 @@ def add_procedure_arguments(p: argparse.ArgumentParser, *, positional: bool = Fa
         help="override a procedure parameter (from its parameters: block), e.g. --set duration_s=60; repeatable",
     )
 
+
+def add_registry_arguments(p: argparse.ArgumentParser) -> None:
+    """``--registry URL|PATH|off`` and ``--operator NAME``: where results are also recorded (the calibration
+    registry, ``docs/registry.md``) and who is recorded as the operator."""
+    p.add_argument(
+        "--registry",
+        default=None,
+        metavar="URL",
+        help="calibration registry to record into: postgresql://USER@HOST/DB, sqlite:///FILE, a file path, or "
+        "'off' (default: $TABLEBENCH_REGISTRY, else registry.sqlite in the runs folder)",
+    )
+    p.add_argument(
+        "--operator",
+        default=None,
+        metavar="NAME",
+        help="operator recorded in the registry (default: $TABLEBENCH_OPERATOR, else the login name)",
+    )
+
+
+def sink_options(args: argparse.Namespace) -> dict[str, object]:
+    """The result-sink options of a command's arguments (:func:`benches.results.sinks_for_run`)."""
+    return {"registry": getattr(args, "registry", None), "operator": getattr(args, "operator", None)}

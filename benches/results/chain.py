@@ -55,5 +55,13 @@ def sinks_for_run(
     return ResultSinks(RunFolderSink(), copies, say=say)
 
 
+def _registry(runs_folder: Path, options: Mapping[str, Any]) -> ResultSink | None:
+    """The calibration registry (:mod:`benches.results.registry`), on unless ``options["registry"]`` is "off"."""
+    from benches.results.registry.sink import sink_factory  # lazy: sqlalchemy (--help time)
+
+    return sink_factory(runs_folder, options)
+
+
+register_copy_sink("registry", _registry)
 
 __all__ = ["register_copy_sink", "sinks_for_run", "unregister_copy_sink"]

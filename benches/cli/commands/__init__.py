@@ -17,6 +17,7 @@ SUMMARIES: dict[str, str] = {
     "noise": "stability family (ADEV … HTOTDEV, Theo1, MTIE) and noise terms (Q, N, B, K, R) of a static record",
     "periodic": "identify and compensate periodic error terms",
     "plan": "predict parameter uncertainties of a procedure before running it",
+    "registry": "the calibration registry: history, trends, comparisons, due dates, exports",
     "run": "run a procedure on a bench and record it",
     "runs": "list recordings with their status; salvage a damaged one",
     "scalefactor": "gyro scale factor, nonlinearity and asymmetry (IEEE 952/1431) from a rate-transfer run",

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:  # pragma: no cover
     pass
 
+from benches.cli.arguments import add_registry_arguments, sink_options
 from benches.results import CalibrationDocument, sinks_for_run
 from core.errors import UsageError
 from core.outputs import check_output
@@ -53,6 +54,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--accelerometer-only", action="store_true", help="identify the 18 accelerometer parameters only"
     )
+    add_registry_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -71,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
         )  # fmt: skip
     except IdentificationError as exc:
         raise UsageError(str(exc)) from None
-    out = sinks_for_run(folder).calibration(
+    out = sinks_for_run(folder, sink_options(args)).calibration(
         CalibrationDocument(run=folder, result=result, path=target if args.out else None)
     ).path
     print(result.summary())

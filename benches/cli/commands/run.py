@@ -9,10 +9,18 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from benches.cli.arguments import add_bench_argument, add_procedure_arguments, check_seed, parse_overrides
+from benches.cli.arguments import (
+    add_bench_argument,
+    add_procedure_arguments,
+    add_registry_arguments,
+    check_seed,
+    parse_overrides,
+    sink_options,
+)
 from benches.live.run_view import RunView
 from benches.live.server import DEFAULT_HOST, DEFAULT_PORT, parse_address
 from benches.progress import ProgressDisplay
+from benches.results import sinks_for_run
 from benches.session import (
     Prepared,
     SessionError,
@@ -84,6 +92,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="SECONDS",
         help="with --live: keep serving the finished run's results this long before exiting (default 0)",
     )
+    add_registry_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -246,7 +255,15 @@ def _finish(
     done: list[str] = []
     try:
         with _StopSignalsRaise():
-            identify_and_certify(folder, todo, live=live[0] if live else None, say=_say, done=done, prep=prep)
+            identify_and_certify(
+                folder,
+                todo,
+                live=live[0] if live else None,
+                say=_say,
+                done=done,
+                prep=prep,
+                sinks=sinks_for_run(folder, sink_options(args), say=_say),
+            )
     except KeyboardInterrupt:
         left = [t for t in todo if t not in done]
         _say(

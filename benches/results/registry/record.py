@@ -1,0 +1,272 @@
+"""A run folder as registry rows: unit, bench, calibration, parameters, certificates, as found / as left.
+
+Sources, all in the run folder: ``calibration.json`` (values, covariance, the run's identity), every
+certificate the run's register lists (``certificate*.json``: decision, number, what it supersedes, U and the
+budget of each parameter), and for as found / as left the recording itself (:func:`as_found_as_left`).
+
+**As found** (ISO/IEC 17025 7.8.4.1 c; the lab's usual practice): the unit's *previous* calibration (same
+serial number, model and configuration, latest run before this one) applied to *this* run's data: per
+acquisition step, the mean residual f_out − h(x_prev; f_ref, ω) of the model f_out = h(x; f, ω)
+(:func:`analysis.identification.model.predict`) against this run's reference f_ref, ω (body frame b, m/s²).
+**As left** is the same with this run's own calibration. A unit that has drifted shows an as-found residual
+well above its as-left one.
+"""
+
+from __future__ import annotations
+
+import getpass
+import hashlib
+import json
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from analysis.identification.model import PARAM_NAMES, predict
+from benches.calibration_result import CalibrationFormatError, CalibrationResult
+from benches.certificate_register import CertificateRegister, RegisterError
+from benches.recording import RecordingError, open_recording
+from benches.results.recalibration import DEFAULT_CONFIGURATION, IntervalSettings, from_bench_text
+from core.errors import UserError
+
+OPERATOR_ENV = "TABLEBENCH_OPERATOR"
+
+
+class RunRecordError(UserError, ValueError):
+    """A run folder cannot be recorded (no calibration, unreadable certificate); the message says what to do."""
+
+
+def canonical(obj: Any) -> str:
+    """Canonical JSON text (sorted keys, no spaces, shortest round-trip floats): equal on both engines."""
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
+
+
+def default_operator() -> str:
+    """``TABLEBENCH_OPERATOR``, else the login name."""
+    env = os.environ.get(OPERATOR_ENV, "").strip()
+    if env:
+        return env
+    try:
+        return getpass.getuser()
+    except (KeyError, OSError):  # no login name (a container without passwd entry)
+        return "unknown"
+
+
+def _load_calibration(run: Path) -> tuple[dict[str, Any], CalibrationResult]:
+    path = run / "calibration.json"
+    if not path.exists():
+        raise RunRecordError(
+            f"{path}: no calibration in this run folder; identify it first (tablebench identify {run})"
+        )
+    result = CalibrationResult.load(path)  # the format's own checks (one clear line each)
+    try:
+        raw = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:  # pragma: no cover - load() above read it already
+        raise CalibrationFormatError(f"{path}: not readable ({exc})") from None
+    return raw, result
+
+
+def calibration_digest(raw: Mapping[str, Any]) -> str:
+    """The digest the registry keys a calibration by: the file's own integrity digest when it carries one
+    (``docs/registry.md``, tamper evidence), else SHA-256 of its canonical values and the recording's digest."""
+    integ = raw.get("integrity")
+    if isinstance(integ, Mapping) and isinstance(integ.get("values_sha256"), str):
+        return str(integ["values_sha256"])
+    body = {k: v for k, v in raw.items() if k != "integrity"}
+    return hashlib.sha256(canonical(body).encode("utf-8")).hexdigest()
+
+
+def _certificates(run: Path) -> list[dict[str, Any]]:
+    """Every certificate issued for ``run`` (register order), as read from its JSON."""
+    try:
+        key = str(run.resolve())
+        entries = [e for e in CertificateRegister.for_run(run).entries() if e.run == key]
+    except RegisterError as exc:
+        raise RunRecordError(str(exc)) from None
+    out = []
+    for e in entries:
+        p = Path(e.json)
+        try:
+            data = p.read_bytes()
+            d = json.loads(data.decode("utf-8"))
+        except FileNotFoundError:
+            continue  # the number was consumed but the file never written (a failed issue)
+        except (OSError, ValueError) as exc:
+            raise RunRecordError(
+                f"{p}: certificate JSON not readable ({exc}); restore it from the run's backup"
+            ) from None
+        out.append({"entry": e, "json": d, "sha256": hashlib.sha256(data).hexdigest()})
+    return out
+
+
+def bench_settings(run: str | Path) -> tuple[str, IntervalSettings]:
+    """(unit configuration, recalibration settings) from the bench text recorded with the run (the run
+    folder's bench.yaml copy when the recording cannot be read); defaults when neither is there."""
+    run = Path(run)
+    try:
+        with open_recording(run / "recording.h5") as f:
+            return from_bench_text(f.bench_text, f"{run / 'recording.h5'}:/bench_yaml")
+    except (RecordingError, OSError):
+        pass
+    try:
+        return from_bench_text((run / "bench.yaml").read_text(encoding="utf-8"), run / "bench.yaml")
+    except (OSError, UnicodeDecodeError):
+        return DEFAULT_CONFIGURATION, IntervalSettings()
+
+
+def _run_time(raw: Mapping[str, Any], run: Path) -> str:
+    created = str((raw.get("run") or {}).get("created_utc") or "")
+    if created:
+        return created
+
+    try:
+        with open_recording(run / "recording.h5") as f:
+            return str(f.header.created_utc or "")
+    except (RecordingError, OSError):
+        return ""
+
+
+def run_record(
+    run: str | Path, *, operator: str | None = None, configuration: str | None = None, recorded_utc: str = ""
+) -> dict[str, Any]:
+    """The rows of one run folder (without as found / as left: :func:`as_found_as_left`)."""
+    run = Path(run).resolve()
+    raw, result = _load_calibration(run)
+    info = dict(raw.get("run") or {})
+    unit = dict(info.get("unit") or {})
+    table = dict(info.get("table") or {})
+    certs = _certificates(run)
+    cert_last = certs[-1]["json"] if certs else None
+    serial = str(unit.get("serial_number") or (cert_last or {}).get("unit", {}).get("serial_number") or "")
+    if not serial:
+        raise RunRecordError(
+            f"{run}/calibration.json: the unit has no serial number (run.unit.serial_number); set unit.serial_number "
+            "in the bench file — a registry keeps a unit's history by its serial number"
+        )
+    run_utc = _run_time(raw, run) or recorded_utc
+    params = []
+    cert_params = (cert_last or {}).get("parameters", {})
+    for n in PARAM_NAMES:
+        p = result.parameters[n]
+        cp = cert_params.get(n) or {}
+        expanded = cp.get("expanded_uncertainty")
+        params.append(
+            {
+                "name": n,
+                "kind": p.kind,
+                "value": p.value,
+                "u": p.u,
+                "expanded": float(expanded) if isinstance(expanded, int | float) else 2.0 * p.u,
+                "identified": bool(p.identified),
+                "budget": canonical(cp["budget"]) if isinstance(cp.get("budget"), dict) else None,
+            }
+        )
+    certificates = [
+        {
+            "number": c["entry"].number,
+            "supersedes": c["entry"].supersedes,
+            "verdict": str(c["json"].get("verdict", "")),
+            "issue_date": str(c["json"].get("issue_date", "")),
+            "json_sha256": c["sha256"],
+        }
+        for c in certs
+    ]
+    cert_cov = {
+        c["entry"].number: canonical(c["json"]["covariance"]) for c in certs if c["json"].get("covariance") is not None
+    }
+    calibration = {
+        "digest": calibration_digest(raw),
+        "recording_sha256": result.recording_sha256,
+        "run_folder": str(run),
+        "run_utc": run_utc,
+        "recorded_utc": recorded_utc,
+        "procedure_name": str(info.get("procedure_name", "")),
+        "procedure_sha256": str(info.get("procedure_sha256", "")),
+        "method": result.method,
+        "status": str(info.get("status", "")),
+        "operator": operator if operator else default_operator(),
+        "software_version": str(raw.get("software_version", "")),
+        "parameter_names": canonical(list(PARAM_NAMES)),
+        "covariance": canonical(result.covariance.tolist()),
+    }
+    return {
+        "unit": {
+            "serial": serial,
+            "model": str(unit.get("model", "")),
+            "configuration": configuration or bench_settings(run)[0],
+        },
+        "bench": {
+            "name": str(info.get("bench_name", "")),
+            "table_model": str(table.get("model", "")),
+            "table_serial": str(table.get("serial_number", "")),
+        },
+        "calibration": calibration,
+        "parameters": params,
+        "certificates": certificates,
+        "certificate_covariance": cert_cov,
+        "x": result.x,
+    }
+
+
+_WINDOWS: dict[str, Any] = {}
+"""Recording SHA-256 → its acquisition windows (one read per recording and process: ``registry add`` of many
+runs of one recording, and the as found and as left of one run, read it once)."""
+
+
+def _windows(run: Path, recording_sha256: str) -> Any:
+    from benches.identify import IdentificationError, load_run  # lazy: filterpy, scipy (--help time)
+
+    if recording_sha256 and recording_sha256 in _WINDOWS:
+        return _WINDOWS[recording_sha256]
+    try:
+        windows = load_run(run).windows
+    except (IdentificationError, UserError, OSError):
+        return None
+    if recording_sha256:
+        if len(_WINDOWS) >= 8:
+            _WINDOWS.pop(next(iter(_WINDOWS)))
+        _WINDOWS[recording_sha256] = windows
+    return windows
+
+
+def as_found_as_left(
+    run: str | Path, x_left: np.ndarray, x_found: np.ndarray | None, recording_sha256: str = ""
+) -> tuple[dict | None, dict] | None:
+    """Residuals of this run's data against its reference under the previous (as found) and this (as left)
+    calibration; None when the recording cannot be read (the registry then stores no as found).
+
+    Returns two mappings ``{"rms": [3], "max_abs_step_mean": [3], "steps": {name: [3]}}`` in m/s², body frame
+    (``as_found`` is None when there is no previous calibration).
+    """
+    windows = _windows(Path(run), recording_sha256)
+    if windows is None:
+        return None
+
+    def residuals(x: np.ndarray) -> dict[str, Any]:
+        steps = {w.name: np.mean(w.f_out - predict(x, w.f_ref, w.omega), axis=0) for w in windows}
+        m = np.array(list(steps.values())) if steps else np.zeros((0, 3))
+        return {
+            "rms": np.sqrt(np.mean(m**2, axis=0)).tolist() if len(m) else [0.0] * 3,
+            "max_abs_step_mean": np.max(np.abs(m), axis=0).tolist() if len(m) else [0.0] * 3,
+            "steps": {k: v.tolist() for k, v in steps.items()},
+            "unit": "m/s^2 (body frame)",
+        }
+
+    left = residuals(np.asarray(x_left, dtype=float))
+    found = residuals(np.asarray(x_found, dtype=float)) if x_found is not None else None
+    return found, left
+
+
+__all__ = [
+    "DEFAULT_CONFIGURATION",
+    "OPERATOR_ENV",
+    "RunRecordError",
+    "as_found_as_left",
+    "bench_settings",
+    "calibration_digest",
+    "canonical",
+    "default_operator",
+    "run_record",
+]

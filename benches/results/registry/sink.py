@@ -1,0 +1,101 @@
+"""The calibration registry as a results sink, and ``registry add``: one run folder into the database.
+
+The sink records a run whenever ``identify``, ``run`` or ``certificate`` publish a calibration or a
+certificate (:mod:`benches.results.sink`); it reads everything from the run folder the first sink has just
+written, so ``registry add RUN`` later records exactly the same rows (and adding twice changes nothing).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from benches.results.sink import AnalysisDocument, CalibrationDocument, CertificateDocument
+from core.errors import UserError
+
+from .queries import previous_of
+from .record import as_found_as_left, canonical, run_record
+from .store import AddOutcome, Registry, RegistryError, display_url, resolve_url
+
+
+def _utc_now() -> str:
+    return _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def _compensation(x: Any, identified: Any) -> Any:
+    x = np.array(x, dtype=float)
+    x[~np.asarray(identified, dtype=bool)] = 0.0  # never applied when not identified (as `correct`)
+    return x
+
+
+def add_run(
+    reg: Registry, run: str | Path, *, operator: str | None = None, configuration: str | None = None
+) -> AddOutcome:
+    """Record the run folder ``run`` (calibration, certificates, as found / as left); idempotent."""
+    rec = run_record(run, operator=operator, configuration=configuration, recorded_utc=_utc_now())
+    cal = rec["calibration"]
+    prev = previous_of(reg, rec["unit"], cal["run_utc"], cal["digest"])
+    ident = [p["identified"] for p in rec["parameters"]]
+    x_found = _compensation(prev.values, prev.identified) if prev is not None else None
+    res = as_found_as_left(run, _compensation(rec["x"], ident), x_found, cal["recording_sha256"])
+    if res is not None:
+        found, left = res
+        cal["as_left"] = canonical(left)
+        if found is not None and prev is not None:
+            cal["as_found"] = canonical(dict(found, certificate=prev.certificate_number, run_utc=prev.run_utc))
+            cal["as_found_of"] = prev.id
+    return reg.add(rec)
+
+
+class RegistrySink:
+    """Records every calibration and certificate published into the registry at ``url``."""
+
+    name = "registry"
+
+    def __init__(self, url: str, operator: str | None = None) -> None:
+        self.url = url
+        self.operator = operator
+        self._reg: Registry | None = None
+
+    def _registry(self) -> Registry:
+        if self._reg is None:
+            self._reg = Registry(self.url)
+        return self._reg
+
+    def _add(self, run: Path) -> None:
+        try:
+            add_run(self._registry(), run, operator=self.operator)
+        except UserError as exc:
+            text = str(exc).removeprefix(f"registry {display_url(self.url)}: ")
+            raise RegistryError(
+                f"registry {display_url(self.url)}: not recorded ({text}); the run folder keeps the result — "
+                f"record it later with: tablebench registry add {run}"
+            ) from None
+
+    def calibration(self, doc: CalibrationDocument) -> CalibrationDocument:
+        """Record the run once its calibration.json is written (in the run folder)."""
+        if doc.path is not None and Path(doc.path).resolve() == (Path(doc.run) / "calibration.json").resolve():
+            self._add(Path(doc.run))
+        return doc
+
+    def certificate(self, doc: CertificateDocument) -> CertificateDocument:
+        """Record the issued certificate (and the calibration, if not yet there)."""
+        self._add(Path(doc.run))
+        return doc
+
+    def analysis(self, doc: AnalysisDocument) -> AnalysisDocument:
+        """Analyses are not kept by the registry (they stay in the run folder)."""
+        return doc
+
+
+def sink_factory(runs_folder: Path, options: Mapping[str, Any]) -> RegistrySink | None:
+    """The registry sink of a command (``options["registry"]``: URL, path or "off"; see :func:`resolve_url`)."""
+    url = resolve_url(options.get("registry"), runs_folder)
+    return None if url is None else RegistrySink(url, operator=options.get("operator"))
+
+
+__all__ = ["RegistrySink", "add_run", "sink_factory"]

@@ -1,0 +1,52 @@
+"""The registry as the second results sink: `certificate` records into it by itself; an unreachable registry
+costs one line and never the certificate; `registry add` later records the same run."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+from benches.results.registry import Registry
+from benches.results.registry.queries import history
+from tests.certificate_fixtures import make_run_folder
+
+CLI = [sys.executable, "-m", "benches.cli"]
+
+
+def _env(**kv):
+    env = dict(os.environ)
+    env.pop("TABLEBENCH_REGISTRY", None)
+    env.update(kv)
+    return env
+
+
+def test_certificate_records_into_the_default_registry_of_the_runs_folder(tmp_path):
+    run = make_run_folder(tmp_path / "runs" / "r1")
+    p = subprocess.run([*CLI, "certificate", str(run), "--issue-date", "2026-11-27", "--operator", "B. Tech"],
+                       capture_output=True, text=True, timeout=600, env=_env(), cwd=tmp_path)  # fmt: skip
+    assert p.returncode in (0, 1), p.stderr
+    assert "registry" not in p.stderr  # nothing to report
+    reg = Registry(f"sqlite:///{tmp_path / 'runs' / 'registry.sqlite'}")
+    [row] = history(reg, "SIM-U-0001")
+    number = (run.parent / "certificate-register.jsonl").read_text().split('"number": "')[1][:9]
+    assert row.certificate_number == number and row.decision is not None and row.operator == "B. Tech"
+    assert row.certificate_covariance is not None
+
+
+def test_an_unreachable_registry_costs_one_line_and_registry_add_records_the_run_later(tmp_path):
+    run = make_run_folder(tmp_path / "runs" / "r1")
+    down = "postgresql://nobody@127.0.0.1:1/registry"
+    p = subprocess.run([*CLI, "certificate", str(run), "--issue-date", "2026-11-27"], capture_output=True, text=True,
+                       timeout=600, env=_env(TABLEBENCH_REGISTRY=down), cwd=tmp_path)  # fmt: skip
+    assert p.returncode in (0, 1), p.stderr
+    assert (run / "certificate.pdf").exists() and (run / "certificate.json").exists()
+    lines = [ln for ln in p.stderr.splitlines() if ln.startswith("registry ")]
+    assert len(lines) == 1, p.stderr
+    assert "127.0.0.1:1" in lines[0] and f"tablebench registry add {run}" in lines[0] and "Traceback" not in p.stderr
+    db = f"sqlite:///{tmp_path / 'later.sqlite'}"
+    p = subprocess.run([*CLI, "registry", "add", str(run), "--registry", db], capture_output=True, text=True,
+                       timeout=600, env=_env(), cwd=tmp_path)  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    [row] = history(Registry(db), "SIM-U-0001")
+    assert row.certificate_number is not None
