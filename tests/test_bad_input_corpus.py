@@ -707,3 +707,4 @@ def test_plan_table_has_a_legend_for_its_columns(corpus: Corpus, monkeypatch) ->
     assert code == 0, err[-1500:]
     text = out + err
     assert "σ white" in text and "σ white = " in text and "σ total = " in text and "σ data = " in text
+
