@@ -129,6 +129,9 @@ class Runner:
     aux : mapping or None
         Named auxiliary devices of the bench; ``"chamber"`` runs the soak and ramp steps
         (:mod:`benches.thermal.steps`), and is left as the chamber safety rules say on every exit path.
+    resume_soak : Soak or None
+        A resumed run that stopped mid-plateau: this soak is executed again before the first recorded step
+        (its samples belong to that step, outside its acquisition window).
     """
 
     def __init__(
@@ -145,8 +148,10 @@ class Runner:
         rest_rate: float = math.radians(0.01),
         stop_timeout_s: float = 120.0,
         aux: Mapping[str, Any] | None = None,
+        resume_soak: Step | None = None,
     ) -> None:
         self.aux = dict(aux or {})
+        self.resume_soak = resume_soak
         self.aborted = RunAborted  # the exception a chamber step raises to stop the run (benches.thermal.steps)
         self.thermal = ThermalSteps(self) if any(isinstance(s, THERMAL_STEPS) for s in steps) else None
         self.table = turntable
@@ -360,6 +365,11 @@ class Runner:
                     self._step_start = self._sample
                     self._acq = None
                     self._show(self.progress.step, step.name + (" (replay)" if not self._recording else ""), step.text)
+                    if self._recording and self.resume_soak is not None and self.thermal is not None:
+                        # a run resumed mid-plateau soaks again at that plateau before its next step
+                        self.rec.event(self._time(), "info", f"resumed mid-plateau: soak {self.resume_soak.name} again")
+                        self.thermal.execute(self.resume_soak)
+                        self.resume_soak = None
                     self._execute(step)
                     if self._recording:
                         self._record_step(step, "complete")

@@ -81,6 +81,7 @@ class Table(Protocol):
     watchdog: float | None
     attitude_accuracy: float
     rate_accuracy: float
+    azimuth_uncertainty: float | None
 
 
 class UnitNoise(Protocol):
@@ -127,6 +128,8 @@ GYRO_TRUTH = Section(
     components("scale_ppm", PPM, Z3, attr="scale"),
     components("misalignment_arcsec", ARCSEC, (0.0,) * 6, length=6, attr="misalignment"),
     matrix("g_sensitivity_dph_per_g", DPH_PER_G, (Z3, Z3, Z3), attr="g_sensitivity"),
+    components("quadratic_ppm_per_dps", PPM / DEG, Z3, attr="quadratic"),
+    components("asymmetry_ppm", PPM, Z3, attr="asymmetry"),
 )
 """``simulation.gyro``: the gyro triad's truth (:class:`~drivers.sim.config.GyroTruth`)."""
 
@@ -384,6 +387,7 @@ def _budget_inputs(d: dict, smap: SourceMap, p: KeyPath, site: Site, table: Tabl
         gravity_anomaly_std=site.g_uncertainty,
         attitude_error_bound=table.attitude_accuracy,
         rate_error_bound=table.rate_accuracy,
+        azimuth_std=float(getattr(table, "azimuth_uncertainty", None) or 0.0),
     )
 
 

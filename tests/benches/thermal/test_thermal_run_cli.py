@@ -48,3 +48,19 @@ def test_run_soaks_ramps_records_and_leaves_the_chamber_safe(tmp_path: Path, cap
     assert messages[-1] == "chamber at its safe set point 25 °C and stopped" or any(
         m == "chamber at its safe set point 25 °C and stopped" for m in messages
     )
+
+
+def test_a_run_interrupted_mid_plateau_resumes_at_that_plateaus_soak() -> None:
+    from benches.session import plateau_soak
+    from procedures.compiler import compile_procedure
+    from procedures.loader import load_procedure_text
+    from tests.procedures.test_thermal_steps import CHAMBER, LIMITS
+
+    text = PROCEDURE.replace("  - ramp:", "  - soak: {setpoint_c: 30}\n  - hold: {}\n  - ramp:")
+    steps = list(compile_procedure(load_procedure_text(text), limits=LIMITS, chamber=CHAMBER).steps)
+    names = [s.name for s in steps]
+    # stopped in the first plateau's hold: soak again at 25 °C; in the second plateau's hold: at 30 °C
+    assert plateau_soak(steps, {0, 1}).name == "soak"
+    assert plateau_soak(steps, set(range(names.index("hold#2")))).name == "soak#2"
+    assert plateau_soak(steps, set(range(names.index("soak#2")))) is None  # resumes at the soak itself
+    assert plateau_soak(steps, set()) is None
