@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.identification.model import correct
-from benches.calibration_result import CalibrationResult
+from benches.calibration_integrity import load_verified
 from benches.cli.analysis_input import InputError, read_npy, recording_path
 from core.errors import UsageError
 from core.outputs import check_output, save_npy
@@ -43,7 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def load_calibration_vector(path: str | Path) -> tuple[np.ndarray, list[str]]:
     """The 18-parameter vector of a calibration.json (not-identified parameters zeroed) and their names."""
-    return CalibrationResult.load(path).compensation_vector()
+    return load_verified(path)[0].compensation_vector()  # refuses an edited or implausible file
 
 
 def run(args: argparse.Namespace) -> int:
