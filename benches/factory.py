@@ -41,10 +41,12 @@ from core.yaml_source import ConfigError
 from drivers import connect
 from drivers.acutrol import AclTurntable
 from drivers.aerosmith import AerosmithTable
+from drivers.chamber.connect import open_chamber
 from drivers.protocols import InertialUnit, Turntable
 from drivers.sim.acl_controller import AclController
 from drivers.sim.acl_server import AclTableServer
 from drivers.sim.aerosmith_controller import AerosmithController
+from drivers.sim.chamber_loopback import serve_chamber
 from drivers.sim.inprocess import SimInertialUnit, SimTurntable
 from drivers.sim.loopback import Loopback
 from drivers.sim.modbus_controller import ModbusTableServer
@@ -70,6 +72,9 @@ class Bench:
     transport: str
     description: str
     _closers: list[Callable[[], None]] = field(default_factory=list, repr=False)
+    aux: dict[str, Any] = field(default_factory=dict)
+    """Named auxiliary devices (``"chamber"``: a :class:`drivers.chamber.base.Chamber`), recorded and commanded by
+    the runner's steps."""
 
     def describe(self) -> str:
         """One line for logs and recordings."""
@@ -115,6 +120,37 @@ def _raw_sink(
 
 
 def open_bench(
+    config: BenchConfig,
+    *,
+    seed: int | None = None,
+    transport: str | None = None,
+    run_folder: str | Path | None = None,
+) -> Bench:
+    """:func:`_open_table_and_unit`, then the bench's auxiliary devices (its temperature chamber: on a simulated
+    bench the world's chamber served in the bench's dialect on loopback, else the real link)."""
+    bench = _open_table_and_unit(config, seed=seed, transport=transport, run_folder=run_folder)
+    section = getattr(config, "chamber", None)
+    if section is None:
+        return bench
+    try:
+        if section.simulated:
+            assert bench.world is not None
+            server, conn = serve_chamber(bench.world, section.config)
+            bench._closers += [server.close, conn.close]
+        else:
+            conn = open_chamber(section.config)
+            bench._closers.append(conn.close)
+    except BaseException:
+        bench.close()
+        raise
+    bench.aux["chamber"] = conn.driver
+    bench.description += (
+        f"; chamber: {section.config.dialect} ({'simulated, loopback' if section.simulated else 'real'})"
+    )
+    return bench
+
+
+def _open_table_and_unit(
     config: BenchConfig,
     *,
     seed: int | None = None,

@@ -19,7 +19,7 @@ import logging
 import math
 import signal
 import threading
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -34,10 +34,11 @@ from drivers.protocols import (
     TableStatus,
     Turntable,
 )
-from procedures.steps import Hold, Move, Note, Spin, Step, Warmup, limit_problems, move_time
+from procedures.steps import THERMAL_STEPS, Hold, Move, Note, Spin, Step, Warmup, limit_problems, move_time
 
 from .progress import NullProgress, ProgressDisplay
 from .recording import Recorder, StepRecord
+from .thermal.steps import ThermalSteps
 
 log = logging.getLogger(__name__)
 
@@ -125,6 +126,12 @@ class Runner:
     progress : ProgressDisplay or None
     total_bench_s : float or None
         Estimated procedure duration (for progress).
+    aux : mapping or None
+        Named auxiliary devices of the bench; ``"chamber"`` runs the soak and ramp steps
+        (:mod:`benches.thermal.steps`), and is left as the chamber safety rules say on every exit path.
+    resume_soak : Soak or None
+        A resumed run that stopped mid-plateau: this soak is executed again before the first recorded step
+        (its samples belong to that step, outside its acquisition window).
     """
 
     def __init__(
@@ -140,7 +147,13 @@ class Runner:
         progress: ProgressDisplay | None = None,
         rest_rate: float = math.radians(0.01),
         stop_timeout_s: float = 120.0,
+        aux: Mapping[str, Any] | None = None,
+        resume_soak: Step | None = None,
     ) -> None:
+        self.aux = dict(aux or {})
+        self.resume_soak = resume_soak
+        self.aborted = RunAborted  # the exception a chamber step raises to stop the run (benches.thermal.steps)
+        self.thermal = ThermalSteps(self) if any(isinstance(s, THERMAL_STEPS) for s in steps) else None
         self.table = turntable
         self.unit = unit
         self.steps = list(steps)
@@ -167,6 +180,8 @@ class Runner:
         state = self.table.read_state()
         self.table.heartbeat()
         self._state = state
+        if self.thermal is not None:
+            self.thermal.on_block(step, block)
         if self._recording:
             self.rec.add_samples(block)
             self.rec.add_table(state)
@@ -254,6 +269,8 @@ class Runner:
             self._acq = (a0, self._sample)
             self.table.stop()
             self._wait_until(step, self._at_rest, 3 * ramp + 30.0, "come to rest")
+        elif isinstance(step, THERMAL_STEPS) and self.thermal is not None:
+            self.thermal.execute(step)
         else:
             raise RunAborted("failed", f"step {step.name!r}: no runner for a {type(step).__name__} step")
 
@@ -348,6 +365,11 @@ class Runner:
                     self._step_start = self._sample
                     self._acq = None
                     self._show(self.progress.step, step.name + (" (replay)" if not self._recording else ""), step.text)
+                    if self._recording and self.resume_soak is not None and self.thermal is not None:
+                        # a run resumed mid-plateau soaks again at that plateau before its next step
+                        self.rec.event(self._time(), "info", f"resumed mid-plateau: soak {self.resume_soak.name} again")
+                        self.thermal.execute(self.resume_soak)
+                        self.resume_soak = None
                     self._execute(step)
                     if self._recording:
                         self._record_step(step, "complete")
@@ -382,6 +404,8 @@ class Runner:
                             log.error("could not record the interrupted step: %s", exc)
                 else:
                     rest_problem = self._safe_stop()
+                if self.thermal is not None:
+                    self.thermal.leave_safe()
                 self.rec.set_status(status)
                 self._interrupt = None
                 self._show(self.progress.update, self._progress_base, force=True)

@@ -25,7 +25,7 @@ from core.yaml_source import ConfigError
 from procedures.compiler import compile_procedure
 from procedures.loader import load_procedure
 from procedures.paths import default_bench_path, resolve_bench, resolve_procedure
-from procedures.steps import CompiledProcedure
+from procedures.steps import CompiledProcedure, Soak, Step
 
 from .bench_config import BenchConfig, chamber_limits, load_bench
 from .progress import ProgressDisplay
@@ -159,6 +159,7 @@ def execute(
     rec_path = folder / "recording.h5"
     steps = list(compiled.steps)
     replay: list[int] = []
+    resume_soak = None
     start_sample = 0
     if resume:
         with open_recording(rec_path) as rec:
@@ -183,6 +184,7 @@ def execute(
                 transport = recorded  # a loopback run resumes on loopback, never silently in-process
         start_sample = done[-1].end_sample if done else 0
         done_idx = [s.index for s in done]
+        resume_soak = plateau_soak(steps, set(done_idx))
         if config.simulation is not None:
             replay = done_idx
         else:
@@ -240,6 +242,8 @@ def execute(
                 position_tolerance=config.turntable.position_tolerance,
                 observers=list(observers(progress)) if observers is not None else (),
                 progress=progress,
+                aux=bench.aux,
+                resume_soak=resume_soak,
             )
             try:
                 result = runner.run(replay=replay, start_sample=start_sample)
@@ -250,6 +254,16 @@ def execute(
     finally:
         bench.close()
     return result
+
+
+def plateau_soak(steps: list[Step], done: set[int]) -> Step | None:
+    """The soak to run again when a thermal run resumes: the last soak before the first step not done, unless that
+    step is the soak itself (None: no soak before it, or the run resumes at a soak)."""
+    first = next((s for s in steps if s.index not in done), None)
+    if first is None or isinstance(first, Soak):
+        return None
+    soaks = [s for s in steps if isinstance(s, Soak) and s.index < first.index]
+    return soaks[-1] if soaks else None
 
 
 def copy_inputs(prep: Prepared, folder: Path) -> None:

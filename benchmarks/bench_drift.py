@@ -10,23 +10,33 @@ Measured, each as a ratio against a reference in the same run:
 - the sliding-window LM graph smoother against filterpy's Kalman filter + RTS smoother;
 - the whole ``analyse_drift`` chain on a 30-minute record against the record's duration.
 
+Conditions (stated in the section): one BLAS/OpenMP thread for both sides (OPENBLAS_NUM_THREADS, OMP_NUM_THREADS,
+MKL_NUM_THREADS = 1, set here before numpy loads, unless the caller set them); every comparison is of public calls
+doing the same estimation (exact ML with the mean estimated ↔ statsmodels' trend "c"; fixed at zero ↔ "n";
+statsmodels' own default optimiser and starting values); best of three runs for ours, one run for statsmodels
+(its own timing scatter is smaller than its margin).
+
 Run: ``python -m benchmarks.bench_drift`` (``--quick`` for smaller sizes).
 """
 
 from __future__ import annotations
 
-import argparse
 import os
-import time
-import warnings
 
-import numpy as np
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # before numpy loads: the same thread setting for ours and the references
 
-from analysis.drift.arma import fit_arma, select_order, simulate_arma
-from analysis.drift.report import analyse_drift
-from analysis.drift.rls import OnlineArma, batch_least_squares, lag_matrix
-from analysis.drift.smoother import arma_state_space, sliding_window_smoother
-from benchmarks._results import write_section
+import argparse  # noqa: E402
+import time  # noqa: E402
+import warnings  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from analysis.drift.arma import fit_arma, select_order, simulate_arma  # noqa: E402
+from analysis.drift.report import analyse_drift  # noqa: E402
+from analysis.drift.rls import OnlineArma, batch_least_squares, lag_matrix  # noqa: E402
+from analysis.drift.smoother import arma_state_space, sliding_window_smoother  # noqa: E402
+from benchmarks._results import write_section  # noqa: E402
 
 
 def _best(fn, repeat: int = 3) -> float:
@@ -183,9 +193,12 @@ def main() -> None:
         f"analyse_drift on a {minutes}-minute record at {rate:g} Hz ({n} samples, one channel): {t_all:.2f} s → "
         f"{n / rate / t_all:.0f}× faster than real time"
     )
+    threads = ", ".join(f"{v}={os.environ.get(v, 'unset')}" for v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"))
     load_line = (
         f"machine load (1-min load average, {os.cpu_count()} CPUs) {load_start:.1f} at start, {os.getloadavg()[0]:.1f} "
-        "at end: absolute times scale with it; the ratios compare runs made minutes apart within it"
+        "at end: absolute times scale with it; the ratios compare runs made minutes apart within it. Conditions: "
+        f"{threads} for both sides; public calls on both sides (exact ML, same model); ours best of 3 runs, "
+        "statsmodels one run"
     )
     body = "\n".join(
         [

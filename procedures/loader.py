@@ -562,7 +562,7 @@ def _parse_thermal(
     prefix: str,
 ) -> StepSpec:
     """``soak: {setpoint_c, tolerance_k, rate_k_per_min, dwell_s, timeout_s, self_heating_k}`` or
-    ``ramp: {from_c, to_c, rate_k_per_min, steps, + the soak keys for the soak at from_c}``."""
+    ``ramp: {from_c, to_c, rate_k_per_min, steps, soak: {the soak keys, for the soak at from_c}}``."""
     lo, hi = TEMPERATURE_RANGE_C
     temp = "°C"
     if kind == SoakSpec.kind:
@@ -570,7 +570,7 @@ def _parse_thermal(
         sp = _num(ctx, body, bpath, label, "setpoint_c", minimum=lo, maximum=hi, what=temp)
         assert sp is not None
         return _soak_criterion(ctx, body, bpath, label, line, name, celsius_to_kelvin(sp))
-    _keys(ctx, body, bpath, label, ("name", "from_c", "to_c", "rate_k_per_min", "steps") + SOAK_KEYS)
+    _keys(ctx, body, bpath, label, ("name", "from_c", "to_c", "rate_k_per_min", "steps", "soak"))
     t0 = _num(ctx, body, bpath, label, "from_c", minimum=lo, maximum=hi, what=temp)
     t1 = _num(ctx, body, bpath, label, "to_c", minimum=lo, maximum=hi, what=temp)
     rate = _num(ctx, body, bpath, label, "rate_k_per_min", positive=True, maximum=100.0, what="K/min > 0")
@@ -580,7 +580,11 @@ def _parse_thermal(
     if "steps" not in body:
         raise ctx.err(bpath, label, "steps is required (the table sequence repeated during the ramp)")
     steps = _parse_steps(ctx, body["steps"], bpath + ("steps",), prefix)
-    soak = _soak_criterion(ctx, body, bpath, label, line, name, celsius_to_kelvin(t0))
+    sbody = body.get("soak") or {}
+    if not isinstance(sbody, dict):
+        raise ctx.err(bpath + ("soak",), label, "soak: expected the soak criterion at from_c, e.g. {tolerance_k: 0.5}")
+    _keys(ctx, sbody, bpath + ("soak",), label, SOAK_KEYS)
+    soak = _soak_criterion(ctx, sbody, bpath + ("soak",), label, line, name, celsius_to_kelvin(t0))
     return RampSpec(
         line,
         label,

@@ -1,6 +1,6 @@
 """ARMA(p, q) modelling of a drift residual: moment estimates, exact maximum likelihood, order selection.
 
-Specification: ``shared/spec/drift-timeseries.md`` ("ARMA modelling").
+Specification: docs/methods/drift.md ("ARMA modelling").
 
 Sign convention (Box–Jenkins, as the spec's moment equations and the simulated unit ``drivers.sim``):
 

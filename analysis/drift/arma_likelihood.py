@@ -1,7 +1,7 @@
 """Exact Gaussian likelihood of an ARMA(p, q) series (zero mean, or mean profiled out), by regression on the
 pre-sample values.
 
-Specification: ``shared/spec/drift-timeseries.md`` ("ARMA modelling"). The spec is silent on how σ̂² is
+Specification: docs/methods/drift.md ("ARMA modelling"). The spec is silent on how σ̂² is
 estimated for the order criteria; the standard exact maximum-likelihood form is used (Box, Jenkins, Reinsel &
 Ljung, *Time Series Analysis*, 5th ed., §7.1.4 and appendix A7.3: the unconditional sum of squares).
 

@@ -1,6 +1,6 @@
 """Maximisers of an ARMA likelihood written as a nonlinear least-squares problem ‖r(β)‖², β = (φ, θ).
 
-Used by :func:`analysis.drift.arma.fit_arma` (specification ``shared/spec/drift-timeseries.md``: "optimiser
+Used by :func:`analysis.drift.arma.fit_arma` (specification docs/methods/drift.md: "optimiser
 convergence must be checked, not capped silently"):
 
 - :func:`levenberg_marquardt` in the coefficients themselves, steps leaving the stationary/invertible region

@@ -1,6 +1,6 @@
 """Statistical tests and correlation functions for drift records.
 
-Specification: ``shared/spec/drift-timeseries.md``. All functions take a scalar series (any unit, usually the
+Specification: docs/methods/drift.md. All functions take a scalar series (any unit, usually the
 detrended residual of one gyro or accelerometer channel) and return a :class:`TestResult` with the
 statistic, the threshold it is compared against, and the verdict, or arrays for ACF/PACF.
 

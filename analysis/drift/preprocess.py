@@ -1,6 +1,6 @@
 """Pre-processing of a static drift record: outlier replacement and polynomial detrending.
 
-Specification: ``shared/spec/drift-timeseries.md`` ("Pre-processing"). The input is one channel of a static
+Specification: docs/methods/drift.md ("Pre-processing"). The input is one channel of a static
 record (a gyro in rad/s or an accelerometer in m/s², any frame: the functions act on a scalar series), sampled
 uniformly. Nothing here depends on the unit of the series; outputs carry the input's unit.
 

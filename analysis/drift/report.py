@@ -1,10 +1,11 @@
-"""Drift analysis of static records: the whole chain of ``shared/spec/drift-timeseries.md`` per channel.
+"""Drift analysis of static records: the whole chain of docs/methods/drift.md per channel.
 
 For every channel (a scalar series in SI: rad/s for gyros, m/s² for accelerometers, body frame, any axis):
 
 1. outlier replacement (3σ / MAD, previous-sample substitution), count reported;
 2. mean + least-squares polynomial trend removal (order given or by BIC);
-3. stationarity: Daniel and reverse-arrangement tests on M sub-series means and mean squares;
+3. stationarity: Daniel and reverse-arrangement tests on M sub-series means and mean squares, ADF (null: a
+   unit root) and KPSS (null: stationary) as statsmodels computes them;
 4. periodicity: Welch peak significance, strong tones listed for ``tablebench periodic`` and (by default)
    subtracted by least squares before the ARMA modelling;
 5. normality: Jarque–Bera (with the large-n caveat);
@@ -48,6 +49,7 @@ from analysis.drift.hypothesis_tests import (
 from analysis.drift.preprocess import DriftInputError, check_series, detrend, remove_tones, replace_outliers
 from analysis.drift.rls import OnlineArma
 from analysis.drift.smoother import arma_state_space, sliding_window_smoother, steady_state_filter
+from analysis.drift.unit_root import adf_test, kpss_test
 
 MIN_SAMPLES = 200
 """Shortest record accepted for a drift analysis (the order selection needs ≥ 10 samples per parameter)."""
@@ -165,6 +167,9 @@ def _record_tests(
         t = reverse_arrangement_test(z, o.alpha)
         t.name = f"reverse_arrangement_{label}"
         tests[t.name] = t
+    # unit root (ADF: null a random walk) and stationarity (KPSS: null stationary), statsmodels' defaults
+    tests["adf"] = adf_test(y, "c", "aic", alpha=o.alpha)
+    tests["kpss"] = kpss_test(y, "c", "auto", alpha=o.alpha)
     jb = jarque_bera_test(y, o.alpha)
     if replaced and o.outlier_k <= 4:
         jb.note += (

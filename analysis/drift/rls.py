@@ -1,6 +1,6 @@
 """Online (recursive) least squares for AR models and extended least squares for ARMA models.
 
-Specification: ``shared/spec/drift-timeseries.md`` ("Online"). Per sample, with regressor φ_t and target y_t:
+Specification: docs/methods/drift.md ("Online"). Per sample, with regressor φ_t and target y_t:
 
     K = P φ / (λ + φᵀ P φ);   θ̂ ← θ̂ + K (y − φᵀ θ̂);   P ← (P − K φᵀ P) / λ,
 

@@ -1,6 +1,6 @@
 """ARMA drift in state-space form: Kalman filter, sliding-window Levenberg–Marquardt ("graph") smoother.
 
-Specification: ``shared/spec/drift-timeseries.md`` ("Compensation").
+Specification: docs/methods/drift.md ("Compensation").
 
 State-space form (Harvey) of the ARMA(p, q) drift d_t (sign convention of :mod:`analysis.drift.arma`),
 m = max(p, q + 1):

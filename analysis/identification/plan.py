@@ -154,7 +154,17 @@ class IdentificationPlan:
                 f"{self.sigma_total[k] / one:10.4g} {self.sigma_data_total[k] / one:10.4g}  {status}"
             )
         lines.append(f"data information rank {self.rank}/{m.n_params}, condition {self.condition:.3g}")
+        lines += PLAN_LEGEND
         return "\n".join(lines + self.warnings)
+
+
+PLAN_LEGEND: tuple[str, ...] = (
+    "columns (predicted standard uncertainty 1σ, k = 1): prior = the datasheet bound before any data;",
+    "  σ white = with the prior, white noise only (the filter's own P); σ total = with the prior, white noise plus",
+    "  the bias instability the filter does not model; σ data = σ total from the data alone (no prior), which",
+    "  decides 'NOT IDENTIFIED' (σ data above a third of the prior: the motion cannot resolve it)",
+)
+"""The legend printed under :meth:`IdentificationPlan.table` (plan, run)."""
 
 
 def _fmt(kind: str, value_si: float) -> str:

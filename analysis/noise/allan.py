@@ -1,6 +1,6 @@
 """Allan-family variances of rate / specific-force records, with EDF and χ² confidence intervals.
 
-Estimators (``/work/shared/spec/noise-variance.md``; IEEE 952 / IEEE 1293 and NIST SP 1065 where the spec is
+Estimators (docs/methods/noise.md; IEEE 952 / IEEE 1293 and NIST SP 1065 where the spec is
 silent), for a record Ω_1..Ω_N sampled every T_s (any SI rate unit: rad/s for gyros, m/s² for accelerometers),
 τ = m T_s, and the phase (integrated record, rad or m/s) x_0 = 0, x_j = x_{j-1} + Ω_j T_s:
 

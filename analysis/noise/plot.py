@@ -130,3 +130,68 @@ def plot_noise(result: dict, title: str | None = None):
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     return fig
+
+
+def plot_dynamic(dyn: dict[str, dict], title: str | None = None):
+    """Dynamic Allan deviation picture: per channel, time along the record (x) against τ (y, log), colour the
+    deviation (log scale); ``dyn`` maps channel → :func:`analysis.noise.dynamic.dynamic_adev` result."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    from matplotlib.colors import LogNorm
+    from matplotlib.figure import Figure
+
+    names = list(dyn)
+    fig = Figure(figsize=(6.0, 3.2 * len(names)))
+    axes = fig.subplots(len(names), 1, squeeze=False)[:, 0]
+    for ax, name in zip(axes, names, strict=True):
+        d = dyn[name]
+        v = np.asarray(d["adev"], dtype=np.float64)
+        ok = np.isfinite(v) & (v > 0)
+        norm = LogNorm(vmin=float(v[ok].min()), vmax=float(v[ok].max())) if ok.any() else None
+        t, tau = np.asarray(d["t_centre"]), np.asarray(d["tau"])
+        mesh = ax.pcolormesh(t, tau, np.where(ok, v, np.nan).T, shading="nearest", norm=norm, cmap="viridis")
+        ax.set_yscale("log")
+        ax.set_xlabel("time along the record (window centre), s")
+        ax.set_ylabel("τ, s")
+        ax.set_title(f"{name}: overlapping ADEV per window")
+        fig.colorbar(mesh, ax=ax, label="ADEV (SI rate unit)")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def plot_psd(psds: dict[str, dict], allan_terms: dict[str, dict], ts: float, title: str | None = None):
+    """One-sided rate PSD per channel (Welch and its log bins) with the noise terms drawn in the frequency domain:
+    the PSD fit's terms (solid) and the Allan fit's terms (dashed), IEEE 952 forms
+    (:func:`analysis.noise.psd.term_psd`)."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    from matplotlib.figure import Figure
+
+    from analysis.noise.psd import term_psd
+
+    names = list(psds)
+    fig = Figure(figsize=(6.0, 3.6 * len(names)))
+    axes = fig.subplots(len(names), 1, squeeze=False)[:, 0]
+    for ax, name in zip(axes, names, strict=True):
+        p = psds[name]
+        f = np.asarray(p["f"])
+        ax.loglog(f, p["psd"], color="0.75", lw=0.6, label="Welch")
+        ax.loglog(p["f_binned"], p["psd_binned"], "k.", ms=4, label="log bins")
+        fitted = term_psd(f, {k: v[0] for k, v in p["terms"].items()}, ts)
+        allan = term_psd(f, {k: d["value"] for k, d in allan_terms[name].items() if k in ("N", "B", "K")}, ts)
+        for k, curve in fitted.items():
+            ax.loglog(f, curve, color=_TERM_STYLE[k], lw=1.2, label=f"{k} (PSD fit)")
+        for k, curve in allan.items():
+            ax.loglog(f, curve, color=_TERM_STYLE[k], lw=1.0, ls="--", label=f"{k} (Allan fit)")
+        ax.set_xlabel("frequency, Hz")
+        ax.set_ylabel("one-sided PSD, (SI rate unit)²/Hz")
+        ax.set_title(name)
+        ax.legend(fontsize=6, ncol=2)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return fig

@@ -488,6 +488,13 @@ def decide_conformity(g: Gathered) -> Decision:
         warnings.append("not identified (prior-dominated, do not use for compensation): " + ", ".join(unident))
     if not binfo.limits:
         warnings.append("the bench file gives no pass/fail limits: no conformity statement")
+    sizes = [p.name for p in results if p.identifiable and p.name.startswith("r_")]
+    if sizes and not binfo.rate_accuracy:
+        warnings.append(
+            f"{', '.join(sizes)} (size effect) issued although the table's rate accuracy is not stated in the bench "
+            "file (turntable.rate_accuracy_ppm): the budget holds no type-B term for the spin rate, so U may be "
+            "understated; state it and re-issue"
+        )
     warnings.extend(g.event_warnings)
     if not g.integrity["verified"]:
         warnings.insert(0, g.integrity["note"])
@@ -690,9 +697,23 @@ def issue_certificate(
     (pdf_path, json_path, verdict)
         verdict: "PASS", "FAIL", "INCONCLUSIVE", "INCOMPLETE" or "NO LIMITS".
     """
+    cert = build_certificate(run_dir, issue_date=issue_date, allow_incomplete=allow_incomplete, recorded=recorded)
+    pdf, js = publish_certificate(cert, run_dir, out_pdf, out_json, sinks)
+    return pdf, js, cert.verdict
+
+
+def publish_certificate(
+    cert: Certificate,
+    run_dir: str | Path,
+    out_pdf: str | Path | None = None,
+    out_json: str | Path | None = None,
+    sinks: ResultSinks | None = None,
+) -> tuple[Path, Path]:
+    """Publish a built certificate through the result sinks (numbered, rendered, written; never overwriting).
+    The second half of :func:`issue_certificate` (``tablebench certificate`` builds interruptibly, then
+    publishes). Returns (pdf_path, json_path)."""
     given = Path(run_dir)
     run = given.parent if given.is_file() else given
-    cert = build_certificate(given, issue_date=issue_date, allow_incomplete=allow_incomplete, recorded=recorded)
     sinks = sinks if sinks is not None else sinks_for_run(run)
     doc = sinks.certificate(
         CertificateDocument(
@@ -703,8 +724,8 @@ def issue_certificate(
         )
     )
     assert doc.pdf is not None and doc.json is not None  # the run folder sink always writes both
-    return doc.pdf, doc.json, cert.verdict
+    return doc.pdf, doc.json
 
 
 __all__ = ["Decision", "Gathered", "assemble", "bench_info", "build_certificate", "decide_conformity", "gather",
-           "issue_certificate"]
+           "issue_certificate", "publish_certificate"]

@@ -25,7 +25,8 @@ SIGN_CONVENTIONS: tuple[str, ...] = (
     "axis pointing up reads +g.",
     "f_out: the unit's output (after its own count scaling), body frame, m/s².",
     "b: bias, added to the output (f_out − f at zero input); shown in µg (1 µg = 9.80665e-6 m/s²).",
-    "S = diag(S_x, S_y, S_z): scale-factor errors, f_out,i ∋ (1 + S_i) f_i; shown in ppm.",
+    "S = diag(S_x, S_y, S_z): scale-factor errors, output axis i reads (1 + S_i) f_i plus the other terms; "
+    "shown in ppm.",
     "T: misalignment, off-diagonal; convention δf_i += τ_ij f_j (output axis i senses τ_ij of the input along j); "
     "shown in arcsec (small angles, rad).",
     "D = diag(d): quadratic (second-order) coefficients, δf_i += d_i f_i²; shown in µg/g².",

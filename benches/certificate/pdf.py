@@ -298,7 +298,7 @@ def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
             ("Site", site_txt or "—"),
             ("Local gravity g", g_txt),
             ("Procedure", f"{proc.get('name', '')}; SHA-256 of its text: {proc.get('sha256', '')}" + _overrides(proc)),
-            ("Date of calibration", f"{rec.get('created_utc', '')} to {rec.get('updated_utc', '') or '—'} (UTC)"),
+            ("Date of calibration", _dates_text(rec)),
             ("Environment", f"Unit temperature {temp_txt}"),
             ("Recording", rec_txt),
             ("Identification", ident_txt),
@@ -314,6 +314,16 @@ def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
         size=7.8,
     )
     _signature_block(pdf)
+
+
+def _dates_text(rec: dict) -> str:
+    """The dates of calibration, saying which clock is which: the start and end are the recording computer's
+    wall clock (UTC); the recording's own duration is bench time, the unit's sample clock (a simulated bench
+    runs faster than real time, so the two differ)."""
+    start, end = rec.get("created_utc", ""), rec.get("updated_utc", "") or "—"
+    dur = rec.get("duration_s")
+    bench = f"; the recording spans {float(dur) / 60:.1f} min of bench time (the unit's sample clock)" if dur else ""
+    return f"{start} to {end} (UTC, wall clock of the recording computer){bench}"
 
 
 def _overrides(proc: dict) -> str:

@@ -1,6 +1,6 @@
 """The open points of the ACUTROL3000 command language, as settings (``turntable.acl`` in a bench file).
 
-The vendor documents (``/work/shared/spec/acutrol-acl.md``) leave these points open; they are captured from a
+The vendor documents (``docs/protocols/acutrol-acl.md``) leave these points open; they are captured from a
 real unit and written into the bench file, never guessed in code. Defaults follow the spec.
 Both the driver (:mod:`drivers.acutrol.driver`) and the simulated controller
 (:mod:`drivers.sim.acl_controller`) read the same settings, so a simulated bench can imitate any real unit.

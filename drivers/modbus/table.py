@@ -82,7 +82,7 @@ MAX_TURNS = 1e5
 RATE_MARGIN = 1.25
 """A rate reading beyond ``RATE_MARGIN × rate_max + 0.01 rad/s`` is implausible."""
 MAX_TIME_S = 1e9
-"""A controller time beyond ~31.7 years is implausible."""
+"""A controller time beyond ±31.7 years is implausible."""
 
 
 class ImplausibleReading(LinkError):
@@ -101,7 +101,8 @@ def check_plausible(
 ) -> None:
     """Refuse a reading no table reaches (:class:`ImplausibleReading`, one line naming value, limit and fix).
 
-    Checks: every value finite and not subnormal-small; time in [0, 1e9] s and not running backwards;
+    Checks: every value finite and not subnormal-small; time within ±1e9 s (a controller clock may start
+    anywhere) and not running backwards;
     angles of limited axes within their limits ± 10°, of continuous axes within ±1e5 turns; rates within
     1.25 × rate_max + 0.01 rad/s; and, against the previous reading, no angle change faster than the rate limit
     allows (1.25 × rate_max × Δt + 0.05 rad).
@@ -112,8 +113,8 @@ def check_plausible(
         return ImplausibleReading(f"implausible reading: {what}{fix}")
 
     t = float(state.time)
-    if not math.isfinite(t) or _tiny(t) or not 0.0 <= t <= MAX_TIME_S:
-        raise bad(f"controller time {t!r} s (expected 0…{MAX_TIME_S:g} s)")
+    if not math.isfinite(t) or _tiny(t) or abs(t) > MAX_TIME_S:
+        raise bad(f"controller time {t!r} s (expected within ±{MAX_TIME_S:g} s)")
     if previous is not None and t < previous.time:
         raise bad(f"controller time ran backwards ({previous.time:.6g} s → {t:.6g} s)")
     for i, lim in enumerate(limits):

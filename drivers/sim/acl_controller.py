@@ -4,7 +4,7 @@
 message and returns the reply lines it would send. :class:`~drivers.sim.acl_server.AclTableServer` serves it
 on loopback TCP (reachable as a pyvisa-py ``TCPIP0::127.0.0.1::PORT::SOCKET`` resource) and
 :meth:`AclController.transport` gives an in-memory :class:`~drivers.transport.MessageTransport` with the same
-behaviour (the in-process simulated bench). It is written from ``/work/shared/spec/acutrol-acl.md`` and the
+behaviour (the in-process simulated bench). It is written from ``docs/protocols/acutrol-acl.md`` and the
 settings of :class:`~drivers.acutrol.settings.AclSettings`; it shares no code with the driver.
 
 Parser (strict, as the real one): mnemonics in long, short or one-letter form (table :data:`TREE`), any

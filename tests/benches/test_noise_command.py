@@ -222,3 +222,14 @@ def test_bad_noise_type_is_one_line_exit_2(tmp_path: Path, capsys: pytest.Captur
     assert main(["noise", str(tmp_path / "d.npy"), "--rate", "10", "--noise-type", bad]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--noise-type" in err[0]
+
+
+def test_psd_and_dynamic_outputs(tmp_path: Path) -> None:
+    np.save(tmp_path / "d.npy", np.random.default_rng(2).normal(0.0, 1e-3, (20_000, 2)))
+    out = tmp_path / "o"
+    assert main(["noise", str(tmp_path / "d.npy"), "--rate", "10", "--out", str(out), "--psd", "--dynamic", "200"]) == 0
+    data = json.loads((out / "noise.json").read_text())
+    assert set(data["channels"]["ch0"]["psd"]["terms"]) == {"N", "B", "K"}
+    assert data["dynamic"]["step_s"] == 50.0 and len(data["dynamic"]["channels"]["ch1"]["adev"]) == 37
+    assert (out / "noise_psd.png").stat().st_size > 1000 and (out / "noise_dynamic.png").stat().st_size > 1000
+    assert main(["noise", str(tmp_path / "d.npy"), "--rate", "10", "--dynamic", "0:5"]) == 2

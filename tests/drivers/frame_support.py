@@ -1,5 +1,5 @@
 """Shared by the frame tests: the spec's test frames and an independent bit-by-bit CRC-32/MPEG-2 (written from
-../shared/spec/imu-frames.md, never from this project's encoder), and the decoding of a damaged stream in random
+docs/protocols/imu-frames.md, never from this project's encoder), and the decoding of a damaged stream in random
 chunks with the counts every such test checks."""
 
 from __future__ import annotations

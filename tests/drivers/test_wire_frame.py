@@ -2,7 +2,7 @@
 errors rejected, every shipped format round-tripped with garbage, truncation, counter resets and duplicates
 injected (exact counts), counter rules, and bad descriptions reported with file:line.
 
-The expected field values below are written from ../shared/spec/imu-frames.md (its test frames and the
+The expected field values below are written from docs/protocols/imu-frames.md (its test frames and the
 values it states for them) and from independent ``struct`` unpacking, never from this project's encoder.
 """
 

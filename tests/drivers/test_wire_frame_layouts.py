@@ -1,7 +1,7 @@
 """Layouts by identifier (one description, several sync/identifier bytes with their own lengths and fields) and
 KVH built-in-test frames.
 
-Expected values are written from ../shared/spec/imu-frames.md (its test frames, lengths, CRC coverage with zero
+Expected values are written from docs/protocols/imu-frames.md (its test frames, lengths, CRC coverage with zero
 padding, the KVH BIT frames' 8-bit sum) and an independent bit-by-bit CRC, never from this project's encoder.
 """
 
