@@ -17,11 +17,13 @@ import numpy as np
 
 from analysis.earth import normal_gravity
 from analysis.identification.budget import default_g_uncertainty
+from analysis.identification.gyro import build as _gyro_model
 from analysis.units import (
     ARCSEC,
     DEG,
     DEG_PER_HOUR,
     DEG_PER_SQRT_HOUR,
+    G0,
     MM,
     PPM,
     UG,
@@ -82,6 +84,9 @@ __all__ = [
     "unit_frame_format",
 ]
 
+GYRO_PARAM_NAMES: tuple[str, ...] = _gyro_model(full_g=True, quadratic=True, asymmetry=True).names
+"""Every gyro-model parameter name (b 3, S 3, τ 6, G 9, S2 3, A 3) a bench may give a prior or limit for."""
+
 # parameter groups of the 18-parameter model: YAML key stem, unit suffix, SI per display unit, names
 PARAM_GROUPS: dict[str, tuple[str, float, tuple[str, ...]]] = {
     "bias": ("ug", UG, ACCEL_PARAM_NAMES[0:3]),
@@ -89,9 +94,20 @@ PARAM_GROUPS: dict[str, tuple[str, float, tuple[str, ...]]] = {
     "misalignment": ("arcsec", ARCSEC, ACCEL_PARAM_NAMES[6:12]),
     "quadratic": ("ug_g2", UG_PER_G2, ACCEL_PARAM_NAMES[12:15]),
     "size_effect": ("mm", MM, ACCEL_PARAM_NAMES[15:18]),
+    # the gyro model's (docs/methods/gyro-calibration.md): all variants' names, so a bench may state any
+    "gyro_bias": ("dph", DEG_PER_HOUR, GYRO_PARAM_NAMES[0:3]),
+    "gyro_scale": ("ppm", PPM, GYRO_PARAM_NAMES[3:6]),
+    "gyro_misalignment": ("arcsec", ARCSEC, GYRO_PARAM_NAMES[6:12]),
+    "gyro_g_sensitivity": ("dph_per_g", DEG_PER_HOUR / G0, GYRO_PARAM_NAMES[12:21]),
+    "gyro_quadratic": ("ppm_per_dps", PPM / DEG, GYRO_PARAM_NAMES[21:24]),
+    "gyro_asymmetry": ("ppm", PPM, GYRO_PARAM_NAMES[24:27]),
 }
 _NAME_UNIT = {name: (suffix, si) for suffix, si, names in PARAM_GROUPS.values() for name in names}
-PARAM_MAX: dict[str, float] = {"ug": 1e6, "ppm": 1e6, "arcsec": 360_000.0, "ug_g2": 1e6, "mm": 10_000.0}
+_ALL_PARAM_NAMES = ACCEL_PARAM_NAMES + GYRO_PARAM_NAMES
+PARAM_MAX: dict[str, float] = {
+    "ug": 1e6, "ppm": 1e6, "arcsec": 360_000.0, "ug_g2": 1e6, "mm": 10_000.0, "dph": 3.6e6, "dph_per_g": 1e5,
+    "ppm_per_dps": 1e6,
+}  # fmt: skip
 """Largest prior / limit a bench file may give, display units by key suffix (1 g, 100 %, 100°, 1 g/g², 10 m):
 beyond that the number is a typo, not a datasheet bound."""
 
@@ -148,6 +164,15 @@ class TurntableSpec:
     resource: str | None = None  # VISA resource string (driver acutrol)
     acl: AclSettings | None = None  # ACL open points (driver acutrol, or a simulated ACUTROL)
     rate_tolerance: float = 0.01 * DEG  # rad/s: at-rate / at-rest window of host-decided settling
+    azimuth_uncertainty: float | None = None
+    """Standard uncertainty of the outer gimbal's zero azimuth (East), rad (``azimuth_uncertainty_arcsec``);
+    None: not stated (the certificate then assumes one and says so)."""
+
+    @property
+    def at_rate_tolerance(self) -> float:
+        """The host's at-rate window, rad/s: the stated tolerance plus the table's stated rate accuracy at its
+        fastest axis (a table that turns 300 ppm fast at 60 °/s is 0.018 °/s off its command, and at rate)."""
+        return self.rate_tolerance + self.rate_accuracy * max(lim.rate_max for lim in self.limits)
     sim_controller: str = "acutrol"  # simulated benches: which controller the simulator speaks
     aerosmith: AerosmithSettings | None = None  # Ideal Aerosmith open points (driver ideal-aerosmith or simulated)
 
@@ -185,6 +210,7 @@ class UnitSpec:
     frame_options: dict[str, Any] = field(default_factory=dict)  # the unit's output configuration
     frame_desc: FrameDescription | None = None
     keep_raw: bool = False  # keep the raw serial stream as RUN_DIR/unit-raw.bin
+    gyro_g_sensitivity: str = "diagonal"  # identify the gyro's g-sensitivity as its diagonal or the "full" 3 × 3
     time_reference: str | None = None  # hardware timing: "pps" or "time_tag" (one clock); None: estimated
 
 
@@ -410,6 +436,7 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
             "in_position_time_s",
             "attitude_accuracy_arcsec",
             "rate_accuracy_ppm",
+            "azimuth_uncertainty_arcsec",
             "heartbeat_period_s",
             "watchdog_s",
             "float_word_order",
@@ -499,6 +526,7 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
         serial_number=str(d.get("serial_number") or ""),
         float_word_order=word_order,
         rate_accuracy=get_number(d, smap, p, "rate_accuracy_ppm", 0.0, minimum=0, maximum=1e5) * 1e-6,
+        azimuth_uncertainty=_optional_arcsec(d, smap, p, "azimuth_uncertainty_arcsec"),
         modbus_map=modbus_map,
         resource=resource,
         acl=acl,
@@ -508,12 +536,17 @@ def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> Turntabl
     )
 
 
+def _optional_arcsec(d: dict, smap: SourceMap, p: KeyPath, key: str) -> float | None:
+    """An optional angle in arcsec (0 … 10°) as rad; None when the bench does not state it."""
+    return None if d.get(key) is None else get_number(d, smap, p, key, minimum=0, maximum=36000) * ARCSEC
+
+
 def _param_map(d: dict | None, smap: SourceMap, p: KeyPath, positive: bool) -> dict[str, float]:
     """Per-parameter values from group keys (``bias_ug: 300``) and/or single keys (``b_x_ug: 500``), SI."""
     if d is None:
         return {}
     allowed = [f"{g}_{suffix}" for g, (suffix, _, _) in PARAM_GROUPS.items()]
-    allowed += [f"{n}_{_NAME_UNIT[n][0]}" for n in ACCEL_PARAM_NAMES]
+    allowed += [f"{n}_{_NAME_UNIT[n][0]}" for n in _ALL_PARAM_NAMES]
     check_keys(d, smap, p, allowed)
     out: dict[str, float] = {}
     lo = dict(minimum=0.0, exclusive_minimum=True) if positive else {}
@@ -522,7 +555,7 @@ def _param_map(d: dict | None, smap: SourceMap, p: KeyPath, positive: bool) -> d
         if key in d:
             v = get_number(d, smap, p, key, maximum=PARAM_MAX[suffix], **lo)
             out.update({n: v * si for n in names})
-    for n in ACCEL_PARAM_NAMES:
+    for n in _ALL_PARAM_NAMES:
         suffix, si = _NAME_UNIT[n]
         key = f"{n}_{suffix}"
         if key in d:
@@ -548,6 +581,7 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
             "mounting",
             "noise",
             "prior",
+            "gyro_g_sensitivity",
             "frame",
             "frame_options",
             "keep_raw",
@@ -615,6 +649,7 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
         frame_options=frame_options,
         frame_desc=frame_desc,
         keep_raw=keep_raw,
+        gyro_g_sensitivity=get_str(d, smap, p, "gyro_g_sensitivity", "diagonal", choices=("diagonal", "full")),
         time_reference=get_str(d, smap, p, "time_reference", None, choices=["pps", "time_tag"]),
     )
 

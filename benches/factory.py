@@ -281,7 +281,7 @@ def _acl_options(tt: TurntableSpec) -> dict[str, Any]:
         "settings": tt.acl,
         "position_tolerance": tt.position_tolerance,
         "settle_time": tt.in_position_time,
-        "rate_tolerance": tt.rate_tolerance,
+        "rate_tolerance": tt.at_rate_tolerance,
     }
 
 
@@ -323,7 +323,7 @@ def _hardware_table(config: BenchConfig) -> connect.Connection[Any]:
             register_map=getattr(tt, "modbus_map", None),
             limits=limits,  # type: ignore[arg-type]
             timeout=DEFAULT_TIMEOUT_S,
-            rate_tolerance=getattr(tt, "rate_tolerance", None),
+            rate_tolerance=getattr(tt, "at_rate_tolerance", None),
         )
         conn.where = f"Modbus TCP {host}:{port}"
     elif tt.driver == "acutrol":
@@ -399,7 +399,7 @@ def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str)
                 register_map=getattr(tt, "modbus_map", None),
                 timeout=DEFAULT_TIMEOUT_S,
                 retries=0,
-                rate_tolerance=getattr(tt, "rate_tolerance", None),
+                rate_tolerance=getattr(tt, "at_rate_tolerance", None),
             )
             closers.insert(0, mconn.close)
             table, what = mconn.driver, f"simulated Modbus table on 127.0.0.1:{msrv.port}"

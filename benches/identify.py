@@ -18,20 +18,23 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from analysis.earth import earth_rate_enu
+from analysis.gimbal import body_rate, body_to_nav
 from analysis.identification.batch import batch_identify, information_rank, unobservable_parameters
 from analysis.identification.bias_drift import flicker_components, window_mean_covariance
 from analysis.identification.kalman import StreamingIdentifier, estimate_measurement_noise
 from analysis.identification.plan import IdentificationPlan, PlanStep, plan_identification
-from analysis.identification.specification import ModelSpec, get_model
+from analysis.identification.specification import ModelSpec, UnitModel, get_model
 from analysis.timebase import IDENTITY, TimeBase, misfit_cause
-from analysis.units import DISPLAY_UNITS
+from analysis.units import ARCSEC, DEG, DEG_PER_HOUR, DISPLAY_UNITS, G0, PPM
 from core.errors import UserError
 from drivers.protocols import ImuBlock, TableState
 from procedures.steps import CompiledProcedure, Hold, Spin, Step, Warmup
@@ -56,12 +59,18 @@ from .recording import RecordingError, StepRecord, TableReadings
 from .reference import reference_at, reference_for_samples
 from .timebase import run_time_base, table_in_unit_time, time_base_sensitivity
 
-MODEL_TEXT = (
-    "f_out = f + (S + T) f + b + D (f∘f) + diag(r) c(ω), body frame; c(ω) = [ω_y²+ω_z², ω_z²+ω_x², ω_x²+ω_y²]; "
-    "misalignment convention δf_i += τ_ij f_j"
-)
 ACCEL_MODEL: ModelSpec = get_model("accelerometer")
 """The accelerometer model (:mod:`analysis.identification.specification` registry)."""
+GYRO_PRIOR_DEFAULT: dict[str, float] = {
+    "gyro_bias": 10.0 * DEG_PER_HOUR,
+    "gyro_scale": 1000.0 * PPM,
+    "gyro_misalignment": 100.0 * ARCSEC,
+    "g_sensitivity": 1.0 * DEG_PER_HOUR / G0,
+    "gyro_quadratic": 10.0 * PPM / DEG,
+    "gyro_asymmetry": 1000.0 * PPM,
+}
+"""Gyro prior 1σ per kind (SI) when the bench file states none: a tactical-grade datasheet (10 °/h, 1000 ppm,
+100″, 1 °/h/g); the calibration result warns that they were used."""
 IDENTIFIED_STEPS: tuple[type[Step], ...] = (Hold, Spin)
 """Steps whose counted samples the identification fits (a warm-up's only estimate the noise)."""
 _IDENTIFIED_KINDS = frozenset(t.kind for t in IDENTIFIED_STEPS)  # as written in a recording's steps table
@@ -74,20 +83,53 @@ class IdentificationError(UserError, RuntimeError):
 # ---- bench → prior and noise ------------------------------------------------------------------------------------
 
 
-def prior_covariance(config: BenchConfig) -> NDArray[np.float64]:
-    """P0 = diag(σ²) from the bench's ``unit.prior`` (datasheet 1σ per parameter, SI)."""
+def unit_model(config: BenchConfig, with_gyro: bool = True) -> ModelSpec:
+    """The model identified for the bench's unit: accelerometer, plus the gyro model when there are gyros.
+
+    The gyro's g-sensitivity is the full 3 × 3 matrix when the bench asks for it
+    (``unit.gyro_g_sensitivity: full``), else its diagonal.
+    """
+    if not with_gyro:
+        return ACCEL_MODEL
+    full = str(getattr(config.unit, "gyro_g_sensitivity", "diagonal")) == "full"
+    return UnitModel((ACCEL_MODEL, get_model("gyro", full_g=True) if full else get_model("gyro")))
+
+
+def prior_covariance(config: BenchConfig, model: ModelSpec | None = None) -> NDArray[np.float64]:
+    """P0 = diag(σ²) from the bench's ``unit.prior`` (datasheet 1σ per parameter, SI).
+
+    The accelerometer's 18 must be given; a gyro parameter the bench does not state takes the tactical-grade
+    default of its kind (:data:`GYRO_PRIOR_DEFAULT`, see :func:`defaulted_priors`).
+    """
+    m = ACCEL_MODEL if model is None else model
     prior = config.unit.prior
     missing = [n for n in ACCEL_MODEL.names if n not in prior]
     if missing:
         raise IdentificationError(
             f"bench {config.name!r}: unit prior lacks {', '.join(missing)}; give a datasheet 1σ for all 18 parameters"
         )
-    return np.diag([float(prior[n]) ** 2 for n in ACCEL_MODEL.names])
+    sig = [float(prior.get(n, GYRO_PRIOR_DEFAULT.get(k, math.nan))) for n, k in zip(m.names, m.kinds, strict=True)]
+    return np.diag(np.square(sig))
 
 
-def configured_noise_variance(config: BenchConfig) -> NDArray[np.float64]:
-    """Per-sample white-noise variance per axis, (m/s²)²: VRW density² × sample rate (bench file)."""
-    return np.asarray(config.unit.noise.vrw, dtype=float) ** 2 * float(config.unit.sample_rate)
+def defaulted_priors(config: BenchConfig, model: ModelSpec) -> list[str]:
+    """Names whose prior is the default of :data:`GYRO_PRIOR_DEFAULT` (the bench file states none)."""
+    return [n for n in model.names if n not in config.unit.prior]
+
+
+def configured_noise_variance(config: BenchConfig, model: ModelSpec | None = None) -> NDArray[np.float64]:
+    """Per-sample white-noise variance per axis: VRW² × sample rate, (m/s²)², then ARW² × rate, (rad/s)²."""
+    fs = float(config.unit.sample_rate)
+    acc = np.asarray(config.unit.noise.vrw, dtype=float) ** 2 * fs
+    if model is None or model.n_axes == 3:
+        return acc
+    arw = np.asarray(config.unit.noise.arw, dtype=float)
+    if np.any(arw <= 0):
+        raise IdentificationError(
+            f"bench {config.name!r}: unit.noise.arw_deg_per_sqrt_h is missing or zero; the gyro identification "
+            "needs the datasheet angle random walk (or identify with --noise warm-up)"
+        )
+    return np.concatenate([acc, arw**2 * fs])
 
 
 def unit_latency(config: BenchConfig) -> float:
@@ -99,21 +141,86 @@ def unit_latency(config: BenchConfig) -> float:
     return float(getattr(config.unit, "latency", 0.0) or 0.0)
 
 
-def bias_stability(config: BenchConfig) -> NDArray[np.float64]:
-    """Bias instability per axis, m/s² (the per-step unmodelled DC offset of the error budget)."""
-    return np.asarray(config.unit.noise.bias_instability, dtype=float)
+def bias_stability(config: BenchConfig, model: ModelSpec | None = None) -> NDArray[np.float64]:
+    """Bias instability per axis (the per-step unmodelled DC offset of the error budget): m/s², then rad/s."""
+    acc = np.asarray(config.unit.noise.bias_instability, dtype=float)
+    if model is None or model.n_axes == 3:
+        return acc
+    return np.concatenate([acc, np.asarray(config.unit.noise.gyro_bias_instability, dtype=float)])
+
+
+def earth_in_body(
+    angles: NDArray[np.float64], latitude: float, mounting: NDArray[np.float64] | None
+) -> NDArray[np.float64]:
+    """Earth rate in the body frame at gimbal angles (n, 3), rad/s: C_n^b Ω [0, cos φ, sin φ] (ENU)."""
+    c_bn = body_to_nav(angles, mounting)
+    return np.einsum("nji,j->ni", c_bn, earth_rate_enu(latitude))
+
+
+def angle_over_time(
+    t: NDArray[np.float64],
+    table_time: NDArray[np.float64],
+    table_angles: NDArray[np.float64],
+    span: tuple[float, float],
+) -> NDArray[np.float64] | None:
+    """Gimbal rates (3,) rad/s of a spin as the least-squares slope of the encoder angles over the span.
+
+    The scale reference of the gyro: the angle the encoder measured over the time the controller measured,
+    not a commanded or reported rate. None when the span holds fewer than 3 readings.
+    """
+    keep = (table_time >= span[0]) & (table_time <= span[1])
+    if np.count_nonzero(keep) < 3:
+        return None
+    tt = table_time[keep] - float(np.mean(table_time[keep]))
+    ang = table_angles[keep]
+    return (tt @ (ang - ang.mean(axis=0))) / float(tt @ tt)
+
+
+def window_reference(
+    t: NDArray[np.float64],
+    table_time: NDArray[np.float64],
+    table_angles: NDArray[np.float64],
+    table_rates: NDArray[np.float64],
+    config: BenchConfig,
+    latency: float,
+    span: tuple[float, float],
+    spin: bool,
+    clock_rate: float = 0.0,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The reference of one acquisition window (body frame, SI): f_ref, table rate ω, angles, and ``earth``.
+
+    ``earth`` is what the gyro reference adds to ω: the Earth rate C_n^b Ω^n at the site, and during a spin
+    the difference between the table rate from the encoder angles' slope over the window
+    (:func:`angle_over_time`) and the interpolated reported rate — so the gyro sees ω_ib from angle over
+    time while the accelerometer's centripetal term keeps the reported rate. ``clock_rate`` is the factor from
+    the readings' time scale to true time: with the readings on the unit's clock (t_unit = (t_table − t₀)/(1+ε))
+    and the controller's clock running (1 + ε_c) fast against the host's, the slope over unit time is
+    multiplied by (1 + ε_c)/(1 + ε) − 1 + 1 (:func:`reference_clock_factor`): the rate is per second of the
+    bench's reference clock, not of the unit's or the controller's.
+    """
+    mnt = config.unit.mounting
+    fr, om, ang = reference_for_samples(
+        t, table_time, table_angles, table_rates, g=config.site.g, mounting=mnt, latency=latency, span=span
+    )
+    earth = earth_in_body(ang, config.site.latitude, mnt)
+    if spin:
+        slope = angle_over_time(t, table_time, table_angles, span)
+        if slope is not None:
+            slope = slope * (1.0 + clock_rate)
+            earth = earth + body_rate(ang, np.broadcast_to(slope, ang.shape), mnt) - om
+    return fr, om, ang, earth
 
 
 def offset_covariance(windows: list[tuple[float, float]], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(3, K, K) covariance of the step-mean bias offsets over K acquisition windows (bench s), per body axis.
+    """(axes, K, K) covariance of the step-mean bias offsets over K acquisition windows (bench s), per axis.
 
     The unit's bias instability B (bench file) as flicker noise (:mod:`analysis.identification.bias_drift`): correlated
     between steps, so slow wander across a sequence of positions is propagated, not assumed independent.
     """
     starts = np.array([w[0] for w in windows])
     ends = np.array([w[1] for w in windows])
-    out = np.zeros((3, len(windows), len(windows)))
-    for axis in range(3):
+    out = np.zeros((b.size, len(windows), len(windows)))
+    for axis in range(b.size):
         if b[axis] > 0:
             out[axis] = window_mean_covariance(starts, ends, *flicker_components(float(b[axis])))
     return out
@@ -125,6 +232,7 @@ def offset_covariance(windows: list[tuple[float, float]], b: NDArray[np.float64]
 def _plan_steps_and_windows(
     compiled: CompiledProcedure, config: BenchConfig, sample_rate: float | None = None
 ) -> list[tuple[PlanStep, tuple[float, float]]]:
+    lat, mnt = config.site.latitude, config.unit.mounting
     rate = float(sample_rate or config.unit.sample_rate)
     limits = config.turntable.limits
     # nominal acquisition window of every step in bench time (step end minus the spin's ramp down)
@@ -139,26 +247,30 @@ def _plan_steps_and_windows(
         if not isinstance(ns.step, IDENTIFIED_STEPS) or not np.all(np.isfinite(ns.angles)):
             continue
         f_ref, omega = reference_at(ns.angles, ns.rates, config.site.g, config.unit.mounting)
-        out.append((PlanStep(ns.step.name, f_ref, omega, ns.weights, ns.angles), window[ns.step.name]))
+        earth = earth_in_body(ns.angles, lat, mnt)
+        out.append((PlanStep(ns.step.name, f_ref, omega, ns.weights, ns.angles, earth), window[ns.step.name]))
     if not out:
         raise IdentificationError(f"procedure {compiled.name!r} has no hold or spin to identify from")
     return out
 
 
-def plan_for(compiled: CompiledProcedure, config: BenchConfig) -> IdentificationPlan:
+def plan_for(compiled: CompiledProcedure, config: BenchConfig, model: ModelSpec | None = None) -> IdentificationPlan:
     """Predicted 1σ of every parameter for a procedure on a bench, before any motion.
 
-    White noise from the bench's VRW, prior from its datasheet bounds, and the bias instability as
-    correlated flicker between the steps' nominal acquisition windows (:func:`offset_covariance`).
+    White noise from the bench's VRW (and ARW), prior from its datasheet bounds, and the bias instability
+    as correlated flicker between the steps' nominal acquisition windows (:func:`offset_covariance`). The
+    model defaults to the unit's (:func:`unit_model`: accelerometer + gyro).
     """
+    m = unit_model(config) if model is None else model
     pairs = _plan_steps_and_windows(compiled, config)
-    b = bias_stability(config)
+    b = bias_stability(config, m)
     return plan_identification(
         [p for p, _ in pairs],
-        configured_noise_variance(config),
-        prior_covariance(config),
+        configured_noise_variance(config, m),
+        prior_covariance(config, m),
         b,
         offset_covariance=offset_covariance([w for _, w in pairs], b),
+        model=m,
     )
 
 
@@ -187,7 +299,9 @@ class LiveIdentifier:
     the buffer at the sample times less the unit's latency — the same readings offline identification
     interpolates. The live filter cannot know the run's time base before its motions are over, so it takes
     the table's and the unit's clocks as one: on a one-clock bench it equals offline identification with
-    ``time_base="none"``; calibration.json maps the clocks with the estimated time base.
+    ``time_base="none"``; calibration.json maps the clocks with the estimated time base. A spin is fused
+    once, at its end: its gyro reference rate is the slope of the encoder angles over the whole acquisition
+    (:func:`window_reference`). The model is the unit's (:func:`unit_model`), with the gyro when ``with_gyro``.
     """
 
     def __init__(
@@ -196,11 +310,14 @@ class LiveIdentifier:
         progress: ProgressDisplay | None = None,
         show: tuple[str, ...] = ("b_z", "S_z", "r_x"),
         update_seconds: float = 2.0,
+        with_gyro: bool = True,
     ) -> None:
         self.config = config
+        self.model = m = unit_model(config, with_gyro)
         self.filter = StreamingIdentifier(
-            configured_noise_variance(config), prior_covariance(config), sample_rate=config.unit.sample_rate
-        )
+            configured_noise_variance(config, m), prior_covariance(config, m), sample_rate=config.unit.sample_rate,
+            model=m,
+        )  # fmt: skip
         self.latency = unit_latency(config)
         self.progress = progress
         self.show = show
@@ -210,6 +327,7 @@ class LiveIdentifier:
         self._accel: list[NDArray[np.float64]] = []
         self._n = 0
         self._step: str | None = None
+        self._spin = False
         self._acq_t0 = 0.0
 
     def on_block(self, step: Step, block: ImuBlock, table: TableState, counts: bool) -> None:
@@ -224,10 +342,11 @@ class LiveIdentifier:
         if self._step != step.name:
             self._acq_t0 = float(block.time[0])
         self._step = step.name
+        self._spin = isinstance(step, Spin)
         self._times.append(block.time)
-        self._accel.append(block.accel)
+        self._accel.append(np.hstack([block.accel, block.gyro]) if self.model.n_axes == 6 else block.accel)
         self._n += len(block)
-        if self._n >= self._flush_n:
+        if self._n >= self._flush_n and not self._spin:
             self.flush()
 
     def parameter_kinds(self) -> list[tuple[str, str]]:
@@ -245,28 +364,28 @@ class LiveIdentifier:
             return
         t = np.concatenate(self._times)
         rd = self._readings
-        f_ref, omega, _ang = reference_for_samples(
+        f_ref, omega, _ang, earth = window_reference(
             t,
             np.array([r.time for r in rd]),
             np.stack([r.angles for r in rd]),
             np.stack([r.rates for r in rd]),
-            g=self.config.site.g,
-            mounting=self.config.unit.mounting,
-            latency=self.latency,
-            span=acquisition_span(self._acq_t0, float(t[-1]), self.latency, float(self.config.unit.sample_rate)),
+            self.config,
+            self.latency,
+            acquisition_span(self._acq_t0, float(t[-1]), self.latency, float(self.config.unit.sample_rate)),
+            self._spin,
         )
-        self.filter.update(np.concatenate(self._accel), f_ref, omega, self._step, t=t)
+        self.filter.update(np.concatenate(self._accel), f_ref, omega, self._step, t=t, earth=earth)
         self._times.clear()
         self._accel.clear()
         self._n = 0
         del self._readings[:-3]
         if self.progress is not None:
             x, s = self.filter.estimate, self.filter.sigma
-            unseen = set(unobservable_parameters(self.filter.information, self.filter.r_var))  # as offline
+            unseen = set(unobservable_parameters(self.filter.information, self.filter.r_var, model=self.model))
             parts = []
             for name in self.show:
-                k = ACCEL_MODEL.names.index(name)
-                unit, one = DISPLAY_UNITS[ACCEL_MODEL.kinds[k]]
+                k = self.model.index(name)
+                unit, one = DISPLAY_UNITS[self.model.kinds[k]]
                 if name in unseen:  # the motion so far does not see it: its value is only the prior's
                     parts.append(f"{name} not identified yet")
                     continue
@@ -288,6 +407,17 @@ class StepWindow:
     f_ref: NDArray[np.float64]
     omega: NDArray[np.float64]
     angles: NDArray[np.float64] | None = None
+    gyro: NDArray[np.float64] | None = None
+    """Gyro output (n, 3), rad/s, body frame (None: accelerometer only)."""
+    earth: NDArray[np.float64] | None = None
+    """What the gyro reference adds to ``omega`` (n, 3), rad/s: Earth rate (+ the spin's angle-over-time rate)."""
+
+    def output(self, model: ModelSpec) -> NDArray[np.float64]:
+        """The unit's output for ``model``: accelerometer (n, 3), or accelerometer and gyro side by side (n, 6)."""
+        if model.n_axes == 3:
+            return self.f_out
+        assert self.gyro is not None
+        return np.hstack([self.f_out, self.gyro])
 
 
 @dataclass
@@ -302,6 +432,9 @@ class IdentificationData:
     temperature: NDArray[np.float64]
     time_base: TimeBase = IDENTITY
     table: TableReadings | None = None  # the readings on the unit's clock (benches.recording.TableReadings)
+    warmup_gyro: NDArray[np.float64] | None = None
+    model: ModelSpec = ACCEL_MODEL
+    """The model identified from this recording (:func:`unit_model`: with the gyro when it has gyro data)."""
 
     @property
     def path(self) -> Path:
@@ -317,18 +450,23 @@ class IdentificationData:
 ACCEL_INVALID = 0b111
 """``/imu/status`` bits of the accelerometer channels (bit set = sample invalid,
 drivers.imu_unit.description.FLAG_BITS): flagged samples are left out of the identification, never silently used."""
+GYRO_INVALID = 0b111000
+"""``/imu/status`` bits of the gyro channels (with the gyro model, a row with either triad flagged is left out)."""
 
 
-def load_run(run: str | Path | RecordedRun, time_base: str = "estimate") -> IdentificationData:
+def load_run(
+    run: str | Path | RecordedRun, time_base: str = "estimate", with_gyro: bool | None = None
+) -> IdentificationData:
     """Read a recording's acquisition windows and reference; clear errors for unusable recordings.
 
     ``run`` is a run folder, a recording file or an open :class:`RecordedRun` (left open). The recording is
     verified when it is opened (every checksum): identification never runs on damaged data. ``time_base``:
     "estimate" puts the table's readings on the unit's clock with the run's estimated time base
-    (benches.timebase), "none" takes the two clocks as one.
+    (benches.timebase), "none" takes the two clocks as one. ``with_gyro``: identify the gyro triad too
+    (default: when the recording has gyro data, :func:`has_gyro_data`).
     """
     with _opened(run) as rr:
-        return _identification_data(rr, time_base)
+        return _identification_data(rr, time_base, with_gyro)
 
 
 @contextlib.contextmanager
@@ -342,7 +480,51 @@ def _opened(run: str | Path | RecordedRun) -> Iterator[RecordedRun]:
         yield rr
 
 
-def _identification_data(rr: RecordedRun, time_base: str = "estimate") -> IdentificationData:
+def has_gyro_data(rec: Any, steps: Sequence[StepRecord]) -> bool:
+    """True when the gyro channels carry data in the first identified window (not all flagged, not all 0)."""
+    for s in steps:
+        if s.status == "complete" and s.kind in _IDENTIFIED_KINDS and s.acq_end > s.acq_start:
+            stop = min(int(s.acq_end), int(s.acq_start) + 1000)
+            smp = rec.samples(s.acq_start, stop, ("gyro", "status"))
+            ok = (smp.status & GYRO_INVALID) == 0
+            return bool(np.any(ok) and np.any(smp.gyro[ok] != 0.0))
+    return False
+
+
+def reference_clock_factor(tb: TimeBase) -> float:
+    """(1 + ε_c)/(1 + ε) − 1: from a slope over unit time (readings mapped by the time base, ε) to a slope over
+    the host's clock (the controller clock's rate against the host's, ε_c, from the time base's check; 0 when
+    the run has none). The host clock is the bench's reference second (NTP-disciplined on a real bench)."""
+    eps = float(tb.rate) if np.isfinite(tb.rate) else 0.0
+    eps_c = tb.check.get("controller_vs_host_rate") if isinstance(tb.check, dict) else None
+    eps_c = float(eps_c) if isinstance(eps_c, int | float) and np.isfinite(eps_c) else 0.0
+    return (1.0 + eps_c) / (1.0 + eps) - 1.0
+
+
+def _read_window(
+    rec: Any, s: StepRecord, config: BenchConfig, table: Any, with_gyro: bool, clock_rate: float = 0.0
+) -> StepWindow | None:
+    """One hold/spin acquisition window with its reference (flagged samples left out); None when all flagged."""
+    latency = unit_latency(config)
+    smp = rec.samples(s.acq_start, s.acq_end, ("time", "accel", "status") + (("gyro",) if with_gyro else ()))
+    t, fo, st, gy = smp.time, smp.accel, smp.status, smp.gyro
+    assert t is not None and fo is not None and st is not None
+    valid = (st & (ACCEL_INVALID | (GYRO_INVALID if with_gyro else 0))) == 0  # flagged by the unit
+    if not valid.all():
+        t, fo = t[valid], fo[valid]
+        gy = None if gy is None else gy[valid]
+        if t.size == 0:
+            return None
+    span = acquisition_span(float(t[0]), float(t[-1]), latency, float(config.unit.sample_rate))
+    fr, om, ang, earth = window_reference(
+        t, table.time, table.angles, table.rates, config, latency, span, s.kind == Spin.kind, clock_rate
+    )
+    return StepWindow(s.name, s.kind, t, fo, fr, om, ang, gy if with_gyro else None, earth)
+
+
+def _identification_data(
+    rr: RecordedRun, time_base: str = "estimate", with_gyro: bool | None = None
+) -> IdentificationData:
     path, rec = rr.path, rr.recording
     if not rr.bench_text or rec.n_table == 0:
         raise IdentificationError(f"{path}: the recording lacks its bench text, samples or table readings")
@@ -362,35 +544,27 @@ def _identification_data(rr: RecordedRun, time_base: str = "estimate") -> Identi
     else:
         raise IdentificationError(f"unknown time base {time_base!r}; use estimate or none")
     table = table_in_unit_time(rec.table(), tb)  # every reference on the unit's clock
+    gyro = has_gyro_data(rec, steps) if with_gyro is None else with_gyro
+    model = unit_model(config, gyro)
     windows: list[StepWindow] = []
     warm: NDArray[np.float64] | None = None
+    warm_g: NDArray[np.float64] | None = None
     incomplete = [s.name for s in rr.incomplete_steps()]
     for s in steps:
         if s.status != "complete" or s.acq_end <= s.acq_start:
             continue
         if s.kind == Warmup.kind:
-            warm = rec.samples(s.acq_start, s.acq_end, ("accel",)).accel
+            wsmp = rec.samples(s.acq_start, s.acq_end, ("accel", "gyro"))
+            warm, warm_g = wsmp.accel, wsmp.gyro
             continue
-        if s.kind not in _IDENTIFIED_KINDS:
-            continue
-        smp = rec.samples(s.acq_start, s.acq_end, ("time", "accel", "status"))
-        t, fo, st = smp.time, smp.accel, smp.status
-        assert t is not None and fo is not None and st is not None
-        valid = (st & ACCEL_INVALID) == 0  # flagged by the unit
-        if not valid.all():
-            t, fo = t[valid], fo[valid]
-            if t.size == 0:
-                continue
-        span = acquisition_span(float(t[0]), float(t[-1]), latency, float(config.unit.sample_rate))
-        fr, om, ang = reference_for_samples(
-            t, table.time, table.angles, table.rates, g=config.site.g, mounting=config.unit.mounting,
-            latency=latency, span=span,
-        )  # fmt: skip
-        windows.append(StepWindow(s.name, s.kind, t, fo, fr, om, ang))
+        if s.kind in _IDENTIFIED_KINDS:
+            win = _read_window(rec, s, config, table, gyro, reference_clock_factor(tb))
+            if win is not None:
+                windows.append(win)
     tr = rec.truth()
     truth = None
     if tr is not None and all(n_ in tr.parameters for n_ in ACCEL_MODEL.names):
-        truth = {n_: float(tr.parameters[n_]) for n_ in ACCEL_MODEL.names}
+        truth = {n_: float(v) for n_, v in tr.parameters.items()}  # the truth check uses the model's names
     temp = rec.samples(fields=("temperature",), index=np.arange(0, n, max(1, n // 10000))).temperature
     temp = temp if temp is not None else np.zeros(0)
     if not windows:
@@ -398,21 +572,26 @@ def _identification_data(rr: RecordedRun, time_base: str = "estimate") -> Identi
             f"{path}: no complete hold or spin step to identify from (procedure {rr.header.procedure_name!r}); "
             "run a calibration procedure such as ten-step"
         )
-    return IdentificationData(rr, windows, warm, truth, incomplete, temp, tb, table)
+    return IdentificationData(
+        rr, windows, warm, truth, incomplete, temp, time_base=tb, table=table, warmup_gyro=warm_g, model=model
+    )
 
 
 def _windows_as_plan_steps(windows: list[StepWindow], max_points: int = 4000) -> list[PlanStep]:
     out = []
     for w in windows:
         m = w.f_ref.shape[0]
+        ea = w.earth
         if w.kind == "hold":
-            out.append(PlanStep(w.name, w.f_ref.mean(0, keepdims=True), w.omega.mean(0, keepdims=True), np.array([m])))
+            mean = None if ea is None else ea.mean(0, keepdims=True)
+            out.append(PlanStep(w.name, w.f_ref.mean(0, keepdims=True), w.omega.mean(0, keepdims=True), np.array([m]),
+                                earth=mean))  # fmt: skip
         else:
             k = max(1, math.ceil(m / max_points))
             idx = np.arange(0, m, k)
             wts = np.full(idx.size, float(k))
             wts[-1] = m - k * (idx.size - 1)
-            out.append(PlanStep(w.name, w.f_ref[idx], w.omega[idx], wts))
+            out.append(PlanStep(w.name, w.f_ref[idx], w.omega[idx], wts, earth=None if ea is None else ea[idx]))
     return out
 
 
@@ -451,24 +630,29 @@ class Uncertainty:
 
 
 def measurement_noise(data: IdentificationData, noise: str) -> NDArray[np.float64]:
-    """Per-sample white-noise variance per axis, (m/s²)²: from the bench ("configured") or the warm-up."""
+    """Per-sample white-noise variance per axis (SI²): from the bench ("configured") or the warm-up."""
     if noise == "configured":
-        return configured_noise_variance(data.config)
+        return configured_noise_variance(data.config, data.model)
     if noise == "warm-up":
         if data.warmup_accel is None or data.warmup_accel.shape[0] < 100:
             raise IdentificationError(f"{data.path}: no warm-up record to estimate R from; use --noise configured")
-        return estimate_measurement_noise(data.warmup_accel)
+        warm = data.warmup_accel
+        if data.model.n_axes == 6:
+            assert data.warmup_gyro is not None
+            warm = np.hstack([warm, data.warmup_gyro])
+        return estimate_measurement_noise(warm)
     raise IdentificationError(f"unknown noise source {noise!r}; use configured or warm-up")
 
 
 def estimate(data: IdentificationData, method: str, noise: str = "configured") -> Estimate:
     """Run the estimator (streaming Kalman filter over the windows in order, or batch least squares)."""
-    p0 = prior_covariance(data.config)
+    model = data.model
+    p0 = prior_covariance(data.config, model)
     r_var = measurement_noise(data, noise)
     if method == "kalman":
-        kf = StreamingIdentifier(r_var, p0, sample_rate=data.config.unit.sample_rate)
+        kf = StreamingIdentifier(r_var, p0, sample_rate=data.config.unit.sample_rate, model=model)
         for w in data.windows:
-            kf.update(w.f_out, w.f_ref, w.omega, w.name, t=w.t)
+            kf.update(w.output(model), w.f_ref, w.omega, w.name, t=w.t, earth=w.earth)
         rows = [
             StepResiduals(name=name, samples=int(st.count), mean=list(map(float, st.mean)),
                           rms=list(map(float, st.rms)))
@@ -482,14 +666,12 @@ def estimate(data: IdentificationData, method: str, noise: str = "configured") -
         )
         return Estimate(method, r_var, noise, p0, kf.estimate, kf.covariance, kf.information, rows, history)
     if method == "batch":
+        ws = data.windows
+        earth = None if model.n_axes == 3 else np.concatenate([w.earth for w in ws])  # type: ignore[misc]
         res = batch_identify(
-            np.concatenate([w.f_out for w in data.windows]),
-            np.concatenate([w.f_ref for w in data.windows]),
-            np.concatenate([w.omega for w in data.windows]),
-            r_var,
-            None,
-            p0,
-        )
+            np.concatenate([w.output(model) for w in ws]), np.concatenate([w.f_ref for w in ws]),
+            np.concatenate([w.omega for w in ws]), r_var, None, p0, model=model, earth=earth,
+        )  # fmt: skip
         return Estimate(method, r_var, noise, p0, res.x, res.covariance, res.information)
     raise IdentificationError(f"unknown method {method!r}; use kalman or batch")
 
@@ -500,7 +682,7 @@ def residual_statistics(data: IdentificationData, est: Estimate) -> Residuals:
     if rows is None:
         rows = []
         for w in data.windows:
-            r = w.f_out - ACCEL_MODEL.predict(est.x, w.f_ref, w.omega)
+            r = w.output(data.model) - data.model.predict(est.x, w.f_ref, w.omega, w.earth)
             rows.append(
                 StepResiduals(name=w.name, samples=int(r.shape[0]), mean=list(map(float, r.mean(0))),
                               rms=list(map(float, np.sqrt((r**2).mean(0)))))
@@ -515,38 +697,49 @@ def residual_statistics(data: IdentificationData, est: Estimate) -> Residuals:
 
 def combined_uncertainty(data: IdentificationData, est: Estimate) -> Uncertainty:
     """White covariance ⊕ the bias instability's systematic term, on the actual data geometry; rank."""
-    b = bias_stability(data.config)
+    model = data.model
+    b = bias_stability(data.config, model)
     actual = plan_identification(
         _windows_as_plan_steps(data.windows),
         est.noise_variance,
         est.prior,
         b,
         offset_covariance=offset_covariance([(float(w.t[0]), float(w.t[-1])) for w in data.windows], b),
+        model=model,
     )
     p_time, jac = _time_base_covariance(data, est.noise_variance, est.prior)
     p_total = est.covariance_white + (actual.covariance_total - actual.covariance_white) + p_time
     p_total = 0.5 * (p_total + p_total.T)
-    rank, cond = information_rank(est.information, est.noise_variance)
-    unobs = set(unobservable_parameters(est.information, est.noise_variance)) | set(actual.unidentifiable)
+    rank, cond = information_rank(est.information, est.noise_variance, model=model)
+    unobs = set(unobservable_parameters(est.information, est.noise_variance, model=model)) | set(actual.unidentifiable)
     return Uncertainty(p_total, actual, int(rank), float(cond), unobs, p_time, jac)
 
 
 def _time_base_covariance(
     data: IdentificationData, r_var: NDArray[np.float64], p0: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The identified parameters' covariance from the time base's uncertainty, J Σ Jᵀ, and J = ∂x/∂(t₀, ε) (18, 2)."""
+    """The identified parameters' covariance from the time base's uncertainty, J Σ Jᵀ, and J = ∂x/∂(t₀, ε) (n, 2).
+
+    The accelerometer rows are the time-base analysis's sensitivities; the gyro's scale factors take ε 1 : 1
+    (their rate reference is the encoder angle over the unit's time rescaled by 1 + ε, so δS_g = −δε), the
+    other gyro rows are 0 (the offset only turns the Earth rate during spins, well below their u).
+    """
     tb = data.time_base
     cov = np.asarray(tb.covariance, dtype=float)
-    n = len(ACCEL_MODEL.names)
+    n = data.model.n_params
     if data.table is None or not np.all(np.isfinite(cov)) or not np.any(cov):
         return np.zeros((n, n)), np.zeros((n, 2))
     cfg = data.config
     lat = unit_latency(cfg)
     fs = float(cfg.unit.sample_rate)
     wins = [(w.t, w.f_out, acquisition_span(float(w.t[0]), float(w.t[-1]), lat, fs)) for w in data.windows]
-    jac = time_base_sensitivity(
-        wins, data.table, g=cfg.site.g, mounting=cfg.unit.mounting, latency=lat, r_var=r_var, p0=p0
+    jac = np.zeros((n, 2))
+    jac[:18] = time_base_sensitivity(
+        wins, data.table, g=cfg.site.g, mounting=cfg.unit.mounting, latency=lat, r_var=r_var[:3], p0=p0[:18, :18]
     )
+    for a in ("x", "y", "z"):
+        if f"gyro_S_{a}" in data.model.names:
+            jac[data.model.index(f"gyro_S_{a}"), 1] = -1.0
     return jac @ cov @ jac.T, jac
 
 
@@ -575,29 +768,34 @@ def _time_base_block(data: IdentificationData, unc: Uncertainty) -> TimeBaseBloc
         if not math.isfinite(d[k]):
             d[k] = None
     d["covariance"] = [[x if math.isfinite(x) else None for x in row] for row in d["covariance"]]
-    n = len(ACCEL_MODEL.names)
+    n = data.model.n_params
     p_time = unc.time_covariance if unc.time_covariance is not None else np.zeros((n, n))
     jac = unc.time_sensitivity if unc.time_sensitivity is not None else np.zeros((n, 2))
-    d["effect_u"] = {nm: float(math.sqrt(max(p_time[k, k], 0.0))) for k, nm in enumerate(ACCEL_MODEL.names)}
-    d["sensitivity"] = {nm: [float(jac[k, 0]), float(jac[k, 1])] for k, nm in enumerate(ACCEL_MODEL.names)}
+    d["effect_u"] = {nm: float(math.sqrt(max(p_time[k, k], 0.0))) for k, nm in enumerate(data.model.names)}
+    d["sensitivity"] = {nm: [float(jac[k, 0]), float(jac[k, 1])] for k, nm in enumerate(data.model.names)}
     d["gyro_scale_factor_u"] = d["u_rate"]  # a gyro scale factor measured as angle over time inherits ε 1:1
     return TimeBaseBlock.from_mapping(d)
 
 
-def truth_check(truth: dict[str, float] | None, x: NDArray[np.float64], unc: Uncertainty) -> TruthCheck | None:
-    """Errors against a simulated bench's truth: error/u per parameter and the NEES over the identified states."""
-    if truth is None:
+def truth_check(
+    truth: dict[str, float] | None, x: NDArray[np.float64], unc: Uncertainty, model: ModelSpec = ACCEL_MODEL
+) -> TruthCheck | None:
+    """Errors against a simulated bench's truth: error/u per parameter it states, NEES over the identified ones."""
+    if not truth:
         return None
+    names = model.names
     sigma = np.sqrt(np.diag(unc.covariance))
-    err = x - np.array([truth[n_] for n_ in ACCEL_MODEL.names])
-    idx = np.array([k for k, n_ in enumerate(ACCEL_MODEL.names) if n_ not in unc.unidentifiable], dtype=int)
+    have = [k for k, n_ in enumerate(names) if n_ in truth]
+    err = {k: x[k] - truth[names[k]] for k in have}
+    idx = np.array([k for k in have if names[k] not in unc.unidentifiable], dtype=int)
+    e = np.array([err[k] for k in idx])
     sub = unc.covariance[np.ix_(idx, idx)]
     return TruthCheck(
-        values=truth,
-        error_over_u={n_: float(err[k] / sigma[k]) for k, n_ in enumerate(ACCEL_MODEL.names)},
-        nees=float(err[idx] @ np.linalg.solve(sub, err[idx])),
+        values={names[k]: float(truth[names[k]]) for k in have},
+        error_over_u={names[k]: float(err[k] / sigma[k]) for k in have},
+        nees=float(e @ np.linalg.solve(sub, e)) if idx.size else float("nan"),
         dof=int(idx.size),
-        nees_states=[ACCEL_MODEL.names[i] for i in idx],
+        nees_states=[names[i] for i in idx],
     )
 
 
@@ -647,20 +845,27 @@ def calibration_result(
             "nothing was written"
         )
     sigma, sigma_white = np.sqrt(np.diag(p_total)), np.sqrt(np.diag(p_white))
+    model = data.model
     params = {
         name: ParameterEstimate(
             name=name,
-            kind=ACCEL_MODEL.kinds[k],
+            kind=model.kinds[k],
             value=float(x[k]),
             u=float(sigma[k]),
             u_white=float(sigma_white[k]),
             prior_sigma=float(math.sqrt(est.prior[k, k])),
             identified=name not in unc.unidentifiable,
         )
-        for k, name in enumerate(ACCEL_MODEL.names)
+        for k, name in enumerate(model.names)
     }
     actual = unc.plan
     warnings = list(actual.warnings)
+    dflt = defaulted_priors(data.config, model)
+    if dflt:
+        warnings.append(
+            f"the bench file states no prior for {', '.join(dflt)}: tactical-grade defaults used "
+            "(10 °/h, 1000 ppm, 100″, 1 °/h/g); give unit.prior gyro_* keys from the datasheet"
+        )
     warnings += _time_base_warnings(data)
     if data.incomplete_steps:
         warnings.insert(0, f"recording incomplete: step(s) {', '.join(data.incomplete_steps)} not completed")
@@ -676,17 +881,17 @@ def calibration_result(
         recording_sha256=data.run.sha256,
         noise_source=est.noise_source,
         software_version=str(data.run.header.software_version or ""),
-        model=MODEL_TEXT,
+        model=model.equation,
         information=InformationSummary(
             rank=unc.rank,
             condition=unc.condition,
-            unidentifiable=sorted(unc.unidentifiable, key=ACCEL_MODEL.names.index),
+            unidentifiable=sorted(unc.unidentifiable, key=model.names.index),
             tolerance="numerical rank of the noise-whitened data information, scaled per parameter kind "
             "(analysis.identification.batch.information_rank)",
         ),
         residuals=residuals,
         plan=PlanSummary(
-            predicted_sigma={n_: float(actual.sigma_total[k]) for k, n_ in enumerate(ACCEL_MODEL.names)},
+            predicted_sigma={n_: float(actual.sigma_total[k]) for k, n_ in enumerate(model.names)},
             rank=int(actual.rank),
             warnings=list(actual.warnings),
         ),
@@ -699,9 +904,17 @@ def calibration_result(
 
 
 def identify_run(
-    run: str | Path | RecordedRun, method: str = "kalman", noise: str = "configured", time_base: str = "estimate"
+    run: str | Path | RecordedRun,
+    method: str = "kalman",
+    noise: str = "configured",
+    time_base: str = "estimate",
+    *,
+    with_gyro: bool | None = None,
 ) -> CalibrationResult:
-    """Identify the 18 parameters from a recording; returns the typed calibration result.
+    """Identify the unit's parameters from a recording; returns the typed calibration result.
+
+    The model is the unit's (:func:`unit_model`): the accelerometer's 18 states, and the gyro's when the
+    recording has gyro data (``with_gyro`` None) or when asked (True); False: the accelerometer alone.
 
     Parameters
     ----------
@@ -710,7 +923,7 @@ def identify_run(
     method : {"kalman", "batch"}
         The streaming filter over all windows in order, or batch least squares (same prior, same model).
     noise : {"configured", "warm-up"}
-        R from the bench's configured VRW, or estimated from the run's warm-up record.
+        R from the bench's configured VRW (and ARW), or estimated from the run's warm-up record.
     time_base : {"estimate", "none"}
         Map the table's clock to the unit's with the run's estimated time base (benches.timebase), or take
         them as one clock (what the live filter during the run does; for comparisons).
@@ -718,11 +931,11 @@ def identify_run(
     if method not in ("kalman", "batch"):
         raise IdentificationError(f"unknown method {method!r}; use kalman or batch")
     with _opened(run) as rr:
-        data = _identification_data(rr, time_base)
+        data = _identification_data(rr, time_base, with_gyro)
         est = estimate(data, method, noise)
         residuals = residual_statistics(data, est)
         unc = combined_uncertainty(data, est)
-        truth = truth_check(data.truth, est.x, unc)
+        truth = truth_check(data.truth, est.x, unc, data.model)
         result = calibration_result(data, est, residuals, unc, truth)
     return CalibrationResult.from_dict(result.to_dict(), str(data.path))  # the checks every reader applies
 

@@ -21,10 +21,12 @@ import os
 import tempfile
 from collections.abc import Iterable
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from core.errors import OutputError
+
+if TYPE_CHECKING:
+    import numpy as np
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 """The first 8 bytes of an HDF5 file (a recording)."""
@@ -114,6 +116,8 @@ def check_output(path: str | Path, option: str = "--out", *, inputs: Iterable[st
 
 def save_npy(path: str | Path, array: np.ndarray, option: str = "--out") -> Path:
     """``np.save`` to exactly ``path`` (no ``.npy`` appended), atomically, through :func:`check_output`."""
+    import numpy as np  # lazy: numpy (--help time: the CLI entry imports this module)
+
     p = check_output(path, option)
     try:
         p.parent.mkdir(parents=True, exist_ok=True)

@@ -602,3 +602,78 @@ def test_resuming_a_loopback_run_continues_on_loopback(short_run, monkeypatch) -
     assert seen.get("transport") == "loopback", (seen, err[-800:])
     code, _o, err = run_cli(["run", "--resume", str(run), "--transport", "in-process", "--plain", "--no-identify"])
     assert code == 2 and "loopback" in err.strip().splitlines()[-1], err[-800:]
+
+
+@pytest.fixture(scope="module")
+def long_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Records long enough that each analysis is still working when it is interrupted."""
+    tmp = tmp_path_factory.mktemp("long")
+    rng = np.random.default_rng(7)
+    n = 360_000  # one hour at 100 Hz
+    walk = np.cumsum(rng.standard_normal(n)) * 1e-4 + rng.standard_normal(n) * 1e-3
+    np.save(tmp / "hour.npy", np.column_stack([walk, rng.standard_normal(n) * 1e-3]))
+    t = np.arange(n) / 100.0
+    np.save(tmp / "tones.npy", (np.sin(2 * np.pi * 1.3 * t) * 1e-3 + rng.standard_normal(n) * 1e-3)[:, None])
+    return {"hour": tmp / "hour.npy", "tones": tmp / "tones.npy", "run": make_run_folder(tmp / "run"), "tmp": tmp}
+
+
+INTERRUPTS = [
+    pytest.param("noise", "{hour}", ("--rate", "100", "--estimators", "adev,oadev,mdev,totdev,mtotdev"), "SIGINT",
+                 id="noise-SIGINT"),
+    pytest.param("periodic", "{tones}", ("--rate", "100"), "SIGINT", id="periodic-SIGINT"),
+    pytest.param("drift", "{hour}", ("--rate", "100"), "SIGINT", id="drift-SIGINT"),
+    pytest.param("drift", "{hour}", ("--rate", "100"), "SIGTERM", id="drift-SIGTERM"),
+    pytest.param("certificate", "{run}", (), "SIGINT", id="certificate-SIGINT"),
+]
+
+
+@pytest.mark.parametrize(("cmd", "source", "extra", "sig"), INTERRUPTS)
+def test_ctrl_c_stops_every_analysis_within_a_second_and_writes_nothing(long_inputs, cmd, source, extra, sig):
+    """Each analysis command runs through the one interrupt layer (benches.cli.work): progress lines with an
+    ETA while it works; on SIGINT/SIGTERM it says "interrupted" and exits 130 within 1 s, with no output."""
+    import subprocess
+    import sys
+    import time
+
+    tmp = long_inputs["tmp"]
+    out = tmp / f"out-{cmd}-{sig}"
+    src = _fill_path(source, long_inputs)
+    if cmd == "certificate":
+        argv = [cmd, src, "--out", str(out / "cert.pdf"), *extra]
+    else:
+        argv = [cmd, src, "--out", str(out), *extra]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "benches.cli", *argv],
+        cwd=tmp,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    assert proc.stderr is not None
+    seen = []
+    for line in proc.stderr:  # wait until the work runs and shows its progress
+        seen.append(line)
+        if line.startswith(f"{cmd}: ") and "%" in line and "ETA" in line:
+            break
+    else:
+        raise AssertionError(f"{cmd} showed no progress line with an ETA: {''.join(seen)[-1500:]}")
+    time.sleep(0.5)
+    t0 = time.monotonic()
+    proc.send_signal(getattr(signal, sig))
+    try:
+        _o, err = proc.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        raise AssertionError(f"{cmd} ignored {sig} for 30 s") from None
+    took = time.monotonic() - t0
+    assert proc.returncode == 130 and "interrupted" in err, (proc.returncode, err[-1500:])
+    assert took < 1.0, f"{cmd} took {took:.2f} s to stop after {sig}"
+    left = [p.name for p in out.rglob("*")] if out.exists() else []
+    assert not [p for p in left if not Path(out / p).is_dir()], f"{cmd} left {left} after {sig}"
+
+
+def _fill_path(text: str, paths: dict[str, Path]) -> str:
+    for k, v in paths.items():
+        text = text.replace("{" + k + "}", str(v))
+    return text

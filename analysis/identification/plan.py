@@ -154,7 +154,17 @@ class IdentificationPlan:
                 f"{self.sigma_total[k] / one:10.4g} {self.sigma_data_total[k] / one:10.4g}  {status}"
             )
         lines.append(f"data information rank {self.rank}/{m.n_params}, condition {self.condition:.3g}")
+        lines += PLAN_LEGEND
         return "\n".join(lines + self.warnings)
+
+
+PLAN_LEGEND: tuple[str, ...] = (
+    "columns (predicted standard uncertainty 1σ, k = 1): prior = the datasheet bound before any data;",
+    "  σ white = with the prior, white noise only (the filter's own P); σ total = with the prior, white noise plus",
+    "  the bias instability the filter does not model; σ data = σ total from the data alone (no prior), which",
+    "  decides 'NOT IDENTIFIED' (σ data above a third of the prior: the motion cannot resolve it)",
+)
+"""The legend printed under :meth:`IdentificationPlan.table` (plan, run)."""
 
 
 def _fmt(kind: str, value_si: float) -> str:
@@ -264,6 +274,7 @@ def plan_identification(
     flagged = [k for k in range(n_p) if (not obs_mask[k]) or sig_dt[k] > mag[k] / min_snr]
     unid = tuple(mdl.names[k] for k in flagged)
     warnings = _warnings(mdl, flagged, obs_mask, sig_dw, sig_dt, mag, min_snr, max_rate, sbi, magnitudes is None)
+    warnings += _weak_warnings(mdl, flagged, sig_dt, mag, max_rate)
     n_total = float(sum(g[0, 0] for g in grams.values()))
     return IdentificationPlan(
         sigma_white=sig_w,
@@ -309,6 +320,31 @@ def _warnings(
                                          sbi_max, against))  # fmt: skip
         off_p += part.n_params
         off_a += part.n_axes
+    return out
+
+
+WEAK_FRACTION: float = 0.1
+"""A spin-identified parameter whose predicted 1σ exceeds this fraction of its magnitude is "weakly identified"."""
+
+
+def _weak_warnings(
+    mdl: ModelSpec, flagged: list[int], sig_dt: NDArray[np.float64], mag: NDArray[np.float64], max_rate: float
+) -> list[str]:
+    """Spin-identified parameters that pass the 3σ rule but only weakly (1σ ≥ 10 % of their magnitude)."""
+    out = []
+    for kind in mdl.unique_kinds():
+        if not mdl.rate_power.get(kind):
+            continue
+        ks = [k for k in range(mdl.n_params) if mdl.kinds[k] == kind and k not in flagged]
+        ks = [k for k in ks if np.isfinite(sig_dt[k]) and sig_dt[k] > WEAK_FRACTION * mag[k]]
+        if ks:
+            worst = max(ks, key=lambda k: sig_dt[k] / mag[k])
+            out.append(
+                f"{', '.join(mdl.names[k] for k in ks)} ({mdl.kind_labels[kind]}) only weakly identified: predicted "
+                f"1σ {_fmt(kind, sig_dt[worst])} is {100 * sig_dt[worst] / mag[worst]:.0f} % of "
+                f"{_fmt(kind, mag[worst])}; spins reach only {max_rate / DEG:.3g} °/s — spin faster and in both "
+                "directions (bias and Earth rate cancel in the ± difference)."
+            )
     return out
 
 

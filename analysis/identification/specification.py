@@ -499,6 +499,32 @@ class UnitModel(ModelSpec):
             [p.rate_shape(f, omega, xs[g]) for p, g in zip(self._parts, self.groups, strict=True)], axis=1
         )
 
+    def correct_outputs(self, x: ArrayLike, y: ArrayLike, *, max_iter: int = 8) -> NDArray[np.float64]:
+        """Compensate the unit's outputs alone (no reference): the exact joint inverse, (n, n_axes), SI.
+
+        For accelerometer + gyro: the specific force needs the body rate (size effect) and the gyro rate
+        needs the specific force (g-sensitivity), so the two inverses are iterated from the raw gyro rate
+        until nothing changes at the rounding level (the coupling is ≲ 1e-6, two or three passes). The
+        accelerometer's size effect then uses ω_ib (the Earth rate adds < 1e-8 m/s² to c(ω)).
+        """
+        xs = self.as_state(x)
+        yy = self.as_output(y)
+        names = [p.name for p in self._parts]
+        if names != ["accelerometer", "gyro"]:
+            raise ValueError(f"correct_outputs needs an accelerometer + gyro unit model, got {self.name}")
+        acc, gyr = self._parts
+        xa, xg = xs[self.groups[0]], xs[self.groups[1]]
+        w = yy[:, 3:].copy()
+        f = acc.correct(xa, yy[:, :3], None, w)  # type: ignore[arg-type]
+        for _ in range(max_iter):
+            w_new = gyr.correct(xg, yy[:, 3:], f)  # type: ignore[arg-type]
+            f_new = acc.correct(xa, yy[:, :3], None, w_new)  # type: ignore[arg-type]
+            done = np.allclose(w_new, w, rtol=1e-15, atol=1e-18) and np.allclose(f_new, f, rtol=1e-15, atol=1e-15)
+            w, f = w_new, f_new
+            if done:
+                break
+        return np.hstack([f, w])
+
     def part(self, name: str) -> tuple[ModelSpec, slice, slice]:
         """The part called ``name`` with its state slice and its measurement-axis slice."""
         ax = self._axis_offsets()

@@ -11,7 +11,7 @@ Imports flow content ← budget ← build → plots, pdf → content.
 
 from __future__ import annotations
 
-from .build import bench_info, build_certificate, issue_certificate
+from .build import bench_info, build_certificate, issue_certificate, publish_certificate
 from .content import (
     FORMAT,
     FORMAT_VERSION,
@@ -37,4 +37,5 @@ __all__ = [
     "build_certificate",
     "format_with_uncertainty",
     "issue_certificate",
+    "publish_certificate",
 ]

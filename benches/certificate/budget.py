@@ -19,14 +19,17 @@ from analysis.gimbal import body_to_nav
 from analysis.identification.bias_drift import flicker_components, window_mean_covariance
 from analysis.identification.budget import (
     BudgetComponent,
+    BudgetInput,
     StepGeometry,
     UncertaintyBudget,
     build_budget,
     default_g_uncertainty,
 )
+from analysis.identification.gyro_budget import axis_inputs, earth_rate_inputs, time_base_inputs
 from analysis.timebase import TimeBase
+from analysis.units import ARCSEC
 from benches.calibration_result import CalibrationResult
-from benches.identify import acquisition_span
+from benches.identify import acquisition_span, earth_in_body
 from benches.reference import reference_for_samples
 from benches.timebase import table_in_unit_time
 
@@ -52,6 +55,7 @@ def step_geometry(
     latency: float = 0.0,
     names: Sequence[str] | None = None,
     max_points: int = 400,
+    latitude: float | None = None,
     time_base: TimeBase | None = None,
 ) -> list[StepGeometry]:
     """Decimated reference geometry of the complete hold/spin steps of an open recording.
@@ -70,6 +74,8 @@ def step_geometry(
         Only these steps (the ones the identification used); default every complete hold and spin.
     max_points : int
         Reference points per step (evenly spaced sample centres).
+    latitude : float, optional
+        Site latitude, rad: the geometry then carries the Earth rate in the body frame (gyro budgets).
     time_base : analysis.timebase.TimeBase, optional
         The run's time base (calibration.json): the readings are put on the unit's clock with it, as the
         identification did (benches.timebase.table_in_unit_time).
@@ -110,7 +116,7 @@ def step_geometry(
         out.append(
             StepGeometry(
                 s.name, s.kind, fr, om, np.diff(edges).astype(float), body_to_nav(ang, mounting), spin_axis,
-                (t_first, t_last),
+                (t_first, t_last), None if latitude is None else earth_in_body(ang, latitude, mounting),
             )
         )  # fmt: skip
     return out
@@ -128,9 +134,9 @@ def flicker_step_variance(
         return {}
     starts = np.array([g.window[0] for g in geometry])
     ends = np.array([g.window[1] for g in geometry])
-    out = np.zeros((len(geometry), 3))
-    b = np.asarray(bias_instability, dtype=float).reshape(3)
-    for axis in range(3):
+    b = np.asarray(bias_instability, dtype=float).reshape(-1)
+    out = np.zeros((len(geometry), b.size))
+    for axis in range(b.size):
         if b[axis] > 0:
             c = window_mean_covariance(starts, ends, *flicker_components(float(b[axis])))
             out[:, axis] = np.clip(np.diag(c) - c.mean(), 0.0, None)
@@ -147,10 +153,17 @@ def budget_for_run(
     attitude_accuracy: float,
     rate_accuracy: float,
     bias_instability: NDArray[np.float64] | None,
+    gyro_bias_instability: NDArray[np.float64] | None = None,
+    latitude: float | None = None,
+    azimuth_uncertainty: float | None = None,
 ) -> UncertaintyBudget:
     """The budget of one identified run (calibration.json mapping + its step geometry + bench inputs).
 
-    The identification's covariance and its white-noise part come from calibration.json (typed).
+    The identification's covariance and its white-noise part come from calibration.json (typed). With the
+    gyro model the gyro's inputs join (:mod:`analysis.identification.gyro_budget`): azimuth alignment and
+    latitude through the Earth rate, the time base (from the calibration result's ``time_base`` when the
+    time-base analysis produced one), and the table axes' orthogonality and wobble (the attitude accuracy
+    taken as the bound of each axis's tilt).
     """
     x = cal.x
     p_id = cal.covariance
@@ -159,6 +172,16 @@ def budget_for_run(
     p_w = cal.covariance_white
     per_step = cal.per_step
     p_tb, tb_source = time_base_covariance(cal)
+    model = cal.error_model
+    extra = []
+    if model.n_axes == 6:
+        if bias_instability is not None and gyro_bias_instability is not None:
+            bias_instability = np.concatenate([np.asarray(bias_instability), np.asarray(gyro_bias_instability)])
+        elif bias_instability is not None:
+            bias_instability = None
+            notes.append("the unit's gyro bias instability is unknown: no flicker share in the mismatch test")
+        covered = bool(tb_source) and cal.time_base is not None and "gyro_S_x" in (cal.time_base.sensitivity or {})
+        extra = _gyro_inputs(cal, latitude, azimuth_uncertainty, attitude_accuracy, notes, covered)
     budget = build_budget(
         p_id - p_tb,
         p_w,
@@ -172,7 +195,8 @@ def budget_for_run(
         rate_accuracy=rate_accuracy,
         flicker_step_variance=None if bias_instability is None else flicker_step_variance(geometry, bias_instability),
         residuals_per_step=per_step,
-        model=cal.error_model,
+        model=model,
+        extra_inputs=extra,
     )
     if tb_source:
         label = "Time base (unit clock vs table clock)"
@@ -181,6 +205,45 @@ def budget_for_run(
     return budget
 
 
+DEFAULT_AZIMUTH_U: float = 20.0 * ARCSEC
+"""Standard uncertainty of the table's azimuth alignment when the bench states none (a theodolite/gyrocompass
+survey to ±35″, rectangular); the certificate says that it was assumed."""
+DEFAULT_LATITUDE_U: float = 1.0 * ARCSEC
+"""Standard uncertainty of the site latitude (≈ 30 m on the ground, a map or GNSS reading)."""
+
+
+def _gyro_inputs(
+    cal: CalibrationResult,
+    latitude: float | None,
+    u_az: float | None,
+    attitude_accuracy: float,
+    notes: list[str],
+    time_base_covered: bool = False,
+) -> list[BudgetInput]:
+    model = cal.error_model
+    if latitude is None:
+        notes.append("site latitude unknown: the Earth-rate inputs (azimuth, latitude) are not evaluated")
+        out: list[BudgetInput] = []
+    else:
+        src = "bench file"
+        if u_az is None:
+            u_az, src = DEFAULT_AZIMUTH_U, "assumed: the bench file states no azimuth alignment"
+            notes.append(f"table azimuth alignment not stated by the bench: u = {u_az / ARCSEC:.3g}″ assumed")
+        out = earth_rate_inputs(model, latitude, u_az, DEFAULT_LATITUDE_U, src)
+    tb = getattr(cal, "time_base", None)
+    u_rate = getattr(tb, "u_rate", None) if tb is not None else None
+    u_c = (getattr(tb, "check", None) or {}).get("u_controller_vs_host_rate") if tb is not None else None
+    if u_rate is not None and isinstance(u_c, int | float) and np.isfinite(u_c):
+        u_rate = float(np.hypot(u_rate, u_c))  # the gyro's rate reference: controller clock against the host's
+    u_off = getattr(tb, "u_offset_s", None) if tb is not None else None
+    if time_base_covered:
+        pass  # the time-base component (its sensitivities cover every state, the gyro's scale included)
+    elif u_rate is not None or u_off is not None:
+        out += time_base_inputs(model, float(u_rate or 0.0), float(u_off or 0.0), "time-base estimate of this run")
+    else:
+        notes.append("no time-base estimate in the calibration result: one clock assumed (time base not budgeted)")
+    out += axis_inputs(model, attitude_accuracy / np.sqrt(3.0), "the table's attitude accuracy, rectangular")
+    return out
 def time_base_covariance(cal: CalibrationResult) -> tuple[NDArray[np.float64], str]:
     """The parameters' covariance from the run's estimated time base (J Σ Jᵀ, J = ∂x/∂(t₀, ε) from
     calibration.json's ``time_base.sensitivity``; included in its covariance) and the budget line's source text
@@ -194,9 +257,11 @@ def time_base_covariance(cal: CalibrationResult) -> tuple[NDArray[np.float64], s
     cov = np.asarray(tb.covariance, dtype=float)
     if not np.all(np.isfinite(cov)):
         return z, ""
-    if any(n not in blk.sensitivity for n in names):
+    if not any(n in blk.sensitivity for n in names):
         return z, ""
-    jac = np.array([blk.sensitivity[n] for n in names], dtype=float)
+    # states the time-base analysis did not propagate to (e.g. the gyro's) get zero rows here; the gyro's
+    # own time-base inputs then carry them (analysis.identification.gyro_budget.time_base_inputs)
+    jac = np.array([blk.sensitivity.get(n, [0.0, 0.0]) for n in names], dtype=float)
     src = (
         f"t_table = t0 + (1 + eps) t_unit estimated from the run ({tb.method}, {len(tb.events)} motions): "
         f"t0 = {tb.offset * 1e3:.4f} ms, u = {tb.u_offset * 1e6:.3g} µs; eps = {tb.rate * 1e6:+.3f} ppm, "

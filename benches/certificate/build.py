@@ -116,6 +116,8 @@ def bench_info_of(cfg: BenchConfig | None, cal_run: dict[str, Any], rec_attrs: d
             unit_serial=str(getattr(u, "serial_number", "") or ""),
             source="bench file recorded in the recording",
             bias_instability=np.asarray(u.noise.bias_instability, dtype=float).tolist(),
+            gyro_bias_instability=np.asarray(u.noise.gyro_bias_instability, dtype=float).tolist(),
+            azimuth_uncertainty=getattr(t, "azimuth_uncertainty", None),
             rate_accuracy=float(getattr(t, "rate_accuracy", 0.0) or 0.0),
             reference_standards=[
                 {"name": r.name, "serial_number": r.serial_number, "certificate": r.certificate,
@@ -364,9 +366,10 @@ def _gather_open(
     cal_run = cal.run.to_mapping() if cal.run is not None else {}
     binfo = bench or bench_info_of(rr.config if bench_text.strip() else None, cal_run, attrs)
     used = [str(p.get("name")) for p in cal.per_step]
+    lat = None if binfo.latitude_deg is None else math.radians(float(binfo.latitude_deg))
     tb = cal.time_base.estimate if cal.time_base is not None else None
     geometry = step_geometry(f, binfo.g, None if binfo.mounting is None else np.asarray(binfo.mounting),
-                             latency=binfo.latency, names=used or None, time_base=tb)  # fmt: skip
+                             latency=binfo.latency, names=used or None, latitude=lat, time_base=tb)  # fmt: skip
     n_samples = f.n_samples
     ends = f.samples(fields=("time",), index=[0, n_samples - 1]).time if n_samples > 1 else None
     analyses, analysis_plots = _gather_analyses(run)
@@ -455,6 +458,11 @@ def decide_conformity(g: Gathered) -> Decision:
             attitude_accuracy=binfo.attitude_accuracy,
             rate_accuracy=binfo.rate_accuracy,
             bias_instability=None if binfo.bias_instability is None else np.asarray(binfo.bias_instability),
+            gyro_bias_instability=None if binfo.gyro_bias_instability is None else np.asarray(
+                binfo.gyro_bias_instability
+            ),
+            latitude=None if binfo.latitude_deg is None else math.radians(float(binfo.latitude_deg)),
+            azimuth_uncertainty=binfo.azimuth_uncertainty,
         )
     except ValueError as exc:
         raise CertificateError(f"{g.cal_path}: {exc}") from None
@@ -487,6 +495,13 @@ def decide_conformity(g: Gathered) -> Decision:
         warnings.append("not identified (prior-dominated, do not use for compensation): " + ", ".join(unident))
     if not binfo.limits:
         warnings.append("the bench file gives no pass/fail limits: no conformity statement")
+    sizes = [p.name for p in results if p.identifiable and p.name.startswith("r_")]
+    if sizes and not binfo.rate_accuracy:
+        warnings.append(
+            f"{', '.join(sizes)} (size effect) issued although the table's rate accuracy is not stated in the bench "
+            "file (turntable.rate_accuracy_ppm): the budget holds no type-B term for the spin rate, so U may be "
+            "understated; state it and re-issue"
+        )
     warnings.extend(g.event_warnings)
     if not g.integrity["verified"]:
         warnings.insert(0, g.integrity["note"])
@@ -540,6 +555,27 @@ def _recording_block(g: Gathered) -> dict[str, Any]:
     }
 
 
+def relative_misalignment(names: list[str], x: np.ndarray, cov: np.ndarray) -> dict[str, Any]:
+    """The gyro triad's misalignment relative to the accelerometer triad, τ_g,ij − τ_a,ij, with U (k = 2).
+
+    Both come from one recording against one table, so the table's own non-orthogonality and the unit's
+    mounting cancel in the difference (docs/methods/gyro-calibration.md); u from the certificate's full
+    covariance (the two triads' terms are correlated through the shared type-B inputs).
+    """
+    pairs = [p for p in ("xy", "xz", "yx", "yz", "zx", "zy") if f"gyro_tau_{p}" in names and f"tau_{p}" in names]
+    if not pairs:
+        return {}
+    out = {}
+    for p in pairs:
+        i, j = names.index(f"gyro_tau_{p}"), names.index(f"tau_{p}")
+        var = cov[i, i] + cov[j, j] - 2 * cov[i, j]
+        u = float(np.sqrt(max(var, 0.0)))
+        out[f"tau_{p}"] = {"value": float(x[i] - x[j]), "u": u, "expanded_uncertainty": 2 * u,
+                           "display_value": float((x[i] - x[j]) / ARCSEC), "display_expanded": 2 * u / ARCSEC,
+                           "display_unit": "arcsec"}  # fmt: skip
+    return {"gyro_to_accelerometer_misalignment": out}
+
+
 def assemble(g: Gathered, d: Decision, issue_date: str, with_plots: bool = True) -> Certificate:
     """The certificate's content model from what was gathered and decided (figures when ``with_plots``)."""
     cal, budget = g.cal, d.budget
@@ -570,6 +606,7 @@ def assemble(g: Gathered, d: Decision, issue_date: str, with_plots: bool = True)
             "information": written.get("information", {}),
             "measurement_noise": written["measurement_noise"],
             "steps_used": [geo.name for geo in g.geometry],
+            **relative_misalignment(list(cal.names), cal.x, budget.covariance),
         },
         parameters=d.results,
         budget_components=[
@@ -585,12 +622,19 @@ def assemble(g: Gathered, d: Decision, issue_date: str, with_plots: bool = True)
         analysis_plots=g.analysis_plots,
     )
     if with_plots:
-        cert.plots["residuals"] = plot_residuals(g.per_step, cal.noise_variance)
+        cert.plots["residuals"] = plot_residuals(g.per_step, cal.noise_variance[:3])
+        if cal.noise_variance.size == 6:
+            cert.plots["gyro_residuals"] = plot_residuals(g.per_step, cal.noise_variance[3:], triad="gyro")
         hist = cal.history.to_mapping() if cal.history is not None else {}
         if len(hist.get("time") or []) >= 2:  # a single update has nothing to converge
-            cert.plots["convergence"] = plot_convergence(
-                hist, list(cal.names), cal.error_model.kinds, cal.x, identified=list(cal.identified)
-            )
+            ident = list(cal.identified)
+            for part, grp in zip(cal.error_model.parts, cal.error_model.groups, strict=True):
+                key = "convergence" if grp.start == 0 else f"{part.name}_convergence"
+                sub = {**hist, "estimate": [row[grp] for row in hist["estimate"]],
+                       "sigma": [row[grp] for row in hist["sigma"]]}  # fmt: skip
+                cert.plots[key] = plot_convergence(
+                    sub, list(cal.names[grp]), part.kinds, cal.x[grp], identified=ident[grp]
+                )
         cert.plots["coverage"] = plot_coverage(g.geometry)
     return cert
 
@@ -642,14 +686,14 @@ def build_certificate(
 
 
 def _per_step_rows(cal: CalibrationResult, path: Path) -> list[dict[str, Any]]:
-    """calibration.json residuals.per_step, checked (name, samples, mean (3), rms (3), SI)."""
+    """calibration.json residuals.per_step, checked (name, samples, mean (axes), rms (axes), SI)."""
     try:
         per_step = cal.per_step
         for row in per_step:
             ok = (
                 int(row["samples"]) >= 0
-                and np.all(np.isfinite(np.asarray(row["mean"], dtype=float).reshape(3)))
-                and np.all(np.isfinite(np.asarray(row["rms"], dtype=float).reshape(3)))
+                and np.all(np.isfinite(np.asarray(row["mean"], dtype=float).reshape(-1)))
+                and np.all(np.isfinite(np.asarray(row["rms"], dtype=float).reshape(-1)))
             )
             if not ok:
                 raise ValueError(f"row {row.get('name')!r} has non-finite statistics")
@@ -689,9 +733,23 @@ def issue_certificate(
     (pdf_path, json_path, verdict)
         verdict: "PASS", "FAIL", "INCONCLUSIVE", "INCOMPLETE" or "NO LIMITS".
     """
+    cert = build_certificate(run_dir, issue_date=issue_date, allow_incomplete=allow_incomplete, recorded=recorded)
+    pdf, js = publish_certificate(cert, run_dir, out_pdf, out_json, sinks)
+    return pdf, js, cert.verdict
+
+
+def publish_certificate(
+    cert: Certificate,
+    run_dir: str | Path,
+    out_pdf: str | Path | None = None,
+    out_json: str | Path | None = None,
+    sinks: ResultSinks | None = None,
+) -> tuple[Path, Path]:
+    """Publish a built certificate through the result sinks (numbered, rendered, written; never overwriting).
+    The second half of :func:`issue_certificate` (``tablebench certificate`` builds interruptibly, then
+    publishes). Returns (pdf_path, json_path)."""
     given = Path(run_dir)
     run = given.parent if given.is_file() else given
-    cert = build_certificate(given, issue_date=issue_date, allow_incomplete=allow_incomplete, recorded=recorded)
     sinks = sinks if sinks is not None else sinks_for_run(run)
     doc = sinks.certificate(
         CertificateDocument(
@@ -702,8 +760,8 @@ def issue_certificate(
         )
     )
     assert doc.pdf is not None and doc.json is not None  # the run folder sink always writes both
-    return doc.pdf, doc.json, cert.verdict
+    return doc.pdf, doc.json
 
 
 __all__ = ["Decision", "Gathered", "assemble", "bench_info", "build_certificate", "decide_conformity", "gather",
-           "issue_certificate"]
+           "issue_certificate", "publish_certificate"]

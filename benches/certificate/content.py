@@ -19,13 +19,24 @@ FORMAT_VERSION = 1
 ANALYSES = ("noise", "periodic", "drift")
 
 MODEL_TEXT = "f_out = f + (S + T) f + b + D (f∘f) + diag(r) c(ω) + v"
+GYRO_MODEL_TEXT = "ω_out = (I + S_g + T_g) ω_ib + b_g + G f + S2 (ω_ib∘ω_ib) + A |ω_ib| + v_g"
+GYRO_CONVENTIONS: tuple[str, ...] = (
+    "ω_ib: true angular rate of the unit relative to inertial space, body frame: the table's rate from its "
+    "encoder angles over time plus the Earth rate at the site (Ω = 7.292115e-5 rad/s); ω_out the gyro output, rad/s.",
+    "b_g: gyro bias (°/h); S_g = diag: scale-factor errors (ppm); T_g: misalignment, δω_i += τ_ij ω_j, the "
+    "accelerometer's convention (arcsec); G: g-sensitivity, δω_i += G_ij f_j (°/h/g; diagonal unless stated); "
+    "S2 (ppm/(°/s)) and A (ppm, +A for positive, −A for negative rates) only when listed.",
+    "Gyro compensation (exact inverse): ω_ib = (I + S_g + T_g)⁻¹ (ω_out − b_g − G f) when S2 = A = 0, otherwise "
+    "solved per sample by Newton's iteration; f is the compensated specific force.",
+)
 SIGN_CONVENTIONS: tuple[str, ...] = (
     "Body frame b: the unit's case axes x, y, z as marked on the unit; navigation frame n: East-North-Up.",
     "f: true specific force at the triad's reference point, body frame; at rest f = C_n^b [0, 0, g]ᵀ, i.e. an "
     "axis pointing up reads +g.",
     "f_out: the unit's output (after its own count scaling), body frame, m/s².",
     "b: bias, added to the output (f_out − f at zero input); shown in µg (1 µg = 9.80665e-6 m/s²).",
-    "S = diag(S_x, S_y, S_z): scale-factor errors, f_out,i ∋ (1 + S_i) f_i; shown in ppm.",
+    "S = diag(S_x, S_y, S_z): scale-factor errors, output axis i reads (1 + S_i) f_i plus the other terms; "
+    "shown in ppm.",
     "T: misalignment, off-diagonal; convention δf_i += τ_ij f_j (output axis i senses τ_ij of the input along j); "
     "shown in arcsec (small angles, rad).",
     "D = diag(d): quadratic (second-order) coefficients, δf_i += d_i f_i²; shown in µg/g².",
@@ -77,6 +88,8 @@ class BenchInfo:
     unit_serial: str
     source: str
     bias_instability: list[float] | None = None
+    gyro_bias_instability: list[float] | None = None
+    azimuth_uncertainty: float | None = None
     rate_accuracy: float = 0.0
     latency: float = 0.0
     reference_standards: list[dict[str, str]] = field(default_factory=list)
@@ -134,6 +147,26 @@ class Certificate:
     analysis_plots: list[tuple[str, bytes]] = field(default_factory=list)
     supersedes: str = ""
 
+    @property
+    def has_gyro(self) -> bool:
+        """True when the certificate covers the gyro triad too (the whole unit)."""
+        return any(p.name.startswith("gyro_") for p in self.parameters)
+
+    @property
+    def item_title(self) -> str:
+        """What the certificate calibrates, in its heading."""
+        return "Inertial unit (accelerometer and gyro triads)" if self.has_gyro else "Accelerometer triad"
+
+    @property
+    def model_text(self) -> str:
+        """The error model(s) the parameters belong to."""
+        return MODEL_TEXT + ("; " + GYRO_MODEL_TEXT if self.has_gyro else "")
+
+    @property
+    def conventions(self) -> tuple[str, ...]:
+        """Sign conventions of the certified parameters."""
+        return SIGN_CONVENTIONS + (GYRO_CONVENTIONS if self.has_gyro else ())
+
     def to_dict(self) -> dict[str, Any]:
         """The machine-readable certificate (SI values; plots by name and SHA-256)."""
         d = {
@@ -152,11 +185,11 @@ class Certificate:
             "recording": self.recording,
             "environment": self.environment,
             "identification": self.identification,
-            "model": MODEL_TEXT,
-            "sign_conventions": list(SIGN_CONVENTIONS),
+            "model": self.model_text,
+            "sign_conventions": list(self.conventions),
             "parameter_names": [p.name for p in self.parameters],
             "compensation": {
-                "model": MODEL_TEXT,
+                "model": self.model_text,
                 "parameter_names": [p.name for p in self.parameters],
                 "x_si": [p.value for p in self.parameters],
                 "use": [p.identifiable for p in self.parameters],

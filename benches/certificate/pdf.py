@@ -15,7 +15,7 @@ from pathlib import Path
 import matplotlib
 from fpdf import FPDF, FontFace, XPos, YPos
 
-from .content import MODEL_TEXT, SIGN_CONVENTIONS, Certificate
+from .content import GYRO_MODEL_TEXT, MODEL_TEXT, Certificate
 
 _FONT = "DejaVu"
 _GREY = (235, 235, 235)
@@ -188,7 +188,7 @@ def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
     )
     pdf.set_xy(pdf.l_margin + 4, 23)
     pdf.set_font(_FONT, "", 9)
-    pdf.cell(110, 6, "Accelerometer triad — three-axis turntable calibration")
+    pdf.cell(110, 6, f"{c.item_title} — three-axis turntable calibration")
     pdf.set_text_color(0, 0, 0)
     pdf.set_y(35)
     pdf.set_font(_FONT, "", 8)
@@ -266,10 +266,7 @@ def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
         )
         if x
     )
-    unit_txt = (
-        f"Accelerometer triad of {c.unit.get('model', '')}, serial No. {c.unit.get('serial_number', '')} "
-        "(only the accelerometer triad is calibrated by this certificate; any gyro triad of the unit is not)"
-    )
+    unit_txt = _unit_text(c)
     rate_acc = b.get("rate_accuracy_ppm") or 0
     bench_txt = (
         f"{b.get('name', '')}: turntable {b.get('table_model', '')}, serial No. {b.get('table_serial_number', '')}; "
@@ -298,7 +295,7 @@ def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
             ("Site", site_txt or "—"),
             ("Local gravity g", g_txt),
             ("Procedure", f"{proc.get('name', '')}; SHA-256 of its text: {proc.get('sha256', '')}" + _overrides(proc)),
-            ("Date of calibration", f"{rec.get('created_utc', '')} to {rec.get('updated_utc', '') or '—'} (UTC)"),
+            ("Date of calibration", _dates_text(rec)),
             ("Environment", f"Unit temperature {temp_txt}"),
             ("Recording", rec_txt),
             ("Identification", ident_txt),
@@ -314,6 +311,16 @@ def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
         size=7.8,
     )
     _signature_block(pdf)
+
+
+def _dates_text(rec: dict) -> str:
+    """The dates of calibration, saying which clock is which: the start and end are the recording computer's
+    wall clock (UTC); the recording's own duration is bench time, the unit's sample clock (a simulated bench
+    runs faster than real time, so the two differ)."""
+    start, end = rec.get("created_utc", ""), rec.get("updated_utc", "") or "—"
+    dur = rec.get("duration_s")
+    bench = f"; the recording spans {float(dur) / 60:.1f} min of bench time (the unit's sample clock)" if dur else ""
+    return f"{start} to {end} (UTC, wall clock of the recording computer){bench}"
 
 
 def _overrides(proc: dict) -> str:
@@ -349,8 +356,10 @@ def _results_page(pdf: _CertificatePdf, c: Certificate) -> None:
     pdf.add_page()
     pdf.section("Error model and sign conventions")
     pdf.para(f"Per sample, in the body frame:   {MODEL_TEXT}", style="B", size=9)
+    if c.has_gyro:
+        pdf.para(f"Gyro triad, body frame:   {GYRO_MODEL_TEXT}", style="B", size=9)
     pdf.ln(1)
-    for line in SIGN_CONVENTIONS:
+    for line in c.conventions:
         pdf.para(f"• {line}", size=7.8)
     pdf.section("Results")
     rows = []
@@ -389,6 +398,14 @@ def _results_page(pdf: _CertificatePdf, c: Certificate) -> None:
         "covariance are in the machine-readable certificate (JSON). µg = 9.80665e-6 m/s²; ppm = 1e-6; ″ = arcsecond.",
         size=7.6,
     )
+    rel = c.identification.get("gyro_to_accelerometer_misalignment") or {}
+    if rel:
+        pairs = "; ".join(f"{k} {v['display_value']:.2f}″ ± {v['display_expanded']:.2f}″" for k, v in rel.items())
+        pdf.para(
+            "Gyro triad relative to the accelerometer triad (τ_g,ij − τ_ij; the table's orthogonality and the "
+            f"mounting cancel): {pairs} (U, k = 2).",
+            size=7.6,
+        )
 
 
 def _budget_page(pdf: _CertificatePdf, c: Certificate) -> None:
@@ -437,11 +454,26 @@ def _budget_page(pdf: _CertificatePdf, c: Certificate) -> None:
         pdf.para(f"Note: {n}", size=7.6, style="I")
 
 
+def _unit_text(c: Certificate) -> str:
+    """What the certificate calibrates: the whole unit, or its accelerometer triad only."""
+    unit = f"{c.unit.get('model', '')}, serial No. {c.unit.get('serial_number', '')}"
+    if any(p.name.startswith("gyro_") for p in c.parameters):
+        return f"Accelerometer and gyro triads of {unit} (the whole unit: one recording, one reference, one time base)"
+    return (
+        f"Accelerometer triad of {unit} (only the accelerometer triad is calibrated by this certificate; the "
+        "recording has no gyro data)"
+    )
+
+
 def _plots_pages(pdf: _CertificatePdf, c: Certificate) -> None:
     if "residuals" in c.plots:
         pdf.add_page()
         pdf.section("Residuals per step")
         pdf.figure(c.plots["residuals"], 175)
+    if "gyro_residuals" in c.plots:
+        pdf.add_page()
+        pdf.section("Gyro residuals per step")
+        pdf.figure(c.plots["gyro_residuals"], 175)
     if "coverage" in c.plots:
         pdf.section("Orientation coverage")
         pdf.figure(c.plots["coverage"], 165)
@@ -449,6 +481,10 @@ def _plots_pages(pdf: _CertificatePdf, c: Certificate) -> None:
         pdf.add_page()
         pdf.section("Estimate convergence during the run")
         pdf.figure(c.plots["convergence"], 165)
+    if "gyro_convergence" in c.plots:
+        pdf.add_page()
+        pdf.section("Gyro estimate convergence during the run")
+        pdf.figure(c.plots["gyro_convergence"], 165)
 
 
 def _warnings_and_analyses(pdf: _CertificatePdf, c: Certificate) -> None:

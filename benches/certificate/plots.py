@@ -22,7 +22,7 @@ from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
 from analysis.identification.budget import StepGeometry
-from analysis.units import UG, display_unit, to_display
+from analysis.units import DEG_PER_HOUR, UG, display_unit, to_display
 
 _RC: dict[str, Any] = {
     "font.family": "DejaVu Sans",
@@ -60,25 +60,31 @@ def _context() -> AbstractContextManager[None]:
     return matplotlib.rc_context(base)
 
 
-def plot_residuals(per_step: Sequence[Mapping[str, Any]], noise_var: NDArray[np.float64]) -> bytes:
-    """Per-step residual mean (±2σ of the mean from the noise) and RMS per body axis, µg.
+def plot_residuals(
+    per_step: Sequence[Mapping[str, Any]], noise_var: NDArray[np.float64], triad: str = "accelerometer"
+) -> bytes:
+    """Per-step residual mean (±2σ of the mean from the noise) and RMS per body axis (µg, or °/h for the gyro).
 
     Parameters
     ----------
     per_step : sequence of mapping
-        ``calibration.json`` ``residuals.per_step`` rows (name, samples, mean (3), rms (3), SI, body frame).
+        ``calibration.json`` ``residuals.per_step`` rows (name, samples, mean (3 or 6), rms (3 or 6), SI, body
+        frame: accelerometer m/s², then gyro rad/s).
     noise_var : (3,) array
-        Measurement noise variance per body axis, (m/s²)².
+        Measurement noise variance per body axis of the triad plotted, SI².
+    triad : {"accelerometer", "gyro"}
+        Which triad's columns to plot.
     """
+    off_c, unit, label = (3, DEG_PER_HOUR, "°/h") if triad == "gyro" else (0, UG, "µg")
     with _context():
         fig = Figure(figsize=(7.2, 4.6))
         ax1, ax2 = fig.subplots(2, 1, sharex=True)
         rows = list(per_step)
         k = np.arange(len(rows))
         n = np.array([max(float(r.get("samples", 0)), 1.0) for r in rows])
-        mean = np.array([r["mean"] for r in rows], dtype=float).reshape(-1, 3) / UG
-        rms = np.array([r["rms"] for r in rows], dtype=float).reshape(-1, 3) / UG
-        sig = np.sqrt(np.asarray(noise_var, dtype=float))[None, :] / UG
+        mean = np.array([r["mean"] for r in rows], dtype=float).reshape(len(rows), -1)[:, off_c : off_c + 3] / unit
+        rms = np.array([r["rms"] for r in rows], dtype=float).reshape(len(rows), -1)[:, off_c : off_c + 3] / unit
+        sig = np.sqrt(np.asarray(noise_var, dtype=float))[None, :] / unit
         for a, name in enumerate("xyz"):
             off = (a - 1) * 0.22
             ax1.errorbar(
@@ -94,10 +100,10 @@ def plot_residuals(per_step: Sequence[Mapping[str, Any]], noise_var: NDArray[np.
             ax2.plot(k + off, rms[:, a], "s", ms=3, color=_AXIS_COLOURS[a], label=f"{name}")
             ax2.axhline(sig[0, a], color=_AXIS_COLOURS[a], lw=0.8, ls="--")
         ax1.axhline(0.0, color="black", lw=0.6)
-        ax1.set_ylabel("mean residual, µg")
-        ax1.set_title("Residuals per step (body axes); error bars: ±2σ of the mean from the noise model")
+        ax1.set_ylabel(f"mean residual, {label}")
+        ax1.set_title(f"{triad.capitalize()} residuals per step (body axes); error bars: ±2σ of the mean (noise model)")
         ax1.legend(ncol=3, loc="upper right")
-        ax2.set_ylabel("RMS residual, µg")
+        ax2.set_ylabel(f"RMS residual, {label}")
         ax2.set_title("RMS per step; dashed: noise standard deviation used by the identification")
         ax2.set_xticks(k)
         ax2.set_xticklabels([str(r.get("name", i)) for i, r in enumerate(rows)], rotation=70, ha="right")
@@ -112,7 +118,7 @@ def plot_convergence(
     final: NDArray[np.float64] | None = None,
     identified: Sequence[bool] | None = None,
 ) -> bytes:
-    """Estimate of every parameter after each update, with ±2σ bands, in display units (18 panels).
+    """Estimate of every parameter after each update, with ±2σ bands, in display units (one panel each).
 
     Parameters
     ----------
@@ -130,8 +136,9 @@ def plot_convergence(
     sig = np.asarray(history.get("sigma", []), dtype=float).reshape(-1, len(names))
     tm = t / 60.0 if t.size == est.shape[0] and t.size else np.arange(est.shape[0], dtype=float)
     with _context():
-        fig = Figure(figsize=(7.2, 9.0))
-        axes = fig.subplots(6, 3, sharex=True)
+        rows = max(1, -(-len(names) // 3))
+        fig = Figure(figsize=(7.2, 1.5 * rows))
+        axes = np.atleast_2d(fig.subplots(rows, 3, sharex=True))
         for p, (name, kind) in enumerate(zip(names, kinds, strict=True)):
             ax = axes[p // 3][p % 3]
             v = to_display(kind, est[:, p]) if est.size else np.zeros(0)

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pkgutil
 import sys
 from collections.abc import Sequence
@@ -81,6 +82,7 @@ def _command_of(argv: Sequence[str]) -> str | None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the console script; returns the process exit code."""
+    program = argv is None  # the tablebench process itself (not a caller in the same process, e.g. a test)
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser(_command_of(argv), everything=False)
     args, extra = parser.parse_known_args(argv)
@@ -98,6 +100,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         print(f"tablebench {args.command}: interrupted", file=sys.stderr)
+        if program and "benches.cli.work" in sys.modules:  # an analysis command (benches.cli.work) was stopped:
+            # its outputs are written completely or not at all, its worker writes nothing; end the process now
+            # (the interpreter's orderly exit takes over a second with scipy/matplotlib loaded, and would wait
+            # for a worker still inside one long numerical call)
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(130)
         return 130
     finally:
         clear_inputs()

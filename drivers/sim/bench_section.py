@@ -82,6 +82,7 @@ class Table(Protocol):
     watchdog: float | None
     attitude_accuracy: float
     rate_accuracy: float
+    azimuth_uncertainty: float | None
 
 
 class UnitNoise(Protocol):
@@ -155,12 +156,15 @@ def parse_simulation(d: dict, smap: SourceMap, site: Site, table: Table, unit: U
     )
     gd = _section(d, smap, p, "gyro", required=False) or {}
     gp = p + ("gyro",)
-    check_keys(gd, smap, gp, ["bias_dph", "scale_ppm", "misalignment_arcsec", "g_sensitivity_dph_per_g"])
+    check_keys(gd, smap, gp, ["bias_dph", "scale_ppm", "misalignment_arcsec", "g_sensitivity_dph_per_g",
+                              "quadratic_ppm_per_dps", "asymmetry_ppm"])  # fmt: skip
     gyro = GyroTruth(
         bias=_vec(gd, smap, gp, "bias_dph", DEG_PER_HOUR, z3),  # type: ignore[arg-type]
         scale=_vec(gd, smap, gp, "scale_ppm", PPM, z3),  # type: ignore[arg-type]
         misalignment=_vec(gd, smap, gp, "misalignment_arcsec", ARCSEC, (0.0,) * 6, length=6),  # type: ignore[arg-type]
         g_sensitivity=_matrix(gd, smap, gp, "g_sensitivity_dph_per_g", DPH_PER_G, (z3, z3, z3)),
+        quadratic=_vec(gd, smap, gp, "quadratic_ppm_per_dps", PPM / DEG, z3),  # type: ignore[arg-type]
+        asymmetry=_vec(gd, smap, gp, "asymmetry_ppm", PPM, z3),  # type: ignore[arg-type]
     )
     # noise truth: defaults to the unit's configured noise
     nd = _section(d, smap, p, "accel_noise", required=False) or {}
@@ -396,6 +400,7 @@ def _budget_inputs(d: dict, smap: SourceMap, p: KeyPath, site: Site, table: Tabl
         gravity_anomaly_std=site.g_uncertainty,
         attitude_error_bound=table.attitude_accuracy,
         rate_error_bound=table.rate_accuracy,
+        azimuth_std=float(getattr(table, "azimuth_uncertainty", None) or 0.0),
     )
 
 

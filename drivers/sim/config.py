@@ -14,6 +14,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from analysis.earth import normal_gravity
 from analysis.identification.model import PARAM_NAMES
 from analysis.units import ARCSEC, DEG, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MM, PPM, UG, UG_PER_G2
@@ -77,12 +79,36 @@ class GyroTruth:
     scale : (3,) scale-factor errors (dimensionless).
     misalignment : (6,) τ_xy τ_xz τ_yx τ_yz τ_zx τ_zy, rad; δω_i += τ_ij ω_j (same convention as accel).
     g_sensitivity : (3, 3) rad/s per m/s²; δω = G f (f the specific force at the reference point).
+    quadratic : (3,) s/rad; δω_i += S2_i ω_i² (the scale factor's second-order nonlinearity).
+    asymmetry : (3,) dimensionless; δω_i += A_i |ω_i| (scale factor 1 + S ± A for ± rates).
     """
 
     bias: Vec3 = (0.0, 0.0, 0.0)
     scale: Vec3 = (0.0, 0.0, 0.0)
     misalignment: tuple[float, float, float, float, float, float] = (0.0,) * 6
     g_sensitivity: Mat3 = _Z3
+    quadratic: Vec3 = (0.0, 0.0, 0.0)
+    asymmetry: Vec3 = (0.0, 0.0, 0.0)
+
+
+def gyro_truth(gyro: GyroTruth) -> dict[str, float]:
+    """The gyro model's parameters by name (``gyro_b_x`` …, SI) for a simulated gyro truth."""
+    ax = "xyz"
+    others = ((1, 2), (0, 2), (0, 1))
+    g = np.asarray(gyro.g_sensitivity, dtype=float)
+    out = {f"gyro_b_{ax[i]}": float(gyro.bias[i]) for i in range(3)}
+    out |= {f"gyro_S_{ax[i]}": float(gyro.scale[i]) for i in range(3)}
+    tau = [f"gyro_tau_{ax[i]}{ax[j]}" for i in range(3) for j in others[i]]
+    out |= {n: float(v) for n, v in zip(tau, gyro.misalignment, strict=True)}
+    out |= {f"gyro_G_{ax[i]}{ax[i]}": float(g[i, i]) for i in range(3)}
+    out |= {f"gyro_G_{ax[i]}{ax[j]}": float(g[i, j]) for i in range(3) for j in others[i]}
+    s2 = getattr(gyro, "quadratic", None)
+    asym = getattr(gyro, "asymmetry", None)
+    if s2 is not None and any(s2):
+        out |= {f"gyro_S2_{ax[i]}": float(s2[i]) for i in range(3)}
+    if asym is not None and any(asym):
+        out |= {f"gyro_A_{ax[i]}": float(asym[i]) for i in range(3)}
+    return out
 
 
 @dataclass(frozen=True)
@@ -228,11 +254,14 @@ class BudgetInputs:
         C_b^n,true = (I + [δφ×]) C_b^n,reported, δφ uniform in ±bound per navigation axis, until the next one.
     rate_error_bound : relative. The reported rate of gimbal axis j is (1 + ε_j) × the true rate, ε_j uniform
         in ±bound, once per run and axis.
+    azimuth_std : rad. The outer gimbal's zero is off East by δψ ~ N(0, std²), once per run: the true
+        C_b^n = R_z(δψ) C_b^n,reported (the Earth rate is seen in the true frame; gravity is vertical either way).
     """
 
     gravity_anomaly_std: float = 0.0
     attitude_error_bound: float = 0.0
     rate_error_bound: float = 0.0
+    azimuth_std: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -357,6 +386,7 @@ def example_navigation_grade() -> SimConfig:
 
 __all__ = [
     "ACCEL_PARAM_NAMES",
+    "gyro_truth",
     "CHANNELS",
     "MISALIGNMENT_PAIRS",
     "AccelTruth",

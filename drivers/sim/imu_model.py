@@ -174,6 +174,9 @@ class InertialModel:
         self.m_gyr = np.eye(3) + np.diag(gy.scale) + misalignment_matrix(gy.misalignment)
         self.b_gyr = np.asarray(gy.bias, dtype=float)
         self.g_sens = np.asarray(gy.g_sensitivity, dtype=float)
+        self.s2_gyr = np.asarray(gy.quadratic, dtype=float)
+        self.a_gyr = np.asarray(gy.asymmetry, dtype=float)
+        self._gyr_nonlinear = bool(np.any(self.s2_gyr) or np.any(self.a_gyr))
         # temperature: a simulated chamber (set by the world) and the temperature-dependent truth
         self.chamber: ChamberPhysics | None = None
         self.thermal = ThermalEffect(config.thermal) if config.thermal is not None else None
@@ -247,6 +250,8 @@ class InertialModel:
         out[:, :3] = u
         w_s = omega + earth_b
         g = w_s @ m_gyr.T + b_gyr + f0 @ self.g_sens.T
+        if self._gyr_nonlinear:
+            g = g + self.s2_gyr * w_s * w_s + self.a_gyr * np.abs(w_s)
         if dtemp is not None:
             g = g + np.asarray(tm.gyro_bias_tc)[None, :] * dtemp[:, None]  # type: ignore[union-attr]
             g = g + np.asarray(tm.gyro_scale_tc)[None, :] * dtemp[:, None] * w_s  # type: ignore[union-attr]

@@ -51,7 +51,7 @@ from analysis.earth import earth_rate_enu
 from drivers.imu_unit.counts import CountScale, RawFrames, concat_frames
 from drivers.protocols import AxisLimits, AxisMode, FaultCode, TableError, TableState, TableStatus
 from drivers.sim.chamber import ChamberPhysics
-from drivers.sim.config import ACCEL_PARAM_NAMES, SimConfig
+from drivers.sim.config import ACCEL_PARAM_NAMES, SimConfig, gyro_truth
 from drivers.sim.imu_model import InertialModel, misalignment_matrix
 from drivers.sim.motion import AxisPlan, plan_hold, plan_position, plan_rate, plan_stop
 
@@ -126,6 +126,9 @@ class SimulatedWorld:
         self._g = config.local_g + self._g_anomaly
         rb = float(bi.rate_error_bound) if bi is not None else 0.0
         self._rate_error = self._rng_budget.uniform(-rb, rb, 3) if rb > 0 else np.zeros(3)
+        az = float(getattr(bi, "azimuth_std", 0.0) or 0.0) if bi is not None else 0.0
+        self._azimuth_error = float(self._rng_budget.normal(0.0, az)) if az > 0 else 0.0  # drawn last: the
+        # earlier draws (g anomaly, rate errors) are the same with or without it
         self._model = InertialModel(config, unit_ss)
         self.chamber: ChamberPhysics | None = None
         if config.chamber is not None:
@@ -606,6 +609,9 @@ class SimulatedWorld:
             )
             # ω̇ from perfect-gimbal kinematics (the arcsec-level tilt/wobble effect on ω̇ is neglected)
         c_bn = c_tn @ self._mount
+        if self._azimuth_error != 0.0:
+            # installation: the outer gimbal's zero is δψ off East (a rotation about the local vertical)
+            c_bn = gimbal._rz(np.full(1, self._azimuth_error))[0] @ c_bn
         if np.any(self._dphi):
             # realised table attitude error: C_b^n,true = R(δφ) C_b^n,reported (navigation-frame rotation)
             from scipy.spatial.transform import Rotation
@@ -709,7 +715,11 @@ class SimulatedWorld:
 
     # ---- truth ---------------------------------------------------------------------------------------
     def truth(self) -> dict[str, float]:
-        """The 18 accelerometer-model parameters by name, SI, as the model can identify them.
+        """The 18 accelerometer-model parameters and the gyro model's, by name, SI, as the models identify them.
+
+        Gyro names (``docs/methods/gyro-calibration.md``): ``gyro_b_*``, ``gyro_S_*``, ``gyro_tau_*`` and all
+        nine ``gyro_G_*`` (the default model identifies the diagonal three); the simulated gyro has no
+        quadratic or asymmetry term unless configured, when ``gyro_S2_*``/``gyro_A_*`` are added.
 
         The size effect is the lever-arm term as the accelerometer senses it: accelerometer i (sensing row
         m_i = e_i + S_i e_i + τ_ij e_j + τ_ik e_k of I+S+T) at ρ_i, during a spin at ω about body axis j ≠ i,
@@ -727,7 +737,8 @@ class SimulatedWorld:
             others = [k for k in range(3) if k != i]
             r[i] = -m[i, i] * rho[i, i] - 0.5 * sum(m[i, k] * rho[i, k] for k in others)
         vals = [*a.bias, *a.scale, *a.misalignment, *a.quadratic, *r]
-        return {name: float(v) for name, v in zip(ACCEL_PARAM_NAMES, vals, strict=True)}
+        out = {name: float(v) for name, v in zip(ACCEL_PARAM_NAMES, vals, strict=True)}
+        return out | gyro_truth(self.cfg.gyro)
 
     def truth_arrays(self) -> dict[str, NDArray[np.float64]]:
         """Everything else the simulator knows, SI, body frame (lever arms, gyro errors, noise, site…)."""
@@ -752,6 +763,7 @@ class SimulatedWorld:
             "g": np.array(self._g),
             "gravity_anomaly": np.array(self._g_anomaly),
             "table_rate_error": self._rate_error.copy(),
+            "table_azimuth_error": np.array(self._azimuth_error),
             "latitude": np.array(c.latitude),
             "earth_rate_enu": self._earth_n.copy(),
             "non_orthogonality": np.asarray(c.table.non_orthogonality, float),

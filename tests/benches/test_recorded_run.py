@@ -42,11 +42,12 @@ def test_one_run_parses_the_bench_once_and_compiles_the_procedure_once(tmp_path,
     assert (out / "calibration.json").exists() and any(out.glob("certificate*.pdf"))
     # the typed blocks of what was written, and the same result offline (same recording, no live filter)
     cal = CalibrationResult.load(out / "calibration.json")
-    assert isinstance(cal.information, InformationSummary) and cal.information.rank == 18
+    assert isinstance(cal.information, InformationSummary) and cal.information.rank == len(cal.parameters) == 33
     assert isinstance(cal.residuals, Residuals) and cal.residuals.per_step
     assert cal.per_step[0]["kind"] in ("hold", "spin")
     assert isinstance(cal.run, RunInfo) and cal.run.status == "complete"
-    assert isinstance(cal.truth, TruthCheck) and cal.truth.dof == 18
+    assert isinstance(cal.truth, TruthCheck)
+    assert cal.truth.dof == len(cal.parameters) - len(cal.information.unidentifiable)
     assert cal.live_vs_offline_max_u is not None and cal.extra == {}
     offline = identify_run(out).to_dict()
     written = json.loads((out / "calibration.json").read_text(encoding="utf-8"))

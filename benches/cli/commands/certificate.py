@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from benches.cli.arguments import add_registry_arguments, sink_options
+from benches.cli.work import Work
 from benches.recording import RecordingError
 from benches.results import sinks_for_run
 from core.errors import UsageError
@@ -51,7 +52,8 @@ def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench certificate``."""
     from benches.certificate import (  # lazy: fpdf, matplotlib, filterpy (--help time)
         CertificateError,
-        issue_certificate,
+        build_certificate,
+        publish_certificate,
     )
 
     if args.out is not None and not str(args.out).lower().endswith(".pdf"):
@@ -65,17 +67,20 @@ def run(args: argparse.Namespace) -> int:
         check_output(args.json or Path(args.out).with_suffix(".json"), "--json", inputs=own)
     elif args.json is not None:
         check_output(args.json, "--json", inputs=own)
+    def build(work: Work):  # noqa: ANN202 - a Certificate (lazy import)
+        work.stage("reading the run, checking the calibration, budget, decision rule and plots")
+        return build_certificate(args.run, issue_date=args.issue_date, allow_incomplete=args.allow_incomplete)
+
     try:
-        pdf, js, verdict = issue_certificate(
-            args.run,
-            out_pdf=args.out,
-            out_json=args.json,
-            issue_date=args.issue_date,
-            allow_incomplete=args.allow_incomplete,
-            sinks=sinks_for_run(args.run, sink_options(args)),
-        )
+        with Work("certificate", 1.0) as work:  # the interrupt and progress of 'run'
+            cert = work.run(build, work)
+            with work.writing():  # numbered, rendered and written: all or nothing
+                pdf, js = publish_certificate(
+                    cert, args.run, args.out, args.json, sinks_for_run(args.run, sink_options(args))
+                )
     except (CertificateError, RecordingError) as exc:
         raise UsageError(str(exc)) from None
+    verdict = cert.verdict
     print(f"certificate {verdict}: {pdf}", file=sys.stderr)
     print(pdf)
     print(js)

@@ -1,4 +1,10 @@
-"""``tablebench correct``: apply a calibration to raw accelerometer data (f_out → f, the inverse model)."""
+"""``tablebench correct``: apply a calibration to raw unit data (f_out → f, ω_out → ω_ib: the exact inverse model).
+
+The equations (``docs/methods/gyro-calibration.md``, and on the certificate): the accelerometer's
+f = (I+S+T)⁻¹ (f_out − b − D(f∘f) − diag(r) c(ω)), solved by Newton's iteration; the gyro's
+ω_ib = (I+S_g+T_g)⁻¹ (ω_out − b_g − G f) (with S2 and A: Newton's iteration), f the compensated specific
+force; the two are iterated together until nothing changes at the rounding level.
+"""
 
 from __future__ import annotations
 
@@ -16,8 +22,9 @@ from core.outputs import check_output, save_npy
 
 EXAMPLES = """examples:
   tablebench correct runs/RUN/calibration.json raw.npy --out corrected.npy
-        # raw.npy: (n, 3) specific force in m/s² (body frame), or (n, 6) with the gyro rates (rad/s) used
-        # for the size-effect term; without rates the unit is taken as not rotating
+        # raw.npy: (n, 3) specific force in m/s² (body frame), or (n, 6) with the gyro rates (rad/s); with a
+        # whole-unit calibration (gyro_* parameters) the gyro channels are corrected too and the output is
+        # (n, 6) [f m/s², ω_ib rad/s]; otherwise the raw rates serve the size-effect term only
   tablebench correct runs/RUN/calibration.json runs/OTHER --out corrected.npy
         # a recording: only its hold/spin acquisition windows (listed with their times), rates from the
         # recorded table readings; the sample times are written to corrected_time.npy
@@ -28,21 +35,26 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``correct`` subcommand."""
     p = sub.add_parser(
         "correct",
-        help="apply a calibration to raw accelerometer data",
-        description="Compensate raw accelerometer output with an identified model: solve "
+        help="apply a calibration to raw unit data (accelerometer, and gyro with a whole-unit calibration)",
+        description="Compensate raw unit output with an identified model: solve "
         "f_out = f + (S+T) f + b + D(f∘f) + diag(r) c(ω) for f exactly (Newton iteration per sample, not a "
-        "first-order shortcut). Parameters the calibration marks as not identified are left out (set to 0).",
+        "first-order shortcut) and, with a whole-unit calibration, ω_out = (I+S_g+T_g) ω_ib + b_g + G f "
+        "(+ S2 ω² + A|ω|) for ω_ib, the two iterated together. Parameters the calibration marks as not "
+        "identified are left out (set to 0).",
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("calibration", metavar="CALIBRATION.json")
     p.add_argument("input", metavar="RAW.npy|RUN", help="(n,3) or (n,6) .npy in SI, or a recording")
-    p.add_argument("--out", required=True, metavar="FILE.npy", help="corrected specific force (n, 3), m/s²")
+    p.add_argument(
+        "--out", required=True, metavar="FILE.npy",
+        help="corrected specific force (n, 3), m/s², or (n, 6) [f, ω_ib rad/s] with a whole-unit calibration",
+    )  # fmt: skip
     p.set_defaults(func=run)
 
 
 def load_calibration_vector(path: str | Path) -> tuple[np.ndarray, list[str]]:
-    """The 18-parameter vector of a calibration.json (not-identified parameters zeroed) and their names."""
+    """The parameter vector of a calibration.json (not-identified parameters zeroed) and their names."""
     return CalibrationResult.load(path).compensation_vector()
 
 
@@ -51,17 +63,22 @@ def run(args: argparse.Namespace) -> int:
     if not str(args.out).lower().endswith(".npy"):
         raise UsageError(f"--out {args.out}: give a .npy file name (the corrected samples are a NumPy array)")
     check_output(args.out)  # before the work: never over an input or a recording
-    x, skipped = load_calibration_vector(args.calibration)
+    cal = CalibrationResult.load(args.calibration)
+    x, skipped = cal.compensation_vector()
+    model = cal.error_model
     src = recording_path(args.input)
+    gyro_out = None
     times = None
     if src.suffix.lower() in (".h5", ".hdf5"):
         from benches.identify import IdentificationError, load_run  # lazy: filterpy, scipy (--help time)
 
         try:
-            rr = load_run(src)
+            rr = load_run(src, with_gyro=model.n_axes == 6)
         except IdentificationError as exc:
             raise UsageError(str(exc)) from None
         f_out = np.concatenate([w.f_out for w in rr.windows])
+        if model.n_axes == 6:
+            gyro_out = np.concatenate([w.gyro for w in rr.windows])  # type: ignore[misc]
         omega = np.concatenate([w.omega for w in rr.windows])
         times = np.concatenate([w.t for w in rr.windows])
         print(
@@ -82,8 +99,13 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"{src}: contains NaN/inf; remove them first")
         f_out = data[:, :3].astype(float)
         omega = data[:, 3:6].astype(float) if data.shape[1] == 6 else np.zeros_like(f_out)
+        if data.shape[1] == 6 and model.n_axes == 6:
+            gyro_out = omega
     try:
-        f = correct(x, f_out, omega)
+        if gyro_out is not None:
+            f = model.correct_outputs(x, np.hstack([f_out, gyro_out]))  # type: ignore[attr-defined]
+        else:
+            f = correct(x[:18], f_out, omega)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     save_npy(args.out, f)

@@ -4,16 +4,16 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
-import time
+import re
 from collections.abc import Callable
 
 from analysis.drift.preprocess import DriftInputError
 from analysis.units import DISPLAY_UNITS
 from benches.cli.analysis_input import InputError, add_input_arguments, load_input, output_dir
 from benches.cli.arguments import bounded
+from benches.cli.work import Work, figure_png
 from core.errors import UsageError
-from core.jsonio import write_json
+from core.jsonio import write_json, write_text_atomic
 
 EXAMPLES = """examples:
   tablebench drift runs/static-noise-001                          # a recording, all six channels
@@ -181,16 +181,6 @@ def unsettled_line(items: list[dict]) -> str:
     return "NOT settled: " + "; ".join(parts) + " (details in drift.json 'unsettled')"
 
 
-def _progress_printer() -> Callable[[str], None]:
-    """Progress lines on stderr with the elapsed wall time (the ARMA search takes tens of seconds on long records)."""
-    t0 = time.monotonic()
-
-    def show(msg: str) -> None:
-        print(f"[{time.monotonic() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
-
-    return show
-
-
 def run(args: argparse.Namespace) -> int:
     """Execute ``tablebench drift``."""
     from analysis.drift.report import MIN_SAMPLES, DriftOptions, analyse_channel  # lazy: scipy (--help time)
@@ -224,15 +214,48 @@ def run(args: argparse.Namespace) -> int:
         measurement_var=args.measurement_var,
         remove_tones=not args.keep_tones,
     )
-    results = {}
-    summaries = {}
-    progress = None if args.quiet else _progress_printer()
-    for name, x in data.channels.items():
-        try:
-            results[name] = analyse_channel(x, data.rate, name, opts, progress)
-        except DriftInputError as exc:
-            raise InputError(f"{data.source}: {exc}") from None
-        summaries[name] = results[name].summary
+    names = list(data.channels)
+
+    def compute(work: Work) -> tuple[dict, list[tuple[str, bytes]]]:
+        results = {}
+        for name in names:
+            try:
+                results[name] = analyse_channel(data.channels[name], data.rate, name, opts, _progress(work))
+            except DriftInputError as exc:
+                raise InputError(f"{data.source}: {exc}") from None
+            work.advance()
+        pngs: list[tuple[str, bytes]] = []
+        if out is not None:
+            from analysis.drift.plot import plot_channel  # lazy: matplotlib, scipy (--help time)
+
+            for name, res in results.items():
+                work.stage(f"plotting {name}")
+                for kind, fig in plot_channel(res, name, data.units.get(name, "SI")).items():
+                    pngs.append((f"drift_{name}_{kind}.png", figure_png(fig, 100)))
+        return results, pngs
+
+    with Work("drift", len(names) + 0.2 * (out is not None), quiet=args.quiet) as work:  # as 'run' does
+        results, pngs = work.run(compute, work)
+        _report(data, results, out, pngs, work)
+    return 0
+
+
+def _progress(work: Work) -> Callable[[str], None]:
+    """The analysis' progress messages as the stage; "(k/N)" in one (the ARMA search) as the part done."""
+
+    def show(msg: str) -> None:
+        m = re.search(r"\((\d+)/(\d+)\)", msg)
+        if m and int(m.group(2)) > 0:
+            work.fraction(int(m.group(1)) / int(m.group(2)), msg)
+        else:
+            work.stage(msg)
+
+    return show
+
+
+def _report(data, results: dict, out, pngs: list[tuple[str, bytes]], work: Work) -> None:  # noqa: ANN001
+    """Print the report; write drift.json and the plots (all or nothing)."""
+    summaries = {name: res.summary for name, res in results.items()}
     result = {
         "source": data.source,
         "rate_hz": data.rate,
@@ -243,14 +266,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"{data.source}: {len(data.channels)} channel(s) at {data.rate:g} Hz")
     print(format_report(result, data.units))
     if out is not None:
-        from analysis.drift.plot import plot_channel  # lazy: matplotlib, scipy (--help time)
-
-        # null where a number is not available (e.g. σ after the filter of a white residual, se of a fixed mean)
-        written = [write_json(out / "drift.json", result, nonfinite="null")]
-        for name, res in results.items():
-            for kind, fig in plot_channel(res, name, data.units.get(name, "SI")).items():
-                path = out / f"drift_{name}_{kind}.png"
-                fig.savefig(path, dpi=100)
-                written.append(path)
+        with work.writing():  # all or nothing: a Ctrl-C now is held until every file is complete
+            # null where a number is not available (e.g. σ after the filter of a white residual, se of a fixed mean)
+            written = [write_json(out / "drift.json", result, nonfinite="null")]
+            written += [write_text_atomic(out / name, png) for name, png in pngs]
         print("wrote " + ", ".join(str(p) for p in written))
-    return 0

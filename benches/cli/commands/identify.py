@@ -1,4 +1,4 @@
-"""``tablebench identify``: identify the 18-parameter accelerometer model from a recording."""
+"""``tablebench identify``: identify the unit's error model (accelerometer, and gyro when recorded) from a recording."""
 
 from __future__ import annotations
 
@@ -26,10 +26,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``identify`` subcommand."""
     p = sub.add_parser(
         "identify",
-        help="identify the accelerometer error model from a recording",
-        description="Estimate bias b, scale S, misalignment τ, quadratic d and size effect r (18 parameters) with "
-        "their covariance from the hold and spin steps of a recording, with the Kalman filter (one filter over "
-        "the whole sequence) or batch least squares. Writes calibration.json next to the recording.",
+        help="identify the unit's error model (accelerometer and gyro triads) from a recording",
+        description="Estimate the accelerometer's bias b, scale S, misalignment τ, quadratic d and size effect r "
+        "(18 parameters) and, when the recording has gyro data, the gyro's bias, scale, misalignment and "
+        "g-sensitivity (gyro_*; docs/methods/gyro-calibration.md) with their covariance from the hold and spin "
+        "steps of a recording, with the Kalman filter (one filter over the whole sequence) or batch least "
+        "squares. Writes calibration.json next to the recording.",
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -49,6 +51,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "docs/methods/time-base.md), or take them as one clock (none: for comparisons)",
     )
     p.add_argument("--out", default=None, metavar="FILE.json", help="default: RUN/calibration.json")
+    p.add_argument(
+        "--accelerometer-only", action="store_true", help="identify the 18 accelerometer parameters only"
+    )
     add_registry_arguments(p)
     p.set_defaults(func=run)
 
@@ -62,7 +67,10 @@ def run(args: argparse.Namespace) -> int:
     if not target.name.lower().endswith(".json"):
         raise UsageError(f"--out {args.out}: give a .json file name (the calibration is JSON)")
     try:
-        result = identify_run(args.run, method=args.method, noise=args.noise, time_base=args.time_base)
+        result = identify_run(
+            args.run, method=args.method, noise=args.noise, time_base=args.time_base,
+            with_gyro=False if args.accelerometer_only else None,
+        )  # fmt: skip
     except IdentificationError as exc:
         raise UsageError(str(exc)) from None
     out = sinks_for_run(folder, sink_options(args)).calibration(

@@ -6,8 +6,9 @@ import argparse
 import math
 
 from benches.cli.analysis_input import InputError, add_input_arguments, load_input, output_dir
+from benches.cli.work import Work, figure_png
 from core.errors import UsageError
-from core.jsonio import write_json
+from core.jsonio import write_json, write_text_atomic
 
 EXAMPLES = """examples:
   tablebench noise runs/static-noise-001                     # a recording (static-noise procedure)
@@ -278,24 +279,48 @@ def run(args: argparse.Namespace) -> int:
             f"(limit {limit}); use --taus octave, decade or log"
         )
     out = output_dir(args.out, "noise")
-    try:
-        result = analyse_noise(
-            data.channels,
-            data.rate,
-            data.units,
-            taus=taus,
-            confidence=args.confidence,
-            published_itotvar=args.published_itotvar,
-            estimators=estimators,
-            data_type=args.data_type,
-            fit_estimator=fit_estimator,
-            noise_type=noise_type,
-            remove_drift=args.remove_drift,
-        )
-    except ValueError as exc:
-        raise InputError(f"{data.source}: {exc}") from None
-    result["source"] = data.source
-    extras = _extras(args, data, result)
+    options = dict(
+        taus=taus,
+        confidence=args.confidence,
+        published_itotvar=args.published_itotvar,
+        estimators=estimators,
+        data_type=args.data_type,
+        fit_estimator=fit_estimator,
+        noise_type=noise_type,
+        remove_drift=args.remove_drift,
+    )
+    names = list(data.channels)
+
+    def compute(work: Work) -> tuple[dict, list[tuple[str, bytes]]]:
+        """One channel at a time (the channels are independent): progress and an ETA per channel."""
+        result: dict = {}
+        for k, name in enumerate(names):
+            work.stage(f"{name} ({k + 1}/{len(names)}): deviations, intervals, noise terms")
+            try:
+                one = analyse_noise({name: data.channels[name]}, data.rate, data.units, **options)
+            except ValueError as exc:
+                raise InputError(f"{data.source}: {exc}") from None
+            result = one if not result else {**result, "channels": {**result["channels"], **one["channels"]}}
+            work.advance()
+        result["source"] = data.source
+        work.stage("PSD and dynamic Allan deviation" if args.psd or args.dynamic is not None else "report")
+        extras = _extras(args, data, result)
+        pngs: list[tuple[str, bytes]] = []
+        if out is not None:
+            from analysis.noise.plot import plot_noise  # lazy: matplotlib (--help time)
+
+            work.stage("plotting")
+            pngs.append(("noise.png", figure_png(plot_noise(result, title=f"Noise analysis: {data.source}"), 110)))
+            pngs += _extra_pngs(extras, result, data)
+        return result, pngs
+
+    with Work("noise", len(names) + 0.2 * (out is not None)) as work:  # the interrupt and progress of 'run'
+        result, pngs = work.run(compute, work)
+        if out is not None:
+            with work.writing():  # all or nothing: a Ctrl-C now is held until every file is complete
+                write_json(out / "noise.json", result, nonfinite="null")
+                for name, png in pngs:
+                    write_text_atomic(out / name, png)
     print(f"{data.source}: {len(data.channels)} channel(s), {n} samples at {data.rate:g} Hz ({n / data.rate:.1f} s)")
     for name, ch in result["channels"].items():
         g = ch["gaps"]
@@ -306,13 +331,7 @@ def run(args: argparse.Namespace) -> int:
         print("gaps: none")
     print(format_table(result))
     if out is not None:
-        from analysis.noise.plot import plot_noise  # lazy: matplotlib (--help time)
-
-        write_json(out / "noise.json", result, nonfinite="null")
-        fig = plot_noise(result, title=f"Noise analysis: {data.source}")
-        fig.savefig(out / "noise.png", dpi=110)
-        _write_extras(out, extras, result, data)
-        print(f"wrote {out / 'noise.json'} and {out / 'noise.png'}")
+        print("wrote " + ", ".join(str(out / name) for name in ["noise.json", *(n for n, _png in pngs)]))
     return 0
 
 
@@ -362,17 +381,18 @@ def _extras(args: argparse.Namespace, data, result: dict) -> dict:
     return extras
 
 
-def _write_extras(out, extras: dict, result: dict, data) -> None:
-    """noise_psd.png and noise_dynamic.png."""
+def _extra_pngs(extras: dict, result: dict, data) -> list[tuple[str, bytes]]:  # noqa: ANN001
+    """noise_psd.png and noise_dynamic.png as PNG bytes (written with the other outputs, all or nothing)."""
+    pngs = []
     if "psd" in extras:
         from analysis.noise.plot import plot_psd  # lazy: matplotlib (--help time)
 
         terms = {k: ch["terms"] for k, ch in result["channels"].items()}
-        plot_psd(extras["psd"], terms, 1.0 / data.rate, f"PSD: {data.source}").savefig(out / "noise_psd.png", dpi=110)
-        print(f"wrote {out / 'noise_psd.png'}")
+        fig = plot_psd(extras["psd"], terms, 1.0 / data.rate, f"PSD: {data.source}")
+        pngs.append(("noise_psd.png", figure_png(fig, 110)))
     if "dynamic" in extras:
         from analysis.noise.plot import plot_dynamic  # lazy: matplotlib (--help time)
 
         fig = plot_dynamic(extras["dynamic"], f"Dynamic ADEV: {data.source}")
-        fig.savefig(out / "noise_dynamic.png", dpi=110)
-        print(f"wrote {out / 'noise_dynamic.png'}")
+        pngs.append(("noise_dynamic.png", figure_png(fig, 110)))
+    return pngs

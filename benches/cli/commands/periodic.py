@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import io
 import math
 
 from analysis import units
 from analysis.periodic.model import PeriodicInputError
 from benches.cli.analysis_input import add_input_arguments, load_input, output_dir
+from benches.cli.work import Work, figure_png
 from core.errors import UsageError
 from core.jsonio import write_json, write_text_atomic
 
@@ -103,43 +103,59 @@ def run(args: argparse.Namespace) -> int:
         "false_alarm": float(args.false_alarm),
         "channels": {},
     }
-    analyses = {}
-    unsettled: list[str] = []
-    for name, x in data.channels.items():
-        unit = data.units.get(name, "SI")
-        try:
-            res = analyse_channel(
-                x, rate, args.calibrate_seconds, args.terms, args.false_alarm, method=args.method, unit=unit
-            )
-        except PeriodicInputError as exc:
-            option = _OPTION.get(exc.parameter or "")
-            where = f"{option} {_value(args, exc.parameter)}: " if option else ""
-            raise UsageError(f"{data.source}, channel {name}: {where}{exc}") from None
-        analyses[name] = res
-        result["channels"][name] = res.to_json(rate)
-        unsettled += [f"{name}: {s}" for s in res.unsettled()]
-        _print_channel(name, res, result["channels"][name], unit, rate)
-    result["unsettled"] = unsettled
-    print(
-        "\n"
-        + (
-            "not settled: " + "; ".join(unsettled)
-            if unsettled
-            else "all settled: every fit converged, every tone clear of the detection limit"
-        )
-    )
-    if out is not None:
-        from analysis.periodic.plot import plot_channel  # lazy: matplotlib, scipy (--help time)
+    names = list(data.channels)
 
-        path = write_json(out / "periodic.json", result)
-        pngs = []
+    def compute(work: Work) -> tuple[dict, dict[str, bytes]]:
+        analyses = {}
+        for k, name in enumerate(names):
+            work.stage(f"{name} ({k + 1}/{len(names)}): detection, fit, compensation")
+            unit = data.units.get(name, "SI")
+            try:
+                analyses[name] = analyse_channel(
+                    data.channels[name],
+                    rate,
+                    args.calibrate_seconds,
+                    args.terms,
+                    args.false_alarm,
+                    method=args.method,
+                    unit=unit,
+                )
+            except PeriodicInputError as exc:
+                option = _OPTION.get(exc.parameter or "")
+                where = f"{option} {_value(args, exc.parameter)}: " if option else ""
+                raise UsageError(f"{data.source}, channel {name}: {where}{exc}") from None
+            work.advance()
+        pngs: dict[str, bytes] = {}
+        if out is not None:
+            from analysis.periodic.plot import plot_channel  # lazy: matplotlib, scipy (--help time)
+
+            for name, res in analyses.items():
+                work.stage(f"plotting {name}")
+                label, si = _display(data.units.get(name, "SI"))
+                pngs[name] = figure_png(plot_channel(res, rate, name, label, si), 110)
+        return analyses, pngs
+
+    with Work("periodic", len(names) + 0.2 * (out is not None)) as work:  # the interrupt and progress of 'run'
+        analyses, pngs = work.run(compute, work)
+        unsettled: list[str] = []
         for name, res in analyses.items():
-            label, si = _display(data.units.get(name, "SI"))
-            fig = plot_channel(res, rate, name, label, si)
-            buf = io.BytesIO()
-            fig.savefig(buf, format="png", dpi=110)
-            pngs.append(write_text_atomic(out / f"periodic_{name}.png", buf.getvalue()))
-        print(f"\nwrote {path}" + "".join(f"\nwrote {p}" for p in pngs))
+            result["channels"][name] = res.to_json(rate)
+            unsettled += [f"{name}: {s}" for s in res.unsettled()]
+            _print_channel(name, res, result["channels"][name], data.units.get(name, "SI"), rate)
+        result["unsettled"] = unsettled
+        print(
+            "\n"
+            + (
+                "not settled: " + "; ".join(unsettled)
+                if unsettled
+                else "all settled: every fit converged, every tone clear of the detection limit"
+            )
+        )
+        if out is not None:
+            with work.writing():  # all or nothing: a Ctrl-C now is held until every file is complete
+                path = write_json(out / "periodic.json", result)
+                written = [write_text_atomic(out / f"periodic_{name}.png", png) for name, png in pngs.items()]
+            print(f"\nwrote {path}" + "".join(f"\nwrote {p}" for p in written))
     return 0
 
 
