@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
+import json
 import shutil
 import signal
 import traceback
@@ -677,3 +678,33 @@ def _fill_path(text: str, paths: dict[str, Path]) -> str:
     for k, v in paths.items():
         text = text.replace("{" + k + "}", str(v))
     return text
+
+
+def test_certificate_pages_say_which_clock_and_warn_of_an_unstated_rate_accuracy(tmp_path: Path) -> None:
+    """Rendered pages (pypdfium2 text of the PDF): the dates say which clock is which and give the bench time;
+    a size effect issued with the table's rate accuracy not stated is a warning, not "None"; no '∋' on page 2."""
+    import pypdfium2
+
+    run = make_run_folder(tmp_path / "run")
+    code, _o, err = run_cli(["certificate", str(run), "--out", str(tmp_path / "cert.pdf"), "--allow-incomplete"])
+    assert code in (0, 1), err[-1500:]
+    doc = pypdfium2.PdfDocument(str(tmp_path / "cert.pdf"))
+    pages = [doc[i].get_textpage().get_text_range() for i in range(len(doc))]
+    text = " ".join(" ".join(p.split()) for p in pages)
+    assert "wall clock of the recording computer" in text and "bench time (the unit's sample clock)" in text
+    assert "∋" not in " ".join(pages[:3])
+    cert = json.loads((tmp_path / "cert.json").read_text(encoding="utf-8"))
+    rate_stated = bool(cert.get("bench", {}).get("rate_accuracy_ppm"))
+    sizes_identified = [n for n, p in cert["parameters"].items() if n.startswith("r_") and p.get("identifiable", True)]
+    assert sizes_identified and not rate_stated  # the fixture's bench (benches/sim.yaml) states no rate accuracy
+    assert "rate accuracy is not stated" in text, text[-3000:]
+    assert any("rate accuracy is not stated" in w for w in cert["warnings"])
+
+
+def test_plan_table_has_a_legend_for_its_columns(corpus: Corpus, monkeypatch) -> None:
+    monkeypatch.chdir(corpus.root)
+    code, out, err = run_cli(["plan"])
+    assert code == 0, err[-1500:]
+    text = out + err
+    assert "σ white" in text and "σ white = " in text and "σ total = " in text and "σ data = " in text
+
