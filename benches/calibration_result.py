@@ -28,13 +28,20 @@ from analysis.identification.specification import ModelSpec, get_model, model_fo
 from analysis.timebase import TimeBase
 from analysis.units import DISPLAY_UNITS
 from core.errors import UserError
-from core.jsonio import write_json
+from core.integrity import with_integrity
+from core.jsonio import to_jsonable, write_json
 
 FORMAT = "tablebench-calibration"
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 """Version 2: ``u``/``u_white`` per parameter (version 1 called them sigma/sigma_white), ``identified``,
 ``covariance_white``, and "not identified" instead of null for an infinite predicted σ."""
-READABLE_VERSIONS = (1, 2)
+READABLE_VERSIONS = (1, 2, 3)
+"""Version 3: the ``integrity`` block (a digest of the file's values bound to ``recording_sha256``,
+:mod:`benches.calibration_integrity`); ``certificate``, ``correct`` and ``registry add`` require it."""
+COVERS = (
+    "SHA-256 of every key of this file except 'integrity', as canonical JSON (sorted keys, no spaces, ASCII); "
+    "recording_sha256 is among them, binding the values to the recording"
+)
 NOT_IDENTIFIED = "not identified"
 SI_UNITS = {k: v for m in ("accelerometer", "gyro") for k, v in get_model(m).si_units.items()}
 """The SI unit written for each parameter kind."""
@@ -476,7 +483,8 @@ class CalibrationResult:
 
     def save(self, path: str | Path) -> Path:
         """Write calibration.json atomically; any non-finite number raises ``ValueError`` naming its key."""
-        return write_json(path, self.to_dict(), nonfinite="error")
+        content = with_integrity(to_jsonable(self.to_dict()), self.recording_sha256, COVERS)  # tamper evidence
+        return write_json(path, content, nonfinite="error")
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any], where: str = "calibration.json") -> CalibrationResult:
@@ -541,7 +549,8 @@ class CalibrationResult:
             s_t = np.sqrt(np.diag(cov))
             cov_w = cov * np.outer(s_w / s_t, s_w / s_t)
         known = {"format", "format_version", "recording", "recording_sha256", "method", "uncertainty",
-                 "parameter_names", "parameters", "covariance", "covariance_white", "measurement_noise"}  # fmt: skip
+                 "parameter_names", "parameters", "covariance", "covariance_white", "measurement_noise",
+                 "integrity"}  # fmt: skip (integrity: benches/calibration_integrity.py)
         extra = {k: v for k, v in d.items() if k not in known}
         noise = dict(d["measurement_noise"])
         typed: dict[str, Any] = {}

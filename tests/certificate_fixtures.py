@@ -21,6 +21,7 @@ from analysis.identification.budget import data_information
 from analysis.identification.model import PARAM_KINDS, PARAM_NAMES
 from analysis.units import ARCSEC, MM, PPM, UG, UG_PER_G2, display_unit, to_display
 from benches.bench_config import load_bench
+from benches.calibration_integrity import with_integrity
 from benches.certificate.budget import step_geometry
 from benches.recording import Hdf5Recorder, open_recording
 from benches.runner import Runner
@@ -117,6 +118,12 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
+def _condition(info: np.ndarray) -> float | str:
+    """The information matrix's condition number as calibration.json states it (the writer's text when ∞)."""
+    c = float(np.linalg.cond(info))
+    return c if math.isfinite(c) else "infinite (rank-deficient)"
+
+
 def calibration_fixture(run: Path, *, seed: int = 3, shift: dict[str, float] | None = None) -> dict:
     """A ``calibration.json`` dict for the recording in ``run`` (see the module docstring)."""
     rng = np.random.default_rng(seed)
@@ -178,7 +185,7 @@ def calibration_fixture(run: Path, *, seed: int = 3, shift: dict[str, float] | N
         "parameter_names": list(PARAM_NAMES),
         "parameters": params,
         "covariance": cov.tolist(),
-        "information": {"rank": 18, "condition": float(np.linalg.cond(info)), "unidentifiable": unident},
+        "information": {"rank": 18, "condition": _condition(info), "unidentifiable": unident},
         "measurement_noise": {"variance": noise_var.tolist(), "source": "configured"},
         "residuals": {"rms": np.sqrt(noise_var).tolist(), "per_step": per_step},
         "plan": {
@@ -220,7 +227,7 @@ def make_run_folder(
     """Record the fake run into ``run`` and write its ``calibration.json``; returns ``run``."""
     run.mkdir(parents=True, exist_ok=True)
     record(run / "recording.h5", fail_after=fail_after)
-    cal = calibration_fixture(run, seed=seed, shift=shift)
+    cal = with_integrity(calibration_fixture(run, seed=seed, shift=shift))  # as identify writes it (tamper evidence)
     (run / "calibration.json").write_text(json.dumps(cal, indent=1), encoding="utf-8")
     return run
 

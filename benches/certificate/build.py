@@ -44,6 +44,7 @@ from analysis.identification.decision import (
 )
 from analysis.units import ARCSEC, display_unit, kelvin_to_celsius, to_display
 from benches.bench_config import BenchConfig, load_bench_text
+from benches.calibration_integrity import load_verified
 from benches.calibration_result import SI_UNITS, CalibrationFormatError, CalibrationResult
 from benches.recorded_run import RecordedRun, run_of
 from benches.recording import RecordingError, StepRecord
@@ -307,7 +308,7 @@ def _load_calibration(cal_path: Path, run: Path, rec_sha: str) -> CalibrationRes
     if not cal_path.exists():
         raise CertificateError(f"{run}: no calibration.json; identify first ('tablebench identify {run}')")
     try:
-        cal = CalibrationResult.load(cal_path)
+        cal, _digest = load_verified(cal_path)  # format, integrity digest, plausible values
     except CalibrationFormatError as exc:
         raise CertificateError(str(exc)) from None
     if cal.recording_sha256 and cal.recording_sha256 != rec_sha:

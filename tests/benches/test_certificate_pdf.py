@@ -18,6 +18,7 @@ import pypdfium2
 import pytest
 
 from analysis.units import UG, to_display
+from benches.calibration_integrity import with_integrity
 from benches.certificate import (
     CertificateError,
     bench_info,
@@ -166,8 +167,8 @@ def test_cli_writes_the_named_outputs_and_refuses_a_foreign_calibration(run_ok, 
     other = tmp_path / "other"
     shutil.copytree(run_ok, other)
     cal = json.loads((other / "calibration.json").read_text(encoding="utf-8"))
-    cal["recording_sha256"] = "0" * 64
-    (other / "calibration.json").write_text(json.dumps(cal), encoding="utf-8")
+    cal["recording_sha256"] = "0" * 64  # a genuine calibration (sealed) of another recording
+    (other / "calibration.json").write_text(json.dumps(with_integrity(cal)), encoding="utf-8")
     assert main(["certificate", str(other)]) == 2
     assert "different recording" in capsys.readouterr().err
     cal = json.loads((run_ok / "calibration.json").read_text(encoding="utf-8"))
@@ -202,7 +203,7 @@ def test_an_unidentified_limited_parameter_makes_the_result_inconclusive(run_ok,
     cal = json.loads((run / "calibration.json").read_text(encoding="utf-8"))
     for n in ("r_x", "r_y", "r_z"):
         cal["parameters"][n]["identifiable"] = False
-    (run / "calibration.json").write_text(json.dumps(cal), encoding="utf-8")
+    (run / "calibration.json").write_text(json.dumps(with_integrity(cal)), encoding="utf-8")  # as identified
     cert = build_certificate(run, issue_date=DATE, with_plots=False)
     assert cert.verdict == "INCONCLUSIVE"
     assert [p.verdict for p in cert.parameters if p.name.startswith("r_")] == ["NOT EVALUATED"] * 3
@@ -216,7 +217,7 @@ def test_decision_rule_with_an_uncertainty_as_large_as_the_limit(run_ok, tmp_pat
     shutil.copytree(run_ok, run)
     cal = json.loads((run / "calibration.json").read_text(encoding="utf-8"))
     cal["parameters"]["b_y"]["value"] = 0.0
-    (run / "calibration.json").write_text(json.dumps(cal), encoding="utf-8")
+    (run / "calibration.json").write_text(json.dumps(with_integrity(cal)), encoding="utf-8")  # as identified
     first = build_certificate(run, issue_date=DATE, with_plots=False)
     u = {p.name: p.expanded_uncertainty for p in first.parameters}
     x = {p.name: p.value for p in first.parameters}

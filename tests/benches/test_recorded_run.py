@@ -52,6 +52,8 @@ def test_one_run_parses_the_bench_once_and_compiles_the_procedure_once(tmp_path,
     offline = identify_run(out).to_dict()
     written = json.loads((out / "calibration.json").read_text(encoding="utf-8"))
     written.pop("live_vs_offline_max_u")
+    seal = written.pop("integrity")  # the tamper-evidence block save() adds (benches/calibration_integrity.py)
+    assert seal["recording_sha256"] == written["recording_sha256"] and len(seal["values_sha256"]) == 64
     assert offline == written
     # the recorded run, typed: header, the parsed bench and the compiled procedure of the recording
     with open_run(out) as rr:

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.identification.model import correct
-from benches.calibration_result import CalibrationResult
+from benches.calibration_integrity import load_verified
 from benches.cli.analysis_input import InputError, read_npy, recording_path
 from core.errors import UsageError
 from core.outputs import check_output, save_npy
@@ -55,7 +55,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def load_calibration_vector(path: str | Path) -> tuple[np.ndarray, list[str]]:
     """The parameter vector of a calibration.json (not-identified parameters zeroed) and their names."""
-    return CalibrationResult.load(path).compensation_vector()
+    return load_verified(path)[0].compensation_vector()  # refuses an edited or implausible file
 
 
 def run(args: argparse.Namespace) -> int:
@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     if not str(args.out).lower().endswith(".npy"):
         raise UsageError(f"--out {args.out}: give a .npy file name (the corrected samples are a NumPy array)")
     check_output(args.out)  # before the work: never over an input or a recording
-    cal = CalibrationResult.load(args.calibration)
+    cal = load_verified(args.calibration)[0]  # refuses an edited, unsealed or implausible file
     x, skipped = cal.compensation_vector()
     model = cal.error_model
     src = recording_path(args.input)

@@ -25,7 +25,8 @@ from typing import Any
 import numpy as np
 
 from analysis.identification.model import PARAM_NAMES, predict
-from benches.calibration_result import CalibrationFormatError, CalibrationResult
+from benches.calibration_integrity import load_verified, read_raw
+from benches.calibration_result import CalibrationResult
 from benches.certificate_register import CertificateRegister, RegisterError
 from benches.recording import RecordingError, open_recording
 from benches.results.recalibration import DEFAULT_CONFIGURATION, IntervalSettings, from_bench_text
@@ -60,12 +61,8 @@ def _load_calibration(run: Path) -> tuple[dict[str, Any], CalibrationResult]:
         raise RunRecordError(
             f"{path}: no calibration in this run folder; identify it first (tablebench identify {run})"
         )
-    result = CalibrationResult.load(path)  # the format's own checks (one clear line each)
-    try:
-        raw = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:  # pragma: no cover - load() above read it already
-        raise CalibrationFormatError(f"{path}: not readable ({exc})") from None
-    return raw, result
+    result, _digest = load_verified(path)  # format, integrity digest, plausible values (one line each)
+    return read_raw(path), result
 
 
 def calibration_digest(raw: Mapping[str, Any]) -> str:

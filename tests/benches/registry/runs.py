@@ -8,6 +8,7 @@ import os
 from pathlib import Path
 
 from analysis.identification.model import PARAM_NAMES
+from benches.calibration_integrity import with_integrity
 from tests.certificate_fixtures import calibration_fixture, record
 
 
@@ -34,7 +35,7 @@ class RunFactory:
             cal["run"]["created_utc"] = created_utc
         if serial is not None:
             cal["run"]["unit"]["serial_number"] = serial
-        (run / "calibration.json").write_text(json.dumps(cal, indent=1), encoding="utf-8")
+        (run / "calibration.json").write_text(json.dumps(with_integrity(cal), indent=1), encoding="utf-8")
         return run
 
 

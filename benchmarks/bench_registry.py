@@ -1,0 +1,210 @@
+"""Benchmark: the calibration registry with 10 000 calibrations — ``registry show`` and ``trend`` against the
+same query in plain SQL (issue 27; a technician waits well under a second).
+
+The store: 100 units × 100 calibrations (10 000 calibrations, 180 000 parameter rows, each calibration with its
+18 × 18 covariance as JSON), bulk-inserted through the registry's own schema (SQLite file; and PostgreSQL when
+its binaries are installed, on a throw-away server). For one unit (100 calibrations):
+
+- ``show``: the registry's history query and the history table (:func:`queries.history` +
+  :func:`report.history_table`) against one plain-SQL ``SELECT … JOIN …`` of the same columns through the
+  bare DB-API driver (sqlite3 / psycopg), fetched into Python;
+- ``trend``: the registry's series query with the control limits and E_n (no figure) against the plain-SQL
+  series; and the whole ``trend`` work with the PNG, and the whole command as a process (what the technician
+  waits for), in seconds.
+
+Ratios are medians of alternated repeats in the same run. Section "registry" of benchmarks/RESULTS.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from analysis.identification.model import PARAM_KINDS, PARAM_NAMES
+from benches.results.registry import Registry
+from benches.results.registry import schema as S
+from benches.results.registry.queries import history, series
+from benches.results.registry.report import en_between, history_table, plot_trend
+from benches.results.registry.stats import control_limits
+from benchmarks._results import write_section
+
+UNITS, PER_UNIT = 100, 100
+
+
+def populate(reg: Registry, seed: int = 1) -> None:
+    """UNITS × PER_UNIT synthetic calibrations (SI values around a typical unit, one month apart)."""
+    rng = np.random.default_rng(seed)
+    cov = json.dumps((np.eye(18) * 1e-12).tolist(), separators=(",", ":"))
+    names = json.dumps(list(PARAM_NAMES))
+    with reg.begin() as conn:
+        conn.execute(S.units.insert(), [{"id": u + 1, "serial": f"U-{u:04d}", "model": "SIM-QA",
+                                          "configuration": "1"} for u in range(UNITS)])  # fmt: skip
+        conn.execute(S.benches.insert(), [{"id": b + 1, "name": f"lab-{b}", "table_model": "T",
+                                            "table_serial": f"T{b}"} for b in range(3)])  # fmt: skip
+        cid = 0
+        for u in range(UNITS):
+            cals, params = [], []
+            base = rng.normal(0, 1e-4, 18)
+            for k in range(PER_UNIT):
+                cid += 1
+                month = k % 12 + 1
+                cals.append({
+                    "id": cid, "digest": f"{cid:064x}", "recording_sha256": f"{cid:064x}", "unit_id": u + 1,
+                    "bench_id": k % 3 + 1, "run_folder": f"/runs/u{u}/{k}", "run_utc": f"{2000 + k // 12:04d}-"
+                    f"{month:02d}-01T00:00:00Z", "recorded_utc": "2026-01-01T00:00:00Z", "procedure_name": "ten-step",
+                    "procedure_sha256": "0" * 64, "method": "kalman", "status": "complete", "operator": "bench",
+                    "software_version": "0.1.0", "parameter_names": names, "covariance": cov,
+                    "decision": "PASS", "certificate_number": f"TB-{cid:06d}", "supersedes": "",
+                })  # fmt: skip
+                x = base + rng.normal(0, 1e-6, 18)
+                params += [{"calibration_id": cid, "name": n, "kind": PARAM_KINDS[i], "value": float(x[i]),
+                            "u": 1e-6, "expanded": 2e-6, "identified": True, "budget": None}
+                           for i, n in enumerate(PARAM_NAMES)]  # fmt: skip
+            conn.execute(S.calibrations.insert(), cals)
+            conn.execute(S.parameters.insert(), params)
+
+
+PLAIN_SHOW = (
+    "SELECT c.id, c.run_utc, c.run_folder, c.digest, c.recording_sha256, c.procedure_name, c.procedure_sha256, "
+    "c.method, c.status, c.operator, c.decision, c.certificate_number, c.supersedes, c.covariance, "
+    "c.certificate_covariance, c.as_found, c.as_left, c.as_found_of, u.serial, u.model, u.configuration, "
+    "b.name, p.name, p.value, p.u, p.expanded, p.identified, p.budget "
+    "FROM calibrations c JOIN units u ON c.unit_id = u.id JOIN benches b ON c.bench_id = b.id "
+    "JOIN parameters p ON p.calibration_id = c.id WHERE u.serial = {ph} ORDER BY c.run_utc, c.id"
+)
+PLAIN_TREND = (
+    "SELECT c.run_utc, p.value, p.u, p.expanded, p.identified FROM parameters p "
+    "JOIN calibrations c ON p.calibration_id = c.id JOIN units u ON c.unit_id = u.id "
+    "WHERE u.serial = {ph} AND p.name = {ph} ORDER BY c.run_utc, c.id"
+)
+
+
+def plain(url: str, sql: str, args: tuple) -> list:
+    """The query through the bare DB-API driver (a new connection, as a command would open)."""
+    if url.startswith("sqlite"):
+        import sqlite3
+
+        con = sqlite3.connect(url.split(":///", 1)[1])
+        try:
+            return con.execute(sql.format(ph="?"), args).fetchall()
+        finally:
+            con.close()
+    import psycopg
+
+    with psycopg.connect(url.replace("postgresql+psycopg://", "postgresql://")) as con:
+        return con.execute(sql.format(ph="%s"), args).fetchall()
+
+
+def ours_show(url: str, serial: str) -> str:
+    reg = Registry(url)
+    try:
+        return history_table(history(reg, serial))
+    finally:
+        reg.close()
+
+
+def ours_trend(url: str, serial: str) -> list:
+    reg = Registry(url)
+    try:
+        s = series(reg, serial, "b_x")
+        control_limits([p["value"] for p in s if p["identified"]])
+        return s
+    finally:
+        reg.close()
+
+
+def timed(fn, *a) -> float:  # noqa: ANN001
+    t0 = time.perf_counter()
+    fn(*a)
+    return time.perf_counter() - t0
+
+
+def measure(url: str, repeats: int, tmp: Path) -> dict[str, float]:
+    serial = "U-0042"
+    out: dict[str, list[float]] = {k: [] for k in ("show", "show_sql", "trend", "trend_sql")}
+    for _ in range(repeats):  # alternated
+        out["show"].append(timed(ours_show, url, serial))
+        out["show_sql"].append(timed(plain, url, PLAIN_SHOW, (serial,)))
+        out["trend"].append(timed(ours_trend, url, serial))
+        out["trend_sql"].append(timed(plain, url, PLAIN_TREND, (serial, "b_x")))
+    med = {k: statistics.median(v) for k, v in out.items()}
+    reg = Registry(url)
+    rows = history(reg, serial)
+    en_between(rows[0], rows[1])
+    med["trend_png"] = statistics.median(timed(plot_trend, rows, "b_x", tmp / "t.png") for _ in range(3))
+    reg.close()
+    cli = [sys.executable, "-m", "benches.cli", "registry"]
+    med["cli_show"] = statistics.median(
+        timed(subprocess.run, [*cli, "show", serial, "--registry", url], capture_output=True) for _ in range(3))
+    med["cli_trend"] = statistics.median(timed(
+        subprocess.run, [*cli, "trend", serial, "--param", "b_x", "--out", str(tmp / "c.png"), "--registry", url],
+        capture_output=True) for _ in range(3))  # fmt: skip
+    return med
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=15)
+    args = ap.parse_args()
+    tmp = Path(tempfile.mkdtemp(prefix="tb-registry-bench-"))
+    engines: dict[str, str] = {"SQLite": f"sqlite:///{tmp / 'registry.sqlite'}"}
+    server = None
+    try:
+        from tests.benches.registry.pgserver import PostgresServer, find_binaries
+
+        bindir = find_binaries()
+        if bindir is not None:
+            server = PostgresServer(bindir)
+            server.start()
+            engines["PostgreSQL 15"] = server.new_database()
+    except Exception as exc:  # noqa: BLE001 - the benchmark still reports SQLite
+        print(f"PostgreSQL not measured: {exc}", file=sys.stderr)
+    rows = []
+    try:
+        for name, url in engines.items():
+            t0 = time.perf_counter()
+            populate(Registry(url))
+            fill = time.perf_counter() - t0
+            m = measure(url, args.repeats, tmp)
+            rows.append((name, fill, m))
+            print(name, {k: round(v, 4) for k, v in m.items()}, file=sys.stderr)
+    finally:
+        if server is not None:
+            server.stop()
+    body = [
+        f"{UNITS} units × {PER_UNIT} calibrations = {UNITS * PER_UNIT} calibrations ({UNITS * PER_UNIT * 18} "
+        "parameter rows, each calibration with its 18 × 18 covariance); one unit's history (100 calibrations). "
+        f"Medians of {args.repeats} alternated repeats; each call opens the registry as a command does. "
+        "Plain SQL: the same rows by one hand-written JOIN through the bare DB-API driver (sqlite3 / psycopg).",
+        "",
+        "| engine | fill (s) | show (ms) | plain SQL (ms) | ratio | trend query (ms) | plain SQL (ms) | ratio | "
+        "trend + PNG (ms) | `registry show` process (s) | `registry trend` process (s) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, fill, m in rows:
+        body.append(
+            f"| {name} | {fill:.1f} | {m['show'] * 1e3:.1f} | {m['show_sql'] * 1e3:.1f} | "
+            f"{m['show'] / m['show_sql']:.1f}× | {m['trend'] * 1e3:.1f} | {m['trend_sql'] * 1e3:.1f} | "
+            f"{m['trend'] / m['trend_sql']:.1f}× | {m['trend_png'] * 1e3:.0f} | {m['cli_show']:.2f} | "
+            f"{m['cli_trend']:.2f} |"
+        )
+    body += [
+        "",
+        "show/trend include opening the registry (engine, schema-version check) and, for show, the history table "
+        "with s_r/s_R per parameter; the process columns are what the technician waits for (Python start-up, "
+        "imports, query, table or figure), on a shared 2-core machine.",
+    ]
+    title = "Calibration registry: show and trend with 10 000 calibrations (issue 27)"
+    write_section("registry", title, "\n".join(body))
+
+
+if __name__ == "__main__":
+    main()
