@@ -199,22 +199,7 @@ def execute(
             if world is not None:
                 truth = dict(world.truth())
                 truth.update(world.truth_arrays())
-            attrs = {
-                "software_version": software_version(),
-                "seed": -1 if seed is None else int(seed),
-                "bench_name": config.name,
-                "bench_file": str(prep.bench_path),
-                "procedure_name": compiled.name,
-                "procedure_file": str(prep.procedure_path),
-                "procedure_sha256": compiled.sha256,
-                "procedure_overrides": dict(prep.overrides),
-                "bench_sha256": text_sha256(config.text),
-                "sample_rate_hz": float(config.unit.sample_rate),
-                "simulated": world is not None,
-                "transport": bench.transport,
-                "site_g": float(config.site.g),
-                "site_g_source": config.site.g_source,
-            }
+            attrs = _header_attrs(prep, seed, world is not None, bench.transport)
             scale = getattr(config.unit, "scale", None)
             quanta = {"time": 1e-9}  # the unit clock in ns (drivers decode time stamps as ns · 1e-9)
             if scale is not None:
@@ -264,6 +249,27 @@ def plateau_soak(steps: list[Step], done: set[int]) -> Step | None:
         return None
     soaks = [s for s in steps if isinstance(s, Soak) and s.index < first.index]
     return soaks[-1] if soaks else None
+
+
+def _header_attrs(prep: Prepared, seed: int | None, simulated: bool, transport: str) -> dict[str, object]:
+    """The recording's root attributes of a new run (``benches/RECORDING.md``)."""
+    config, compiled = prep.config, prep.compiled
+    return {
+        "software_version": software_version(),
+        "seed": -1 if seed is None else int(seed),
+        "bench_name": config.name,
+        "bench_file": str(prep.bench_path),
+        "procedure_name": compiled.name,
+        "procedure_file": str(prep.procedure_path),
+        "procedure_sha256": compiled.sha256,
+        "procedure_overrides": dict(prep.overrides),
+        "bench_sha256": text_sha256(config.text),
+        "sample_rate_hz": float(config.unit.sample_rate),
+        "simulated": simulated,
+        "transport": transport,
+        "site_g": float(config.site.g),
+        "site_g_source": config.site.g_source,
+    }
 
 
 def copy_inputs(prep: Prepared, folder: Path) -> None:

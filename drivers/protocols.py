@@ -134,6 +134,28 @@ class AxisLimits:
         a = float(accel)
         return math.isfinite(a) and abs(a) <= self.accel_max + _slack(self.accel_max)
 
+    def check_position(self, angle: float, axis: int) -> float:
+        """``angle`` (rad) of gimbal ``axis`` (0 outer, 1 middle, 2 inner) if allowed; else :class:`TableError`
+        naming the axis and its limits (the command is refused before anything is sent)."""
+        if not self.allows_position(angle):
+            raise TableError(
+                f"move_to: {AXIS_NAMES[axis]} axis angle {math.degrees(float(angle)):.4f}° outside its limits "
+                f"{self.position_range_text()}; nothing was sent"
+            )
+        return float(angle)
+
+    def check_rate(self, rate: float, axis: int) -> float:
+        """``rate`` (rad/s, signed) of gimbal ``axis`` if within the rate limit; else :class:`TableError`."""
+        r = float(rate)
+        if not math.isfinite(r):
+            raise TableError(f"spin: rate must be finite, got {rate!r}")
+        if not self.allows_rate(r):
+            raise TableError(
+                f"spin: {AXIS_NAMES[axis]} axis rate {math.degrees(r):.4f} °/s exceeds its limit "
+                f"{math.degrees(self.rate_max):.4f} °/s; nothing was sent"
+            )
+        return r
+
     def position_range_text(self) -> str:
         """The position limits in degrees for messages, e.g. ``"[-90°, 90°]"`` or ``"continuous"``."""
         if self.continuous:
@@ -181,6 +203,27 @@ class TableState:
 
 class TableError(RuntimeError):
     """A turntable command was refused or the controller reported a fault."""
+
+
+def check_angles(angles: object, limits: tuple[AxisLimits, AxisLimits, AxisLimits]) -> NDArray[np.float64]:
+    """Validate an absolute-angle command (rad; outer, middle, inner) against the limits; return it as (3,)
+    float (:meth:`AxisLimits.check_position` per axis). :class:`TableError` before anything is sent."""
+    a = np.asarray(angles, dtype=float).reshape(-1)
+    if a.shape != (3,):
+        raise TableError(f"move_to needs 3 gimbal angles (outer, middle, inner) in rad, got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise TableError(f"move_to: angles must be finite, got {a.tolist()}")
+    for i, (x, lim) in enumerate(zip(a, limits, strict=True)):
+        lim.check_position(float(x), i)
+    return a
+
+
+def check_spin(axis: object, rate: float, limits: tuple[AxisLimits, AxisLimits, AxisLimits]) -> tuple[int, float]:
+    """Validate a rate command (axis 0/1/2, rad/s) against the limits (:meth:`AxisLimits.check_rate`)."""
+    if not isinstance(axis, int | np.integer) or not 0 <= int(axis) <= 2:
+        raise TableError(f"spin: axis must be 0 (outer), 1 (middle) or 2 (inner), got {axis!r}")
+    ax = int(axis)
+    return ax, limits[ax].check_rate(rate, ax)
 
 
 class LinkError(ConnectionError):
@@ -289,4 +332,59 @@ class InertialUnit(Protocol):
 
     def close(self) -> None:
         """Release the driver."""
+        ...
+
+
+# ---- auxiliary devices: small capability protocols (after bluesky's protocols.py) --------------------------------
+
+
+@dataclass(frozen=True)
+class Reading:
+    """One reading of an auxiliary device: named channels in SI with their units.
+
+    Attributes
+    ----------
+    values : dict
+        Channel name → value, SI (K, Pa, m/s², …).
+    units : dict
+        Channel name → the SI unit of its value (``"K"``); every channel of ``values`` has one.
+    time : float or None
+        The device's own time stamp, s, when it gives one (None: the bench stamps the reading with bench time).
+    """
+
+    values: dict[str, float]
+    units: dict[str, str]
+    time: float | None = None
+
+
+@runtime_checkable
+class Readable(Protocol):
+    """A device that can be read (bluesky's ``Readable``: ``read()`` with units; here one :class:`Reading`)."""
+
+    def read(self) -> Reading:
+        """The current values of every channel, SI, with their units."""
+        ...
+
+    def close(self) -> None:
+        """Release the driver (the factory closes the link after it)."""
+        ...
+
+
+@runtime_checkable
+class Settable(Readable, Protocol):
+    """A readable device with a set point (bluesky's ``Movable``): a temperature chamber, a rate source, …
+
+    ``set`` returns at once; the runner waits on ``settled()`` counting bench time, so a wait is never a sleep.
+    """
+
+    def set(self, setpoint: float) -> None:
+        """Command a new set point (SI: K for a temperature); raises on a refused command."""
+        ...
+
+    def settled(self) -> bool:
+        """True when the device has reached and holds its set point by its own criterion."""
+        ...
+
+    def status(self) -> str:
+        """One line for the event log (set point, measured value, state)."""
         ...

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
@@ -20,6 +20,7 @@ import numpy as np
 
 from analysis.gimbal import ENU_DIRECTIONS
 from analysis.units import celsius_to_kelvin, from_display
+from core.declare import REQUIRED, Field, Section, number
 from core.provenance import text_sha256
 from core.yaml_source import ConfigError, KeyPath, SourceMap, load_yaml, load_yaml_text
 
@@ -365,6 +366,62 @@ def _parse_steps(ctx: _Ctx, items: Any, path: KeyPath, prefix: str) -> tuple[Ste
     return tuple(_parse_step(ctx, item, path + (i,), prefix) for i, item in enumerate(items))
 
 
+class _StepReader:
+    """Reads declared step fields (:mod:`core.declare`) with the loader's messages: ``step 'label': key: …``."""
+
+    def __init__(self, ctx: _Ctx, label: str) -> None:
+        self.ctx, self.label = ctx, label
+
+    def check_keys(self, d: Mapping[str, Any], smap: SourceMap, path: KeyPath, allowed: Sequence[str]) -> None:
+        _keys(self.ctx, d, path, self.label, tuple(allowed))
+
+    def read(self, f: Field, d: Mapping[str, Any], smap: SourceMap, path: KeyPath, default: Any) -> Any:
+        v = _num(
+            self.ctx,
+            d,
+            path,
+            self.label,
+            f.key,
+            required=default is REQUIRED,
+            minimum=None if f.exclusive_minimum else f.minimum,
+            positive=f.exclusive_minimum,
+            integer=f.kind == "integer",
+            maximum=f.maximum,
+            what=f.what,
+        )
+        return default if v is None else v * f.unit
+
+
+_SETTLE = number("settle_s", None, minimum=0.0, maximum=MAX_SECONDS, what="seconds >= 0", attr="settle")
+_POSITIVE_SECONDS = {"minimum": 0.0, "exclusive_minimum": True, "maximum": MAX_SECONDS, "what": "seconds > 0"}
+_COUNT = {"minimum": 0.0, "exclusive_minimum": True, "maximum": MAX_COUNT, "what": "a whole number >= 1"}
+
+WARMUP = Section(number("duration_s", **_POSITIVE_SECONDS, attr="duration"), _SETTLE,
+                 order=("name", "duration_s", "at", "settle_s"))  # fmt: skip
+"""``warmup:`` (``at`` is an attitude, read by :func:`_attitude`)."""
+HOLD = Section(number("duration_s", None, **_POSITIVE_SECONDS, attr="duration"), _SETTLE,
+               order=("name", "duration_s", "settle_s"))  # fmt: skip
+"""``hold:`` (``duration_s`` defaults to the procedure's ``defaults.hold_s``)."""
+STEP_ROTATE = Section(
+    number("angle_deg", what="degrees, non-zero", attr="angle"),
+    Field("count", "integer", default=None, **_COUNT),
+    number("hold_s", None, minimum=0.0, maximum=MAX_SECONDS, what="seconds >= 0", attr="hold"),
+    _SETTLE,
+    order=("name", "axis", "angle_deg", "count", "hold_s", "settle_s"),
+)
+"""``step_rotate:`` (``axis`` is a signed body axis, read by :func:`_body_axis`)."""
+SPIN = Section(
+    number("rate_dps", minimum=-MAX_RATE_DPS, maximum=MAX_RATE_DPS, what="°/s, non-zero", attr="rate"),
+    number("revolutions", None, minimum=0.0, exclusive_minimum=True, maximum=MAX_REVOLUTIONS, what="a number > 0"),
+    number("duration_s", None, **_POSITIVE_SECONDS, attr="duration"),
+    _SETTLE,
+    order=("name", "axis", "rate_dps", "direction", "revolutions", "duration_s", "settle_s"),
+)
+"""``spin:`` (``axis`` and ``direction`` are read by hand)."""
+REPEAT = Section(Field("count", "integer", **_COUNT), order=("count", "steps"))
+"""``repeat:`` (``steps`` is a nested list)."""
+
+
 def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
     line = ctx.smap.line(path)
     label0 = prefix or f"steps[{path[-1]}]"
@@ -396,130 +453,133 @@ def _parse_step(ctx: _Ctx, item: Any, path: KeyPath, prefix: str) -> StepSpec:
             _leaf_label(prefix, kind, None),
             f"name: {name!r} is not allowed; use letters, digits, _ . + -",
         )
-    label = _leaf_label(prefix, kind, name)
-    sett = ("settle_s",)
-    if kind == WarmupSpec.kind:
-        _keys(ctx, body, bpath, label, ("name", "duration_s", "at") + sett)
-        at = None
-        if "at" in body:
-            if not isinstance(body["at"], dict):
-                raise ctx.err(bpath + ("at",), label, "at: expected an attitude like {x: East, y: North, z: Up}")
-            _keys(ctx, body["at"], bpath + ("at",), label, ("x", "y", "z", "angles_deg"))
-            at = _attitude(ctx, body["at"], bpath + ("at",), label)
-        dur = _num(ctx, body, bpath, label, "duration_s", positive=True, maximum=MAX_SECONDS, what="seconds > 0")
-        return WarmupSpec(line, label, name, duration=dur or 0.0, at=at, settle=_settle(ctx, body, bpath, label))
-    if kind == OrientSpec.kind:
-        _keys(ctx, body, bpath, label, ("name", "x", "y", "z", "angles_deg"))
-        return OrientSpec(line, label, name, attitude=_attitude(ctx, body, bpath, label))
-    if kind == HoldSpec.kind:
-        _keys(ctx, body, bpath, label, ("name", "duration_s") + sett)
-        dur = _optional_duration(ctx, body, bpath, label)
-        if dur is None:
-            if ctx.defaults.hold is None:
-                raise ctx.err(bpath, label, "duration_s is required (seconds > 0) unless defaults.hold_s is set")
-            dur = ctx.defaults.hold
-        return HoldSpec(line, label, name, duration=dur, settle=_settle(ctx, body, bpath, label))
-    if kind == StepRotateSpec.kind:
-        _keys(ctx, body, bpath, label, ("name", "axis", "angle_deg", "count", "hold_s") + sett)
-        axis = _body_axis(ctx, body, bpath, label)
-        ang = _num(ctx, body, bpath, label, "angle_deg", what="degrees, non-zero")
-        assert ang is not None
-        if ang == 0 or abs(ang) > 360:
-            raise ctx.err(
-                bpath + ("angle_deg",), label, f"angle_deg: {ang:g} is not allowed; use a non-zero angle in [-360, 360]"
-            )
-        count = _num(
-            ctx,
-            body,
-            bpath,
-            label,
-            "count",
-            required=False,
-            positive=True,
-            integer=True,
-            maximum=MAX_COUNT,
-            what="a whole number >= 1",
-        )
-        hold = _num(
-            ctx, body, bpath, label, "hold_s", required=False, minimum=0.0, maximum=MAX_SECONDS, what="seconds >= 0"
-        )
-        if hold is None:
-            if ctx.defaults.hold is None:
-                raise ctx.err(bpath, label, "hold_s is required (seconds >= 0) unless defaults.hold_s is set")
-            hold = ctx.defaults.hold
-        return StepRotateSpec(
-            line,
-            label,
-            name,
-            axis=axis,
-            angle=from_display("angle", ang),
-            count=int(count or 1),
-            hold=hold,
-            settle=_settle(ctx, body, bpath, label),
-        )
-    if kind == SpinSpec.kind:
-        _keys(ctx, body, bpath, label, ("name", "axis", "rate_dps", "direction", "revolutions", "duration_s") + sett)
-        axis = _body_axis(ctx, body, bpath, label)
-        rate = _num(
-            ctx, body, bpath, label, "rate_dps", minimum=-MAX_RATE_DPS, maximum=MAX_RATE_DPS, what="°/s, non-zero"
-        )
-        assert rate is not None
-        if rate == 0:
-            raise ctx.err(bpath + ("rate_dps",), label, "rate_dps: 0 is not allowed; a spin needs a non-zero rate")
-        direction = body.get("direction")
-        if direction is not None:
-            if direction not in ("positive", "negative", "both"):
-                raise ctx.err(
-                    bpath + ("direction",),
-                    label,
-                    f"direction: {direction!r} is not allowed; choose positive, negative or both",
-                )
-            if rate < 0:
-                raise ctx.err(
-                    bpath + ("rate_dps",),
-                    label,
-                    "rate_dps must be positive when direction is given (the sign comes from direction)",
-                )
-        r = from_display("rate", rate)
-        rates = {None: (r,), "positive": (r,), "negative": (-r,), "both": (r, -r)}[direction]
-        revs = _num(
-            ctx,
-            body,
-            bpath,
-            label,
-            "revolutions",
-            required=False,
-            positive=True,
-            maximum=MAX_REVOLUTIONS,
-            what="a number > 0",
-        )
-        dur = _optional_duration(ctx, body, bpath, label)
-        if (revs is None) == (dur is None):
-            raise ctx.err(bpath, label, "give exactly one of revolutions or duration_s")
-        settle = _num(
-            ctx, body, bpath, label, "settle_s", required=False, minimum=0.0, maximum=MAX_SECONDS, what="seconds >= 0"
-        )
-        return SpinSpec(line, label, name, axis=axis, rates=rates, revolutions=revs, duration=dur, settle=settle)
-    if kind in (SoakSpec.kind, RampSpec.kind):
-        return _parse_thermal(ctx, kind, body, bpath, label, line, name, prefix)
-    if kind == RepeatSpec.kind:
-        _keys(ctx, body, bpath, label, ("count", "steps"))
-        count = _num(
-            ctx, body, bpath, label, "count", positive=True, integer=True, maximum=MAX_COUNT, what="a whole number >= 1"
-        )
-        if "steps" not in body:
-            raise ctx.err(bpath, label, "steps is required (the list of steps to repeat)")
-        steps = _parse_steps(ctx, body["steps"], bpath + ("steps",), prefix)
-        return RepeatSpec(line, label, None, count=int(count or 1), steps=steps)
-    # group
-    _keys(ctx, body, bpath, label, ("name", "steps"))
-    if name is None:
-        raise ctx.err(bpath, label, "name is required (e.g. name: A); it prefixes the group's step names")
-    if "steps" not in body:
-        raise ctx.err(bpath, label, "steps is required (the group's list of steps)")
-    gname = f"{prefix}/{name}" if prefix else name
-    steps = _parse_steps(ctx, body["steps"], bpath + ("steps",), gname)
-    return GroupSpec(line, label, name, group=gname, steps=steps)
+    step = _StepBody(ctx, line, _leaf_label(prefix, kind, name), name, body, bpath, prefix)
+    return _STEP_PARSERS[kind](step)
+
+
+@dataclass(frozen=True)
+class _StepBody:
+    """One step's mapping with where it is (the per-kind parsers' argument)."""
+
+    ctx: _Ctx
+    line: int | None
+    label: str
+    name: str | None
+    body: dict[str, Any]
+    path: KeyPath
+    prefix: str
+
+    def read(self, section: Section, check: bool = True) -> dict[str, Any]:
+        """The section's declared fields of this step (SI), with the loader's messages."""
+        reader = _StepReader(self.ctx, self.label)
+        return section.read(self.body, self.ctx.smap, self.path, check=check, reader=reader)
+
+    def check_keys(self, section: Section) -> None:
+        """Refuse a key the step kind does not take."""
+        _keys(self.ctx, self.body, self.path, self.label, tuple(section.keys()))
+
+    def err(self, key: str | None, message: str) -> ConfigError:
+        """An error at the step (``key`` None) or at one of its keys."""
+        return self.ctx.err(self.path if key is None else self.path + (key,), self.label, message)
+
+
+def _warmup(s: _StepBody) -> StepSpec:
+    s.check_keys(WARMUP)
+    at = None
+    if "at" in s.body:
+        if not isinstance(s.body["at"], dict):
+            raise s.err("at", "at: expected an attitude like {x: East, y: North, z: Up}")
+        _keys(s.ctx, s.body["at"], s.path + ("at",), s.label, ("x", "y", "z", "angles_deg"))
+        at = _attitude(s.ctx, s.body["at"], s.path + ("at",), s.label)
+    v = s.read(WARMUP, check=False)
+    return WarmupSpec(s.line, s.label, s.name, duration=v["duration"] or 0.0, at=at, settle=v["settle"])
+
+
+def _orient(s: _StepBody) -> StepSpec:
+    _keys(s.ctx, s.body, s.path, s.label, ("name", "x", "y", "z", "angles_deg"))
+    return OrientSpec(s.line, s.label, s.name, attitude=_attitude(s.ctx, s.body, s.path, s.label))
+
+
+def _hold(s: _StepBody) -> StepSpec:
+    v = s.read(HOLD)
+    if v["duration"] is None:
+        if s.ctx.defaults.hold is None:
+            raise s.err(None, "duration_s is required (seconds > 0) unless defaults.hold_s is set")
+        v["duration"] = s.ctx.defaults.hold
+    return HoldSpec(s.line, s.label, s.name, **v)
+
+
+def _step_rotate(s: _StepBody) -> StepSpec:
+    s.check_keys(STEP_ROTATE)
+    axis = _body_axis(s.ctx, s.body, s.path, s.label)
+    v = s.read(STEP_ROTATE, check=False)
+    ang = v["angle"]
+    if ang == 0 or abs(ang) > 360:
+        raise s.err("angle_deg", f"angle_deg: {ang:g} is not allowed; use a non-zero angle in [-360, 360]")
+    if v["hold"] is None:
+        if s.ctx.defaults.hold is None:
+            raise s.err(None, "hold_s is required (seconds >= 0) unless defaults.hold_s is set")
+        v["hold"] = s.ctx.defaults.hold
+    return StepRotateSpec(
+        s.line, s.label, s.name, axis=axis, angle=from_display("angle", ang), count=int(v["count"] or 1),
+        hold=v["hold"], settle=v["settle"],
+    )  # fmt: skip
+
+
+def _spin(s: _StepBody) -> StepSpec:
+    s.check_keys(SPIN)
+    axis = _body_axis(s.ctx, s.body, s.path, s.label)
+    v = s.read(SPIN, check=False)
+    rate = v["rate"]
+    if rate == 0:
+        raise s.err("rate_dps", "rate_dps: 0 is not allowed; a spin needs a non-zero rate")
+    direction = s.body.get("direction")
+    if direction is not None:
+        if direction not in ("positive", "negative", "both"):
+            raise s.err("direction", f"direction: {direction!r} is not allowed; choose positive, negative or both")
+        if rate < 0:
+            raise s.err("rate_dps", "rate_dps must be positive when direction is given (the sign comes from direction)")
+    r = from_display("rate", rate)
+    rates = {None: (r,), "positive": (r,), "negative": (-r,), "both": (r, -r)}[direction]
+    if (v["revolutions"] is None) == (v["duration"] is None):
+        raise s.err(None, "give exactly one of revolutions or duration_s")
+    return SpinSpec(
+        s.line, s.label, s.name, axis=axis, rates=rates, revolutions=v["revolutions"], duration=v["duration"],
+        settle=v["settle"],
+    )  # fmt: skip
+
+
+def _repeat(s: _StepBody) -> StepSpec:
+    count = s.read(REPEAT)["count"]
+    if "steps" not in s.body:
+        raise s.err(None, "steps is required (the list of steps to repeat)")
+    steps = _parse_steps(s.ctx, s.body["steps"], s.path + ("steps",), s.prefix)
+    return RepeatSpec(s.line, s.label, None, count=int(count or 1), steps=steps)
+
+
+def _group(s: _StepBody) -> StepSpec:
+    _keys(s.ctx, s.body, s.path, s.label, ("name", "steps"))
+    if s.name is None:
+        raise s.err(None, "name is required (e.g. name: A); it prefixes the group's step names")
+    if "steps" not in s.body:
+        raise s.err(None, "steps is required (the group's list of steps)")
+    gname = f"{s.prefix}/{s.name}" if s.prefix else s.name
+    steps = _parse_steps(s.ctx, s.body["steps"], s.path + ("steps",), gname)
+    return GroupSpec(s.line, s.label, s.name, group=gname, steps=steps)
+
+
+_STEP_PARSERS: dict[str, Callable[[_StepBody], StepSpec]] = {
+    WarmupSpec.kind: _warmup,
+    OrientSpec.kind: _orient,
+    HoldSpec.kind: _hold,
+    StepRotateSpec.kind: _step_rotate,
+    SpinSpec.kind: _spin,
+    RepeatSpec.kind: _repeat,
+    GroupSpec.kind: _group,
+    SoakSpec.kind: lambda s: _parse_thermal(s.ctx, SoakSpec.kind, s.body, s.path, s.label, s.line, s.name, s.prefix),
+    RampSpec.kind: lambda s: _parse_thermal(s.ctx, RampSpec.kind, s.body, s.path, s.label, s.line, s.name, s.prefix),
+}
+"""The parser of each step kind (a new kind: its spec class in ``SPEC_TYPES`` and its parser here)."""
 
 
 SOAK_KEYS = ("tolerance_k", "rate_k_per_min", "dwell_s", "timeout_s", "self_heating_k")

@@ -168,9 +168,8 @@ def _fmt_opt(v: object, spec: str, suffix: str = "") -> str:
     return f"{format(float(v), spec)}{suffix}"  # type: ignore[arg-type]
 
 
-def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
-    pdf.add_page()
-    # title block
+def _title_block(pdf: _CertificatePdf, c: Certificate) -> None:
+    """The title block, the issuer, and the simulated-bench and incomplete-run banners of page 1."""
     pdf.set_fill_color(*_DARK)
     pdf.rect(pdf.l_margin, 12, pdf.epw, 20, style="F")
     pdf.set_xy(pdf.l_margin + 4, 14)
@@ -222,6 +221,11 @@ def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
         pdf.set_line_width(0.2)
         pdf.set_text_color(0, 0, 0)
         pdf.ln(2)
+
+
+def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
+    pdf.add_page()
+    _title_block(pdf, c)
     # verdict box
     col = _VERDICT_COLOURS.get(c.verdict, (90, 90, 90))
     pdf.set_draw_color(*col)

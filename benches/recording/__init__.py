@@ -27,11 +27,13 @@ No module outside this package imports h5py or names a dataset path.
 
 from .encoding import _encode_chunk, _fletcher32
 from .layout import (
+    AUX_NAME,
     FORMAT,
     FORMAT_VERSION,
     READABLE_VERSIONS,
     RECORDING_NAME,
     STATUS_VALUES,
+    AuxReadings,
     Event,
     RecordingDamaged,
     RecordingError,
@@ -48,6 +50,8 @@ from .salvage import salvage, write_decoded_samples
 from .writer import Hdf5Recorder, Recorder, storage_filters
 
 __all__ = [
+    "AUX_NAME",
+    "AuxReadings",
     "TimeSources",
     "FORMAT",
     "FORMAT_VERSION",

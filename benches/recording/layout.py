@@ -7,6 +7,7 @@ Part of the package :mod:`benches.recording`, the one place that knows the HDF5 
 from __future__ import annotations
 
 import datetime as _dt
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -226,6 +227,23 @@ class Event:
     wall_utc: str
     level: str
     message: str
+
+
+@dataclass(frozen=True)
+class AuxReadings:
+    """The readings of one auxiliary device (``/aux/<name>``): bench time (N,) s and channels (N,) SI, with units."""
+
+    name: str
+    time: NDArray[np.float64]
+    channels: dict[str, NDArray[np.float64]]
+    units: dict[str, str]
+
+    def __len__(self) -> int:
+        return int(self.time.shape[0])
+
+
+AUX_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,63}")
+"""An auxiliary device's name (its group under ``/aux``)."""
 
 
 @dataclass(frozen=True)

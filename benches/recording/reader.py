@@ -31,6 +31,7 @@ from .layout import (
     TABLE_FIELDS,
     TIMING_BLOCK,
     TIMING_TABLE,
+    AuxReadings,
     Event,
     RecordingDamaged,
     RecordingError,
@@ -411,6 +412,8 @@ class Recording:
         self.bench_text  # noqa: B018 - read for its checksums
         self.procedure_text  # noqa: B018
         self.truth()
+        for name in self.aux_names():
+            self.aux(name)
 
     # ---- typed access ------------------------------------------------------------------------------------
     def _read_text(self, name: str) -> str:
@@ -583,6 +586,31 @@ class Recording:
             return [
                 Event(float(r["time"]), _text(r["wall_utc"]), _text(r["level"]), _text(r["message"])) for r in rows
             ]
+
+    def aux_names(self) -> list[str]:
+        """The auxiliary devices recorded (``/aux/<name>``), in name order."""
+        if "aux" not in self._f:
+            return []
+        with self._guard("/aux"):
+            return sorted(str(k) for k in self._f["aux"])
+
+    def aux(self, name: str) -> AuxReadings:
+        """The readings of auxiliary device ``name`` (RecordingError listing the recorded ones if absent)."""
+        if name not in self.aux_names():
+            raise RecordingError(
+                f"{self.path}: no auxiliary device {name!r} recorded; recorded: {', '.join(self.aux_names()) or 'none'}"
+            )
+        with self._guard(f"/aux/{name}"):
+            g = self._f["aux"][name]
+            time = np.asarray(g["time"][()], dtype=np.float64)
+            channels = {str(k): np.asarray(d[()], dtype=np.float64) for k, d in g.items() if k != "time"}
+            units = {str(k): _text(d.attrs.get("unit", "")) for k, d in g.items() if k != "time"}
+        for ch, v in channels.items():
+            if v.shape != time.shape:
+                raise RecordingDamaged(
+                    f"{self.path}: dataset /aux/{name}/{ch} has {v.shape[0]} rows, /aux/{name}/time {time.shape[0]}"
+                )
+        return AuxReadings(name, time, channels, units)
 
     def truth(self) -> Truth | None:
         """The simulator's truth (simulated benches), or None."""

@@ -16,7 +16,7 @@ import h5py
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.protocols import ImuBlock, TableState
+from drivers.protocols import ImuBlock, Reading, TableState
 
 from .encoding import _COUNT_DTYPE, EXC_DTYPE, _append_rows, _ChunkWriter, _quantise, _StepHasher, _stored_rows
 from .layout import (
@@ -29,6 +29,7 @@ from .layout import (
     _STATUS_LEN,
     _TABLE_DTYPES,
     _WIDTH,
+    AUX_NAME,
     EVENT_DTYPE,
     FORMAT,
     FORMAT_VERSION,
@@ -140,6 +141,7 @@ class Hdf5Recorder:
         self._buf_timing: list[tuple[int, float, float, float]] = []  # per reading: sample index, controller, host
         self._buf_blocks: list[tuple[int, float]] = []  # per block: end sample, host receive time
         self._buf_events: list[tuple[float, str, str, str]] = []
+        self._buf_aux: dict[str, list[tuple[float, Reading]]] = {}
         self._buffered = 0
         self._closed = False
         self._filters = storage_filters(compression)
@@ -338,6 +340,13 @@ class Hdf5Recorder:
         """Buffer an event-log line."""
         self._buf_events.append((float(time), _utc_now(), level, message))
 
+    def add_aux(self, name: str, time: float, reading: Reading) -> None:
+        """Buffer one reading of the auxiliary device ``name`` at bench time ``time`` (s); written at the next
+        full checkpoint under ``/aux/<name>`` (``benches/RECORDING.md``)."""
+        if not AUX_NAME.fullmatch(name):
+            raise RecordingError(f"auxiliary device name {name!r}: use letters, digits, '_' and '-' only")
+        self._buf_aux.setdefault(name, []).append((float(time), reading))
+
     def checkpoint(self, full: bool = True, wait: bool = True) -> None:
         """Write buffered samples, table readings and events, then flush the file (RecordingError if it fails).
 
@@ -424,6 +433,9 @@ class Hdf5Recorder:
             )
             _append_rows(f["events"], rows)
             self._buf_events.clear()
+        if self._buf_aux:
+            _write_aux(f, self._buf_aux)
+            self._buf_aux.clear()
         f.flush()
 
     def end_step(self, record: StepRecord) -> None:
@@ -534,3 +546,33 @@ def _write_text(f: h5py.File, name: str, text: str, filters: dict[str, Any]) -> 
     b = text.encode("utf-8")
     n = max(1, len(b))
     f.create_dataset(name, data=np.array([b], dtype=_fixed(n)), chunks=(1,), fletcher32=True)
+
+
+def _aux_dataset(g: h5py.Group, name: str, rows: int, unit: str) -> h5py.Dataset:
+    """``g[name]`` (float64, Fletcher-32), created NaN-filled to ``rows`` rows if new."""
+    if name in g:
+        return g[name]
+    d = g.create_dataset(name, shape=(rows,), maxshape=(None,), dtype=np.float64, chunks=(256,), fletcher32=True)
+    if rows:
+        d[:] = np.nan
+    d.attrs["unit"] = unit
+    return d
+
+
+def _write_aux(f: h5py.File, buffered: dict[str, list[tuple[float, Reading]]]) -> None:
+    """Append buffered auxiliary readings: ``/aux/<device>/time`` (bench s) and one dataset per channel (SI,
+    ``unit`` attribute); a channel missing from a reading is NaN there."""
+    root = f["aux"] if "aux" in f else _group(f, "aux")
+    for device, rows in buffered.items():
+        g = root[device] if device in root else _group(root, device)
+        n0 = int(g["time"].shape[0]) if "time" in g else 0
+        t = _aux_dataset(g, "time", n0, "s")
+        _append_rows(t, np.array([r[0] for r in rows], dtype=np.float64))
+        channels = dict.fromkeys(k for _, r in rows for k in r.values)
+        for ch in channels:
+            unit = next(r.units.get(ch, "") for _, r in rows if ch in r.values)
+            d = _aux_dataset(g, ch, n0, unit)
+            _append_rows(d, np.array([float(r.values.get(ch, np.nan)) for _, r in rows], dtype=np.float64))
+        for ch in g:
+            if ch != "time" and ch not in channels:
+                _append_rows(g[ch], np.full(len(rows), np.nan))

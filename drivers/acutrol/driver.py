@@ -69,7 +69,6 @@ from numpy.typing import NDArray
 
 from analysis.units import DEG
 from drivers.acutrol.settings import AclSettings
-from drivers.modbus.table import check_position, check_rate
 from drivers.protocols import (
     AXIS_NAMES,
     AxisLimits,
@@ -79,6 +78,8 @@ from drivers.protocols import (
     TableError,
     TableState,
     TableStatus,
+    check_angles,
+    check_spin,
 )
 
 log = logging.getLogger(__name__)
@@ -410,7 +411,7 @@ class AclTurntable:
 
     def move_to(self, angles: NDArray[np.float64] | list[float]) -> None:
         """Command absolute (unwrapped) gimbal angles, rad: one message, one controller frame."""
-        a = check_position(angles, self._limits)  # type: ignore[arg-type]
+        a = check_angles(angles, self._limits)  # type: ignore[arg-type]
         self._check_open()
         self._refuse_if_latched()
         self._ensure_enabled()
@@ -445,7 +446,7 @@ class AclTurntable:
 
     def spin(self, axis: int, rate: float) -> None:
         """Command a constant rate (rad/s, signed) on gimbal ``axis`` (0 outer, 1 middle, 2 inner)."""
-        ax, r = check_rate(axis, rate, self._limits)  # type: ignore[arg-type]
+        ax, r = check_spin(axis, rate, self._limits)  # type: ignore[arg-type]
         self._check_open()
         self._refuse_if_latched()
         self._ensure_enabled()

@@ -36,43 +36,13 @@ from drivers.protocols import (
     TableError,
     TableState,
     TableStatus,
+    check_angles,
+    check_spin,
 )
 
 log = logging.getLogger(__name__)
 
 _EXCEPTION_NAMES = {1: "illegal function", 2: "illegal data address", 3: "illegal data value", 4: "device failure"}
-
-
-def check_position(angles: Any, limits: tuple[AxisLimits, AxisLimits, AxisLimits]) -> NDArray[np.float64]:
-    """Validate an absolute-angle command (rad, outer/middle/inner) against limits; return it as (3,) float."""
-    a = np.asarray(angles, dtype=float).reshape(-1)
-    if a.shape != (3,):
-        raise TableError(f"move_to needs 3 gimbal angles (outer, middle, inner) in rad, got shape {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise TableError(f"move_to: angles must be finite, got {a.tolist()}")
-    for i, (x, lim) in enumerate(zip(a, limits, strict=True)):
-        if not lim.allows_position(x):
-            raise TableError(
-                f"move_to: {AXIS_NAMES[i]} axis angle {math.degrees(x):.4f}° outside its limits "
-                f"{lim.position_range_text()}; nothing was sent"
-            )
-    return a
-
-
-def check_rate(axis: int, rate: float, limits: tuple[AxisLimits, AxisLimits, AxisLimits]) -> tuple[int, float]:
-    """Validate a rate command (axis 0/1/2, rad/s) against limits."""
-    if not isinstance(axis, (int, np.integer)) or not 0 <= int(axis) <= 2:
-        raise TableError(f"spin: axis must be 0 (outer), 1 (middle) or 2 (inner), got {axis!r}")
-    r = float(rate)
-    if not math.isfinite(r):
-        raise TableError(f"spin: rate must be finite, got {rate!r}")
-    lim = limits[int(axis)]
-    if not lim.allows_rate(r):  # the one limit rule (AxisLimits), as the compiler, runner and controller
-        raise TableError(
-            f"spin: {AXIS_NAMES[int(axis)]} axis rate {math.degrees(r):.4f} °/s exceeds its limit "
-            f"{math.degrees(lim.rate_max):.4f} °/s; nothing was sent"
-        )
-    return int(axis), r
 
 
 ANGLE_MARGIN = math.radians(10.0)
@@ -304,7 +274,7 @@ class ModbusTurntable:
 
     def move_to(self, angles: NDArray[np.float64] | list[float]) -> None:
         """Command absolute gimbal angles (outer, middle, inner), rad; returns at once."""
-        a = check_position(angles, self._limits)  # type: ignore[arg-type]
+        a = check_angles(angles, self._limits)  # type: ignore[arg-type]
         m = self.map
         self._write("move_to (set-points)", m.holding["position_setpoint"], m.pack([x / m.angle_scale for x in a]))
         self._start("move", (0, 1, 2))
@@ -312,7 +282,7 @@ class ModbusTurntable:
 
     def spin(self, axis: int, rate: float) -> None:
         """Command a constant rate (rad/s, signed) on gimbal ``axis`` (0 outer, 1 middle, 2 inner)."""
-        ax, r = check_rate(axis, rate, self._limits)  # type: ignore[arg-type]
+        ax, r = check_spin(axis, rate, self._limits)  # type: ignore[arg-type]
         m = self.map
         self._write("spin (set-point)", m.holding["rate_setpoint"] + m.value_regs * ax, m.pack(r / m.rate_scale))
         self._start("spin", (ax,))

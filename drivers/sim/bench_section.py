@@ -8,7 +8,7 @@ and unit, which it reads only through the small protocols below (so the simulato
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -26,6 +26,7 @@ from analysis.units import (
     UG_PER_SQRT_HZ,
     UG_PER_SQRT_S,
 )
+from core.declare import Section, components, integer, matrix, number, text
 from core.yaml_source import (
     KeyPath,
     SourceMap,
@@ -34,10 +35,8 @@ from core.yaml_source import (
     get_str,
     get_vector,
 )
-from core.yaml_source import get_components as _vec
 from core.yaml_source import get_int as _int
 from core.yaml_source import get_list_of_maps as _list_of_maps
-from core.yaml_source import get_matrix as _matrix
 from core.yaml_source import get_section as _section
 from drivers.imu_unit.counts import CountScale
 from drivers.protocols import AxisLimits, FaultCode
@@ -113,200 +112,120 @@ def _channel_unit(ch: str, smap: SourceMap, p: KeyPath, d: dict, stem: str) -> t
     return present[0], options[present[0].rsplit("_", 1)[1]]
 
 
+Z3 = (0.0, 0.0, 0.0)
+
+ACCEL_TRUTH = Section(
+    components("bias_ug", UG, Z3, attr="bias"),
+    components("scale_ppm", PPM, Z3, attr="scale"),
+    components("misalignment_arcsec", ARCSEC, (0.0,) * 6, length=6, attr="misalignment"),
+    components("quadratic_ug_g2", UG_PER_G2, Z3, attr="quadratic"),
+    matrix("lever_arm_mm", MM, (Z3, Z3, Z3), attr="lever_arms"),
+)
+"""``simulation.accelerometer``: the accelerometer triad's truth (:class:`~drivers.sim.config.AccelTruth`)."""
+
+GYRO_TRUTH = Section(
+    components("bias_dph", DEG_PER_HOUR, Z3, attr="bias"),
+    components("scale_ppm", PPM, Z3, attr="scale"),
+    components("misalignment_arcsec", ARCSEC, (0.0,) * 6, length=6, attr="misalignment"),
+    matrix("g_sensitivity_dph_per_g", DPH_PER_G, (Z3, Z3, Z3), attr="g_sensitivity"),
+    components("quadratic_ppm_per_dps", PPM / DEG, Z3, attr="quadratic"),
+    components("asymmetry_ppm", PPM, Z3, attr="asymmetry"),
+)
+"""``simulation.gyro``: the gyro triad's truth (:class:`~drivers.sim.config.GyroTruth`)."""
+
+ACCEL_NOISE = Section(
+    components("vrw_ug_per_sqrt_hz", UG_PER_SQRT_HZ, minimum=0, attr="white"),
+    components("bias_instability_ug", UG, minimum=0, attr="bias_instability"),
+    components("random_walk_ug_per_sqrt_s", UG_PER_SQRT_S, Z3, minimum=0, attr="random_walk"),
+    extra=("flicker_band_hz",),
+)
+"""``simulation.accel_noise`` (defaults: the unit's configured noise)."""
+
+GYRO_NOISE = Section(
+    components("arw_deg_per_sqrt_h", DEG_PER_SQRT_HOUR, minimum=0, attr="white"),
+    components("bias_instability_dph", DEG_PER_HOUR, minimum=0, attr="bias_instability"),
+    components("rate_random_walk_dph_per_sqrt_h", RATE_RW, Z3, minimum=0, attr="random_walk"),
+    extra=("flicker_band_hz",),
+)
+"""``simulation.gyro_noise`` (defaults: the unit's configured noise)."""
+
+TEMPERATURE = Section(
+    number("ambient_c", 23.0, minimum=-60, maximum=120),
+    number("warmup_rise_c", 0.0, minimum=-50, maximum=100),
+    number("warmup_tau_s", 600.0, minimum=0, exclusive_minimum=True, attr="warmup_tau"),
+    components("accel_bias_ug_per_c", UG, Z3, attr="accel_bias_tc"),
+    components("accel_scale_ppm_per_c", PPM, Z3, attr="accel_scale_tc"),
+    components("gyro_bias_dph_per_c", DEG_PER_HOUR, Z3, attr="gyro_bias_tc"),
+    components("gyro_scale_ppm_per_c", PPM, Z3, attr="gyro_scale_tc"),
+)
+"""``simulation.temperature``: the unit's temperature and its thermal sensitivities."""
+
+TABLE_MODEL = Section(
+    integer("encoder_bits", 24, 0, 40),
+    number("position_jitter_arcsec", 0.1 * ARCSEC, unit=ARCSEC, minimum=0, attr="position_jitter"),
+    number("rate_jitter_dps", 1e-4 * DEG, unit=DEG, minimum=0, attr="rate_jitter"),
+    number("rate_jitter_tau_s", 0.05, minimum=0, exclusive_minimum=True, attr="rate_jitter_tau"),
+    number("overshoot_arcsec", 5.0 * ARCSEC, unit=ARCSEC, minimum=0, attr="overshoot"),
+    number("settle_frequency_hz", 4.0, minimum=0, exclusive_minimum=True),
+    number("settle_time_constant_s", 0.08, minimum=0, exclusive_minimum=True, attr="settle_time_constant"),
+    number("slew_fraction", 0.9, minimum=0, exclusive_minimum=True, maximum=1),
+    components("non_orthogonality_arcsec", ARCSEC, (0.0, 0.0), length=2, attr="non_orthogonality"),
+    number("wobble_arcsec", 0.0, unit=ARCSEC, minimum=0, maximum=3600, attr="wobble"),
+)
+"""``simulation.table``: the simulated table's imperfections (:class:`~drivers.sim.config.TableModel`)."""
+
+SIMULATION = Section(
+    integer("seed", 0, 0, MAX_SEED),
+    text("transport", "in-process", choices=["in-process", "loopback"]),
+    number("timestamp_jitter_us", 0.0, unit=1e-6, minimum=0, maximum=1e5, attr="timestamp_jitter"),
+    number("drop_probability", 0.0, minimum=0, maximum=0.5),
+    order=(
+        "seed",
+        "transport",
+        "controller",
+        "accelerometer",
+        "gyro",
+        "accel_noise",
+        "gyro_noise",
+        "temperature",
+        "periodic",
+        "arma",
+        "anti_alias_hz",
+        "timestamp_jitter_us",
+        "drop_probability",
+        "table",
+        "faults",
+        "realise_uncertainty_inputs",
+        "clocks",
+        "realtime",
+    ),
+)
+"""``simulation:`` itself; ``controller`` is read by the bench loader (the device registry)."""
+
+
 def parse_simulation(d: dict, smap: SourceMap, site: Site, table: Table, unit: Unit) -> SimConfig:
     """Parse the bench file's ``simulation:`` mapping ``d`` into a :class:`SimConfig` (SI)."""
     p: KeyPath = ("simulation",)
-    check_keys(
-        d,
-        smap,
-        p,
-        [
-            "seed",
-            "transport",
-            "controller",
-            "accelerometer",
-            "gyro",
-            "accel_noise",
-            "gyro_noise",
-            "temperature",
-            "periodic",
-            "arma",
-            "anti_alias_hz",
-            "timestamp_jitter_us",
-            "drop_probability",
-            "table",
-            "faults",
-            "realise_uncertainty_inputs",
-            "clocks",
-            "realtime",
-        ],
-    )
+    top = SIMULATION.read(d, smap, p)
     fs = unit.sample_rate
-    z3 = (0.0, 0.0, 0.0)
-    # accelerometer truth
-    ad = _section(d, smap, p, "accelerometer", required=False) or {}
-    ap = p + ("accelerometer",)
-    check_keys(ad, smap, ap, ["bias_ug", "scale_ppm", "misalignment_arcsec", "quadratic_ug_g2", "lever_arm_mm"])
-    accel = AccelTruth(
-        bias=_vec(ad, smap, ap, "bias_ug", UG, z3),  # type: ignore[arg-type]
-        scale=_vec(ad, smap, ap, "scale_ppm", PPM, z3),  # type: ignore[arg-type]
-        misalignment=_vec(ad, smap, ap, "misalignment_arcsec", ARCSEC, (0.0,) * 6, length=6),  # type: ignore[arg-type]
-        quadratic=_vec(ad, smap, ap, "quadratic_ug_g2", UG_PER_G2, z3),  # type: ignore[arg-type]
-        lever_arms=_matrix(ad, smap, ap, "lever_arm_mm", MM, (z3, z3, z3)),
-    )
-    gd = _section(d, smap, p, "gyro", required=False) or {}
-    gp = p + ("gyro",)
-    check_keys(gd, smap, gp, ["bias_dph", "scale_ppm", "misalignment_arcsec", "g_sensitivity_dph_per_g",
-                              "quadratic_ppm_per_dps", "asymmetry_ppm"])  # fmt: skip
-    gyro = GyroTruth(
-        bias=_vec(gd, smap, gp, "bias_dph", DEG_PER_HOUR, z3),  # type: ignore[arg-type]
-        scale=_vec(gd, smap, gp, "scale_ppm", PPM, z3),  # type: ignore[arg-type]
-        misalignment=_vec(gd, smap, gp, "misalignment_arcsec", ARCSEC, (0.0,) * 6, length=6),  # type: ignore[arg-type]
-        g_sensitivity=_matrix(gd, smap, gp, "g_sensitivity_dph_per_g", DPH_PER_G, (z3, z3, z3)),
-        quadratic=_vec(gd, smap, gp, "quadratic_ppm_per_dps", PPM / DEG, z3),  # type: ignore[arg-type]
-        asymmetry=_vec(gd, smap, gp, "asymmetry_ppm", PPM, z3),  # type: ignore[arg-type]
-    )
-    # noise truth: defaults to the unit's configured noise
-    nd = _section(d, smap, p, "accel_noise", required=False) or {}
-    np_ = p + ("accel_noise",)
-    check_keys(
-        nd, smap, np_, ["vrw_ug_per_sqrt_hz", "bias_instability_ug", "random_walk_ug_per_sqrt_s", "flicker_band_hz"]
-    )
-    accel_noise = NoiseTruth(
-        white=_vec(nd, smap, np_, "vrw_ug_per_sqrt_hz", UG_PER_SQRT_HZ, tuple(unit.noise.vrw), minimum=0),  # type: ignore[arg-type]
-        bias_instability=_vec(nd, smap, np_, "bias_instability_ug", UG, tuple(unit.noise.bias_instability), minimum=0),  # type: ignore[arg-type]
-        random_walk=_vec(nd, smap, np_, "random_walk_ug_per_sqrt_s", UG_PER_SQRT_S, z3, minimum=0),  # type: ignore[arg-type]
-        flicker_band=_band(nd, smap, np_, fs),
-    )
-    nd = _section(d, smap, p, "gyro_noise", required=False) or {}
-    np_ = p + ("gyro_noise",)
-    check_keys(
-        nd,
-        smap,
-        np_,
-        ["arw_deg_per_sqrt_h", "bias_instability_dph", "rate_random_walk_dph_per_sqrt_h", "flicker_band_hz"],
-    )
-    gyro_noise = NoiseTruth(
-        white=_vec(nd, smap, np_, "arw_deg_per_sqrt_h", DEG_PER_SQRT_HOUR, tuple(unit.noise.arw), minimum=0),  # type: ignore[arg-type]
-        bias_instability=_vec(
-            nd, smap, np_, "bias_instability_dph", DEG_PER_HOUR, tuple(unit.noise.gyro_bias_instability), minimum=0
-        ),  # type: ignore[arg-type]
-        random_walk=_vec(nd, smap, np_, "rate_random_walk_dph_per_sqrt_h", RATE_RW, z3, minimum=0),  # type: ignore[arg-type]
-        flicker_band=_band(nd, smap, np_, fs),
-    )
-    # temperature
-    temperature = None
+    accel = ACCEL_TRUTH.build(AccelTruth, _section(d, smap, p, "accelerometer", required=False), smap,
+                              p + ("accelerometer",))  # fmt: skip
+    gyro = GYRO_TRUTH.build(GyroTruth, _section(d, smap, p, "gyro", required=False), smap, p + ("gyro",))
+    noise = unit.noise
+    accel_noise = _noise(ACCEL_NOISE, d, smap, p, "accel_noise", fs, (noise.vrw, noise.bias_instability))
+    gyro_noise = _noise(GYRO_NOISE, d, smap, p, "gyro_noise", fs, (noise.arw, noise.gyro_bias_instability))
     td = _section(d, smap, p, "temperature", required=False)
-    if td is not None:
-        tp = p + ("temperature",)
-        check_keys(
-            td,
-            smap,
-            tp,
-            [
-                "ambient_c",
-                "warmup_rise_c",
-                "warmup_tau_s",
-                "accel_bias_ug_per_c",
-                "accel_scale_ppm_per_c",
-                "gyro_bias_dph_per_c",
-                "gyro_scale_ppm_per_c",
-            ],
-        )
-        temperature = TemperatureModel(
-            ambient_c=get_number(td, smap, tp, "ambient_c", 23.0, minimum=-60, maximum=120),
-            warmup_rise_c=get_number(td, smap, tp, "warmup_rise_c", 0.0, minimum=-50, maximum=100),
-            warmup_tau=get_number(td, smap, tp, "warmup_tau_s", 600.0, minimum=0, exclusive_minimum=True),
-            accel_bias_tc=_vec(td, smap, tp, "accel_bias_ug_per_c", UG, z3),  # type: ignore[arg-type]
-            accel_scale_tc=_vec(td, smap, tp, "accel_scale_ppm_per_c", PPM, z3),  # type: ignore[arg-type]
-            gyro_bias_tc=_vec(td, smap, tp, "gyro_bias_dph_per_c", DEG_PER_HOUR, z3),  # type: ignore[arg-type]
-            gyro_scale_tc=_vec(td, smap, tp, "gyro_scale_ppm_per_c", PPM, z3),  # type: ignore[arg-type]
-        )
-    periodic = []
-    for ip, item in _list_of_maps(d, smap, p, "periodic"):
-        ch = get_str(item, smap, ip, "channel", choices=list(CHANNELS))
-        key, si = _channel_unit(ch, smap, ip, item, "amplitude")
-        check_keys(item, smap, ip, ["channel", "frequency_hz", key, "phase_deg"])
-        periodic.append(
-            PeriodicTerm(
-                channel=ch,
-                frequency_hz=get_number(
-                    item, smap, ip, "frequency_hz", minimum=0, exclusive_minimum=True, maximum=fs / 2
-                ),
-                amplitude=get_number(item, smap, ip, key, minimum=0) * si,
-                phase=get_number(item, smap, ip, "phase_deg", 0.0, minimum=-360, maximum=360) * DEG,
-            )
-        )
-    arma = []
-    for ip, item in _list_of_maps(d, smap, p, "arma"):
-        ch = get_str(item, smap, ip, "channel", choices=list(CHANNELS))
-        key, si = _channel_unit(ch, smap, ip, item, "sigma")
-        check_keys(item, smap, ip, ["channel", "phi", "theta", key])
-        coef = {}
-        for name in ("phi", "theta"):
-            v = item.get(name, [])
-            if isinstance(v, (int, float)) and not isinstance(v, bool):
-                v = [v]
-            if not isinstance(v, list) or len(v) > 5:
-                raise smap.error(ip + (name,), f"expected a list of up to 5 numbers like [0.9], got {v!r}")
-            coef[name] = tuple(get_vector({name: v}, smap, ip, name, len(v)))
-        if coef["phi"] and np.any(np.abs(np.roots([1.0, *(-np.array(coef["phi"]))])) >= 1.0):
-            raise smap.error(
-                ip + ("phi",), f"AR part {list(coef['phi'])} is not stationary (roots must be inside the unit circle)"
-            )
-        arma.append(
-            ArmaDrift(
-                channel=ch, phi=coef["phi"], theta=coef["theta"], sigma=get_number(item, smap, ip, key, minimum=0) * si
-            )
-        )
-    # table imperfections
-    tbd = _section(d, smap, p, "table", required=False) or {}
-    tp = p + ("table",)
-    check_keys(
-        tbd,
+    temperature = None if td is None else TEMPERATURE.build(TemperatureModel, td, smap, p + ("temperature",))
+    tm = TABLE_MODEL.build(
+        TableModel,
+        _section(d, smap, p, "table", required=False),
         smap,
-        tp,
-        [
-            "encoder_bits",
-            "position_jitter_arcsec",
-            "rate_jitter_dps",
-            "rate_jitter_tau_s",
-            "overshoot_arcsec",
-            "settle_frequency_hz",
-            "settle_time_constant_s",
-            "slew_fraction",
-            "non_orthogonality_arcsec",
-            "wobble_arcsec",
-        ],
-    )
-    tm = TableModel(
+        p + ("table",),
         limits=table.limits,
         position_tolerance=table.position_tolerance,
         in_position_time=table.in_position_time,
         watchdog=table.watchdog,
-        slew_fraction=get_number(tbd, smap, tp, "slew_fraction", 0.9, minimum=0, exclusive_minimum=True, maximum=1),
-        overshoot=get_number(tbd, smap, tp, "overshoot_arcsec", 5.0, minimum=0) * ARCSEC,
-        settle_frequency_hz=get_number(tbd, smap, tp, "settle_frequency_hz", 4.0, minimum=0, exclusive_minimum=True),
-        settle_time_constant=get_number(
-            tbd, smap, tp, "settle_time_constant_s", 0.08, minimum=0, exclusive_minimum=True
-        ),
-        encoder_bits=_int(tbd, smap, tp, "encoder_bits", 24, 0, 40),
-        position_jitter=get_number(tbd, smap, tp, "position_jitter_arcsec", 0.1, minimum=0) * ARCSEC,
-        rate_jitter=get_number(tbd, smap, tp, "rate_jitter_dps", 1e-4, minimum=0) * DEG,
-        rate_jitter_tau=get_number(tbd, smap, tp, "rate_jitter_tau_s", 0.05, minimum=0, exclusive_minimum=True),
-        non_orthogonality=_vec(tbd, smap, tp, "non_orthogonality_arcsec", ARCSEC, (0.0, 0.0), length=2),  # type: ignore[arg-type]
-        wobble=get_number(tbd, smap, tp, "wobble_arcsec", 0.0, minimum=0, maximum=3600) * ARCSEC,
     )
-    faults = []
-    for ip, item in _list_of_maps(d, smap, p, "faults"):
-        check_keys(item, smap, ip, ["time_s", "fault"])
-        names = [f.name for f in FaultCode if f != FaultCode.NONE]
-        faults.append(
-            ScheduledFault(
-                time=get_number(item, smap, ip, "time_s", minimum=0),
-                fault=FaultCode[get_str(item, smap, ip, "fault", choices=names)],
-            )
-        )
     aa = get_number(d, smap, p, "anti_alias_hz", None, minimum=0)
     if aa is not None and aa >= fs / 2:
         raise smap.error(
@@ -324,19 +243,87 @@ def parse_simulation(d: dict, smap: SourceMap, site: Site, table: Table, unit: U
         accel_noise=accel_noise,
         gyro_noise=gyro_noise,
         temperature=temperature,
-        periodic=tuple(periodic),
-        arma=tuple(arma),
+        periodic=_periodic(d, smap, p, fs),
+        arma=_arma(d, smap, p),
         anti_alias_hz=aa or None,
-        timestamp_jitter=get_number(d, smap, p, "timestamp_jitter_us", 0.0, minimum=0, maximum=1e5) * 1e-6,
-        drop_probability=get_number(d, smap, p, "drop_probability", 0.0, minimum=0, maximum=0.5),
         table=tm,
-        faults=tuple(faults),
-        seed=_int(d, smap, p, "seed", 0, 0, MAX_SEED),
-        transport=get_str(d, smap, p, "transport", "in-process", choices=["in-process", "loopback"]),
+        faults=_faults(d, smap, p),
         budget_inputs=_budget_inputs(d, smap, p, site, table),
         clocks=parse_clocks(d, smap, p),
         realtime=_realtime(d, smap, p),
+        **top,
     )
+
+
+def _noise(
+    section: Section, d: dict, smap: SourceMap, p: KeyPath, key: str, fs: float, configured: tuple[Any, Any]
+) -> NoiseTruth:
+    """A noise section; white noise and bias instability default to the unit's configured values."""
+    nd = _section(d, smap, p, key, required=False) or {}
+    defaults = {"white": tuple(configured[0]), "bias_instability": tuple(configured[1])}
+    return section.build(NoiseTruth, nd, smap, p + (key,), defaults, flicker_band=_band(nd, smap, p + (key,), fs))
+
+
+def _periodic(d: dict, smap: SourceMap, p: KeyPath, fs: float) -> tuple[PeriodicTerm, ...]:
+    """``simulation.periodic``: strong periodic terms per channel (the amplitude key names its unit)."""
+    out = []
+    for ip, item in _list_of_maps(d, smap, p, "periodic"):
+        ch = get_str(item, smap, ip, "channel", choices=list(CHANNELS))
+        key, si = _channel_unit(ch, smap, ip, item, "amplitude")
+        check_keys(item, smap, ip, ["channel", "frequency_hz", key, "phase_deg"])
+        out.append(
+            PeriodicTerm(
+                channel=ch,
+                frequency_hz=get_number(
+                    item, smap, ip, "frequency_hz", minimum=0, exclusive_minimum=True, maximum=fs / 2
+                ),
+                amplitude=get_number(item, smap, ip, key, minimum=0) * si,
+                phase=get_number(item, smap, ip, "phase_deg", 0.0, minimum=-360, maximum=360) * DEG,
+            )
+        )
+    return tuple(out)
+
+
+def _arma(d: dict, smap: SourceMap, p: KeyPath) -> tuple[ArmaDrift, ...]:
+    """``simulation.arma``: ARMA-coloured drift per channel (stationary AR part)."""
+    out = []
+    for ip, item in _list_of_maps(d, smap, p, "arma"):
+        ch = get_str(item, smap, ip, "channel", choices=list(CHANNELS))
+        key, si = _channel_unit(ch, smap, ip, item, "sigma")
+        check_keys(item, smap, ip, ["channel", "phi", "theta", key])
+        coef = {}
+        for name in ("phi", "theta"):
+            v = item.get(name, [])
+            if isinstance(v, (int, float)) and not isinstance(v, bool):
+                v = [v]
+            if not isinstance(v, list) or len(v) > 5:
+                raise smap.error(ip + (name,), f"expected a list of up to 5 numbers like [0.9], got {v!r}")
+            coef[name] = tuple(get_vector({name: v}, smap, ip, name, len(v)))
+        if coef["phi"] and np.any(np.abs(np.roots([1.0, *(-np.array(coef["phi"]))])) >= 1.0):
+            raise smap.error(
+                ip + ("phi",), f"AR part {list(coef['phi'])} is not stationary (roots must be inside the unit circle)"
+            )
+        out.append(
+            ArmaDrift(
+                channel=ch, phi=coef["phi"], theta=coef["theta"], sigma=get_number(item, smap, ip, key, minimum=0) * si
+            )
+        )
+    return tuple(out)
+
+
+def _faults(d: dict, smap: SourceMap, p: KeyPath) -> tuple[ScheduledFault, ...]:
+    """``simulation.faults``: faults injected at bench times."""
+    out = []
+    for ip, item in _list_of_maps(d, smap, p, "faults"):
+        check_keys(item, smap, ip, ["time_s", "fault"])
+        names = [f.name for f in FaultCode if f != FaultCode.NONE]
+        out.append(
+            ScheduledFault(
+                time=get_number(item, smap, ip, "time_s", minimum=0),
+                fault=FaultCode[get_str(item, smap, ip, "fault", choices=names)],
+            )
+        )
+    return tuple(out)
 
 
 def _realtime(d: dict, smap: SourceMap, p: KeyPath) -> bool:

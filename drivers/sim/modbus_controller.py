@@ -38,8 +38,7 @@ import time
 from typing import TYPE_CHECKING, Any
 
 from drivers.modbus.register_map import ModbusMap, map_with_word_order
-from drivers.modbus.table import check_position, check_rate
-from drivers.protocols import AxisMode, FaultCode, TableError, TableStatus
+from drivers.protocols import AxisMode, FaultCode, TableError, TableStatus, check_angles, check_spin
 
 if TYPE_CHECKING:
     from drivers.sim.world import SimulatedWorld
@@ -303,7 +302,7 @@ class ModbusTableServer:
         if action == "move":
             self._last_reject = FaultCode.POSITION_LIMIT
             sp = [x * m.angle_scale for x in self._values("position_setpoint")]
-            angles = check_position(sp, self._limits)  # type: ignore[arg-type]
+            angles = check_angles(sp, self._limits)  # type: ignore[arg-type]
             if len(axes) == 3:
                 self.world.command_position(angles)
             else:
@@ -316,7 +315,7 @@ class ModbusTableServer:
                     self._last_reject = FaultCode.BAD_COMMAND
                     return ExcCodes.ILLEGAL_VALUE
                 rate = self._values("rate_setpoint", m.value_regs * axis, m.value_regs)[0] * m.rate_scale
-                ax, r = check_rate(axis, rate, self._limits)  # type: ignore[arg-type]
+                ax, r = check_spin(axis, rate, self._limits)  # type: ignore[arg-type]
                 self.world.command_rate(ax, r)
         self._last_reject = FaultCode.NONE
         self._motion_commanded = True

@@ -7,8 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from drivers.modbus.table import check_position, check_rate
-from drivers.protocols import LIMIT_TOLERANCE, AxisLimits, TableError
+from drivers.protocols import LIMIT_TOLERANCE, AxisLimits, TableError, check_angles, check_spin
 from procedures.steps import Hold, Spin, limit_problems
 from tests.drivers.wire_support import LIMITS, make_world
 
@@ -51,8 +50,8 @@ def test_compiler_runner_driver_and_world_agree_at_the_edge(excess: float) -> No
             return False
         return True
 
-    assert accepted(lambda: check_position(angles, LIMITS)) == allowed
-    assert accepted(lambda: check_rate(2, rate, LIMITS)) == allowed
+    assert accepted(lambda: check_angles(angles, LIMITS)) == allowed
+    assert accepted(lambda: check_spin(2, rate, LIMITS)) == allowed
     world = make_world(0)
     assert accepted(lambda: world.command_position(np.array(angles))) == allowed
     assert accepted(lambda: world.command_rate(2, rate)) == allowed
