@@ -121,9 +121,9 @@ def ours_trend(url: str, serial: str) -> list:
         reg.close()
 
 
-def timed(fn, *a) -> float:  # noqa: ANN001
+def timed(fn, *a, **kw) -> float:  # noqa: ANN001, ANN003
     t0 = time.perf_counter()
-    fn(*a)
+    fn(*a, **kw)
     return time.perf_counter() - t0
 
 
