@@ -38,7 +38,11 @@ CHAMBER = (273.15 - 40.0, 273.15 + 150.0)  # set-point limits, K (thermal proced
 
 @pytest.mark.parametrize("name", shipped_procedures())
 def test_shipped_procedures_compile_to_typed_steps(name: str) -> None:
-    comp = compile_procedure(load_procedure(resolve_procedure(name)), limits=CONTINUOUS, chamber=CHAMBER)
+    # against a table that can run every shipped procedure: the rate-transfer test needs 300 °/s on the outer axis
+    limits = CONTINUOUS
+    if name == "gyro-rate-transfer":
+        limits = (AxisLimits(rate_max=300 * D, accel_max=80 * D), *CONTINUOUS[1:])
+    comp = compile_procedure(load_procedure(resolve_procedure(name)), limits=limits, chamber=CHAMBER)
     for s in comp.steps:
         assert type(s) in TYPES
         assert s.acquires == isinstance(s, (Warmup, Hold, Spin))
@@ -50,9 +54,9 @@ def test_shipped_procedures_compile_to_typed_steps(name: str) -> None:
         if isinstance(s, (Move, Hold)):
             assert s.commanded_positions() == (s.angles,)
     assert comp.acquisition_time() == pytest.approx(sum(s.duration for s in comp.steps if s.acquires))
-    assert limit_problems(comp.steps, CONTINUOUS) == []
+    assert limit_problems(comp.steps, limits) == []
     # the summary shows every kind with its own words
-    text = comp.summary(CONTINUOUS)
+    text = comp.summary(limits)
     assert all(f" {s.kind} " in text for s in comp.steps)
 
 
@@ -98,3 +102,10 @@ def test_limit_problems_name_step_axis_and_limit() -> None:
     assert len(problems) == 2
     assert "'too-far'" in problems[0] and "middle" in problems[0] and "[-90°, 90°]" in problems[0]
     assert "'too-fast'" in problems[1] and "400.000 °/s" in problems[1]
+
+
+def test_rate_transfer_on_a_slower_table_is_refused_before_motion_naming_the_step() -> None:
+    from core.yaml_source import ConfigError
+
+    with pytest.raises(ConfigError, match=r"gyro-rate-transfer.yaml:\d+: step 'X/spin\+#6': spin rate 300 °/s"):
+        compile_procedure(load_procedure(resolve_procedure("gyro-rate-transfer")), limits=CONTINUOUS, chamber=CHAMBER)
