@@ -175,7 +175,7 @@ class TableState:
     ----------
     time : float
         The reading's time stamp, s: the controller's own clock when it reports one, else the host's clock when
-        the answer arrived (time-base.md; the recording keeps every source raw).
+        the answer arrived (docs/methods/time-base.md; the recording keeps every source raw).
     angles : ndarray (3,)
         Reported gimbal angles (outer, middle, inner), rad, encoder-quantised, unwrapped (a continuous
         axis that has spun two turns reports ≈ 4π).

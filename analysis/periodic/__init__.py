@@ -1,5 +1,5 @@
 """Periodic error: identification of strong periodic terms and their online compensation
-(spec: ``periodic-error.md``).
+(``docs/methods/periodic.md``).
 
 Modules, each with one reason to change (imports only go down this list; no loops):
 

@@ -1,4 +1,4 @@
-"""Online compensation of identified periodic error terms (spec: ``periodic-error.md``, step 5).
+"""Online compensation of identified periodic error terms (``docs/methods/periodic.md``).
 
 The compensator subtracts ``Σ A_i cos(2π f_i t_j + φ_i)`` from each new sample of one channel, with
 ``t_j = j T_s`` counted from sample 0 of the calibration record (the phase reference of

@@ -1,4 +1,4 @@
-"""Types of the periodic error model (spec: ``periodic-error.md``): terms, the identified model, fit diagnostics.
+"""Types of the periodic error model (``docs/methods/periodic.md``): terms, the identified model, fit diagnostics.
 
 Model of one channel (any SI unit, e.g. rad/s for a gyro axis in the body frame)::
 

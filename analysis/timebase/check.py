@@ -3,9 +3,9 @@
 The host's clock sees the unit's blocks arrive (transport latency, batching) and the controller's readings
 requested and answered. Straight lines through those give the unit's rate against the host and the
 controller's rate against the host, hence a rate for t_table against t_unit that does not use the motions at
-all: the motion-based estimate is checked against it (time-base.md, "bounded by what the controller's and the
-host's clocks say"). Latencies are stationary, so their jitter only adds scatter; σ of a slope is from the
-residuals (a one-sided jitter does not bias a slope). Seconds throughout.
+all: the motion-based estimate is checked against it (docs/methods/time-base.md: "bounded by what the
+controller's and the host's clocks say"). Latencies are stationary, so their jitter only adds scatter; σ of a
+slope is from the residuals (a one-sided jitter does not bias a slope). Seconds throughout.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Estimate t_table = t₀ + (1 + ε) t_unit from a run's data (time-base.md; docs/methods/time-base.md).
+"""Estimate t_table = t₀ + (1 + ε) t_unit from a run's data (docs/methods/time-base.md).
 
 1. **Coarse**: each reading was requested after a known block of samples; a straight line through
    (t_unit of that block's last sample, reading time) gives t₀ and ε to within the link latencies (ms).

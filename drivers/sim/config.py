@@ -27,7 +27,7 @@ Vec3 = tuple[float, float, float]
 Mat3 = tuple[Vec3, Vec3, Vec3]
 
 ACCEL_PARAM_NAMES: tuple[str, ...] = PARAM_NAMES
-"""The 18 accelerometer-model parameters, in state order (accelerometer-calibration.md)."""
+"""The 18 accelerometer-model parameters, in state order (docs/methods/accelerometer-calibration.md)."""
 
 MISALIGNMENT_PAIRS: tuple[tuple[int, int], ...] = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
 """(i, j) of τ_xy τ_xz τ_yx τ_yz τ_zx τ_zy: δf_i += τ_ij f_j."""
@@ -50,7 +50,7 @@ MAX_SEED = 2**63 - 1
 
 @dataclass(frozen=True)
 class AccelTruth:
-    """True accelerometer-triad errors (accelerometer-calibration.md), SI, body frame.
+    """True accelerometer-triad errors (docs/methods/accelerometer-calibration.md), SI, body frame.
 
     Attributes
     ----------
@@ -157,7 +157,7 @@ class TemperatureModel:
 
 @dataclass(frozen=True)
 class PeriodicTerm:
-    """A periodic error A cos(2π f t + φ) added to one output channel (periodic-error.md).
+    """A periodic error A cos(2π f t + φ) added to one output channel (docs/methods/periodic.md).
 
     Attributes
     ----------
@@ -175,7 +175,7 @@ class PeriodicTerm:
 
 @dataclass(frozen=True)
 class ArmaDrift:
-    """ARMA-coloured drift on one channel (drift-timeseries.md sign convention), per output sample.
+    """ARMA-coloured drift on one channel (docs/methods/drift.md sign convention), per output sample.
 
     x_t − Σ φ_j x_{t−j} = e_t − Σ θ_j e_{t−j},  e_t ~ N(0, σ²) white at the sample rate.
 
@@ -266,7 +266,8 @@ class BudgetInputs:
 
 @dataclass(frozen=True)
 class ClockModel:
-    """The bench's clocks (time-base.md): the unit's oscillator, the controller's clock, the host's arrival times.
+    """The bench's clocks (docs/methods/time-base.md): the unit's oscillator, the controller's clock, the host's
+    arrival times.
 
     ``mode`` "ideal": one clock drives table and unit (the unit's sample clock is true time, the controller
     reports it, nothing is late). "separate": each run draws (seeded, uniform within the stated bounds) the

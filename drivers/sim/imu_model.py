@@ -1,6 +1,6 @@
 """The simulated inertial unit: accelerometer and gyro triads with their errors, noise and output stage.
 
-Physics (body frame b, SI; simulation.md, accelerometer-calibration.md):
+Physics (body frame b, SI; docs/methods/simulation.md, docs/methods/accelerometer-calibration.md):
 
 * Accelerometer i sits at ρ_i (row i of ``lever_arms``, from the table's rotation centre) and senses the
   specific force there, F_i = f + ω×(ω×ρ_i) + ω̇×ρ_i, with f = C_n^b [0, 0, g]ᵀ at the reference point

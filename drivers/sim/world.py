@@ -7,8 +7,8 @@ every public method holds one re-entrant lock.
 Time: ``time`` is the unit's sample clock, k / f_s for the next sample k; only :meth:`produce` advances it.
 With ideal clocks (``SimConfig.clocks.mode == "ideal"``) it is also the table's time: sample k is taken at
 t_k = k / f_s, commands take effect at ``time`` and readings are taken and stamped there. With separate clocks
-(time-base.md, :class:`~drivers.sim.config.ClockModel`) the physics runs on true time τ: sample k is taken at
-τ_k = k / (f_s (1 + ε_u)); the host's clock (true time) advances with the unit's deliveries (batches, transport
+(docs/methods/time-base.md, :class:`~drivers.sim.config.ClockModel`) the physics runs on true time τ: sample k is
+taken at τ_k = k / (f_s (1 + ε_u)); the host's clock (true time) advances with the unit's deliveries (batches, transport
 latency) and with every controller transaction (a reading or a command, each latched after a request latency
 and answered after an answer latency); a command takes effect at its latch time (earlier samples keep the
 previous motion: each axis keeps the plans it replaced until no sample can need them); a reading is the table
@@ -20,7 +20,7 @@ order (same seed and calls → same bytes).
 Frames: gimbal angles (outer ψ, middle θ, inner γ), rad, C_t^n = R_z(ψ) R_x(θ) R_y(γ) (``analysis.gimbal``),
 C_b^n = C_t^n C_b^t; navigation frame ENU; unit outputs in the body frame b.
 
-Table behaviour (simulation.md): trapezoidal moves at ``slew_fraction``·rate_max and accel_max to the
+Table behaviour (docs/methods/simulation.md): trapezoidal moves at ``slew_fraction``·rate_max and accel_max to the
 absolute commanded angle (continuous axes report unwrapped angles), then a damped overshoot; IN_POSITION
 once the transient envelope is inside the tolerance for ``in_position_time``. Rate commands ramp at the
 acceleration limit; AT_RATE when reached. Physical rate jitter (first-order Gauss–Markov, only on axes

@@ -28,7 +28,8 @@ ENU = {
     "Down": (0, 0, -1),
 }
 BODY = {"x": np.array([1.0, 0, 0]), "y": np.array([0, 1.0, 0]), "z": np.array([0, 0, 1.0])}
-SPEC_BASES = {  # accelerometer-calibration.md: base orientation → (body x, y, z) in ENU, reference body axis
+# docs/methods/accelerometer-calibration.md: base orientation → (body x, y, z) in ENU, reference body axis
+SPEC_BASES = {
     "A": (("East", "North", "Up"), "y"),
     "B": (("South", "Down", "East"), "x"),
     "C": (("Down", "West", "North"), "z"),

@@ -1,4 +1,4 @@
-"""ARMA modelling (drift-timeseries.md): moment estimates, exact-ML and CSS fits with standard errors, order
+"""ARMA modelling (docs/methods/drift.md): moment estimates, exact-ML and CSS fits with standard errors, order
 selection, Ljung–Box whiteness, agreement with statsmodels.
 
 Acceptance model: ARMA(1,1), φ = 0.9, |θ| = 0.4, n = 5000. The spec's ML standard errors (0.0064 for φ,

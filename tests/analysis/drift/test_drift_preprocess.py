@@ -1,4 +1,4 @@
-"""Drift pre-processing: outlier replacement (3σ, MAD), detrending, input checks (drift-timeseries.md)."""
+"""Drift pre-processing: outlier replacement (3σ, MAD), detrending, input checks (docs/methods/drift.md)."""
 
 from __future__ import annotations
 

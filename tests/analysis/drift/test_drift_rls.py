@@ -1,4 +1,4 @@
-"""Online RLS / extended LS (drift-timeseries.md "Online"): equality with batch LS, accuracy, forgetting."""
+"""Online RLS / extended LS (docs/methods/drift.md "Online"): equality with batch LS, accuracy, forgetting."""
 
 from __future__ import annotations
 

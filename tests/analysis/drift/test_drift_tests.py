@@ -1,4 +1,4 @@
-"""Drift tests: sizes on white noise, power on drifting data, agreement with statsmodels (drift-timeseries.md)."""
+"""Drift tests: sizes on white noise, power on drifting data, agreement with statsmodels (docs/methods/drift.md)."""
 
 from __future__ import annotations
 

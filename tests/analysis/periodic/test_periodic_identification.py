@@ -1,7 +1,7 @@
 """Periodic error identification (analysis/periodic/identify.py, refine.py, grid.py) against the spec's
 acceptance checks, for the default Levenberg–Marquardt refinement and the published grid search.
 
-Scenario of ``periodic-error.md``: three tones 0.6/0.4/0.3 °/s at 80.13/83.08/127.43 Hz, white noise
+Scenario of ``docs/methods/periodic.md``: three tones 0.6/0.4/0.3 °/s at 80.13/83.08/127.43 Hz, white noise
 σ = 0.108 °/s, f_s = 1 kHz, 8 s calibration sample.
 """
 

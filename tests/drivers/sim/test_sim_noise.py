@@ -95,7 +95,7 @@ def test_arma_drift_matches_statsmodels_acf() -> None:
     cfg = SimConfig(arma=(ArmaDrift("gyro_z", phi=(0.9,), theta=(0.4,), sigma=sigma),))
     x = _static(cfg, 50_000)[:, 5]
     x = x - x.mean()
-    # drift-timeseries.md convention x_t − φ x_{t−1} = e_t − θ e_{t−1}  ↔  statsmodels ma = [1, −θ]
+    # docs/methods/drift.md convention x_t − φ x_{t−1} = e_t − θ e_{t−1}  ↔  statsmodels ma = [1, −θ]
     proc = ArmaProcess(ar=[1, -0.9], ma=[1, -0.4])
     np.testing.assert_allclose(acf(x, nlags=5)[1:], proc.acf(6)[1:], atol=0.03)
     var_theory = sigma**2 * (1 + 0.4**2 - 2 * 0.9 * 0.4) / (1 - 0.9**2)
