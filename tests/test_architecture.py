@@ -368,6 +368,28 @@ def test_no_file_of_the_project_points_outside_it_for_its_methods() -> None:
     assert bad == [], "cite docs/methods or docs/protocols instead:\n" + "\n".join(bad)
 
 
+SPEC_NAMES = ("accelerometer-calibration", "gyro-calibration", "time-base", "thermal-chamber", "noise-variance",
+              "periodic-error", "drift-timeseries", "simulation", "imu-frames", "acutrol-acl", "wire-protocols")
+
+
+def test_every_documentation_reference_resolves_inside_the_project() -> None:
+    """A ``docs/….md`` cited anywhere exists, and no file cites a method file by a bare name outside docs/."""
+    import subprocess
+
+    files = subprocess.run(["git", "ls-files"], cwd=REPO_ROOT, capture_output=True, text=True, check=True).stdout
+    bare = re.compile(r"(?<![/A-Za-z0-9_-])(" + "|".join(SPEC_NAMES) + r")\.md")
+    cited = re.compile(r"docs/[A-Za-z0-9_./-]+?\.md")
+    missing, unresolved = [], []
+    for rel in files.split():
+        if not rel.endswith((".py", ".md", ".yaml")) or rel == "DEVELOPERS.md" or rel.startswith("docs/"):
+            continue
+        text = (REPO_ROOT / rel).read_text(encoding="utf-8")
+        for i, line in enumerate(text.splitlines(), 1):
+            missing += [f"{rel}:{i}: {m}" for m in cited.findall(line) if not (REPO_ROOT / m).is_file()]
+            unresolved += [f"{rel}:{i}: {m.group(0)}" for m in bare.finditer(line)]
+    assert missing == [] and unresolved == [], "\n".join(missing + unresolved)
+
+
 def test_command_summaries_name_every_command_with_its_help() -> None:
     """``tablebench --help`` lists the commands from ``SUMMARIES`` without importing them: it must name every
     command module, with the one-line help the module itself registers."""
