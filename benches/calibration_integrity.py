@@ -30,13 +30,12 @@ the one recorded is evident too.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from benches.calibration_result import COVERS, CalibrationFormatError, CalibrationResult
+from benches.calibration_result import COVERS, CalibrationFormatError, CalibrationResult, read_raw
 from core.integrity import ALGORITHM, canonical, values_digest
 from core.integrity import with_integrity as _with_integrity
 
@@ -100,24 +99,6 @@ def check_plausible(result: CalibrationResult, where: str) -> None:
                 f"from 0 (the bench's datasheet bound is {p.prior_sigma:g}); implausible — {REIDENTIFY} (if the "
                 "unit really is this far outside its datasheet, widen unit.prior in the bench file first)"
             )
-
-
-def read_raw(path: str | Path) -> dict[str, Any]:
-    """calibration.json as a mapping (one :class:`CalibrationFormatError` line for any read problem)."""
-    p = Path(path)
-    try:
-        d = json.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise CalibrationFormatError(f"{p}: no such calibration file; identify the run first") from None
-    except IsADirectoryError:
-        raise CalibrationFormatError(f"{p}: is a folder; give its calibration.json") from None
-    except OSError as exc:
-        raise CalibrationFormatError(f"{p}: cannot be read ({exc.strerror or exc})") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise CalibrationFormatError(f"{p}: not readable JSON ({exc.__class__.__name__}: {exc})") from None
-    if not isinstance(d, dict):
-        raise CalibrationFormatError(f"{p}: not a tablebench calibration file (a JSON object is expected)")
-    return d
 
 
 def load_verified(path: str | Path) -> tuple[CalibrationResult, str]:

@@ -56,6 +56,24 @@ class CalibrationFormatError(UserError, ValueError):
 _B = TypeVar("_B", bound="_Block")
 
 
+
+def read_raw(path: str | Path) -> dict[str, Any]:
+    """calibration.json as a mapping (one :class:`CalibrationFormatError` line for any read problem)."""
+    p = Path(path)
+    try:
+        d = json.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise CalibrationFormatError(f"{p}: no such calibration file; identify the run first") from None
+    except IsADirectoryError:
+        raise CalibrationFormatError(f"{p}: is a folder; give its calibration.json") from None
+    except OSError as exc:
+        raise CalibrationFormatError(f"{p}: cannot be read ({exc.strerror or exc})") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise CalibrationFormatError(f"{p}: not readable JSON ({exc.__class__.__name__}: {exc})") from None
+    if not isinstance(d, dict):
+        raise CalibrationFormatError(f"{p}: not a tablebench calibration file (a JSON object is expected)")
+    return d
+
 @dataclass(frozen=True, kw_only=True)
 class _Block:
     """A calibration.json block read as typed members; absent keys are None and stay absent when written,
@@ -587,18 +605,7 @@ class CalibrationResult:
     @classmethod
     def load(cls, path: str | Path) -> CalibrationResult:
         """Read and validate calibration.json; one clear :class:`CalibrationFormatError` for any problem."""
-        p = Path(path)
-        try:
-            d = json.loads(p.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise CalibrationFormatError(f"{p}: no such calibration file; identify the run first") from None
-        except IsADirectoryError:
-            raise CalibrationFormatError(f"{p}: is a folder; give its calibration.json") from None
-        except OSError as exc:
-            raise CalibrationFormatError(f"{p}: cannot be read ({exc.strerror or exc})") from None
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise CalibrationFormatError(f"{p}: not readable JSON ({exc.__class__.__name__}: {exc})") from None
-        return cls.from_dict(d, str(p))
+        return cls.from_dict(read_raw(path), str(path))
 
 
 def _finite(v: Any, key: str, positive: bool = False) -> float:
