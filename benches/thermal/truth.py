@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from analysis.identification.model import PARAM_NAMES
 from analysis.units import ARCSEC, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MM, PPM, UG, UG_PER_G2, celsius_to_kelvin
 from drivers.sim.config import AccelTruth, GyroTruth, NoiseTruth, SimConfig
 from drivers.sim.thermal_config import ChamberSim, ThermalTruth, TriadThermal
@@ -64,7 +65,8 @@ def truth_polynomials(cfg: SimConfig) -> list[tuple[float, ...]]:
     length − 1 is the simulated order). The size effect's (1 + S_i) factor is taken at T_ref (its temperature
     dependence, ~1e-4 relative over the range, is below what a plateau resolves)."""
     assert cfg.thermal is not None
-    base = list(SimulatedWorld(cfg, 0).truth().values())
+    truth = SimulatedWorld(cfg, 0).truth()  # the whole unit's truth: take the accelerometer's 18 by name
+    base = [float(truth[n]) for n in PARAM_NAMES]
     g = cfg.gyro
     base += [*g.bias, *g.scale, *g.misalignment]
     out: list[tuple[float, ...]] = []
