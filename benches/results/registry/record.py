@@ -143,6 +143,9 @@ def run_record(
             "in the bench file — a registry keeps a unit's history by its serial number"
         )
     run_utc = _run_time(raw, run) or recorded_utc
+    # the registry keeps the accelerometer triad's 18 parameters (its schema and as found / as left are the
+    # accelerometer model's); a whole-unit calibration contributes that block of its values and covariance
+    idx = [list(result.parameters).index(n) for n in PARAM_NAMES]
     params = []
     cert_params = (cert_last or {}).get("parameters", {})
     for n in PARAM_NAMES:
@@ -186,7 +189,7 @@ def run_record(
         "operator": operator if operator else default_operator(),
         "software_version": str(raw.get("software_version", "")),
         "parameter_names": canonical(list(PARAM_NAMES)),
-        "covariance": canonical(result.covariance.tolist()),
+        "covariance": canonical(np.asarray(result.covariance)[np.ix_(idx, idx)].tolist()),
     }
     return {
         "unit": {
@@ -203,7 +206,7 @@ def run_record(
         "parameters": params,
         "certificates": certificates,
         "certificate_covariance": cert_cov,
-        "x": result.x,
+        "x": np.asarray(result.x)[idx],
     }
 
 

@@ -50,3 +50,21 @@ def test_an_unreachable_registry_costs_one_line_and_registry_add_records_the_run
     assert p.returncode == 0, p.stderr
     [row] = history(Registry(db), "SIM-U-0001")
     assert row.certificate_number is not None
+
+
+def test_a_whole_unit_run_records_into_the_registry_by_itself(tmp_path):
+    """`run` on the simulated bench (accelerometer and gyro triads: 33 states) records into the registry without
+    any further command; the registry keeps the accelerometer triad's 18 parameters of it."""
+    from tests.simbench import bench_variant, short_ten_step
+
+    bench = bench_variant(tmp_path, rate=100.0)
+    proc = tmp_path / "short.yaml"
+    proc.write_text(short_ten_step(hold_s=2, warmup_s=5, name="short"), encoding="utf-8")
+    url = f"sqlite:///{tmp_path / 'lab.sqlite'}"
+    p = subprocess.run([*CLI, "run", "--bench", str(bench), "--procedure", str(proc), "--out", str(tmp_path / "r"),
+                        "--plain", "--seed", "4"], capture_output=True, text=True, timeout=600,
+                       env=_env(TABLEBENCH_REGISTRY=url), cwd=tmp_path)  # fmt: skip
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert "registry: could not" not in p.stderr, p.stderr[-2000:]
+    [row] = history(Registry(url), "SIM-U-0001")
+    assert len(row.values) == 18 and row.certificate_number
