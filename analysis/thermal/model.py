@@ -193,20 +193,10 @@ def _solve(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
     """GLS in scaled coordinates u = (T − T_ref)/scale: (coefficients, covariance, χ²) over plateaus ``rows``."""
     n_par = len(orders)
-    widths = [n + 1 + int(rate_term) for n in orders]
-    k = sum(widths)
     idx = list(range(len(plateaus))) if rows is None else list(rows)
     blocks, ys = [], []
     for i in idx:
-        pl = plateaus[i]
-        u = (pl.temperature - reference) / scale
-        a = np.zeros((n_par, k))
-        col = 0
-        for p, n in enumerate(orders):
-            a[p, col : col + n + 1] = u ** np.arange(n + 1)
-            if rate_term:
-                a[p, col + n + 1] = pl.rate * scale
-            col += widths[p]
+        a = _plateau_design(plateaus[i], orders, rate_term, reference, scale)
         blocks.append(white[i] @ a)
         ys.append(y[i * n_par : (i + 1) * n_par])
     a_all, y_all = np.vstack(blocks), np.concatenate(ys)
@@ -217,6 +207,23 @@ def _solve(
     rinv = np.linalg.inv(r)
     res = y_all - a_all @ beta
     return beta, rinv @ rinv.T, float(res @ res)
+
+
+def _plateau_design(
+    pl: PlateauEstimate, orders: Sequence[int], rate_term: bool, reference: float, scale: float
+) -> NDArray[np.float64]:
+    """One plateau's rows of the design (P, K) in scaled coordinates: per parameter the powers of
+    (T − T_ref)/scale up to its order, then its dT/dt column when ``rate_term``."""
+    widths = [n + 1 + int(rate_term) for n in orders]
+    u = (pl.temperature - reference) / scale
+    a = np.zeros((len(orders), sum(widths)))
+    col = 0
+    for p, n in enumerate(orders):
+        a[p, col : col + n + 1] = u ** np.arange(n + 1)
+        if rate_term:
+            a[p, col + n + 1] = pl.rate * scale
+        col += widths[p]
+    return a
 
 
 def _forward(lo: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -233,21 +240,8 @@ def _whitened_design(
     white: list[NDArray[np.float64]],
 ) -> NDArray[np.float64]:
     """The stacked whitened design (m·P, K) in scaled coordinates (columns as :func:`_solve`)."""
-    n_par = len(orders)
-    widths = [n + 1 + int(rate_term) for n in orders]
-    k = sum(widths)
-    blocks = []
-    for i, pl in enumerate(plateaus):
-        u = (pl.temperature - reference) / scale
-        a = np.zeros((n_par, k))
-        col = 0
-        for p, n in enumerate(orders):
-            a[p, col : col + n + 1] = u ** np.arange(n + 1)
-            if rate_term:
-                a[p, col + n + 1] = pl.rate * scale
-            col += widths[p]
-        blocks.append(white[i] @ a)
-    return np.vstack(blocks)
+    return np.vstack([white[i] @ _plateau_design(pl, orders, rate_term, reference, scale)
+                      for i, pl in enumerate(plateaus)])  # fmt: skip
 
 
 def _unscale(
