@@ -173,6 +173,7 @@ class TurntableSpec:
         """The host's at-rate window, rad/s: the stated tolerance plus the table's stated rate accuracy at its
         fastest axis (a table that turns 300 ppm fast at 60 °/s is 0.018 °/s off its command, and at rate)."""
         return self.rate_tolerance + self.rate_accuracy * max(lim.rate_max for lim in self.limits)
+
     sim_controller: str = field(default_factory=lambda: devices.default_simulated_controller())
     """Simulated benches: which controller the simulator speaks (``simulation.controller``, :mod:`benches.devices`)."""
     aerosmith: AerosmithSettings | None = None  # Ideal Aerosmith open points (driver ideal-aerosmith or simulated)

@@ -229,6 +229,7 @@ def execute(
                 progress=progress,
                 aux=bench.aux,
                 resume_soak=resume_soak,
+                aux_every=getattr(bench, "aux_every", None),
             )
             try:
                 result = runner.run(replay=replay, start_sample=start_sample)

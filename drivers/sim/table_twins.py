@@ -62,9 +62,7 @@ class TableTwin(Protocol):
         """Start the controller's server for ``world`` on 127.0.0.1."""
         ...
 
-    def connect(
-        self, server: Any, timeout: float, clock: Clock | None, alone: bool = False
-    ) -> connect.Connection[Any]:
+    def connect(self, server: Any, timeout: float, clock: Clock | None, alone: bool = False) -> connect.Connection[Any]:
         """The real driver connected to ``server`` over the real wire (``clock``: the host clock, None: the
         host's monotonic clock; ``alone``: the table opened without the unit, ``tablebench table``)."""
         ...
@@ -114,9 +112,7 @@ class AclTwin:
     def serve(self, world: SimulatedWorld) -> AclTableServer:
         return AclTableServer(world, self.acl)
 
-    def connect(
-        self, server: Any, timeout: float, clock: Clock | None, alone: bool = False
-    ) -> connect.Connection[Any]:
+    def connect(self, server: Any, timeout: float, clock: Clock | None, alone: bool = False) -> connect.Connection[Any]:
         if alone and self.open_alone is not None:
             return self.open_alone(server.resource, timeout)
         res = open_visa(server.resource, timeout)
@@ -162,9 +158,7 @@ class ModbusTwin:
             watchdog_from_power_up=self.watchdog_from_power_up,
         )
 
-    def connect(
-        self, server: Any, timeout: float, clock: Clock | None, alone: bool = False
-    ) -> connect.Connection[Any]:
+    def connect(self, server: Any, timeout: float, clock: Clock | None, alone: bool = False) -> connect.Connection[Any]:
         return connect.modbus_table(
             "127.0.0.1",
             server.port,
@@ -200,9 +194,7 @@ class AerosmithTwin:
     def serve(self, world: SimulatedWorld) -> TableServer:
         raise ValueError(self.in_process_only)
 
-    def connect(
-        self, server: Any, timeout: float, clock: Clock | None, alone: bool = False
-    ) -> connect.Connection[Any]:
+    def connect(self, server: Any, timeout: float, clock: Clock | None, alone: bool = False) -> connect.Connection[Any]:
         raise ValueError(self.in_process_only)
 
     def describe(self, server: Any) -> str:
