@@ -11,7 +11,7 @@ Imports flow content ← budget ← build → plots, pdf → content.
 
 from __future__ import annotations
 
-from .build import bench_info, build_certificate, issue_certificate, publish_certificate
+from .build import bench_info, build_certificate, combined_covariance, issue_certificate, publish_certificate
 from .content import (
     FORMAT,
     FORMAT_VERSION,
@@ -35,6 +35,7 @@ __all__ = [
     "ParameterResult",
     "bench_info",
     "build_certificate",
+    "combined_covariance",
     "format_with_uncertainty",
     "issue_certificate",
     "publish_certificate",

@@ -42,7 +42,7 @@ from analysis.identification.decision import (
     decide,
     overall_verdict,
 )
-from analysis.units import ARCSEC, display_unit, kelvin_to_celsius, to_display
+from analysis.units import ARCSEC, display_unit, from_display, kelvin_to_celsius, to_display
 from benches.bench_config import BenchConfig, load_bench_text
 from benches.calibration_integrity import load_verified
 from benches.calibration_result import SI_UNITS, CalibrationFormatError, CalibrationResult
@@ -60,11 +60,13 @@ from .budget import (
     step_geometry,
 )
 from .content import (
+    AMBIENT_NOT_STATED,
     ANALYSES,
     BenchInfo,
     Certificate,
     CertificateError,
     ParameterResult,
+    ambient_text,
     format_with_uncertainty,
 )
 from .plots import plot_convergence, plot_coverage, plot_residuals
@@ -126,6 +128,7 @@ def bench_info_of(cfg: BenchConfig | None, cal_run: dict[str, Any], rec_attrs: d
                 for r in getattr(cfg, "reference_standards", ())
             ],  # fmt: skip
             latency=float(getattr(u, "latency", 0.0) or 0.0),
+            ambient=_ambient_si(getattr(s, "ambient", None)),
         )
     g = float(site.get("g") or rec_attrs.get("site_g") or 0.0)
     if not g > 0:
@@ -150,6 +153,18 @@ def bench_info_of(cfg: BenchConfig | None, cal_run: dict[str, Any], rec_attrs: d
     )
 
 
+def _ambient_si(ambient: Any) -> dict[str, float | None]:
+    """The bench's ``site.ambient`` (:class:`benches.bench_config.Ambient`) as the certificate keeps it (SI)."""
+    if ambient is None:
+        return {}
+    return {
+        "temperature_k": ambient.temperature,
+        "temperature_tolerance_k": ambient.temperature_tolerance,
+        "relative_humidity": ambient.relative_humidity,
+        "pressure_pa": ambient.pressure,
+    }
+
+
 def _load_json(path: Path, what: str) -> dict[str, Any]:
     try:
         return json.loads(path.read_text(encoding="utf-8"))
@@ -164,9 +179,42 @@ def _fmt(x: Any) -> str:
         return str(x)
 
 
-def _twice(x: Any) -> Any:
-    """2·x for a number (the expanded uncertainty of a standard uncertainty, k = 2), else x unchanged."""
-    return 2.0 * float(x) if isinstance(x, int | float) and not isinstance(x, bool) else x
+def _number(x: Any) -> float | None:
+    """A finite float, else None (an analysis file's missing or non-numeric entry)."""
+    if isinstance(x, bool):
+        return None
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return None
+    return v if math.isfinite(v) else None
+
+
+def _pm(value: Any, sigma: Any, unit: str) -> str:
+    """``value ± U unit (U, k = 2)`` with U = 2σ to two significant digits and the value to the same decimal
+    (GUM 7.2.6, the results table's rule: :func:`format_with_uncertainty`); the value alone when σ is absent."""
+    v, s = _number(value), _number(sigma)
+    if v is None:
+        return f"{value} {unit}".strip()
+    if s is None or s <= 0:
+        return f"{v:.4g} {unit}".strip()
+    v_txt, u_txt = format_with_uncertainty(v, 2.0 * s)
+    return f"{v_txt} ± {u_txt} {unit} (U, k = 2)".replace("  ", " ")
+
+
+_SI_KIND = {"m/s^2": "acceleration", "m/s²": "acceleration", "rad/s": "gyro_bias"}
+"""An analysis file's SI unit of a channel → the quantity kind whose display unit the certificate uses (µg,
+°/h): the results table and the analyses in one unit per quantity (``analysis.units``)."""
+
+
+def _display(channel: str, unit: str | None) -> tuple[str, float]:
+    """(display unit, SI per display unit) for an analysis channel's values given in ``unit`` (default: the
+    channel's SI unit); a unit the certificate does not know is kept as it is (factor 1)."""
+    u = unit or _si_unit(channel)
+    kind = _SI_KIND.get(u)
+    if kind is None:
+        return u, 1.0
+    return display_unit(kind), from_display(kind, 1.0)
 
 
 def _si_unit(channel: str) -> str:
@@ -174,64 +222,69 @@ def _si_unit(channel: str) -> str:
     return "rad/s" if channel.startswith("gyro") else "m/s²" if channel.startswith("accel") else "(SI)"
 
 
+def _noise_rows(ch: str, c: dict[str, Any]) -> list[dict[str, str]]:
+    rows = []
+    for term, t in sorted((c.get("terms_display") or c.get("terms") or {}).items()):
+        t = t or {}
+        rows.append({"channel": ch, "item": str(term), "value": _pm(t.get("value"), t.get("sigma"), t.get("unit", ""))})
+    return rows
+
+
+def _periodic_rows(ch: str, c: dict[str, Any]) -> list[dict[str, str]]:
+    rows = []
+    for i, t in enumerate(c.get("terms") or []):
+        unit, si = _display(ch, t.get("amplitude_unit") or c.get("unit"))
+        amp, amp_s = _number(t.get("amplitude")), _number(t.get("amplitude_sigma"))
+        amp_txt = _pm(None if amp is None else amp / si, None if amp_s is None else amp_s / si, unit)
+        rows.append(
+            {
+                "channel": ch,
+                "item": f"tone {i + 1}",
+                "value": f"{_pm(t.get('frequency_hz'), t.get('frequency_sigma_hz'), 'Hz')}, amplitude {amp_txt}, "
+                f"phase {_pm(t.get('phase_rad'), t.get('phase_sigma_rad'), 'rad')}",
+            }
+        )
+    if "residual_rms_before" in c:
+        unit, si = _display(ch, c.get("unit"))
+        before, after = _number(c.get("residual_rms_before")), _number(c.get("residual_rms_after"))
+        txt = " → ".join("—" if x is None else f"{x / si:.4g}" for x in (before, after))
+        rows.append({"channel": ch, "item": "residual RMS", "value": f"{txt} {unit}"})
+    return rows
+
+
+def _drift_rows(ch: str, c: dict[str, Any]) -> list[dict[str, str]]:
+    m = c.get("model") or {}
+    unit, si = _display(ch, None)
+    s2 = _number(m.get("sigma2"))
+    sig = "—" if s2 is None or s2 < 0 else f"{math.sqrt(s2) / si:.4g} {unit}"
+    rows = [
+        {
+            "channel": ch,
+            "item": f"ARMA({m.get('p', '?')},{m.get('q', '?')})",
+            "value": f"φ {[round(float(v), 4) for v in m.get('phi', [])]}, "
+            f"θ {[round(float(v), 4) for v in m.get('theta', [])]}, innovation σ {sig}",
+        }
+    ]
+    for name, t in sorted((c.get("tests") or {}).items()):
+        t = t or {}
+        rows.append(
+            {
+                "channel": ch,
+                "item": str(name),
+                "value": f"{_fmt(t.get('statistic'))} (threshold {_fmt(t.get('threshold'))}): {t.get('verdict', '')}",
+            }
+        )
+    return rows
+
+
 def _analysis_rows(kind: str, data: dict[str, Any]) -> list[dict[str, str]]:
-    """Summary rows of a noise / periodic / drift JSON (formats in the analysis commands' docs)."""
+    """Summary rows of a noise / periodic / drift JSON (formats in the analysis commands' docs), in the
+    certificate's display units (µg, °/h), every ± an expanded uncertainty U (k = 2) to the value's decimal."""
     rows: list[dict[str, str]] = []
     channels = data.get("channels", {}) if isinstance(data, dict) else {}
+    each = {"noise": _noise_rows, "periodic": _periodic_rows, "drift": _drift_rows}[kind]
     for ch in sorted(channels):
-        c = channels[ch] or {}
-        if kind == "noise":
-            for term, t in sorted((c.get("terms_display") or c.get("terms") or {}).items()):
-                t = t or {}
-                rows.append(
-                    {
-                        "channel": ch,
-                        "item": str(term),
-                        "value": f"{_fmt(t.get('value'))} ± {_fmt(_twice(t.get('sigma')))} {t.get('unit', '')} "
-                        "(U, k = 2)",
-                    }
-                )
-        elif kind == "periodic":
-            for i, t in enumerate(c.get("terms") or []):
-                rows.append(
-                    {
-                        "channel": ch,
-                        "item": f"tone {i + 1}",
-                        "value": f"{_fmt(t.get('frequency_hz'))} ± {_fmt(_twice(t.get('frequency_sigma_hz')))} Hz "
-                        f"(U, k = 2), amplitude {_fmt(t.get('amplitude'))} "
-                        f"{t.get('amplitude_unit') or c.get('unit') or _si_unit(ch)}, "
-                        f"phase {_fmt(t.get('phase_rad'))} rad",
-                    }
-                )
-            if "residual_rms_before" in c:
-                rows.append(
-                    {
-                        "channel": ch,
-                        "item": "residual RMS",
-                        "value": f"{_fmt(c.get('residual_rms_before'))} → {_fmt(c.get('residual_rms_after'))} "
-                        f"{c.get('unit') or _si_unit(ch)}",
-                    }
-                )
-        elif kind == "drift":
-            m = c.get("model") or {}
-            rows.append(
-                {
-                    "channel": ch,
-                    "item": f"ARMA({m.get('p', '?')},{m.get('q', '?')})",
-                    "value": f"φ {[round(float(v), 4) for v in m.get('phi', [])]}, "
-                    f"θ {[round(float(v), 4) for v in m.get('theta', [])]}, σ² {_fmt(m.get('sigma2'))}",
-                }
-            )
-            for name, t in sorted((c.get("tests") or {}).items()):
-                t = t or {}
-                rows.append(
-                    {
-                        "channel": ch,
-                        "item": str(name),
-                        "value": f"{_fmt(t.get('statistic'))} (threshold {_fmt(t.get('threshold'))}): "
-                        f"{t.get('verdict', '')}",
-                    }
-                )
+        rows += each(str(ch), channels[ch] or {})
     return rows
 
 
@@ -366,11 +419,7 @@ def _gather_open(
     compiled = rr.compiled
     cal_run = cal.run.to_mapping() if cal.run is not None else {}
     binfo = bench or bench_info_of(rr.config if bench_text.strip() else None, cal_run, attrs)
-    used = [str(p.get("name")) for p in cal.per_step]
-    lat = None if binfo.latitude_deg is None else math.radians(float(binfo.latitude_deg))
-    tb = cal.time_base.estimate if cal.time_base is not None else None
-    geometry = step_geometry(f, binfo.g, None if binfo.mounting is None else np.asarray(binfo.mounting),
-                             latency=binfo.latency, names=used or None, latitude=lat, time_base=tb)  # fmt: skip
+    geometry = _geometry(rr, binfo, cal)
     n_samples = f.n_samples
     ends = f.samples(fields=("time",), index=[0, n_samples - 1]).time if n_samples > 1 else None
     analyses, analysis_plots = _gather_analyses(run)
@@ -445,14 +494,21 @@ def _parameter_result(
     return row, reason, unverified
 
 
-def decide_conformity(g: Gathered) -> Decision:
-    """The GUM budget and the ILAC-G8 decision per parameter and overall (see the module docstring)."""
-    binfo = g.binfo
-    integrity_ok = True  # open_recording() verified every checksum (a damaged recording raised above)
+def _geometry(rr: RecordedRun, binfo: BenchInfo, cal: CalibrationResult) -> list[StepGeometry]:
+    """The reference of each step the identification used (THE reference function, the bench's mounting)."""
+    used = [str(p.get("name")) for p in cal.per_step]
+    lat = None if binfo.latitude_deg is None else math.radians(float(binfo.latitude_deg))
+    tb = cal.time_base.estimate if cal.time_base is not None else None
+    return step_geometry(rr.recording, binfo.g, None if binfo.mounting is None else np.asarray(binfo.mounting),
+                         latency=binfo.latency, names=used or None, latitude=lat, time_base=tb)  # fmt: skip
+
+
+def _budget(cal: CalibrationResult, geometry: list[StepGeometry], binfo: BenchInfo, where: Path) -> UncertaintyBudget:
+    """The GUM budget of a calibration: its own covariance plus the bench's type-B components."""
     try:
-        budget: UncertaintyBudget = budget_for_run(
-            g.cal,
-            g.geometry,
+        return budget_for_run(
+            cal,
+            geometry,
             g=binfo.g,
             g_uncertainty=binfo.g_uncertainty,
             g_source=binfo.g_source,
@@ -466,7 +522,32 @@ def decide_conformity(g: Gathered) -> Decision:
             azimuth_uncertainty=binfo.azimuth_uncertainty,
         )
     except ValueError as exc:
-        raise CertificateError(f"{g.cal_path}: {exc}") from None
+        raise CertificateError(f"{where}: {exc}") from None
+
+
+def combined_covariance(cal: CalibrationResult, run: str | Path | RecordedRun) -> np.ndarray:
+    """The covariance a certificate of ``cal`` would state (type A + B, SI, the calibration's names order),
+    without issuing one: what ``run`` and ``identify`` judge their NEES against the simulator truth with.
+
+    Raises
+    ------
+    CertificateError
+        The recording cannot be read or the budget cannot be formed.
+    """
+    try:
+        with run_of(run) as rr:
+            cal_run = cal.run.to_mapping() if cal.run is not None else {}
+            binfo = bench_info_of(rr.config if rr.bench_text.strip() else None, cal_run, rr.header.as_dict())
+            return _budget(cal, _geometry(rr, binfo, cal), binfo, rr.path).covariance
+    except RecordingError as exc:
+        raise CertificateError(str(exc)) from None
+
+
+def decide_conformity(g: Gathered) -> Decision:
+    """The GUM budget and the ILAC-G8 decision per parameter and overall (see the module docstring)."""
+    binfo = g.binfo
+    integrity_ok = True  # open_recording() verified every checksum (a damaged recording raised above)
+    budget = _budget(g.cal, g.geometry, binfo, g.cal_path)
     results: list[ParameterResult] = []
     reasons: list[str] = []
     unverified: list[str] = []
@@ -496,6 +577,11 @@ def decide_conformity(g: Gathered) -> Decision:
         warnings.append("not identified (prior-dominated, do not use for compensation): " + ", ".join(unident))
     if not binfo.limits:
         warnings.append("the bench file gives no pass/fail limits: no conformity statement")
+    if (binfo.ambient or {}).get("temperature_k") is None:
+        warnings.append(
+            f"the laboratory's ambient conditions are {AMBIENT_NOT_STATED}: the certificate cannot state the "
+            "conditions of the calibration (ISO/IEC 17025 7.8.4.1); state site.ambient and re-issue"
+        )
     sizes = [p.name for p in results if p.identifiable and p.name.startswith("r_")]
     if sizes and not binfo.rate_accuracy:
         warnings.append(
@@ -582,6 +668,7 @@ def assemble(g: Gathered, d: Decision, issue_date: str, with_plots: bool = True)
     cal, budget = g.cal, d.budget
     created = str(g.attrs.get("created_utc", ""))
     written = cal.to_dict()  # as calibration.json states them
+    ambient = dict(g.binfo.ambient or {})
     cert = Certificate(
         number=f"TB-{g.rec_sha[:10].upper()}",
         issue_date=issue_date,
@@ -600,6 +687,8 @@ def assemble(g: Gathered, d: Decision, issue_date: str, with_plots: bool = True)
         environment={
             "unit_temperature_k": g.temperature,
             "unit_temperature_c": {k: kelvin_to_celsius(v) for k, v in g.temperature.items()},
+            "laboratory_ambient": {**ambient, "stated": ambient.get("temperature_k") is not None,
+                                   "text": ambient_text(ambient)},
         },
         identification={
             "method": cal.method,
@@ -764,5 +853,6 @@ def publish_certificate(
     return doc.pdf, doc.json
 
 
-__all__ = ["Decision", "Gathered", "assemble", "bench_info", "build_certificate", "decide_conformity", "gather",
+__all__ = ["Decision", "Gathered", "assemble", "bench_info", "build_certificate", "combined_covariance",
+           "decide_conformity", "gather",
            "issue_certificate", "publish_certificate"]

@@ -11,6 +11,7 @@ import math
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from analysis.units import kelvin_to_celsius
 from core.errors import UserError
 from core.jsonio import dumps
 
@@ -93,6 +94,9 @@ class BenchInfo:
     rate_accuracy: float = 0.0
     latency: float = 0.0
     reference_standards: list[dict[str, str]] = field(default_factory=list)
+    ambient: dict[str, float | None] = field(default_factory=dict)
+    """The laboratory's ambient conditions (bench ``site.ambient``, SI: temperature K, tolerance K, relative
+    humidity fraction, pressure Pa); empty or None values: not stated."""
 
 
 @dataclass
@@ -221,6 +225,27 @@ class Certificate:
 
 
 # ---- helpers -------------------------------------------------------------------------------------------------
+
+AMBIENT_NOT_STATED = "not stated in the bench file (site.ambient)"
+
+
+def ambient_text(ambient: dict[str, Any] | None) -> str:
+    """The laboratory's ambient conditions as the certificate states them (°C, % RH, hPa), or "not stated".
+
+    ``ambient``: the certificate's ``environment.laboratory_ambient`` (SI: K, fraction, Pa).
+    """
+    a = ambient or {}
+    t = a.get("temperature_k")
+    if t is None:
+        return AMBIENT_NOT_STATED
+    tol = a.get("temperature_tolerance_k")
+    parts = [f"{kelvin_to_celsius(t):.1f}" + (f" ± {tol:.1f}" if tol is not None else "") + " °C air temperature"]
+    if a.get("relative_humidity") is not None:
+        parts.append(f"{100 * a['relative_humidity']:.0f} % relative humidity")
+    if a.get("pressure_pa") is not None:
+        parts.append(f"{a['pressure_pa'] / 100:.0f} hPa")
+    return ", ".join(parts) + " (laboratory, as stated in the bench file)"
+
 
 
 def format_with_uncertainty(value: float, expanded: float, digits: int = 2) -> tuple[str, str]:

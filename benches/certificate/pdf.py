@@ -15,7 +15,9 @@ from pathlib import Path
 import matplotlib
 from fpdf import FPDF, FontFace, XPos, YPos
 
-from .content import GYRO_MODEL_TEXT, MODEL_TEXT, Certificate
+from analysis.identification.plan_legend import plan_legend_text
+
+from .content import GYRO_MODEL_TEXT, MODEL_TEXT, Certificate, ambient_text
 
 _FONT = "DejaVu"
 _GREY = (235, 235, 235)
@@ -300,7 +302,8 @@ def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
             ("Local gravity g", g_txt),
             ("Procedure", f"{proc.get('name', '')}; SHA-256 of its text: {proc.get('sha256', '')}" + _overrides(proc)),
             ("Date of calibration", _dates_text(rec)),
-            ("Environment", f"Unit temperature {temp_txt}"),
+            ("Environment", f"Laboratory ambient: {ambient_text(c.environment.get('laboratory_ambient'))}; "
+                            f"unit temperature {temp_txt}"),
             ("Recording", rec_txt),
             ("Identification", ident_txt),
             ("Software", sw_txt),
@@ -398,7 +401,8 @@ def _results_page(pdf: _CertificatePdf, c: Certificate) -> None:
         "display during the run shows the filter's white-noise ± (standard, k = 1); 'tablebench identify' and "
         "calibration.json give u, the identification's combined standard uncertainty (white noise ⊕ bias "
         "instability, k = 1); this certificate's U adds the type-B components of the budget (table, gravity, "
-        "model mismatch) and is expanded, U = 2u. Values in SI and the full "
+        "model mismatch) and is expanded, U = 2u. The pre-run plan ('tablebench plan', printed by 'run' and quoted "
+        f"in the warnings) predicts 1σ figures; its {plan_legend_text()}. Values in SI and the full "
         "covariance are in the machine-readable certificate (JSON). µg = 9.80665e-6 m/s²; ppm = 1e-6; ″ = arcsecond.",
         size=7.6,
     )
