@@ -391,10 +391,17 @@ def _identify_and_certify(
         say(result.summary(combined_covariance_or_none(result, source)))
         say(f"calibration: {path}", err=False)
     if "certificate" in todo:
-        from benches.certificate import issue_certificate  # lazy: fpdf, matplotlib, filterpy (--help time)
+        from benches.certificate import (  # lazy: fpdf, matplotlib, filterpy (--help time)
+            NOISE_REPORT,
+            issue_certificate,
+        )
 
         pdf, js, verdict = issue_certificate(folder, recorded=recorded, sinks=sinks)
         done.append("certificate")
+        if verdict == NOISE_REPORT:  # a static record: its noise, no calibration (benches.certificate.noise_report)
+            say(f"noise report: {pdf} (a static record: its noise terms; no calibration, no conformity statement)",
+                err=False)  # fmt: skip
+            return done
         say(f"certificate: {pdf} ({verdict})", err=False)
         for line in verdict_explanation(js, verdict, spins=_has_spins(folder)):
             say(line)

@@ -42,7 +42,7 @@ from analysis.identification.decision import (
     decide,
     overall_verdict,
 )
-from analysis.units import ARCSEC, display_unit, from_display, kelvin_to_celsius, to_display
+from analysis.units import ARCSEC, display_unit, kelvin_to_celsius, to_display
 from benches.bench_config import BenchConfig, load_bench_text
 from benches.calibration_integrity import load_verified
 from benches.calibration_result import SI_UNITS, CalibrationFormatError, CalibrationResult
@@ -52,6 +52,7 @@ from benches.results.chain import sinks_for_run
 from benches.results.sink import CertificateDocument, ResultSinks
 from core.provenance import file_sha256, software_version
 
+from .analyses import analysis_rows
 from .budget import (
     StepGeometry,
     UncertaintyBudget,
@@ -69,6 +70,7 @@ from .content import (
     ambient_text,
     format_with_uncertainty,
 )
+from .noise_report import build_noise_report, is_static_record
 from .plots import plot_convergence, plot_coverage, plot_residuals
 
 
@@ -172,122 +174,6 @@ def _load_json(path: Path, what: str) -> dict[str, Any]:
         raise CertificateError(f"{path}: cannot read the {what} ({exc}); re-create it") from None
 
 
-def _fmt(x: Any) -> str:
-    try:
-        return f"{float(x):.4g}"
-    except (TypeError, ValueError):
-        return str(x)
-
-
-def _number(x: Any) -> float | None:
-    """A finite float, else None (an analysis file's missing or non-numeric entry)."""
-    if isinstance(x, bool):
-        return None
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
-
-
-def _pm(value: Any, sigma: Any, unit: str) -> str:
-    """``value ± U unit (U, k = 2)`` with U = 2σ to two significant digits and the value to the same decimal
-    (GUM 7.2.6, the results table's rule: :func:`format_with_uncertainty`); the value alone when σ is absent."""
-    v, s = _number(value), _number(sigma)
-    if v is None:
-        return f"{value} {unit}".strip()
-    if s is None or s <= 0:
-        return f"{v:.4g} {unit}".strip()
-    v_txt, u_txt = format_with_uncertainty(v, 2.0 * s)
-    return f"{v_txt} ± {u_txt} {unit} (U, k = 2)".replace("  ", " ")
-
-
-_SI_KIND = {"m/s^2": "acceleration", "m/s²": "acceleration", "rad/s": "gyro_bias"}
-"""An analysis file's SI unit of a channel → the quantity kind whose display unit the certificate uses (µg,
-°/h): the results table and the analyses in one unit per quantity (``analysis.units``)."""
-
-
-def _display(channel: str, unit: str | None) -> tuple[str, float]:
-    """(display unit, SI per display unit) for an analysis channel's values given in ``unit`` (default: the
-    channel's SI unit); a unit the certificate does not know is kept as it is (factor 1)."""
-    u = unit or _si_unit(channel)
-    kind = _SI_KIND.get(u)
-    if kind is None:
-        return u, 1.0
-    return display_unit(kind), from_display(kind, 1.0)
-
-
-def _si_unit(channel: str) -> str:
-    """SI unit of an analysis channel's values (analysis JSON files are SI)."""
-    return "rad/s" if channel.startswith("gyro") else "m/s²" if channel.startswith("accel") else "(SI)"
-
-
-def _noise_rows(ch: str, c: dict[str, Any]) -> list[dict[str, str]]:
-    rows = []
-    for term, t in sorted((c.get("terms_display") or c.get("terms") or {}).items()):
-        t = t or {}
-        rows.append({"channel": ch, "item": str(term), "value": _pm(t.get("value"), t.get("sigma"), t.get("unit", ""))})
-    return rows
-
-
-def _periodic_rows(ch: str, c: dict[str, Any]) -> list[dict[str, str]]:
-    rows = []
-    for i, t in enumerate(c.get("terms") or []):
-        unit, si = _display(ch, t.get("amplitude_unit") or c.get("unit"))
-        amp, amp_s = _number(t.get("amplitude")), _number(t.get("amplitude_sigma"))
-        amp_txt = _pm(None if amp is None else amp / si, None if amp_s is None else amp_s / si, unit)
-        rows.append(
-            {
-                "channel": ch,
-                "item": f"tone {i + 1}",
-                "value": f"{_pm(t.get('frequency_hz'), t.get('frequency_sigma_hz'), 'Hz')}, amplitude {amp_txt}, "
-                f"phase {_pm(t.get('phase_rad'), t.get('phase_sigma_rad'), 'rad')}",
-            }
-        )
-    if "residual_rms_before" in c:
-        unit, si = _display(ch, c.get("unit"))
-        before, after = _number(c.get("residual_rms_before")), _number(c.get("residual_rms_after"))
-        txt = " → ".join("—" if x is None else f"{x / si:.4g}" for x in (before, after))
-        rows.append({"channel": ch, "item": "residual RMS", "value": f"{txt} {unit}"})
-    return rows
-
-
-def _drift_rows(ch: str, c: dict[str, Any]) -> list[dict[str, str]]:
-    m = c.get("model") or {}
-    unit, si = _display(ch, None)
-    s2 = _number(m.get("sigma2"))
-    sig = "—" if s2 is None or s2 < 0 else f"{math.sqrt(s2) / si:.4g} {unit}"
-    rows = [
-        {
-            "channel": ch,
-            "item": f"ARMA({m.get('p', '?')},{m.get('q', '?')})",
-            "value": f"φ {[round(float(v), 4) for v in m.get('phi', [])]}, "
-            f"θ {[round(float(v), 4) for v in m.get('theta', [])]}, innovation σ {sig}",
-        }
-    ]
-    for name, t in sorted((c.get("tests") or {}).items()):
-        t = t or {}
-        rows.append(
-            {
-                "channel": ch,
-                "item": str(name),
-                "value": f"{_fmt(t.get('statistic'))} (threshold {_fmt(t.get('threshold'))}): {t.get('verdict', '')}",
-            }
-        )
-    return rows
-
-
-def _analysis_rows(kind: str, data: dict[str, Any]) -> list[dict[str, str]]:
-    """Summary rows of a noise / periodic / drift JSON (formats in the analysis commands' docs), in the
-    certificate's display units (µg, °/h), every ± an expanded uncertainty U (k = 2) to the value's decimal."""
-    rows: list[dict[str, str]] = []
-    channels = data.get("channels", {}) if isinstance(data, dict) else {}
-    each = {"noise": _noise_rows, "periodic": _periodic_rows, "drift": _drift_rows}[kind]
-    for ch in sorted(channels):
-        rows += each(str(ch), channels[ch] or {})
-    return rows
-
-
 # ---- the content model: gather / decide / assemble ---------------------------------------------------------
 
 
@@ -304,7 +190,7 @@ class Gathered:
     run_status: str
     complete: bool
     incomplete_reason: str
-    cal: CalibrationResult
+    cal: CalibrationResult | None  # None: a noise report (no calibration is stated)
     procedure_steps: int | None
     binfo: BenchInfo
     geometry: list[StepGeometry]
@@ -378,7 +264,7 @@ def _gather_analyses(run: Path) -> tuple[dict[str, list[dict[str, str]]], list[t
     for kind in ANALYSES:
         p = run / kind / f"{kind}.json"
         if p.exists():
-            analyses[kind] = _analysis_rows(kind, _load_json(p, f"{kind} analysis"))
+            analyses[kind] = analysis_rows(kind, _load_json(p, f"{kind} analysis"))
             for png in sorted((run / kind).glob("*.png"))[:6]:
                 analysis_plots.append((f"{kind}/{png.name}", png.read_bytes()))
     return analyses, analysis_plots
@@ -409,17 +295,20 @@ def _gather_open(
     rec_sha: str,
     allow_incomplete: bool,
     bench: BenchInfo | None,
+    calibration: bool = True,
 ) -> Gathered:
+    """What the document states, from the open run; ``calibration`` False (a noise report): no calibration.json
+    is read (``cal`` None, no step geometry)."""
     f = rr.recording
     attrs = rr.header.as_dict()
     attrs["seed"] = -1 if attrs.get("seed") is None else attrs["seed"]
     complete, incomplete_reason = _completeness(rr, allow_incomplete, run)
-    cal = _load_calibration(cal_path, run, rec_sha)
+    cal = _load_calibration(cal_path, run, rec_sha) if calibration else None
     bench_text = rr.bench_text
     compiled = rr.compiled
-    cal_run = cal.run.to_mapping() if cal.run is not None else {}
+    cal_run = cal.run.to_mapping() if cal is not None and cal.run is not None else {}
     binfo = bench or bench_info_of(rr.config if bench_text.strip() else None, cal_run, attrs)
-    geometry = _geometry(rr, binfo, cal)
+    geometry = _geometry(rr, binfo, cal) if cal is not None else []
     n_samples = f.n_samples
     ends = f.samples(fields=("time",), index=[0, n_samples - 1]).time if n_samples > 1 else None
     analyses, analysis_plots = _gather_analyses(run)
@@ -445,7 +334,7 @@ def _gather_open(
         ],
         integrity={"verified": f.integrity_verified, "note": f.integrity_note},
         overrides=dict(rr.header.procedure_overrides),
-        per_step=_per_step_rows(cal, cal_path),
+        per_step=_per_step_rows(cal, cal_path) if cal is not None else [],
         analyses=analyses,
         analysis_plots=analysis_plots,
     )
@@ -545,6 +434,7 @@ def combined_covariance(cal: CalibrationResult, run: str | Path | RecordedRun) -
 
 def decide_conformity(g: Gathered) -> Decision:
     """The GUM budget and the ILAC-G8 decision per parameter and overall (see the module docstring)."""
+    assert g.cal is not None, "a calibration certificate needs the calibration (a noise report has none)"
     binfo = g.binfo
     integrity_ok = True  # open_recording() verified every checksum (a damaged recording raised above)
     budget = _budget(g.cal, g.geometry, binfo, g.cal_path)
@@ -666,6 +556,7 @@ def relative_misalignment(names: list[str], x: np.ndarray, cov: np.ndarray) -> d
 def assemble(g: Gathered, d: Decision, issue_date: str, with_plots: bool = True) -> Certificate:
     """The certificate's content model from what was gathered and decided (figures when ``with_plots``)."""
     cal, budget = g.cal, d.budget
+    assert cal is not None
     created = str(g.attrs.get("created_utc", ""))
     written = cal.to_dict()  # as calibration.json states them
     ambient = dict(g.binfo.ambient or {})
@@ -678,11 +569,7 @@ def assemble(g: Gathered, d: Decision, issue_date: str, with_plots: bool = True)
         incomplete_reason=g.incomplete_reason,
         unit={"model": g.binfo.unit_model, "serial_number": g.binfo.unit_serial},
         bench=_bench_block(g),
-        procedure={
-            "name": str(g.attrs.get("procedure_name", "")),
-            "sha256": str(g.attrs.get("procedure_sha256", "")),
-            "procedure_overrides": g.overrides,
-        },
+        procedure=_procedure_block(g),
         recording=_recording_block(g),
         environment={
             "unit_temperature_k": g.temperature,
@@ -769,10 +656,32 @@ def build_certificate(
     CertificateError
         Missing/mismatched inputs, or an incomplete recording without ``allow_incomplete``.
     """
-    _run_paths(run_dir)  # a missing recording is named before a bad --issue-date
+    run, rec_path, cal_path = _run_paths(run_dir)  # a missing recording is named before a bad --issue-date
     date = _issue_date(issue_date)
-    g = gather(run_dir, allow_incomplete=allow_incomplete, bench=bench, recorded=recorded)
+    with contextlib.ExitStack() as stack:
+        try:
+            rr = stack.enter_context(run_of(recorded if recorded is not None else rec_path))
+        except RecordingError as exc:
+            raise CertificateError(str(exc)) from None
+        if is_static_record(rr.steps):  # one attitude, no rotation: a noise report, not a calibration
+            g = _gather_open(rr, run, rec_path, cal_path, rr.sha256, allow_incomplete, bench, calibration=False)
+            return build_noise_report(
+                rr, g.binfo, date, complete=g.complete, incomplete_reason=g.incomplete_reason,
+                bench_block=_bench_block(g), recording_block=_recording_block(g),
+                procedure_block=_procedure_block(g), temperature=g.temperature,
+                creation_date=_creation_datetime(str(g.attrs.get("created_utc", ""))).isoformat(),
+                software=software_version(), with_plots=with_plots,
+            )  # fmt: skip
+        g = _gather_open(rr, run, rec_path, cal_path, rr.sha256, allow_incomplete, bench)
     return assemble(g, decide_conformity(g), date, with_plots)
+
+
+def _procedure_block(g: Gathered) -> dict[str, Any]:
+    return {
+        "name": str(g.attrs.get("procedure_name", "")),
+        "sha256": str(g.attrs.get("procedure_sha256", "")),
+        "procedure_overrides": g.overrides,
+    }
 
 
 def _per_step_rows(cal: CalibrationResult, path: Path) -> list[dict[str, Any]]:
