@@ -119,6 +119,10 @@ class ReplayWorld:
     def table_state(self):
         return self._state
 
+    def host_time(self) -> float:
+        """The simulated host clock the loopback drivers stamp with (the replayed frames' time)."""
+        return self._k / self.sample_rate
+
     def table_limits(self):
         return self._limits
 
