@@ -148,3 +148,26 @@ def test_a_run_over_loopback_equals_the_in_process_run(tmp_path):
     assert np.all(ta.angles[:, :2] == 0)  # the absent gimbals never moved
     np.testing.assert_allclose(sa.gyro, sb.gyro, rtol=0, atol=1e-6)
     np.testing.assert_allclose(sa.accel, sb.accel, rtol=0, atol=1e-5)
+
+
+def test_the_real_example_bench_loads_and_check_refuses_what_it_cannot_do():
+    """benches/example-ideal-aerosmith.yaml (a real single-axis table with an Epson M-G370): loads, names its
+    frame, and ``check`` refuses the ten-step sequence (outer/middle gimbals absent) in one line, exit 2,
+    while a static procedure passes — without any hardware attached."""
+    import subprocess
+    import sys
+
+    from benches.session import prepare
+
+    real = REPO_ROOT / "benches" / "example-ideal-aerosmith.yaml"
+    b = load_bench(real)
+    assert b.simulation is None and b.turntable.driver == "ideal-aerosmith" and b.unit.frame == "epson-g370-burst"
+    prepare(real, "static-noise", {"duration_s": 60.0})
+    r = subprocess.run(
+        [sys.executable, "-m", "benches.cli", "check", "ten-step", "--bench", str(real)],
+        cwd=REPO_ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert r.returncode == 2 and "has no such axis" in r.stderr and len(r.stderr.strip().splitlines()) == 1
