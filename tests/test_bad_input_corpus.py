@@ -161,6 +161,9 @@ def _issue_26_files(root: Path, run: Path, sim: str, f: dict[str, Path]) -> None
     f["ctrl-yaml"].write_text("name: ctrl\nsteps: \x07\n  - warmup: {duration_s: 1}\n", encoding="utf-8")
     f["rec-json"] = root / "rec-copy.json"  # a recording under a .json name: still a recording
     shutil.copyfile(run / "recording.h5", f["rec-json"])
+    f["issued"] = root / "issued-run"  # a run folder with its certificate issued (never overwritten)
+    shutil.copytree(run, f["issued"])
+    (f["issued"] / "certificate.json").write_text('{"certificate_number": "TB-000001"}\n', encoding="utf-8")
     f["rec-npy"] = root / "rec-copy.npy"  # a recording under a .npy name: still a recording
     shutil.copyfile(run / "recording.h5", f["rec-npy"])
     f["ctrl-bench"] = root / "ctrl-bench.yaml"  # a control character in a bench file
@@ -298,6 +301,11 @@ for _kind in DAMAGED:
 OVERWRITES = [
     Case("identify/--out=its-recording", ("identify", "{run}", "--out", "{run}/recording.h5"), "recording.h5"),
     Case("identify/--out=a-recording", ("identify", "{run}", "--out", "{rec-json}"), "rec-copy.json"),
+    Case(
+        "identify/--out=its-certificate",
+        ("identify", "{issued}", "--out", "{issued}/certificate.json"),
+        "certificate.json",
+    ),
     Case(
         "certificate/--json=its-calibration",
         ("certificate", "{run}", "--out", "{root}/cert-26.pdf", "--json", "{run}/calibration.json"),
