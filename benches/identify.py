@@ -40,7 +40,7 @@ from drivers.protocols import ImuBlock, TableState
 from procedures.steps import CompiledProcedure, Hold, Spin, Step, Warmup
 from procedures.trajectory import nominal_samples
 
-from .bench_config import BenchConfig
+from .bench_config import BenchConfig, noise_problem
 from .calibration_result import (
     CalibrationResult,
     FilterHistory,
@@ -123,12 +123,10 @@ def configured_noise_variance(config: BenchConfig, model: ModelSpec | None = Non
     acc = np.asarray(config.unit.noise.vrw, dtype=float) ** 2 * fs
     if model is None or model.n_axes == 3:
         return acc
+    problem = noise_problem(config)  # the one rule, shared with check, plan and run
+    if problem is not None:
+        raise IdentificationError(problem)
     arw = np.asarray(config.unit.noise.arw, dtype=float)
-    if np.any(arw <= 0):
-        raise IdentificationError(
-            f"bench {config.name!r}: unit.noise.arw_deg_per_sqrt_h is missing or zero; the gyro identification "
-            "needs the datasheet angle random walk (or identify with --noise warm-up)"
-        )
     return np.concatenate([acc, arw**2 * fs])
 
 
