@@ -347,6 +347,11 @@ class LiveIdentifier:
         if self._n >= self._flush_n and not self._spin:
             self.flush()
 
+    def unseen(self) -> set[str]:
+        """Parameters the motion so far does not see (their estimate is only the prior's): shown as "not identified
+        yet", never as a number, in the progress line and the live view."""
+        return set(unobservable_parameters(self.filter.information, self.filter.r_var, model=self.model))
+
     def parameter_kinds(self) -> list[tuple[str, str]]:
         """(name, quantity kind) of every state the filter estimates, in its order (for the live view)."""
         m = self.filter.model
@@ -379,7 +384,7 @@ class LiveIdentifier:
         del self._readings[:-3]
         if self.progress is not None:
             x, s = self.filter.estimate, self.filter.sigma
-            unseen = set(unobservable_parameters(self.filter.information, self.filter.r_var, model=self.model))
+            unseen = self.unseen()
             parts = []
             for name in self.show:
                 k = self.model.index(name)
