@@ -12,7 +12,6 @@ import json
 from collections.abc import Callable
 from pathlib import Path
 
-from analysis.identification.model import PARAM_NAMES
 from core.errors import OutputError
 from core.jsonio import write_text_atomic
 
@@ -76,11 +75,12 @@ def do_show(args: argparse.Namespace) -> str:
 
 
 def do_trend(args: argparse.Namespace) -> str:
-    if args.param not in PARAM_NAMES:
-        raise RegistryError(f"--param {args.param}: not a parameter; one of {' '.join(PARAM_NAMES)}")
     if not str(args.out).lower().endswith(".png"):
         raise OutputError(f"--out {args.out}: give a .png file name")
     rows = _history(open_from_args(args), args.serial)
+    if args.param not in rows[0].names:
+        raise RegistryError(f"--param {args.param}: not a parameter of {args.serial}'s calibrations; one of "
+                            f"{' '.join(rows[0].names)}")  # fmt: skip
     try:
         path = plot_trend(rows, args.param, Path(args.out))
     except OSError as exc:
