@@ -146,10 +146,9 @@ def compare_table(a: CalibrationRow, b: CalibrationRow) -> str:
 
 def plot_trend(rows: Sequence[CalibrationRow], param: str, out: Path) -> Path:
     """values ± U over time, control limits from the unit's history, E_n between consecutive calibrations."""
-    import matplotlib  # lazy: matplotlib (--help time)
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # lazy: matplotlib (--help time)
+    # the object API without pyplot (less start-up for a one-figure command)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # lazy: matplotlib (--help time)
+    from matplotlib.figure import Figure  # lazy: matplotlib (--help time)
 
     i = rows[0].names.index(param)
     unit, one = _disp(rows[0].kinds[i])
@@ -157,7 +156,9 @@ def plot_trend(rows: Sequence[CalibrationRow], param: str, out: Path) -> Path:
     v = np.array([r.values[i] for r in rows]) / one
     u = np.array([r.expanded[i] for r in rows]) / one
     ok = np.array([bool(r.identified[i]) for r in rows])
-    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    fig = Figure(figsize=(8, 6))
+    FigureCanvasAgg(fig)
+    ax, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
     ax.errorbar([t[k] for k in np.flatnonzero(ok)], v[ok], yerr=u[ok], fmt="o", capsize=3, label="value ± U (k = 2)")
     if np.any(~ok):
         ax.plot([t[k] for k in np.flatnonzero(~ok)], v[~ok], "x", color="grey", label="not identified")
@@ -183,7 +184,6 @@ def plot_trend(rows: Sequence[CalibrationRow], param: str, out: Path) -> Path:
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)
-    plt.close(fig)
     return out
 
 
