@@ -481,14 +481,16 @@ def _aerosmith_axis(fields: Mapping[str, Any], name: str, smap: SourceMap, p: Ke
         )
 
 
-def aerosmith_table(stream: Any, tt: Any) -> Any:
-    """The Ideal Aerosmith driver for a bench's turntable section on an open byte stream."""
+def aerosmith_table(stream: Any, tt: Any, clock: Callable[[], float] | None = None) -> Any:
+    """The Ideal Aerosmith driver for a bench's turntable section on an open byte stream (``clock``: the host
+    clock, None = the real one)."""
     return AerosmithTable(
         stream,
         tuple(tt.limits),  # type: ignore[arg-type]
         settings=tt.aerosmith,
         position_tolerance=tt.position_tolerance,
         rate_tolerance=tt.rate_tolerance,
+        **({"clock": clock} if clock is not None else {}),
     )
 
 
@@ -503,7 +505,7 @@ def _aerosmith_connect(tt: Any, timeout: float) -> Connection[Any]:
 def _aerosmith_twin(tt: Any, min_watchdog: float) -> TableTwin:
     from drivers.sim.table_twins import AerosmithTwin  # lazy: scipy (--help time)
 
-    return AerosmithTwin(tt.aerosmith, lambda stream: aerosmith_table(stream, tt))
+    return AerosmithTwin(tt.aerosmith, lambda stream, clock: aerosmith_table(stream, tt, clock))
 
 
 # ---- the serial unit and the temperature chamber -----------------------------------------------------------------

@@ -16,12 +16,13 @@ from typing import Any, Literal, Protocol
 
 from drivers import connect
 from drivers.acutrol import AclSettings, AclTurntable
-from drivers.aerosmith import AerosmithSettings
+from drivers.aerosmith import AerosmithSettings, AerosmithTable
 from drivers.modbus.register_map import ModbusMap
 from drivers.protocols import Turntable
 from drivers.sim.acl_controller import AclController
 from drivers.sim.acl_server import AclTableServer
 from drivers.sim.aerosmith_controller import AerosmithController
+from drivers.sim.aerosmith_server import AerosmithTableServer
 from drivers.sim.inprocess import SimTurntable
 from drivers.sim.modbus_controller import ModbusTableServer
 from drivers.sim.world import SimulatedWorld
@@ -179,29 +180,40 @@ class ModbusTwin:
 
 @dataclass
 class AerosmithTwin:
-    """The simulated Ideal Aerosmith single-axis table, in memory only; ``driver(stream)`` builds the driver with
-    the bench's settings and tolerances on the controller's in-memory byte stream."""
+    """The simulated Ideal Aerosmith single-axis table: in memory, or served on 127.0.0.1 in its text language
+    (:class:`drivers.sim.aerosmith_server.AerosmithTableServer`) and reached through pyserial's ``socket://`` URL
+    as through a serial device server. ``driver(stream, clock)`` builds the driver with the bench's settings and
+    tolerances (clock None: the host's monotonic clock); None: the world's limits and ``settings``."""
 
-    settings: AerosmithSettings | None
-    driver: Callable[[Any], Turntable]
-    in_process_only: str = "the simulated Ideal Aerosmith table runs in-process only: use --transport in-process"
+    settings: AerosmithSettings | None = None
+    driver: Callable[[Any, Clock | None], Turntable] | None = None
+    in_process_only: str = ""
     unit_note: bool = False
 
-    def in_process(self, world: SimulatedWorld, timeout: float, alone: bool = False) -> tuple[Turntable, str]:
-        table = self.driver(AerosmithController(world, self.settings).stream(timeout))
-        return table, "simulated Ideal Aerosmith (in-memory)"
+    def _driver(self, stream: Any, world: Any, settings: AerosmithSettings | None, clock: Clock | None) -> Any:
+        if self.driver is not None:
+            return self.driver(stream, clock)
+        extra = {} if clock is None else {"clock": clock}
+        return AerosmithTable(stream, world.table_limits(), settings=settings, **extra)
 
-    def serve(self, world: SimulatedWorld) -> TableServer:
-        raise ValueError(self.in_process_only)
+    def in_process(self, world: SimulatedWorld, timeout: float, alone: bool = False) -> tuple[Turntable, str]:
+        ctl = AerosmithController(world, self.settings)
+        return self._driver(ctl.stream(timeout), world, ctl.settings, None), "simulated Ideal Aerosmith (in-memory)"
+
+    def serve(self, world: SimulatedWorld) -> AerosmithTableServer:
+        return AerosmithTableServer(world, self.settings)
 
     def connect(self, server: Any, timeout: float, clock: Clock | None, alone: bool = False) -> connect.Connection[Any]:
-        raise ValueError(self.in_process_only)
+        world, settings = server.controller.world, server.settings
+        return connect.aerosmith_table(
+            server.url, lambda stream: self._driver(stream, world, settings, None if alone else clock), timeout=timeout
+        )
 
     def describe(self, server: Any) -> str:
-        return "Ideal Aerosmith"
+        return f"Ideal Aerosmith (text commands via pyserial {server.url})"
 
     def describe_alone(self, server: Any) -> str:
-        return "simulated Ideal Aerosmith"
+        return f"simulated Ideal Aerosmith over pyserial {server.url}"
 
 
 __all__ = ["AclTwin", "AerosmithTwin", "ModbusTwin", "TableServer", "TableTwin"]
