@@ -457,7 +457,6 @@ def decide_conformity(g: Gathered) -> Decision:
             g_uncertainty=binfo.g_uncertainty,
             g_source=binfo.g_source,
             attitude_accuracy=binfo.attitude_accuracy,
-            rate_accuracy=binfo.rate_accuracy,
             bias_instability=None if binfo.bias_instability is None else np.asarray(binfo.bias_instability),
             gyro_bias_instability=None if binfo.gyro_bias_instability is None else np.asarray(
                 binfo.gyro_bias_instability
@@ -496,13 +495,6 @@ def decide_conformity(g: Gathered) -> Decision:
         warnings.append("not identified (prior-dominated, do not use for compensation): " + ", ".join(unident))
     if not binfo.limits:
         warnings.append("the bench file gives no pass/fail limits: no conformity statement")
-    sizes = [p.name for p in results if p.identifiable and p.name.startswith("r_")]
-    if sizes and not binfo.rate_accuracy:
-        warnings.append(
-            f"{', '.join(sizes)} (size effect) issued although the table's rate accuracy is not stated in the bench "
-            "file (turntable.rate_accuracy_ppm): the budget holds no type-B term for the spin rate, so U may be "
-            "understated; state it and re-issue"
-        )
     warnings.extend(g.event_warnings)
     if not g.integrity["verified"]:
         warnings.insert(0, g.integrity["note"])
