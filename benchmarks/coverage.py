@@ -5,8 +5,8 @@ which **realises every type-B input the budget claims** (``realise_uncertainty_i
 gravity anomaly drawn from u(g), a table attitude error per positioning within the table's stated accuracy,
 a table rate error per gimbal axis within its stated rate accuracy (the table turns off its command); the
 unit's white noise and flicker bias instability are always realised). Each run is identified and certified
-exactly as the CLI does; the certificate's u (combined standard uncertainty) and U = 2u are scored against the simulator's truth per
-parameter class (b, S, τ, d, r).
+exactly as the CLI does; the certificate's u (combined standard uncertainty) and U = 2u are scored against
+the simulator's truth per parameter class (b, S, τ, d, r).
 
 Used by the slow test ``tests/benches/test_uncertainty_coverage.py`` and by
 ``benchmarks/bench_calibration.py`` (section "coverage" of RESULTS.md).
