@@ -46,14 +46,15 @@ def _angle_gap(a: Sequence[float], b: Sequence[float]) -> float:
     return float(np.max(np.abs(d)))
 
 
-def is_static_record(steps: Sequence[StepRecord]) -> bool:
-    """True when the recording holds one attitude and no rotation: only warm-up / hold / note steps, all at
-    the same gimbal angles (within :data:`SAME_ATTITUDE_RAD`), at least one hold."""
+def is_static_record(steps: Sequence[Any]) -> bool:
+    """True when the recording (its :class:`StepRecord` rows) or the compiled procedure (its steps) holds one
+    attitude and no rotation: only warm-up / hold / note steps, all at the same gimbal angles (within
+    :data:`SAME_ATTITUDE_RAD`; unknown angles ignored), at least one hold."""
     if not steps or any(s.kind not in STATIC_KINDS for s in steps):
         return False
     if not any(s.kind == "hold" for s in steps):
         return False
-    angles = [s.angles for s in steps if all(math.isfinite(a) for a in s.angles)]
+    angles = [s.angles for s in steps if s.angles is not None and all(math.isfinite(a) for a in s.angles)]
     return all(_angle_gap(a, angles[0]) <= SAME_ATTITUDE_RAD for a in angles[1:])
 
 

@@ -59,6 +59,7 @@ def test_a_static_record_gets_a_noise_report_not_a_calibration_certificate(stati
     run, text = static_run
     assert (run / "noise-report.pdf").exists() and not (run / "certificate.pdf").exists()
     assert "noise report: " in text and "\ncertificate: " not in text
+    assert "static record (one attitude, no rotation): the run ends with a NOISE REPORT" in text  # said up front
     pages = _pages(run / "noise-report.pdf")
     whole = " ".join(pages)
     assert "NOISE REPORT" in pages[0] and "CALIBRATION CERTIFICATE" not in whole
