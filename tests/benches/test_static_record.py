@@ -147,3 +147,13 @@ def test_the_live_views_estimates_show_no_number_for_what_the_motion_cannot_see(
     last = est[-1]
     i = names.index("gyro_b_x")
     assert last["identified"][i] is True and isinstance(last["values"][i], float)
+
+
+def test_the_noise_report_is_deterministic(static_run):
+    from benches.certificate.pdf import render_pdf
+
+    run, _ = static_run
+    a = build_certificate(run, issue_date="2026-11-27")
+    b = build_certificate(run, issue_date="2026-11-27")
+    assert a.is_noise_report and a.to_json() == b.to_json()
+    assert render_pdf(a) == render_pdf(b)
