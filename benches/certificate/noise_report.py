@@ -115,9 +115,13 @@ def build_noise_report(
     creation_date: str,
     software: str,
     with_plots: bool = True,
+    analyses: dict[str, list[dict[str, str]]] | None = None,
+    analysis_plots: list[tuple[str, bytes]] | None = None,
 ) -> Certificate:
     """The noise report of the static record ``rr`` (see the module docstring); the blocks it shares with a
-    calibration certificate (bench, recording, procedure) are built by :mod:`benches.certificate.build`."""
+    calibration certificate (bench, recording, procedure) are built by :mod:`benches.certificate.build`.
+    ``analyses``/``analysis_plots``: the run folder's own analyses (``RUN/noise``, ``periodic``, ``drift``; rows
+    of :func:`benches.certificate.analyses.analysis_rows`), quoted after the report's own noise terms."""
 
     step = record_step(rr.steps)
     rate = float(recording_block.get("sample_rate_hz") or 0.0)
@@ -173,7 +177,8 @@ def build_noise_report(
         coverage_factor=2.0,
         covariance=[],
         warnings=warnings,
-        analyses={"noise": rows, "record": stat_rows},
+        analyses={"noise": rows, "record": stat_rows, **{f"run folder {k}": v for k, v in (analyses or {}).items()}},
+        analysis_plots=list(analysis_plots or []),
         software_version=software,
         creation_date=creation_date,
         plots=plots,

@@ -157,3 +157,23 @@ def test_the_noise_report_is_deterministic(static_run):
     b = build_certificate(run, issue_date="2026-11-27")
     assert a.is_noise_report and a.to_json() == b.to_json()
     assert render_pdf(a) == render_pdf(b)
+
+
+def test_the_noise_report_quotes_the_analyses_run_on_the_record(static_run, tmp_path):
+    """noise / periodic / drift run on the record (RUN/noise, …) are quoted after the report's own noise terms,
+    as a certificate quotes them."""
+    import shutil
+
+    from benches.certificate.pdf import render_pdf
+    from tests.certificate_fixtures import add_analyses
+
+    run = tmp_path / "run"
+    shutil.copytree(static_run[0], run)
+    add_analyses(run)
+    doc = pypdfium2.PdfDocument(render_pdf(build_certificate(run, issue_date="2026-11-27")))
+    try:
+        text = " ".join(" ".join(doc[i].get_textpage().get_text_range().split()) for i in range(len(doc)))
+    finally:
+        doc.close()
+    assert "NOISE REPORT" in text and "Noise analysis of the run folder" in text
+    assert "Periodic error" in text and "Drift model" in text and "ARMA(1,1)" in text
