@@ -187,10 +187,10 @@ def window_reference(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """The reference of one acquisition window (body frame, SI): f_ref, table rate ω, angles, and ``earth``.
 
-    ``earth`` is what the gyro reference adds to ω: the Earth rate C_n^b Ω^n at the site, and during a spin
-    the difference between the table rate from the encoder angles' slope over the window
-    (:func:`angle_over_time`) and the interpolated reported rate — so the gyro sees ω_ib from angle over
-    time while the accelerometer's centripetal term keeps the reported rate. ``clock_rate`` is the factor from
+    ``earth`` is what the gyro reference adds to ω: the Earth rate C_n^b Ω^n at the site. During a spin ω is
+    the table rate from the encoder angles' slope over the window (:func:`angle_over_time`) for both triads
+    (the gyro's scale and the accelerometers' centripetal term), not the reported rate: a table turns at
+    (1 + ε) × its command and only its angles say by how much. ``clock_rate`` is the factor from
     the readings' time scale to true time: with the readings on the unit's clock (t_unit = (t_table − t₀)/(1+ε))
     and the controller's clock running (1 + ε_c) fast against the host's, the slope over unit time is
     multiplied by (1 + ε_c)/(1 + ε) − 1 + 1 (:func:`reference_clock_factor`): the rate is per second of the
@@ -205,7 +205,7 @@ def window_reference(
         slope = angle_over_time(t, table_time, table_angles, span)
         if slope is not None:
             slope = slope * (1.0 + clock_rate)
-            earth = earth + body_rate(ang, np.broadcast_to(slope, ang.shape), mnt) - om
+            om = body_rate(ang, np.broadcast_to(slope, ang.shape), mnt)
     return fr, om, ang, earth
 
 

@@ -151,7 +151,6 @@ def budget_for_run(
     g_uncertainty: float,
     g_source: str,
     attitude_accuracy: float,
-    rate_accuracy: float,
     bias_instability: NDArray[np.float64] | None,
     gyro_bias_instability: NDArray[np.float64] | None = None,
     latitude: float | None = None,
@@ -165,7 +164,6 @@ def budget_for_run(
     time-base analysis produced one), and the table axes' orthogonality and wobble (the attitude accuracy
     taken as the bound of each axis's tilt).
     """
-    x = cal.x
     p_id = cal.covariance
     nv = cal.noise_variance
     notes: list[str] = []
@@ -187,12 +185,10 @@ def budget_for_run(
         p_w,
         geometry,
         nv,
-        x_hat=x,
         g=g,
         g_uncertainty=g_uncertainty,
         g_source=g_source,
         attitude_accuracy=attitude_accuracy,
-        rate_accuracy=rate_accuracy,
         flicker_step_variance=None if bias_instability is None else flicker_step_variance(geometry, bias_instability),
         residuals_per_step=per_step,
         model=model,

@@ -540,9 +540,11 @@ def _warnings_and_analyses(pdf: _CertificatePdf, c: Certificate) -> None:
         "Metrological traceability: the reference specific force is computed from the turntable's reported "
         f"attitude (stated accuracy ±{b.get('attitude_accuracy_arcsec', 0):.2f}″ per axis) and the local gravity "
         f"g = {b.get('g', 0):.6f} m/s² ({b.get('g_source', '')}, u(g) = {b.get('g_uncertainty', 0):.1e} m/s²); the "
-        "centripetal reference from the turntable's reported rate"
-        + (f" (stated accuracy ±{rate_acc:.3g} ppm)" if rate_acc else " (rate accuracy not stated in the bench file)")
-        + ". Each enters the uncertainty budget as a type-B component."
+        "angular-rate reference of every spin (the accelerometers' centripetal term and the gyro scale) from the "
+        "turntable's encoder angle over the spin's time, which does not depend on how closely the table follows its "
+        "commanded rate"
+        + (f" (stated rate accuracy ±{rate_acc:.3g} ppm)" if rate_acc else "")
+        + ". The attitude and gravity enter the uncertainty budget as type-B components."
     )
     stds = b.get("reference_standards") or []
     if b.get("simulated"):

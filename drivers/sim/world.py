@@ -26,7 +26,10 @@ absolute commanded angle (continuous axes report unwrapped angles), then a dampe
 once the transient envelope is inside the tolerance for ``in_position_time``. Rate commands ramp at the
 acceleration limit; AT_RATE when reached. Physical rate jitter (first-order Gauss–Markov, only on axes
 spinning in rate mode) enters the unit's gyro/lever-arm physics but not the angles (its angle effect is
-σ·τ_c, far below an arcsecond). Reported angles carry white jitter and encoder quantisation. Optional
+σ·τ_c, far below an arcsecond). Reported angles carry white jitter and encoder quantisation. A realised
+table rate error ε_j (``BudgetInputs.rate_error_bound``) makes gimbal axis j turn at (1 + ε_j) × its commanded
+rate: the true angle advances at that rate, the encoder reports it, and the reported rate is the measured
+rate of that motion (not the command); AT_RATE still refers to the controller's own loop. Optional
 gimbal-axis tilts (non-orthogonality) and inner-axis wobble change the true attitude and body rate (their
 effect on the angular acceleration, arcsec × ω̇, is neglected); the reported angles do not show them.
 Faults: STALL / AMPLIFIER / POSITION_LIMIT halt the axes at once; INTERLOCK / COMMUNICATION_LOST and the
@@ -382,7 +385,9 @@ class SimulatedWorld:
                 )
             t = max(self._command_time(), self._switch[axis])
             p0, v0 = self._plans[axis].state(t)
-            self._set_plan(axis, plan_rate(t, p0, v0, rate, lim), t)
+            # the table turns at (1 + ε_j) × the command (its realised rate error); the encoder sees that motion
+            realised = rate * (1.0 + float(self._rate_error[axis]))
+            self._set_plan(axis, plan_rate(t, p0, v0, rate, lim, realised), t)
             self._new_attitude_error()
             self._feed()
 
@@ -419,7 +424,7 @@ class SimulatedWorld:
             t = self._transaction()
             pa, va, _ = self._evaluate(np.array([t]))
             p, v = pa[0], va[0]
-            v = (v + self._jit_state * self._spin_mask()) * (1.0 + self._rate_error)
+            v = v + self._jit_state * self._spin_mask()  # the measured rate of the true (encoder) motion
             tb = self.cfg.table
             if tb.position_jitter > 0:
                 rng = np.random.default_rng([self._reading_entropy, self._k])
