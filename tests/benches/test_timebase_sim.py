@@ -16,6 +16,7 @@ import pytest
 from benches.bench_config import load_bench
 from benches.identify import identify_run
 from benches.recording import open_recording
+from tests import REPO_ROOT
 from tests.simbench import bench_variant, run_procedure
 
 SHORT = """\
@@ -116,6 +117,64 @@ def test_separate_clocks_are_deterministic(tmp_path):
         for name in ("table_controller_time", "table_host_request", "table_host_answer", "block_host_time"):
             np.testing.assert_array_equal(getattr(ta, name), getattr(tb_, name))
         assert np.all(np.isfinite(ta.table_controller_time)) and np.all(np.isfinite(ta.block_host_time))
+
+
+# an accelerometer-only unit: the project's own frame without its gyro fields (what a unit with no gyro triad sends)
+ACCEL_ONLY_FRAME = "\n".join(
+    line
+    for line in (REPO_ROOT / "drivers" / "imu_unit" / "frames" / "tablebench-v1.yaml").read_text("utf-8").splitlines()
+    if "gyro" not in line
+).replace("name: tablebench-v1", "name: accelerometer-only")
+
+
+@pytest.fixture(scope="module")
+def accel_only_bench(tmp_path_factory):
+    """The separate-clocks bench whose unit has no gyro triad: it streams the frame above over loopback."""
+    tmp = tmp_path_factory.mktemp("accel-only")
+    (tmp / "accel-only.yaml").write_text(ACCEL_ONLY_FRAME + "\n", encoding="utf-8")
+    bench = bench_variant(
+        tmp,
+        rate=200.0,
+        clocks=("  seed: 20261122\n", "  seed: 20261122\n" + CLOCKS),
+        transport=("transport: in-process", "transport: loopback"),
+        frame=("  latency_ms:", "  frame: accel-only.yaml\n  latency_ms:"),
+    )
+    proc = tmp / "timebase-short.yaml"
+    proc.write_text(SHORT, encoding="utf-8")
+    return tmp, bench, proc
+
+
+def _accel_only_z(tmp, bench, proc, seed):
+    run = run_procedure(tmp, bench, str(proc), seed=seed, out=f"a{seed}")
+    res = identify_run(run, method="batch")
+    with open_recording(run / "recording.h5") as rec:
+        truth = rec.truth().parameters
+        assert not np.any(np.isfinite(rec.samples(0, 100, ("gyro",)).gyro))  # no gyro data recorded at all
+    tb = res.time_base.estimate
+    assert tb is not None and tb.method == "accelerometer", tb.summary()
+    assert len(tb.events) >= 2 and math.isfinite(tb.u_offset) and 0 < tb.u_offset < 5e-3, tb.summary()
+    return (tb.offset - truth["clock_offset"]) / tb.u_offset, (tb.rate - truth["clock_rate"]) / tb.u_rate, res
+
+
+@pytest.mark.parametrize("seed", [11, 12, 13])
+def test_accelerometer_only_unit_offset_estimated_from_the_moves(accel_only_bench, seed):
+    """Issue 24: without a gyro triad the offset is still estimated from the moves (the 45° steps' accelerating
+    and braking phases), with its u, and agrees with the simulator's realised offset within 3σ."""
+    z_off, z_rate, res = _accel_only_z(*accel_only_bench, seed)
+    assert abs(z_off) < 3 and abs(z_rate) < 3, (z_off, z_rate, res.time_base.estimate.summary())
+    assert not any(n.startswith("gyro_") for n in res.parameters)  # the accelerometer model only
+    line = next(x for x in res.summary().splitlines() if x.startswith("time base (accelerometer): offset"))
+    assert "±" in line and "(u, k = 1" in line  # what `identify` prints
+    d = res.to_dict()["time_base"]
+    assert d["method"] == "accelerometer" and d["u_offset_s"] > 0
+
+
+@pytest.mark.slow
+def test_accelerometer_only_ten_seeds_within_3_sigma(accel_only_bench):
+    z = np.array([_accel_only_z(*accel_only_bench, seed)[:2] for seed in range(200, 210)])
+    print("accelerometer-only z offset", np.round(z[:, 0], 2), "z rate", np.round(z[:, 1], 2))
+    assert np.all(np.abs(z) < 3), z
+    assert math.sqrt(np.mean(z**2)) < 1.5, z
 
 
 @pytest.mark.slow

@@ -12,6 +12,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
 from benches.cli.arguments import add_registry_arguments, sink_options
 from benches.results import CalibrationDocument, sinks_for_run
+from benches.session import combined_covariance_or_none
 from core.errors import UsageError
 from core.outputs import check_output
 
@@ -76,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
     out = sinks_for_run(folder, sink_options(args)).calibration(
         CalibrationDocument(run=folder, result=result, path=target if args.out else None)
     ).path
-    print(result.summary())
+    print(result.summary(combined_covariance_or_none(result, Path(args.run))))
     tb = result.time_base.estimate if result.time_base is not None else None
     if tb is not None and tb.events:
         from analysis.timebase.plot import plot_timing_residuals  # lazy: matplotlib (--help time)
