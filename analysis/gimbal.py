@@ -89,10 +89,14 @@ def table_rate(angles: ArrayLike, rates: ArrayLike) -> NDArray[np.float64]:
     th, ga = a[..., 1], a[..., 2]
     psid, thd, gad = r[..., 0], r[..., 1], r[..., 2]
     # R_x(θ)ᵀ ψ̇ e_z = ψ̇ [0, sin θ, cos θ]
-    v1 = np.stack([thd, psid * np.sin(th), psid * np.cos(th)], -1)
+    v1x, v1y, v1z = thd, psid * np.sin(th), psid * np.cos(th)
     # R_y(γ)ᵀ v = [c v_x − s v_z, v_y, s v_x + c v_z]
     c, s = np.cos(ga), np.sin(ga)
-    return np.stack([c * v1[..., 0] - s * v1[..., 2], v1[..., 1] + gad, s * v1[..., 0] + c * v1[..., 2]], -1)
+    out = np.empty(np.broadcast_shapes(a.shape, r.shape))
+    out[..., 0] = c * v1x - s * v1z
+    out[..., 1] = v1y + gad
+    out[..., 2] = s * v1x + c * v1z
+    return out
 
 
 def body_rate(angles: ArrayLike, rates: ArrayLike, mounting: ArrayLike | None = None) -> NDArray[np.float64]:
@@ -111,7 +115,10 @@ def gravity_in_body(angles: ArrayLike, g: float, mounting: ArrayLike | None = No
     """
     a = np.asarray(angles, dtype=float)
     th, ga = a[..., 1], a[..., 2]
-    row = np.stack([-np.cos(th) * np.sin(ga), np.sin(th), np.cos(th) * np.cos(ga)], -1)
+    row = np.empty(a.shape)
+    row[..., 0] = -np.cos(th) * np.sin(ga)
+    row[..., 1] = np.sin(th)
+    row[..., 2] = np.cos(th) * np.cos(ga)
     if mounting is not None:
         row = row @ np.asarray(mounting, dtype=float)
     return g * row

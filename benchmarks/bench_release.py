@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import shutil
 import statistics
 import subprocess
@@ -172,6 +173,18 @@ def one_round(tree: Path, procedure: str, seed: int) -> dict[str, tuple[float, f
         shutil.rmtree(work, ignore_errors=True)
 
 
+def results_from_log(log: Path) -> dict[str, list[dict[str, tuple[float, float]]]]:
+    """The per-round figures of the complete rounds in a log of this script (both trees measured)."""
+    rounds: dict[int, dict[str, dict[str, tuple[float, float]]]] = {}
+    for line in log.read_text().splitlines():
+        m = re.match(r"round (\d+) (base|now): (.*)$", line)
+        if m:
+            stages = re.findall(r"(.+?) ([0-9.e+-]+)/([0-9.e+-]+)(?:, |$)", m.group(3))
+            rounds.setdefault(int(m.group(1)), {})[m.group(2)] = {k: (float(w), float(c)) for k, w, c in stages}
+    done = [r for _, r in sorted(rounds.items()) if len(r) == 2]
+    return {k: [r[k] for r in done] for k in ("base", "now")}
+
+
 def table(results: dict[str, list[dict[str, tuple[float, float]]]]) -> str:
     """The Markdown table: per stage, median wall and CPU of each tree and the medians of the per-round ratios."""
     stages = list(results["now"][0])
@@ -205,20 +218,29 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--section", default="release", help="the RESULTS.md section to (re)write")
     ap.add_argument("--title", default=None, help="its title (default: against the earlier release BASE)")
+    ap.add_argument(
+        "--from-log",
+        default=None,
+        metavar="LOG",
+        help="write the section from the 'round …' lines an earlier (interrupted) run printed",
+    )
     args = ap.parse_args(argv)
     base = tree_for(args.base)
     trees = {"base": base, "now": tree_for(args.now) if args.now else ROOT}
     for tree in trees.values():
         check_tree(tree)
     results: dict[str, list[dict[str, tuple[float, float]]]] = {k: [] for k in trees}
-    for r in range(args.rounds):
+    out_json = ROOT / "benchmarks" / "out" / f"release-{args.section}.json"
+    if args.from_log:
+        results = results_from_log(Path(args.from_log))
+        args.rounds = len(results["now"])
+    for r in range(0 if args.from_log else args.rounds):
         order = ("base", "now") if r % 2 == 0 else ("now", "base")
         for key in order:
             results[key].append(one_round(trees[key], args.procedure, args.seed))
-            print(f"round {r + 1} {key}: " + ", ".join(f"{k} {w:.3g}/{c:.3g}" for k, (w, c) in
+            print(f"round {r + 1} {key}: " + ", ".join(f"{k} {w:.6g}/{c:.6g}" for k, (w, c) in
                                                        results[key][-1].items()), flush=True)  # fmt: skip
-    out_json = ROOT / "benchmarks" / "out" / f"release-{args.section}.json"
-    out_json.write_text(json.dumps({"base": args.base, "now": args.now, "results": results}, indent=1))
+        out_json.write_text(json.dumps({"base": args.base, "now": args.now, "results": results}, indent=1))
     head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=trees["now"], capture_output=True,
                           text=True).stdout.strip()  # fmt: skip
     now = f"`{head}`" if args.now else f"`{head}` + working tree"

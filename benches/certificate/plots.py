@@ -78,7 +78,7 @@ def plot_residuals(
     off_c, unit, label = (3, DEG_PER_HOUR, "°/h") if triad == "gyro" else (0, UG, "µg")
     with _context():
         fig = Figure(figsize=(7.2, 4.6))
-        ax1, ax2 = fig.subplots(2, 1, sharex=True)
+        ax1, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw=_margins(7.2, 4.6, 2, 1, 0.75, 0.12, 0.3, 0.75, 0, 0.42))
         rows = list(per_step)
         k = np.arange(len(rows))
         n = np.array([max(float(r.get("samples", 0)), 1.0) for r in rows])
@@ -107,7 +107,6 @@ def plot_residuals(
         ax2.set_title("RMS per step; dashed: noise standard deviation used by the identification")
         ax2.set_xticks(k)
         ax2.set_xticklabels([str(r.get("name", i)) for i, r in enumerate(rows)], rotation=70, ha="right")
-        fig.tight_layout()
         return _render(fig)
 
 
@@ -188,10 +187,17 @@ def convergence_figure(
 
 
 def _grid_margins(width: float, height: float, rows: int, cols: int) -> dict[str, float]:
-    """Fixed subplot margins (inches → figure fractions) for a grid of small panels with titles and tick labels,
-    as ``tight_layout`` would find them for these panels, without its text-measuring pass over every axes
-    (half of the certificate's plotting time, issue 32)."""
-    left, right, top, bottom, gap_w, gap_h = 0.62, 0.12, 0.5, 0.42, 0.62, 0.36
+    """The convergence grid's margins (:func:`_margins`): small panels with titles and tick labels."""
+    return _margins(width, height, rows, cols, 0.62, 0.12, 0.5, 0.42, 0.62, 0.36)
+
+
+def _margins(
+    width: float, height: float, rows: int, cols: int, left: float, right: float, top: float, bottom: float,
+    gap_w: float, gap_h: float,
+) -> dict[str, float]:  # fmt: skip
+    """Fixed subplot margins, given in inches, as figure fractions (``gridspec_kw``): what ``tight_layout``
+    finds for these figures, without its text-measuring pass over every axes (half of the certificate's
+    plotting time, issue 32)."""
     ax_w = (width - left - right - (cols - 1) * gap_w) / cols
     ax_h = (height - top - bottom - (rows - 1) * gap_h) / rows
     return {
@@ -239,6 +245,7 @@ def plot_coverage(geometry: Sequence[StepGeometry]) -> bytes:
     """
     with _context():
         fig = Figure(figsize=(7.2, 4.2))
+        fig.subplots_adjust(left=0.04, right=0.96, top=0.9, bottom=0.1)
         ax = fig.add_subplot(1, 1, 1, projection="mollweide")
         for geo in geometry:
             f = np.asarray(geo.f, dtype=float)
@@ -269,7 +276,6 @@ def plot_coverage(geometry: Sequence[StepGeometry]) -> bytes:
         ax.legend(loc="lower right", bbox_to_anchor=(1.0, -0.12))
         ax.set_xticklabels([])
         ax.set_title("Orientation coverage: direction of gravity (specific force) in the body frame", pad=10)
-        fig.tight_layout()
         return _render(fig)
 
 
