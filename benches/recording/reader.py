@@ -687,6 +687,12 @@ recording for the identification, the certificate and the registry): any write t
 its times, changes the identity and it is verified again; every chunk read is still checked (Fletcher-32)."""
 
 
+_KEPT: dict[str, Any] = {}
+"""The rows the last full verification kept (:meth:`Recording.verify`), with the file's key and identity: a
+recording opened again unchanged (no second pass) serves them too (``certificate`` opens the run for its
+budget, the registry for its as found / as left). One recording only, replaced by the next verification."""
+
+
 def _identity(p: Path) -> tuple[int, ...]:
     st = p.stat()
     return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
@@ -727,6 +733,10 @@ def open_recording(path: str | Path, *, verify: bool = True) -> Recording:
                 rec.verify()
                 if rec.integrity_verified:
                     _VERIFIED[key] = ident
+                    _KEPT.clear()
+                    _KEPT.update(key=(key, ident), kept=rec._kept)
+            elif _KEPT.get("key") == (key, ident):
+                rec._kept = _KEPT["kept"]
     except BaseException:
         f.close()
         raise
