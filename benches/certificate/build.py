@@ -598,7 +598,7 @@ def assemble(g: Gathered, d: Decision, issue_date: str, with_plots: bool = True)
         analysis_plots=g.analysis_plots,
     )
     if with_plots:
-        from .plots import plot_convergence, plot_coverage, plot_residuals  # lazy: matplotlib (identify's NEES)
+        from .plots import plot_convergence, plot_coverage, plot_residuals  # lazy: matplotlib (--help time)
 
         cert.plots["residuals"] = plot_residuals(g.per_step, cal.noise_variance[:3])
         if cal.noise_variance.size == 6:

@@ -144,7 +144,7 @@ def build_noise_report(
     if with_plots and noise["channels"]:
         from analysis.noise.plot import plot_noise  # lazy: matplotlib (--help time)
 
-        from .plots import _context, _render
+        from .plots import _context, _render  # lazy: matplotlib (--help time)
 
         with _context():
             plots["noise"] = _render(plot_noise(noise, title=f"Overlapping Allan deviation, step {step.name!r}"))
