@@ -27,7 +27,7 @@ from procedures.loader import load_procedure
 from procedures.paths import default_bench_path, resolve_bench, resolve_procedure
 from procedures.steps import CompiledProcedure, Soak, Step
 
-from .bench_config import BenchConfig, chamber_limits, load_bench
+from .bench_config import BenchConfig, chamber_limits, load_bench, noise_problem
 from .progress import ProgressDisplay
 from .recorded_run import RecordedRun, open_run
 from .recording import Hdf5Recorder, RecordingError, open_recording
@@ -68,6 +68,9 @@ def prepare(
     bench_path = resolve_bench(bench) if bench else default_bench_path()
     procedure_path = resolve_procedure(procedure or DEFAULT_PROCEDURE)
     config = load_bench(bench_path)
+    problem = noise_problem(config)  # the one "is this bench usable" rule of check, plan, run and identify
+    if problem is not None:
+        raise ConfigError(bench_path, None, problem.replace(f"bench {config.name!r}: ", "", 1))
     proc = load_procedure(procedure_path, overrides or None)
     compiled = compile_procedure(
         proc, limits=config.turntable.limits, mounting=config.unit.mounting, chamber=chamber_limits(config)
@@ -376,6 +379,8 @@ def _identify_and_certify(
     from benches.identify import IdentificationError, identify_run  # lazy: filterpy, scipy (--help time)
 
     source: Path | RecordedRun = folder if recorded is None else recorded
+    if recorded is not None and _thermal(folder, recorded, todo, say, done):
+        return done
     if "identification" in todo:
         try:
             result = identify_run(source, method="kalman")
@@ -406,6 +411,26 @@ def _identify_and_certify(
         for line in verdict_explanation(js, verdict, spins=_has_spins(folder)):
             say(line)
     return done
+
+
+def _thermal(folder: Path, recorded: RecordedRun, todo: list[str], say: Callable[..., None], done: list[str]) -> bool:
+    """A thermal run (a completed soak step): its thermal calibration and certificate instead of one calibration
+    over every temperature (benches.thermal.calibrate); False for any other run."""
+    from benches.identify import IdentificationError  # lazy: filterpy, scipy (--help time)
+    from benches.thermal.calibrate import is_thermal_run, thermal_calibrate  # lazy: filterpy, scipy (--help time)
+
+    if not is_thermal_run(recorded):
+        return False
+    try:
+        cal, pdf = thermal_calibrate(recorded, certificate="certificate" in todo, say=lambda m: say(m))
+    except IdentificationError as exc:
+        say(f"thermal calibration not possible: {exc}")
+        return True
+    done.extend(["identification"] + (["certificate"] if pdf is not None else []))
+    say(f"thermal calibration: {cal}", err=False)
+    if pdf is not None:
+        say(f"thermal certificate: {pdf}", err=False)
+    return True
 
 
 def combined_covariance_or_none(result: CalibrationResult, source: Path | RecordedRun) -> np.ndarray | None:

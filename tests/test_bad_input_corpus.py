@@ -143,6 +143,9 @@ def _issue_26_files(root: Path, run: Path, sim: str, f: dict[str, Path]) -> None
     assert "    vrw_ug_per_sqrt_hz: [15.0, 15.0, 15.0]\n" in sim
     f["vrw0"] = root / "vrw0.yaml"  # accepted by check, crashed plan and run
     f["vrw0"].write_text(sim.replace("vrw_ug_per_sqrt_hz: [15.0, 15.0, 15.0]", "vrw_ug_per_sqrt_hz: [0, 0, 0]", 1))
+    assert "    arw_deg_per_sqrt_h: [0.01, 0.01, 0.01]\n" in sim
+    f["arw0"] = root / "arw0.yaml"  # accepted by check, refused by plan and run
+    f["arw0"].write_text(sim.replace("arw_deg_per_sqrt_h: [0.01, 0.01, 0.01]", "arw_deg_per_sqrt_h: [0, 0, 0]", 1))
     f["huge-header"] = root / "huge-header.npy"  # a header claiming 2.2 TiB over 800 bytes of data
     with f["huge-header"].open("wb") as fh:
         np.lib.format.write_array_header_1_0(fh, {"descr": "<f8", "fortran_order": False, "shape": (10**11, 3)})
@@ -161,6 +164,9 @@ def _issue_26_files(root: Path, run: Path, sim: str, f: dict[str, Path]) -> None
     f["ctrl-yaml"].write_text("name: ctrl\nsteps: \x07\n  - warmup: {duration_s: 1}\n", encoding="utf-8")
     f["rec-json"] = root / "rec-copy.json"  # a recording under a .json name: still a recording
     shutil.copyfile(run / "recording.h5", f["rec-json"])
+    f["issued"] = root / "issued-run"  # a run folder with its certificate issued (never overwritten)
+    shutil.copytree(run, f["issued"])
+    (f["issued"] / "certificate.json").write_text('{"certificate_number": "TB-000001"}\n', encoding="utf-8")
     f["rec-npy"] = root / "rec-copy.npy"  # a recording under a .npy name: still a recording
     shutil.copyfile(run / "recording.h5", f["rec-npy"])
     f["ctrl-bench"] = root / "ctrl-bench.yaml"  # a control character in a bench file
@@ -299,6 +305,11 @@ OVERWRITES = [
     Case("identify/--out=its-recording", ("identify", "{run}", "--out", "{run}/recording.h5"), "recording.h5"),
     Case("identify/--out=a-recording", ("identify", "{run}", "--out", "{rec-json}"), "rec-copy.json"),
     Case(
+        "identify/--out=its-certificate",
+        ("identify", "{issued}", "--out", "{issued}/certificate.json"),
+        "certificate.json",
+    ),
+    Case(
         "certificate/--json=its-calibration",
         ("certificate", "{run}", "--out", "{root}/cert-26.pdf", "--json", "{run}/calibration.json"),
         "calibration.json",
@@ -327,6 +338,9 @@ SPECIFIC += [
     Case("check/--bench=vrw0", ("check", "{tiny}", "--bench", "{vrw0}"), "vrw_ug_per_sqrt_hz"),
     Case("plan/--bench=vrw0", _argv("plan", {}, {"--bench": "{vrw0}"}), "vrw_ug_per_sqrt_hz"),
     Case("run/--bench=vrw0", _argv("run", {}, {"--bench": "{vrw0}"}), "vrw_ug_per_sqrt_hz"),
+    Case("check/--bench=arw0", ("check", "{tiny}", "--bench", "{arw0}"), "arw_deg_per_sqrt_h"),
+    Case("plan/--bench=arw0", _argv("plan", {}, {"--bench": "{arw0}"}), "arw_deg_per_sqrt_h"),
+    Case("run/--bench=arw0", _argv("run", {}, {"--bench": "{arw0}"}), "arw_deg_per_sqrt_h"),
     Case("table/move-1e9", ("table", "move", "0", "0", "1e9"), "inner"),
     Case("check/yaml-control-character", ("check", "{ctrl-yaml}"), "{ctrl-yaml}:2"),
     Case("run/--procedure=yaml-control-character", _argv("run", {}, {"--procedure": "{ctrl-yaml}"}), "{ctrl-yaml}:2"),
@@ -745,9 +759,11 @@ def _fill_path(text: str, paths: dict[str, Path]) -> str:
     return text
 
 
-def test_certificate_pages_say_which_clock_and_warn_of_an_unstated_rate_accuracy(tmp_path: Path) -> None:
+def test_certificate_pages_say_which_clock_and_what_the_spin_rate_reference_is(tmp_path: Path) -> None:
     """Rendered pages (pypdfium2 text of the PDF): the dates say which clock is which and give the bench time;
-    a size effect issued with the table's rate accuracy not stated is a warning, not "None"; no '∋' on page 2."""
+    the spins' rate reference is the encoder angle over time, so a table whose rate accuracy is not stated is no
+    reason for a warning (it once was, when the reference was the reported rate) and never prints "None"; no '∋'
+    on page 2."""
     import pypdfium2
 
     run = make_run_folder(tmp_path / "run")
@@ -762,8 +778,9 @@ def test_certificate_pages_say_which_clock_and_warn_of_an_unstated_rate_accuracy
     rate_stated = bool(cert.get("bench", {}).get("rate_accuracy_ppm"))
     sizes_identified = [n for n, p in cert["parameters"].items() if n.startswith("r_") and p.get("identifiable", True)]
     assert sizes_identified and not rate_stated  # the fixture's bench (benches/sim.yaml) states no rate accuracy
-    assert "rate accuracy is not stated" in text, text[-3000:]
-    assert any("rate accuracy is not stated" in w for w in cert["warnings"])
+    assert "encoder angle over the spin's time" in text, text[-3000:]
+    assert "None" not in text.split("Traceability")[-1][:600]
+    assert not any("rate accuracy" in w for w in cert["warnings"])
 
 
 def test_plan_table_has_a_legend_for_its_columns(corpus: Corpus, monkeypatch) -> None:

@@ -59,6 +59,7 @@ def test_a_static_record_gets_a_noise_report_not_a_calibration_certificate(stati
     run, text = static_run
     assert (run / "noise-report.pdf").exists() and not (run / "certificate.pdf").exists()
     assert "noise report: " in text and "\ncertificate: " not in text
+    assert "static record (one attitude, no rotation): the run ends with a NOISE REPORT" in text  # said up front
     pages = _pages(run / "noise-report.pdf")
     whole = " ".join(pages)
     assert "NOISE REPORT" in pages[0] and "CALIBRATION CERTIFICATE" not in whole
@@ -129,3 +130,50 @@ def test_progress_never_shows_elapsed_past_its_own_estimate():
             assert a[0] * 3600 + a[1] * 60 + a[2] <= a[3] * 3600 + a[4] * 60 + a[5], ln
         assert not re.search(r"ETA -\d", ln), ln  # never a negative ETA ("--:--:--": unknown)
     assert "past the 0:53:31 estimate" in lines[3]
+
+
+def test_the_live_views_estimates_show_no_number_for_what_the_motion_cannot_see(static_run):
+    """The run's live feed (RUN/live.jsonl, what the browser view shows): an estimate the motion does not see is
+    null and flagged, not the prior's number; one it sees (the gyro's level-axis biases) is a number."""
+    run, _ = static_run
+    events = [json.loads(ln) for ln in (run / "live.jsonl").read_text(encoding="utf-8").splitlines() if ln.strip()]
+    names = [p["name"] for p in next(e for e in events if e["event"] == "run")["data"]["parameters"]]
+    est = [e["data"] for e in events if e["event"] == "estimates"]
+    assert est, "no live estimates"
+    for d in est:
+        for name in ("S_x", "tau_xy", "r_x", "r_y", "r_z", "gyro_S_x"):
+            i = names.index(name)
+            assert d["values"][i] is None and d["u"][i] is None and d["identified"][i] is False, (name, d["step"])
+    last = est[-1]
+    i = names.index("gyro_b_x")
+    assert last["identified"][i] is True and isinstance(last["values"][i], float)
+
+
+def test_the_noise_report_is_deterministic(static_run):
+    from benches.certificate.pdf import render_pdf
+
+    run, _ = static_run
+    a = build_certificate(run, issue_date="2026-11-27")
+    b = build_certificate(run, issue_date="2026-11-27")
+    assert a.is_noise_report and a.to_json() == b.to_json()
+    assert render_pdf(a) == render_pdf(b)
+
+
+def test_the_noise_report_quotes_the_analyses_run_on_the_record(static_run, tmp_path):
+    """noise / periodic / drift run on the record (RUN/noise, …) are quoted after the report's own noise terms,
+    as a certificate quotes them."""
+    import shutil
+
+    from benches.certificate.pdf import render_pdf
+    from tests.certificate_fixtures import add_analyses
+
+    run = tmp_path / "run"
+    shutil.copytree(static_run[0], run)
+    add_analyses(run)
+    doc = pypdfium2.PdfDocument(render_pdf(build_certificate(run, issue_date="2026-11-27")))
+    try:
+        text = " ".join(" ".join(doc[i].get_textpage().get_text_range().split()) for i in range(len(doc)))
+    finally:
+        doc.close()
+    assert "NOISE REPORT" in text and "Noise analysis of the run folder" in text
+    assert "Periodic error" in text and "Drift model" in text and "ARMA(1,1)" in text
