@@ -30,8 +30,8 @@ _VERDICT_COLOURS = {
 _COMPONENT_SHORT = {
     "white_noise": "White noise",
     "bias_instability": "Bias inst.",
-    "rate": "Table rate",
     "attitude": "Attitude",
+    "axis_orthogonality": "Axis orth.",
     "local_g": "Local g",
     "model_mismatch": "Mismatch",
 }
