@@ -39,6 +39,8 @@ REALISED = {
     "bias_instability": "realised (flicker as a Gauss–Markov sum over the band the identification assumes)",
     "attitude": "realised (a new navigation-frame attitude error per motion command, uniform within ±a)",
     "local_g": "realised (true g = bench g + δg, δg ~ N(0, u(g)²) per run)",
+    "axis_orthogonality": "realised (middle and inner axis tilts ε₁, ε₂ uniform within ± the attitude accuracy, once "
+    "per run)",
     "table_rate": "realised, not a budget input (the axis turns at (1 + ε_j) × its command, ε_j uniform within ±a "
     "per gimbal axis and run; the spins' reference is the encoder angle over time, which sees it)",
     "model_mismatch": "exercised by the simulator's unmodelled physics (full lever-arm and angular-acceleration "
