@@ -29,6 +29,7 @@ from analysis.units import (
     UG,
     UG_PER_G2,
     UG_PER_SQRT_HZ,
+    celsius_to_kelvin,
 )
 from benches.results.recalibration import parse_configuration, parse_recalibration
 from core.yaml_source import (
@@ -72,6 +73,7 @@ from drivers.sim.config import (
 from drivers.sim.thermal_config import ChamberSim
 
 __all__ = [
+    "Ambient",
     "BenchConfig",
     "ConfigError",
     "NoiseSpec",
@@ -113,14 +115,45 @@ beyond that the number is a typo, not a datasheet bound."""
 
 
 @dataclass(frozen=True)
+class Ambient:
+    """The laboratory's ambient conditions during a calibration, as the bench file states them (``site.ambient``).
+
+    ISO/IEC 17025 (7.8.2.1, 7.8.4.1) asks a certificate for the conditions under which the calibration was
+    made; the unit's own temperature sensor is not the laboratory's. Each field is None when not stated.
+
+    Attributes
+    ----------
+    temperature : float or None
+        Air temperature, K.
+    temperature_tolerance : float or None
+        The controlled band ± about it, K.
+    relative_humidity : float or None
+        Relative humidity, fraction (0.45 = 45 %).
+    pressure : float or None
+        Air pressure, Pa.
+    """
+
+    temperature: float | None = None
+    temperature_tolerance: float | None = None
+    relative_humidity: float | None = None
+    pressure: float | None = None
+
+    @property
+    def stated(self) -> bool:
+        """True when the bench file states at least the laboratory temperature."""
+        return self.temperature is not None
+
+
+@dataclass(frozen=True)
 class Site:
-    """Where the bench stands: latitude (rad), height (m), measured local g (m/s² or None)."""
+    """Where the bench stands: latitude (rad), height (m), measured local g (m/s² or None), ambient conditions."""
 
     name: str
     latitude: float
     height: float
     g_measured: float | None = None
     g_uncertainty_given: float | None = None
+    ambient: Ambient = field(default_factory=Ambient)
 
     @property
     def g_uncertainty(self) -> float:
@@ -271,7 +304,7 @@ def _opt_str(data: dict, smap: SourceMap, path: KeyPath, key: str) -> str | None
 
 def _site(d: dict, smap: SourceMap) -> Site:
     p: KeyPath = ("site",)
-    check_keys(d, smap, p, ["name", "latitude_deg", "height_m", "g_measured_mps2", "g_uncertainty_mgal"])
+    check_keys(d, smap, p, ["name", "latitude_deg", "height_m", "g_measured_mps2", "g_uncertainty_mgal", "ambient"])
     g = get_number(d, smap, p, "g_measured_mps2", None, minimum=9.7, maximum=9.9)
     ug = get_number(d, smap, p, "g_uncertainty_mgal", None, minimum=0, exclusive_minimum=True, maximum=1000)
     return Site(
@@ -280,6 +313,27 @@ def _site(d: dict, smap: SourceMap) -> Site:
         height=get_number(d, smap, p, "height_m", 0.0, minimum=-500, maximum=9000),
         g_measured=g,
         g_uncertainty_given=None if ug is None else ug * 1e-5,
+        ambient=_ambient(_section(d, smap, p, "ambient", required=False), smap),
+    )
+
+
+def _ambient(d: dict | None, smap: SourceMap) -> Ambient:
+    """``site.ambient`` (optional): the laboratory's conditions, °C / % / hPa in the file, SI inside."""
+    if d is None:
+        return Ambient()
+    p: KeyPath = ("site", "ambient")
+    check_keys(d, smap, p, ["temperature_c", "temperature_tolerance_c", "humidity_percent", "pressure_hpa"])
+    t = get_number(d, smap, p, "temperature_c", None, minimum=-40, maximum=80)
+    tol = get_number(d, smap, p, "temperature_tolerance_c", None, minimum=0, exclusive_minimum=True, maximum=50)
+    if tol is not None and t is None:
+        raise smap.error(p + ("temperature_tolerance_c",), "needs temperature_c (the band is about it)")
+    rh = get_number(d, smap, p, "humidity_percent", None, minimum=0, maximum=100)
+    hpa = get_number(d, smap, p, "pressure_hpa", None, minimum=500, maximum=1100)
+    return Ambient(
+        temperature=None if t is None else celsius_to_kelvin(t),
+        temperature_tolerance=tol,
+        relative_humidity=None if rh is None else rh / 100.0,
+        pressure=None if hpa is None else hpa * 100.0,
     )
 
 

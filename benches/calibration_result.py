@@ -390,8 +390,29 @@ class CalibrationResult:
             x[names.index(n)] = 0.0
         return x, skipped
 
-    def summary(self) -> str:
-        """A readable table (display units; u = the identification's combined standard uncertainty, k = 1)."""
+    def truth_nees(self, covariance: NDArray[np.float64]) -> float | None:
+        """NEES of the estimate against the simulator truth over the identified states, judged with
+        ``covariance`` (n, n; SI; this result's names order), e.g. the certificate's type A + B covariance
+        (:func:`benches.certificate.combined_covariance`); None without truth."""
+        t = self.truth
+        if t is None or not t.nees_states or not t.values:
+            return None
+        names = list(self.names)
+        idx = [names.index(n) for n in t.nees_states]
+        e = self.x[idx] - np.array([t.values[n] for n in t.nees_states])
+        sub = np.asarray(covariance, dtype=float)[np.ix_(idx, idx)]
+        try:
+            return float(e @ np.linalg.solve(sub, e))
+        except np.linalg.LinAlgError:
+            return None
+
+    def summary(self, combined_covariance: NDArray[np.float64] | None = None) -> str:
+        """A readable table (display units; u = the identification's combined standard uncertainty, k = 1).
+
+        ``combined_covariance``: the certificate's covariance (type A + B, :func:`benches.certificate.
+        combined_covariance`); given, the NEES against a simulator's truth is judged with it, as the certificate
+        states the uncertainty, and the identification's own (type A) NEES is shown beside it.
+        """
         result = self
         w = max(8, *(len(n) for n in result.parameters))
         lines = [f"{'param':{w}s} {'value':>12s} {'u (k=1)':>10s} {'unit':7s} {'err/u':>7s}  note"]
@@ -415,7 +436,16 @@ class CalibrationResult:
         )
         if self.time_base is not None:
             lines.append(self.time_base.estimate.summary())
-        if truth is not None and (truth.to_mapping()):
+        nees_ab = None if combined_covariance is None or truth is None else self.truth_nees(combined_covariance)
+        if truth is not None and truth.to_mapping() and nees_ab is not None:
+            band = 2.0 * math.sqrt(2.0 * truth.dof)  # ≈ 95 % of a χ²(dof)
+            lines.append(
+                f"NEES {nees_ab:.2f} over {truth.dof} identified states against the simulator truth with the "
+                f"certificate's u (type A + B: the identification's own ⊕ table attitude and rate accuracy, g, model "
+                f"mismatch; expected {truth.dof} ± {band:.0f} if u is right); with the identification's own u "
+                f"(type A) alone: {truth.nees:.2f}"
+            )
+        elif truth is not None and (truth.to_mapping()):
             band = 2.0 * math.sqrt(2.0 * truth.dof)  # ≈ 95 % of a χ²(dof)
             lines.append(
                 f"NEES {truth.nees:.2f} over {truth.dof} identified states against the simulator truth (expected "

@@ -193,11 +193,12 @@ class CertificateRegister:
         return reg
 
 
-def free_paths(run: Path, number: str) -> tuple[Path, Path]:
-    """Default PDF/JSON paths: ``certificate.pdf`` if free, else ``certificate-<number>.pdf`` (never overwritten)."""
-    pdf, js = run / "certificate.pdf", run / "certificate.json"
+def free_paths(run: Path, number: str, stem: str = "certificate") -> tuple[Path, Path]:
+    """Default PDF/JSON paths: ``<stem>.pdf`` if free, else ``<stem>-<number>.pdf`` (never overwritten); the stem
+    is ``certificate``, or ``noise-report`` for the noise report of a static record."""
+    pdf, js = run / f"{stem}.pdf", run / f"{stem}.json"
     if pdf.exists() or js.exists():
-        pdf, js = run / f"certificate-{number}.pdf", run / f"certificate-{number}.json"
+        pdf, js = run / f"{stem}-{number}.pdf", run / f"{stem}-{number}.json"
     return pdf, js
 
 

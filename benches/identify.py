@@ -57,7 +57,7 @@ from .progress import ProgressDisplay
 from .recorded_run import RecordedRun, run_of
 from .recording import RecordingError, StepRecord, TableReadings
 from .reference import reference_at, reference_for_samples
-from .timebase import run_time_base, table_in_unit_time, time_base_sensitivity
+from .timebase import reference_rate_covariance, run_time_base, table_in_unit_time, time_base_sensitivity
 
 ACCEL_MODEL: ModelSpec = get_model("accelerometer")
 """The accelerometer model (:mod:`analysis.identification.specification` registry)."""
@@ -722,7 +722,9 @@ def _time_base_covariance(
 
     The accelerometer rows are the time-base analysis's sensitivities; the gyro's scale factors take ε 1 : 1
     (their rate reference is the encoder angle over the unit's time rescaled by 1 + ε, so δS_g = −δε), the
-    other gyro rows are 0 (the offset only turns the Earth rate during spins, well below their u).
+    other gyro rows are 0 (the offset only turns the Earth rate during spins, well below their u). The reference
+    second's own u (the controller clock's rate against the host's, which rescales the same reference) is added
+    to the gyro scale factors (benches.timebase.reference_rate_covariance).
     """
     tb = data.time_base
     cov = np.asarray(tb.covariance, dtype=float)
@@ -740,7 +742,7 @@ def _time_base_covariance(
     for a in ("x", "y", "z"):
         if f"gyro_S_{a}" in data.model.names:
             jac[data.model.index(f"gyro_S_{a}"), 1] = -1.0
-    return jac @ cov @ jac.T, jac
+    return jac @ cov @ jac.T + reference_rate_covariance(list(data.model.names), tb.check), jac
 
 
 def _time_base_warnings(data: IdentificationData) -> list[str]:
@@ -748,11 +750,12 @@ def _time_base_warnings(data: IdentificationData) -> list[str]:
     a host-clock check that disagrees, a time base that could not be measured.
 
     Within a motion the budget carries a reading's timing error up to the table's attitude accuracy (its
-    rectangular u) over the run's fastest rate (analysis.timebase.misfit_cause)."""
+    rectangular u) over the fastest rate of the identified steps (a reference evaluated at rest does not depend
+    on time; analysis.timebase.misfit_cause)."""
     tb = data.time_base
     out = [n for n in tb.notes if "disagrees" in n or "without a stated uncertainty" in n]
     host = tb.check.get("table_stamped_by") == "host"
-    w_max = float(np.max(np.abs(data.table.rates))) if data.table is not None and len(data.table) else 0.0
+    w_max = max((float(np.max(np.linalg.norm(w.omega, axis=1))) for w in data.windows if w.omega.size), default=0.0)
     att = float(data.config.turntable.attitude_accuracy) / math.sqrt(3.0)
     cause = misfit_cause(tb, host_stamped=host, carried=att / w_max if w_max > 0 else math.inf)
     if cause:

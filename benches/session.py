@@ -36,6 +36,7 @@ from .results.sink import CalibrationDocument, ResultSinks
 from .runner import Runner, RunResult, SampleObserver
 
 if TYPE_CHECKING:
+    from .calibration_result import CalibrationResult
     from .identify import LiveIdentifier  # lazy at run time: filterpy, scipy (--help time)
 
 DEFAULT_PROCEDURE = "ten-step"
@@ -387,17 +388,38 @@ def _identify_and_certify(
             result.live_vs_offline_max_u = float(np.max(np.abs(live.filter.estimate - result.x) / u_white))
         path = sinks.calibration(CalibrationDocument(run=folder, result=result)).path
         done.append("identification")
-        say(result.summary())
+        say(result.summary(combined_covariance_or_none(result, source)))
         say(f"calibration: {path}", err=False)
     if "certificate" in todo:
-        from benches.certificate import issue_certificate  # lazy: fpdf, matplotlib, filterpy (--help time)
+        from benches.certificate import (  # lazy: fpdf, matplotlib, filterpy (--help time)
+            NOISE_REPORT,
+            issue_certificate,
+        )
 
         pdf, js, verdict = issue_certificate(folder, recorded=recorded, sinks=sinks)
         done.append("certificate")
+        if verdict == NOISE_REPORT:  # a static record: its noise, no calibration (benches.certificate.noise_report)
+            say(f"noise report: {pdf} (a static record: its noise terms; no calibration, no conformity statement)",
+                err=False)  # fmt: skip
+            return done
         say(f"certificate: {pdf} ({verdict})", err=False)
         for line in verdict_explanation(js, verdict, spins=_has_spins(folder)):
             say(line)
     return done
+
+
+def combined_covariance_or_none(result: CalibrationResult, source: Path | RecordedRun) -> np.ndarray | None:
+    """The certificate's type A + B covariance of ``result`` for its NEES line against a simulator's truth
+    (``run`` and ``identify`` judge it as the certificate states u); None on a real bench (no truth) or when
+    the budget cannot be formed (the line then says the type-B terms are not in it)."""
+    if result.truth is None or not result.truth.nees_states:
+        return None
+    from benches.certificate import CertificateError, combined_covariance  # lazy: matplotlib (--help time)
+
+    try:
+        return combined_covariance(result, source)
+    except CertificateError:
+        return None
 
 
 def _has_spins(folder: Path) -> bool | None:

@@ -161,6 +161,10 @@ def _issue_26_files(root: Path, run: Path, sim: str, f: dict[str, Path]) -> None
     f["ctrl-yaml"].write_text("name: ctrl\nsteps: \x07\n  - warmup: {duration_s: 1}\n", encoding="utf-8")
     f["rec-json"] = root / "rec-copy.json"  # a recording under a .json name: still a recording
     shutil.copyfile(run / "recording.h5", f["rec-json"])
+    f["rec-npy"] = root / "rec-copy.npy"  # a recording under a .npy name: still a recording
+    shutil.copyfile(run / "recording.h5", f["rec-npy"])
+    f["ctrl-bench"] = root / "ctrl-bench.yaml"  # a control character in a bench file
+    f["ctrl-bench"].write_text(sim.replace("name: sim-navgrade", "name: sim-\x1b[31mnavgrade", 1), encoding="utf-8")
     f["capture-csv"] = root / "capture.csv"  # a binary capture under a name decode writes CSV to
     shutil.copyfile(root / "capture.bin", f["capture-csv"])
 
@@ -301,6 +305,16 @@ OVERWRITES = [
     ),
     Case("correct/--out=its-input", ("correct", "{run}/calibration.json", "{raw3}", "--out", "{raw3}"), "raw3.npy"),
     Case(
+        "correct/--out=a-recording",
+        ("correct", "{run}/calibration.json", "{raw3}", "--out", "{rec-npy}"),
+        "rec-copy.npy",
+    ),
+    Case(
+        "certificate/--json=a-recording",
+        ("certificate", "{run}", "--out", "{root}/cert-26b.pdf", "--json", "{rec-json}"),
+        "rec-copy.json",
+    ),
+    Case(
         "decode/--out=its-capture",
         ("decode", "{capture-csv}", "--frame", "kvh-1750-a", "--out", "{capture-csv}"),
         "capture.csv",
@@ -315,6 +329,9 @@ SPECIFIC += [
     Case("run/--bench=vrw0", _argv("run", {}, {"--bench": "{vrw0}"}), "vrw_ug_per_sqrt_hz"),
     Case("table/move-1e9", ("table", "move", "0", "0", "1e9"), "inner"),
     Case("check/yaml-control-character", ("check", "{ctrl-yaml}"), "{ctrl-yaml}:2"),
+    Case("run/--procedure=yaml-control-character", _argv("run", {}, {"--procedure": "{ctrl-yaml}"}), "{ctrl-yaml}:2"),
+    Case("plan/--bench=yaml-control-character", _argv("plan", {}, {"--bench": "{ctrl-bench}"}), "{ctrl-bench}:"),
+    Case("certificate/--out=its-recording", ("certificate", "{run}", "--out", "{run}/recording.h5"), "--out"),
     *(
         Case(f"correct/{k}", ("correct", "{run}/calibration.json", f"{{{k}}}", "--out", "{root}/h.npy"), f"{{{k}}}")
         for k in ("huge-header", "complex-npy")
@@ -415,6 +432,26 @@ def test_every_command_is_covered() -> None:
 
 
 # ---- issue 26: nothing lost, nothing false ---------------------------------------------------------------------
+# Every case the issue names, and where it is tested (cases above: test_bad_input_is_one_clear_line_and_exit_2):
+#   data loss: identify --out RUN/recording.h5 (and certificate/correct/decode over an input or a recording):
+#     OVERWRITES + test_no_output_replaces_an_input_or_a_recording; certificate --out RUN/recording.h5: a case;
+#   disk full, then --resume / --salvage: test_disk_full_then_resume_and_salvage_recover_the_completed_steps;
+#   the false "brought to rest": test_link_lost_and_stop_failed_says_the_table_may_still_be_moving;
+#   tracebacks: vrw [0, 0, 0] (check, plan, run), a 2.2 TiB .npy header (correct, noise, periodic, drift): cases;
+#   the hang: table/move-1e9;
+#   Ctrl-C and progress per analysis command (noise, periodic, drift, certificate, identify, correct):
+#     test_ctrl_c_stops_every_analysis_within_a_second_and_writes_nothing;
+#   smaller: warnings of empty CSV / complex .npy / constant data, duplicate CSV names: cases per analysis
+#     command; correct --out X.json, certificate --out /proc/nope, YAML control characters (check, run, plan): cases;
+#     run's bad --out before the plan: test_run_refuses_a_bad_out_before_printing_the_plan; runs DIR with one
+#     damaged run: test_runs_prints_each_damage_once; a loopback run resumed: test_resuming_a_loopback_run_...;
+#     progress past its estimate, unidentifiable live parameters of a static record, the static-noise
+#     INCONCLUSIVE note: tests/benches/test_static_record.py;
+#   the certificate a metrologist flagged (rendered pages): which clock, the size effect with rate accuracy not
+#     stated, no '∋': test_certificate_pages_say_which_clock_and_warn_of_an_unstated_rate_accuracy; the plan
+#     legend: test_plan_table_has_a_legend_for_its_columns; the noise report of a static record:
+#     tests/benches/test_static_record.py; ambient conditions, the analyses' digits and units, the plan legend on
+#     the certificate, the convergence frame, the NEES with type-B terms: tests/benches/test_certificate_content.py.
 
 
 def _digest(path: Path) -> str:
@@ -618,7 +655,11 @@ def long_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     # eight channels: periodic calibrates on the first seconds only, so one channel is done within a second of
     # its first progress line on an idle machine (the signal would come after the end)
     np.save(tmp / "tones.npy", np.sin(2 * np.pi * 1.3 * t)[:, None] * 1e-3 + rng.standard_normal((n, 8)) * 1e-3)
-    return {"hour": tmp / "hour.npy", "tones": tmp / "tones.npy", "run": make_run_folder(tmp / "run"), "tmp": tmp}
+    # correct: a million six-axis samples (accelerometer and gyro through the whole unit's inverse model)
+    m = 1_000_000
+    np.save(tmp / "raw6.npy", np.tile([0.0, 0.0, G0, 0.0, 0.0, 0.0], (m, 1)) + rng.standard_normal((m, 6)) * 1e-3)
+    paths = {"hour": tmp / "hour.npy", "tones": tmp / "tones.npy", "raw6": tmp / "raw6.npy"}
+    return {**paths, "run": make_run_folder(tmp / "run"), "tmp": tmp}
 
 
 INTERRUPTS = [
@@ -628,6 +669,8 @@ INTERRUPTS = [
     pytest.param("drift", "{hour}", ("--rate", "100"), "SIGINT", id="drift-SIGINT"),
     pytest.param("drift", "{hour}", ("--rate", "100"), "SIGTERM", id="drift-SIGTERM"),
     pytest.param("certificate", "{run}", (), "SIGINT", id="certificate-SIGINT"),
+    pytest.param("identify", "{run}", (), "SIGINT", id="identify-SIGINT"),
+    pytest.param("correct", "{raw6}", (), "SIGTERM", id="correct-SIGTERM"),
 ]
 
 
@@ -644,6 +687,10 @@ def test_ctrl_c_stops_every_analysis_within_a_second_and_writes_nothing(long_inp
     src = _fill_path(source, long_inputs)
     if cmd == "certificate":
         argv = [cmd, src, "--out", str(out / "cert.pdf"), *extra]
+    elif cmd == "identify":
+        argv = [cmd, src, "--out", str(out / "cal.json"), *extra]
+    elif cmd == "correct":
+        argv = [cmd, str(long_inputs["run"] / "calibration.json"), src, "--out", str(out / "corrected.npy"), *extra]
     else:
         argv = [cmd, src, "--out", str(out), *extra]
     proc = subprocess.Popen(
@@ -684,6 +731,8 @@ def test_ctrl_c_stops_every_analysis_within_a_second_and_writes_nothing(long_inp
             json.loads(data)
         elif p.suffix == ".pdf":
             assert data.startswith(b"%PDF") and data.rstrip().endswith(b"%%EOF"), f"{cmd} left a partial {p.name}"
+        elif p.suffix == ".npy":
+            np.load(p)  # complete: its header and every row are there
         elif p.suffix == ".png":
             assert data.startswith(b"\x89PNG") and data.endswith(b"IEND\xaeB`\x82"), f"{cmd} left a partial {p.name}"
         else:
@@ -726,4 +775,6 @@ def test_plan_table_has_a_legend_for_its_columns(corpus: Corpus, monkeypatch) ->
     assert code == 0, err[-1500:]
     text = out + err
     assert "σ white" in text and "σ white = " in text and "σ total = " in text and "σ data = " in text
+    code, out, err = run_cli(["plan", "--help"])  # and where a user looks before running it
+    assert code == 0 and "σ white = " in out and "σ total = " in out and "σ data = " in out, out[-1500:]
 

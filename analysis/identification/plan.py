@@ -44,6 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from analysis import gimbal
 from analysis.identification.batch import information_rank, unobservable_parameters
+from analysis.identification.plan_legend import PLAN_LEGEND
 from analysis.identification.specification import ModelSpec, resolve
 from analysis.units import DEG, DISPLAY_UNITS
 
@@ -158,13 +159,6 @@ class IdentificationPlan:
         return "\n".join(lines + self.warnings)
 
 
-PLAN_LEGEND: tuple[str, ...] = (
-    "columns (predicted standard uncertainty 1σ, k = 1): prior = the datasheet bound before any data;",
-    "  σ white = with the prior, white noise only (the filter's own P); σ total = with the prior, white noise plus",
-    "  the bias instability the filter does not model; σ data = σ total from the data alone (no prior), which",
-    "  decides 'NOT IDENTIFIED' (σ data above a third of the prior: the motion cannot resolve it)",
-)
-"""The legend printed under :meth:`IdentificationPlan.table` (plan, run)."""
 
 
 def _fmt(kind: str, value_si: float) -> str:

@@ -11,10 +11,13 @@
      θ_i = K + (1 + s) A(s_i + δ) + b (s_i − s̄), with the event's own offset K, scale s and rate offset b
      (gyro bias, Earth rate) as nuisances. The angle is used rather than the rate because it is smooth: a
      rate profile's corners would bias any smoothing.
-   * accelerometers only: the specific force (local quadratic fit over ±``accel_half_window`` s, value and
-     slope at s_i) against gravity's projection computed from the reading: f̂(s_i + δ) = b + M f_ref,i +
-     c |ω_i|², per event, with bias b, a full 3 × 3 matrix M (scale, misalignment) and the centripetal term c
-     (lever arms) as nuisances.
+   * accelerometers only: every unit sample inside the readings' constant-acceleration intervals (where the
+     trapezoid rule reproduces the reported angle change: no profile corner inside) against gravity's
+     projection at the table time it sees, the angle the interval's exact quadratic through its end readings:
+     f(s) = b + M f_ref(c(s − δ)) + k_ω ω² + k_α α, with bias b, a full 3 × 3 matrix M (scale, misalignment),
+     centripetal and tangential coefficients (lever arms) per accelerometer as nuisances. Only a change of rate
+     carries timing here: at a constant rate a time shift is a constant rotation, which M absorbs, so the
+     accelerating and braking phases of moves are what the estimate rests on.
 
    Each event's δ has its σ from the fit's residuals; it gives the local offset of the table clock.
 3. **Across the run**: a weighted straight line through the events' offsets gives t₀ and the rate correction
@@ -68,7 +71,14 @@ class RunSignals:
 
 
 def coarse_mapping(sig: RunSignals) -> tuple[float, float]:
-    """(t₀, ε) from the reading times against the unit time of the sample before each reading (to ~ms)."""
+    """(t₀, ε) from the reading times against the unit time of the sample before each reading (to ~ms).
+
+    A reading is requested once the samples before it have arrived, so its time is the mapped unit time plus a
+    delay that is never negative and is smallest for a reading requested right after a block arrived: the line
+    is the *lower envelope* of the points (refitted on the lowest tenth of the residuals), so a link that
+    delivers the frames in bursts of seconds (the readings after a burst's first block wait for nothing but
+    are stamped seconds after their samples) does not shift it by half a burst.
+    """
     if sig.sample_index is None or sig.t.size == 0:
         return 0.0, 0.0
     k = np.clip(np.asarray(sig.sample_index, dtype=np.int64) - 1, 0, sig.t.size - 1)
@@ -76,8 +86,15 @@ def coarse_mapping(sig: RunSignals) -> tuple[float, float]:
     c = sig.table_time
     ok = np.isfinite(c) & np.isfinite(tu)
     if np.count_nonzero(ok) < 2 or np.ptp(tu[ok]) <= 0:
-        return float(np.median(c[ok] - tu[ok])) if np.any(ok) else 0.0, 0.0
-    slope, icpt = np.polyfit(tu[ok], c[ok], 1)
+        return float(np.min(c[ok] - tu[ok])) if np.any(ok) else 0.0, 0.0
+    x, y = tu[ok], c[ok]
+    slope, icpt = np.polyfit(x, y, 1)
+    for _ in range(4):
+        r = y - (icpt + slope * x)
+        low = r <= np.quantile(r, 0.1)
+        if np.count_nonzero(low) < 2 or np.ptp(x[low]) <= 0.25 * np.ptp(x):
+            break  # the lowest points bunch together: keep the last line
+        slope, icpt = np.polyfit(x[low], y[low], 1)
     return float(icpt), float(slope - 1.0)
 
 
@@ -99,6 +116,25 @@ def _solve(x: NDArray[np.float64], y: NDArray[np.float64], col: int) -> tuple[ND
     xc = x[:, col] - others @ q  # the δ column with the nuisances projected out
     info = float(xc @ xc)
     return p, (math.sqrt(s2 / info) if info > 0 else math.nan), math.sqrt(float(r @ r) / r.size)
+
+
+def excess_jitter(r: NDArray[np.float64], moving: NDArray[np.bool_], speed: float) -> float:
+    """Timing jitter (s) shown by a fit's residuals ``r`` ((n,) or (n, k)): the excess of their variance while
+    the table moves over their variance at rest, over ``speed`` (the signal's RMS rate of change while moving).
+
+    At rest only the unit's and the encoder's noise is in the residuals; while moving a jittering time stamp
+    adds speed × jitter. 0 when the excess is not significant (the moving variance within 3σ of the resting one,
+    σ of a variance ratio ≈ √(2/n_moving + 2/n_rest)) or either part has fewer than 3 points.
+    """
+    r2 = np.asarray(r, float) ** 2
+    r2 = r2.sum(axis=1) if r2.ndim == 2 else r2
+    n_m, n_r = int(np.count_nonzero(moving)), int(np.count_nonzero(~moving))
+    if n_m < 3 or n_r < 3 or not speed > 0:
+        return 0.0
+    vm, vr = float(np.mean(r2[moving])), float(np.mean(r2[~moving]))
+    if vm <= vr * (1.0 + 3.0 * math.sqrt(2.0 / n_m + 2.0 / n_r)):
+        return 0.0
+    return math.sqrt(vm - vr) / speed
 
 
 def _gyro_event(sig: RunSignals, w: MotionWindow, t0: float, eps: float) -> TimingEvent | None:
@@ -134,6 +170,7 @@ def _gyro_event(sig: RunSignals, w: MotionWindow, t0: float, eps: float) -> Timi
     if not math.isfinite(sd) or abs(float(p[1])) > MAX_SCALE_MISMATCH:
         return None  # the gyros' angle disagrees with the table's: saturated, or a misconfigured output
     speed = float(np.sqrt(np.mean(grad[w.moving] ** 2))) if np.any(w.moving) else 0.0
+    resid = theta - a_i - x @ p
     return TimingEvent(
         t_unit=float(np.mean(s0[w.moving] if np.any(w.moving) else s0)),
         offset=t0 - (1.0 + eps) * delta,
@@ -141,64 +178,149 @@ def _gyro_event(sig: RunSignals, w: MotionWindow, t0: float, eps: float) -> Timi
         axis=w.axis,
         readings=int(idx.size),
         rms_time=rms / speed if speed > 0 else math.nan,
+        jitter=excess_jitter(resid, w.moving, speed),
     )
 
 
-def _local_quadratic(
-    t: NDArray[np.float64], y: NDArray[np.float64], at: NDArray[np.float64], h: float
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Value and slope (per component) of a quadratic fitted to ``y`` (n, 3) over ±h s around each of ``at``."""
-    val = np.empty((at.size, y.shape[1]))
-    der = np.empty_like(val)
-    lo = np.searchsorted(t, at - h)
-    hi = np.searchsorted(t, at + h)
-    for i, (a, b) in enumerate(zip(lo, hi, strict=True)):
-        if b - a < 5:
-            val[i] = der[i] = math.nan
+CONSTANT_ACCEL_TOL = 1e-5
+"""rad: a reading interval is taken as one of constant angular acceleration when the trapezoid rule reproduces
+its angle change to within this (a switch of the profile inside it, or a settling transient, does not)."""
+
+
+INTERVAL_MARGIN = 0.03
+"""s: samples this close to a reading interval's ends are not used (the unit's anti-alias filter rings for a few
+of its time constants after the profile's corner at an interval's end)."""
+
+MAX_EVENT_SIGMA = 0.005
+"""s: a motion whose local offset comes out less certain than this carries no useful timing (not used)."""
+
+
+def constant_acceleration_intervals(
+    times: NDArray[np.float64],
+    angles: NDArray[np.float64],
+    rates: NDArray[np.float64],
+    idx: NDArray[np.int64],
+    axis: int,
+    tol: float = CONSTANT_ACCEL_TOL,
+) -> list[tuple[int, float]]:
+    """Intervals between consecutive readings ``idx`` over which gimbal ``axis`` moved with one angular
+    acceleration: (index of the interval's first reading, that acceleration in rad/s²).
+
+    A table's profile is piecewise constant in acceleration; over such an interval the angle is exactly the
+    quadratic through the end readings' angles and rates, so θ₁ − θ₀ = ½ (ω₀ + ω₁) Δt (the trapezoid rule) holds,
+    and where it fails a switch (a profile's corner, a settling transient) lies inside.
+    """
+    out: list[tuple[int, float]] = []
+    for i, j in zip(idx[:-1].tolist(), idx[1:].tolist(), strict=True):
+        dt = float(times[j] - times[i])
+        if j != i + 1 or not dt > 0:
             continue
-        dt = t[a:b] - at[i]
-        v = np.column_stack([np.ones_like(dt), dt, dt * dt])
-        c, *_ = np.linalg.lstsq(v, y[a:b], rcond=None)
-        val[i], der[i] = c[0], c[1]
-    return val, der
+        w0, w1 = float(rates[i, axis]), float(rates[j, axis])
+        if abs(float(angles[j, axis] - angles[i, axis]) - 0.5 * (w0 + w1) * dt) <= tol:
+            out.append((i, (w1 - w0) / dt))
+    return out
 
 
-def _accel_event(sig: RunSignals, w: MotionWindow, t0: float, eps: float, half_window: float) -> TimingEvent | None:
-    idx = w.readings
-    if idx.size < 8:
+def _shared_shift(
+    x0: NDArray[np.float64], y: NDArray[np.float64], d: NDArray[np.float64]
+) -> tuple[float, float, float, NDArray[np.float64]]:
+    """y[:, a] ≈ x0 · q_a + d[:, a] · δ for a = x, y, z (own nuisances q_a per accelerometer, one shift δ).
+
+    The nuisances are projected out per column (one least-squares solve of the shared design for all six
+    right-hand sides), then δ is the pooled regression of what remains. Returns δ, its σ (residual-scaled), the
+    RMS residual and the residuals (n, 3).
+    """
+    coef, _res, rank, _sv = np.linalg.lstsq(x0, np.column_stack([y, d]), rcond=None)
+    rest = np.column_stack([y, d]) - x0 @ coef
+    yr, dr = rest[:, :3], rest[:, 3:]
+    info = float(np.sum(dr * dr))
+    if info <= 0:
+        return 0.0, math.nan, math.nan, yr
+    delta = float(np.sum(dr * yr)) / info
+    r = yr - dr * delta
+    dof = 3 * (x0.shape[0] - int(rank)) - 1
+    if dof < 2:
+        return delta, math.nan, math.nan, r
+    ss = float(np.sum(r * r))
+    return delta, math.sqrt(ss / dof / info), math.sqrt(ss / r.size), r
+
+
+def _accel_reference(
+    sig: RunSignals, c: NDArray[np.float64], seg: NDArray[np.int64], alpha: NDArray[np.float64], axis: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Gravity in body (n, 3), its rate of change ∂f/∂t (n, 3) and the rate of the moving axis (n,) at table times
+    ``c`` inside the constant-acceleration intervals starting at readings ``seg``."""
+    dt = c - sig.table_time[seg]
+    # the rate at the interval's start from the two angles and α (a rate latched apart from the angle would
+    # otherwise bend the quadratic): the quadratic passes through both end readings' angles exactly
+    span = sig.table_time[seg + 1] - sig.table_time[seg]
+    w0 = (sig.angles[seg + 1, axis] - sig.angles[seg, axis]) / span - 0.5 * alpha * span
+    ang = sig.angles[seg].copy()
+    ang[:, axis] += w0 * dt + 0.5 * alpha * dt * dt
+    om = w0 + alpha * dt
+    h = 1e-4
+    up, dn = ang.copy(), ang.copy()
+    up[:, axis] += h
+    dn[:, axis] -= h
+    f = gravity_in_body(ang, sig.g, sig.mounting)
+    dfdth = (gravity_in_body(up, sig.g, sig.mounting) - gravity_in_body(dn, sig.g, sig.mounting)) / (2 * h)
+    return f, dfdth * om[:, None], om
+
+
+def _accel_event(sig: RunSignals, w: MotionWindow, t0: float, eps: float) -> TimingEvent | None:
+    """Local offset from the specific force over the readings' constant-acceleration intervals (module docstring).
+
+    Every unit sample inside such an interval (``INTERVAL_MARGIN`` clear of its ends) is compared with gravity's
+    projection at the table time it sees, c = t₀ + (1 + ε)(s − latency − δ), the angle exactly the interval's quadratic:
+    f(s) = b + M f_ref(c) + k_ω ω(c)² + k_α α, per accelerometer a bias, a full 3 × 3 matrix (scale,
+    misalignment), a centripetal and a tangential coefficient (lever arms) as nuisances; δ by Gauss–Newton with
+    ∂f_ref/∂t as its Jacobian.
+    """
+    ivs = constant_acceleration_intervals(sig.table_time, sig.angles, sig.rates, w.readings, w.axis)
+    if len(ivs) < 3:
         return None
-    f_ref = gravity_in_body(sig.angles[idx], sig.g, sig.mounting)
-    om = body_rate(sig.angles[idx], sig.rates[idx], sig.mounting)
-    w2 = np.sum(om * om, axis=1)
-    s0 = _unit_times(sig, t0, eps, idx)
-    m = idx.size
-    nuis = np.zeros((3 * m, 15))
-    for a in range(3):
-        rows = slice(a * m, (a + 1) * m)
-        nuis[rows, a] = 1.0
-        nuis[rows, 3 + 3 * a : 6 + 3 * a] = f_ref
-        nuis[rows, 12 + a] = w2
-    delta, sd, rms, der = 0.0, math.nan, math.nan, np.zeros((m, 3))
+    starts = np.array([i for i, _ in ivs], dtype=np.int64)
+    alphas = np.array([a for _, a in ivs])
+    alphas[np.abs(alphas) < 1e-3] = 0.0  # the readings' rate jitter: at rest or at constant rate
+    lo_t = sig.table_time[starts] + INTERVAL_MARGIN
+    hi_t = sig.table_time[starts + 1] - INTERVAL_MARGIN
+    u_b = body_rate(sig.angles[w.readings[0]], np.eye(3)[w.axis], sig.mounting)
+    u_b = u_b / np.linalg.norm(u_b)
+    delta, sd, rms, step, speed = 0.0, math.nan, math.nan, 0.0, 0.0
+    resid, mv = np.zeros((0, 3)), np.zeros(0, bool)
     for _ in range(4):
-        val, der = _local_quadratic(sig.t, sig.accel, s0 + delta, half_window)
-        if not np.all(np.isfinite(val)):
+        c_all = t0 + (1.0 + eps) * (sig.t - sig.latency - delta)
+        k = np.searchsorted(hi_t, c_all)  # the interval each sample could fall in
+        inside = k < starts.size
+        inside[inside] &= c_all[inside] >= lo_t[k[inside]]
+        if np.count_nonzero(inside) < 30:
             return None
-        x = np.column_stack([nuis, der.T.reshape(-1)])
-        p, sd, rms = _solve(x, val.T.reshape(-1), 15)
-        delta -= float(p[15])
-        if abs(p[15]) < 1e-8:
+        c, seg_k = c_all[inside], k[inside]
+        f_ref, fdot, om = _accel_reference(sig, c, starts[seg_k], alphas[seg_k], w.axis)
+        om = np.where(np.abs(om) < 2e-4, 0.0, om)  # at rest (the readings' rate jitter)
+        om_b = om[:, None] * u_b
+        w2 = np.sum(om_b * om_b, axis=1)
+        x0 = np.column_stack([np.ones_like(c), f_ref, w2, alphas[seg_k]])
+        x0 = x0[:, np.any(x0 != 0.0, axis=0)]  # no tangential/centripetal column where the table never turned
+        dcol = -(1.0 + eps) * fdot  # ∂f/∂δ per accelerometer (M ≈ 1)
+        step, sd, rms, resid = _shared_shift(x0, sig.accel[inside], dcol)
+        delta += step
+        mv = np.abs(om) > 0
+        speed = float(np.sqrt(np.mean(np.sum(fdot[mv] ** 2, axis=1)))) if np.any(mv) else 0.0
+        if abs(step) < 1e-8:
             break
-    if not math.isfinite(sd):
-        return None
-    mv = w.moving if np.any(w.moving) else np.ones(m, bool)
-    speed = float(np.sqrt(np.mean(np.sum(der[mv] ** 2, axis=1))))
+    if not math.isfinite(sd) or speed <= 0 or sd > MAX_EVENT_SIGMA or abs(step) > 1e-6:
+        return None  # δ not determined: no change of rate inside the intervals (a constant-rate spin's shift is a
+        # rotation the misalignment nuisances absorb), or the fit did not converge
+    tm = sig.table_time[w.readings[w.moving]] if np.any(w.moving) else sig.table_time[w.readings]
     return TimingEvent(
-        t_unit=float(np.mean(s0[mv])),
+        t_unit=float(np.mean((tm - t0) / (1.0 + eps))),
         offset=t0 - (1.0 + eps) * delta,
         u=(1.0 + eps) * sd,
         axis=w.axis,
-        readings=int(m),
-        rms_time=rms / speed if speed > 0 else math.nan,
+        readings=len(ivs) + 1,
+        rms_time=rms / speed,
+        jitter=excess_jitter(resid, mv, speed),
     )
 
 
@@ -224,7 +346,6 @@ def estimate_time_base(
     sig: RunSignals,
     *,
     window: float = 1.5,
-    accel_half_window: float = 0.015,
     use_gyro: bool | None = None,
     initial: tuple[float, float] | None = None,
 ) -> TimeBase:
@@ -234,7 +355,6 @@ def estimate_time_base(
     ----------
     sig : RunSignals
     window : s, event window before/after each motion.
-    accel_half_window : s, half-width of the local quadratic fit of the specific force (accelerometer method).
     use_gyro : None (the gyros when the unit has them: a non-zero finite gyro record), True or False.
     initial : (t₀, ε) to start from (None: :func:`coarse_mapping` of ``sig``).
     """
@@ -252,7 +372,7 @@ def estimate_time_base(
         wins, skipped = motion_windows(tw, sig.angles, sig.rates, window=window)
         events = []
         for w in wins:
-            ev = _gyro_event(sig, w, t0, eps) if use_gyro else _accel_event(sig, w, t0, eps, accel_half_window)
+            ev = _gyro_event(sig, w, t0, eps) if use_gyro else _accel_event(sig, w, t0, eps)
             if ev is not None and math.isfinite(ev.u) and ev.u > 0:
                 events.append(ev)
         unused = len(wins) - len(events)
@@ -271,12 +391,18 @@ def estimate_time_base(
         notes.append(f"{skipped} multi-axis motion(s) not used")
     if unused:
         notes.append(
-            f"{unused} motion window(s) not used: too few readings, or the unit's signal does not follow the "
-            "table's (a gyro angle off by more than 1 %: a saturated or misconfigured output?)"
+            f"{unused} motion window(s) not used: "
+            + (
+                "too few readings, or the unit's signal does not follow the table's (a gyro angle off by more than "
+                "1 %: a saturated or misconfigured output?)"
+                if use_gyro
+                else "no change of rate between two "
+                "readings of constant acceleration (a constant-rate spin's start or stop, a multi-axis slew)"
+            )
         )
     if len(events) == 1:
         notes.append("one motion only: the rate is taken from the reading times, without a stated uncertainty")
-    evs = [TimingEvent(e.t_unit, e.offset, e.u, e.axis, e.readings, e.rms_time, float(r))
+    evs = [TimingEvent(e.t_unit, e.offset, e.u, e.axis, e.readings, e.rms_time, float(r), e.jitter)
            for e, r in zip(events, resid, strict=True)]  # fmt: skip
     return TimeBase(
         offset=t0,

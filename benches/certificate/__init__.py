@@ -4,18 +4,21 @@
 * :mod:`.budget` — the budget's inputs from a run (step geometry through THE reference function, bench
   uncertainties), the maths being :mod:`analysis.identification.budget`;
 * :mod:`.build` — run folder → :class:`Certificate` (decision rule, traceability), and issuing it;
+* :mod:`.noise_report` — the noise report a static record gets instead of a calibration certificate;
+* :mod:`.analyses` — the analyses' rows (noise, periodic, drift) in display units;
 * :mod:`.plots` — figures (PNG bytes); :mod:`.pdf` — the PDF rendering.
 
-Imports flow content ← budget ← build → plots, pdf → content.
+Imports flow content ← budget ← build → plots, pdf → content; build → noise_report → analyses → content.
 """
 
 from __future__ import annotations
 
-from .build import bench_info, build_certificate, issue_certificate, publish_certificate
+from .build import bench_info, build_certificate, combined_covariance, issue_certificate, publish_certificate
 from .content import (
     FORMAT,
     FORMAT_VERSION,
     MODEL_TEXT,
+    NOISE_REPORT,
     SIGN_CONVENTIONS,
     BenchInfo,
     Certificate,
@@ -28,6 +31,7 @@ __all__ = [
     "FORMAT",
     "FORMAT_VERSION",
     "MODEL_TEXT",
+    "NOISE_REPORT",
     "SIGN_CONVENTIONS",
     "BenchInfo",
     "Certificate",
@@ -35,6 +39,7 @@ __all__ = [
     "ParameterResult",
     "bench_info",
     "build_certificate",
+    "combined_covariance",
     "format_with_uncertainty",
     "issue_certificate",
     "publish_certificate",

@@ -33,7 +33,7 @@ from analysis.units import ARCSEC
 from benches.calibration_result import CalibrationResult
 from benches.identify import acquisition_span, earth_in_body
 from benches.reference import interpolate_table, reference_for_samples
-from benches.timebase import table_in_unit_time
+from benches.timebase import reference_rate_covariance, reference_rate_u, table_in_unit_time
 
 if TYPE_CHECKING:  # pragma: no cover
     from benches.recording import Recording
@@ -264,4 +264,10 @@ def time_base_covariance(cal: CalibrationResult) -> tuple[NDArray[np.float64], s
         f"t0 = {tb.offset * 1e3:.4f} ms, u = {tb.u_offset * 1e6:.3g} µs; eps = {tb.rate * 1e6:+.3f} ppm, "
         f"u = {tb.u_rate * 1e6:.3g} ppm; offset → misalignment and size effect through the spins"
     )
-    return jac @ cov @ jac.T, src
+    p_ref = reference_rate_covariance(list(names), tb.check) if "gyro_S_x" in blk.sensitivity else z
+    if np.any(p_ref):
+        src += (
+            f"; the reference second (controller clock against the host's), u = "
+            f"{reference_rate_u(tb.check) * 1e6:.3g} ppm → gyro scale factor 1:1"
+        )
+    return jac @ cov @ jac.T + p_ref, src

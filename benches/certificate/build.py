@@ -52,6 +52,7 @@ from benches.results.chain import sinks_for_run
 from benches.results.sink import CertificateDocument, ResultSinks
 from core.provenance import file_sha256, software_version
 
+from .analyses import analysis_rows
 from .budget import (
     StepGeometry,
     UncertaintyBudget,
@@ -60,13 +61,16 @@ from .budget import (
     step_geometry,
 )
 from .content import (
+    AMBIENT_NOT_STATED,
     ANALYSES,
     BenchInfo,
     Certificate,
     CertificateError,
     ParameterResult,
+    ambient_text,
     format_with_uncertainty,
 )
+from .noise_report import build_noise_report, is_static_record
 from .plots import plot_convergence, plot_coverage, plot_residuals
 
 
@@ -126,6 +130,7 @@ def bench_info_of(cfg: BenchConfig | None, cal_run: dict[str, Any], rec_attrs: d
                 for r in getattr(cfg, "reference_standards", ())
             ],  # fmt: skip
             latency=float(getattr(u, "latency", 0.0) or 0.0),
+            ambient=_ambient_si(getattr(s, "ambient", None)),
         )
     g = float(site.get("g") or rec_attrs.get("site_g") or 0.0)
     if not g > 0:
@@ -150,89 +155,23 @@ def bench_info_of(cfg: BenchConfig | None, cal_run: dict[str, Any], rec_attrs: d
     )
 
 
+def _ambient_si(ambient: Any) -> dict[str, float | None]:
+    """The bench's ``site.ambient`` (:class:`benches.bench_config.Ambient`) as the certificate keeps it (SI)."""
+    if ambient is None:
+        return {}
+    return {
+        "temperature_k": ambient.temperature,
+        "temperature_tolerance_k": ambient.temperature_tolerance,
+        "relative_humidity": ambient.relative_humidity,
+        "pressure_pa": ambient.pressure,
+    }
+
+
 def _load_json(path: Path, what: str) -> dict[str, Any]:
     try:
         return json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise CertificateError(f"{path}: cannot read the {what} ({exc}); re-create it") from None
-
-
-def _fmt(x: Any) -> str:
-    try:
-        return f"{float(x):.4g}"
-    except (TypeError, ValueError):
-        return str(x)
-
-
-def _twice(x: Any) -> Any:
-    """2·x for a number (the expanded uncertainty of a standard uncertainty, k = 2), else x unchanged."""
-    return 2.0 * float(x) if isinstance(x, int | float) and not isinstance(x, bool) else x
-
-
-def _si_unit(channel: str) -> str:
-    """SI unit of an analysis channel's values (analysis JSON files are SI)."""
-    return "rad/s" if channel.startswith("gyro") else "m/s²" if channel.startswith("accel") else "(SI)"
-
-
-def _analysis_rows(kind: str, data: dict[str, Any]) -> list[dict[str, str]]:
-    """Summary rows of a noise / periodic / drift JSON (formats in the analysis commands' docs)."""
-    rows: list[dict[str, str]] = []
-    channels = data.get("channels", {}) if isinstance(data, dict) else {}
-    for ch in sorted(channels):
-        c = channels[ch] or {}
-        if kind == "noise":
-            for term, t in sorted((c.get("terms_display") or c.get("terms") or {}).items()):
-                t = t or {}
-                rows.append(
-                    {
-                        "channel": ch,
-                        "item": str(term),
-                        "value": f"{_fmt(t.get('value'))} ± {_fmt(_twice(t.get('sigma')))} {t.get('unit', '')} "
-                        "(U, k = 2)",
-                    }
-                )
-        elif kind == "periodic":
-            for i, t in enumerate(c.get("terms") or []):
-                rows.append(
-                    {
-                        "channel": ch,
-                        "item": f"tone {i + 1}",
-                        "value": f"{_fmt(t.get('frequency_hz'))} ± {_fmt(_twice(t.get('frequency_sigma_hz')))} Hz "
-                        f"(U, k = 2), amplitude {_fmt(t.get('amplitude'))} "
-                        f"{t.get('amplitude_unit') or c.get('unit') or _si_unit(ch)}, "
-                        f"phase {_fmt(t.get('phase_rad'))} rad",
-                    }
-                )
-            if "residual_rms_before" in c:
-                rows.append(
-                    {
-                        "channel": ch,
-                        "item": "residual RMS",
-                        "value": f"{_fmt(c.get('residual_rms_before'))} → {_fmt(c.get('residual_rms_after'))} "
-                        f"{c.get('unit') or _si_unit(ch)}",
-                    }
-                )
-        elif kind == "drift":
-            m = c.get("model") or {}
-            rows.append(
-                {
-                    "channel": ch,
-                    "item": f"ARMA({m.get('p', '?')},{m.get('q', '?')})",
-                    "value": f"φ {[round(float(v), 4) for v in m.get('phi', [])]}, "
-                    f"θ {[round(float(v), 4) for v in m.get('theta', [])]}, σ² {_fmt(m.get('sigma2'))}",
-                }
-            )
-            for name, t in sorted((c.get("tests") or {}).items()):
-                t = t or {}
-                rows.append(
-                    {
-                        "channel": ch,
-                        "item": str(name),
-                        "value": f"{_fmt(t.get('statistic'))} (threshold {_fmt(t.get('threshold'))}): "
-                        f"{t.get('verdict', '')}",
-                    }
-                )
-    return rows
 
 
 # ---- the content model: gather / decide / assemble ---------------------------------------------------------
@@ -251,7 +190,7 @@ class Gathered:
     run_status: str
     complete: bool
     incomplete_reason: str
-    cal: CalibrationResult
+    cal: CalibrationResult | None  # None: a noise report (no calibration is stated)
     procedure_steps: int | None
     binfo: BenchInfo
     geometry: list[StepGeometry]
@@ -325,7 +264,7 @@ def _gather_analyses(run: Path) -> tuple[dict[str, list[dict[str, str]]], list[t
     for kind in ANALYSES:
         p = run / kind / f"{kind}.json"
         if p.exists():
-            analyses[kind] = _analysis_rows(kind, _load_json(p, f"{kind} analysis"))
+            analyses[kind] = analysis_rows(kind, _load_json(p, f"{kind} analysis"))
             for png in sorted((run / kind).glob("*.png"))[:6]:
                 analysis_plots.append((f"{kind}/{png.name}", png.read_bytes()))
     return analyses, analysis_plots
@@ -356,21 +295,20 @@ def _gather_open(
     rec_sha: str,
     allow_incomplete: bool,
     bench: BenchInfo | None,
+    calibration: bool = True,
 ) -> Gathered:
+    """What the document states, from the open run; ``calibration`` False (a noise report): no calibration.json
+    is read (``cal`` None, no step geometry)."""
     f = rr.recording
     attrs = rr.header.as_dict()
     attrs["seed"] = -1 if attrs.get("seed") is None else attrs["seed"]
     complete, incomplete_reason = _completeness(rr, allow_incomplete, run)
-    cal = _load_calibration(cal_path, run, rec_sha)
+    cal = _load_calibration(cal_path, run, rec_sha) if calibration else None
     bench_text = rr.bench_text
     compiled = rr.compiled
-    cal_run = cal.run.to_mapping() if cal.run is not None else {}
+    cal_run = cal.run.to_mapping() if cal is not None and cal.run is not None else {}
     binfo = bench or bench_info_of(rr.config if bench_text.strip() else None, cal_run, attrs)
-    used = [str(p.get("name")) for p in cal.per_step]
-    lat = None if binfo.latitude_deg is None else math.radians(float(binfo.latitude_deg))
-    tb = cal.time_base.estimate if cal.time_base is not None else None
-    geometry = step_geometry(f, binfo.g, None if binfo.mounting is None else np.asarray(binfo.mounting),
-                             latency=binfo.latency, names=used or None, latitude=lat, time_base=tb)  # fmt: skip
+    geometry = _geometry(rr, binfo, cal) if cal is not None else []
     n_samples = f.n_samples
     ends = f.samples(fields=("time",), index=[0, n_samples - 1]).time if n_samples > 1 else None
     analyses, analysis_plots = _gather_analyses(run)
@@ -396,7 +334,7 @@ def _gather_open(
         ],
         integrity={"verified": f.integrity_verified, "note": f.integrity_note},
         overrides=dict(rr.header.procedure_overrides),
-        per_step=_per_step_rows(cal, cal_path),
+        per_step=_per_step_rows(cal, cal_path) if cal is not None else [],
         analyses=analyses,
         analysis_plots=analysis_plots,
     )
@@ -445,14 +383,21 @@ def _parameter_result(
     return row, reason, unverified
 
 
-def decide_conformity(g: Gathered) -> Decision:
-    """The GUM budget and the ILAC-G8 decision per parameter and overall (see the module docstring)."""
-    binfo = g.binfo
-    integrity_ok = True  # open_recording() verified every checksum (a damaged recording raised above)
+def _geometry(rr: RecordedRun, binfo: BenchInfo, cal: CalibrationResult) -> list[StepGeometry]:
+    """The reference of each step the identification used (THE reference function, the bench's mounting)."""
+    used = [str(p.get("name")) for p in cal.per_step]
+    lat = None if binfo.latitude_deg is None else math.radians(float(binfo.latitude_deg))
+    tb = cal.time_base.estimate if cal.time_base is not None else None
+    return step_geometry(rr.recording, binfo.g, None if binfo.mounting is None else np.asarray(binfo.mounting),
+                         latency=binfo.latency, names=used or None, latitude=lat, time_base=tb)  # fmt: skip
+
+
+def _budget(cal: CalibrationResult, geometry: list[StepGeometry], binfo: BenchInfo, where: Path) -> UncertaintyBudget:
+    """The GUM budget of a calibration: its own covariance plus the bench's type-B components."""
     try:
-        budget: UncertaintyBudget = budget_for_run(
-            g.cal,
-            g.geometry,
+        return budget_for_run(
+            cal,
+            geometry,
             g=binfo.g,
             g_uncertainty=binfo.g_uncertainty,
             g_source=binfo.g_source,
@@ -465,7 +410,33 @@ def decide_conformity(g: Gathered) -> Decision:
             azimuth_uncertainty=binfo.azimuth_uncertainty,
         )
     except ValueError as exc:
-        raise CertificateError(f"{g.cal_path}: {exc}") from None
+        raise CertificateError(f"{where}: {exc}") from None
+
+
+def combined_covariance(cal: CalibrationResult, run: str | Path | RecordedRun) -> np.ndarray:
+    """The covariance a certificate of ``cal`` would state (type A + B, SI, the calibration's names order),
+    without issuing one: what ``run`` and ``identify`` judge their NEES against the simulator truth with.
+
+    Raises
+    ------
+    CertificateError
+        The recording cannot be read or the budget cannot be formed.
+    """
+    try:
+        with run_of(run) as rr:
+            cal_run = cal.run.to_mapping() if cal.run is not None else {}
+            binfo = bench_info_of(rr.config if rr.bench_text.strip() else None, cal_run, rr.header.as_dict())
+            return _budget(cal, _geometry(rr, binfo, cal), binfo, rr.path).covariance
+    except RecordingError as exc:
+        raise CertificateError(str(exc)) from None
+
+
+def decide_conformity(g: Gathered) -> Decision:
+    """The GUM budget and the ILAC-G8 decision per parameter and overall (see the module docstring)."""
+    assert g.cal is not None, "a calibration certificate needs the calibration (a noise report has none)"
+    binfo = g.binfo
+    integrity_ok = True  # open_recording() verified every checksum (a damaged recording raised above)
+    budget = _budget(g.cal, g.geometry, binfo, g.cal_path)
     results: list[ParameterResult] = []
     reasons: list[str] = []
     unverified: list[str] = []
@@ -495,6 +466,11 @@ def decide_conformity(g: Gathered) -> Decision:
         warnings.append("not identified (prior-dominated, do not use for compensation): " + ", ".join(unident))
     if not binfo.limits:
         warnings.append("the bench file gives no pass/fail limits: no conformity statement")
+    if (binfo.ambient or {}).get("temperature_k") is None:
+        warnings.append(
+            f"the laboratory's ambient conditions are {AMBIENT_NOT_STATED}: the certificate cannot state the "
+            "conditions of the calibration (ISO/IEC 17025 7.8.4.1); state site.ambient and re-issue"
+        )
     warnings.extend(g.event_warnings)
     if not g.integrity["verified"]:
         warnings.insert(0, g.integrity["note"])
@@ -572,8 +548,10 @@ def relative_misalignment(names: list[str], x: np.ndarray, cov: np.ndarray) -> d
 def assemble(g: Gathered, d: Decision, issue_date: str, with_plots: bool = True) -> Certificate:
     """The certificate's content model from what was gathered and decided (figures when ``with_plots``)."""
     cal, budget = g.cal, d.budget
+    assert cal is not None
     created = str(g.attrs.get("created_utc", ""))
     written = cal.to_dict()  # as calibration.json states them
+    ambient = dict(g.binfo.ambient or {})
     cert = Certificate(
         number=f"TB-{g.rec_sha[:10].upper()}",
         issue_date=issue_date,
@@ -583,15 +561,13 @@ def assemble(g: Gathered, d: Decision, issue_date: str, with_plots: bool = True)
         incomplete_reason=g.incomplete_reason,
         unit={"model": g.binfo.unit_model, "serial_number": g.binfo.unit_serial},
         bench=_bench_block(g),
-        procedure={
-            "name": str(g.attrs.get("procedure_name", "")),
-            "sha256": str(g.attrs.get("procedure_sha256", "")),
-            "procedure_overrides": g.overrides,
-        },
+        procedure=_procedure_block(g),
         recording=_recording_block(g),
         environment={
             "unit_temperature_k": g.temperature,
             "unit_temperature_c": {k: kelvin_to_celsius(v) for k, v in g.temperature.items()},
+            "laboratory_ambient": {**ambient, "stated": ambient.get("temperature_k") is not None,
+                                   "text": ambient_text(ambient)},
         },
         identification={
             "method": cal.method,
@@ -672,10 +648,32 @@ def build_certificate(
     CertificateError
         Missing/mismatched inputs, or an incomplete recording without ``allow_incomplete``.
     """
-    _run_paths(run_dir)  # a missing recording is named before a bad --issue-date
+    run, rec_path, cal_path = _run_paths(run_dir)  # a missing recording is named before a bad --issue-date
     date = _issue_date(issue_date)
-    g = gather(run_dir, allow_incomplete=allow_incomplete, bench=bench, recorded=recorded)
+    with contextlib.ExitStack() as stack:
+        try:
+            rr = stack.enter_context(run_of(recorded if recorded is not None else rec_path))
+        except RecordingError as exc:
+            raise CertificateError(str(exc)) from None
+        if is_static_record(rr.steps):  # one attitude, no rotation: a noise report, not a calibration
+            g = _gather_open(rr, run, rec_path, cal_path, rr.sha256, allow_incomplete, bench, calibration=False)
+            return build_noise_report(
+                rr, g.binfo, date, complete=g.complete, incomplete_reason=g.incomplete_reason,
+                bench_block=_bench_block(g), recording_block=_recording_block(g),
+                procedure_block=_procedure_block(g), temperature=g.temperature,
+                creation_date=_creation_datetime(str(g.attrs.get("created_utc", ""))).isoformat(),
+                software=software_version(), with_plots=with_plots,
+            )  # fmt: skip
+        g = _gather_open(rr, run, rec_path, cal_path, rr.sha256, allow_incomplete, bench)
     return assemble(g, decide_conformity(g), date, with_plots)
+
+
+def _procedure_block(g: Gathered) -> dict[str, Any]:
+    return {
+        "name": str(g.attrs.get("procedure_name", "")),
+        "sha256": str(g.attrs.get("procedure_sha256", "")),
+        "procedure_overrides": g.overrides,
+    }
 
 
 def _per_step_rows(cal: CalibrationResult, path: Path) -> list[dict[str, Any]]:
@@ -756,5 +754,6 @@ def publish_certificate(
     return doc.pdf, doc.json
 
 
-__all__ = ["Decision", "Gathered", "assemble", "bench_info", "build_certificate", "decide_conformity", "gather",
+__all__ = ["Decision", "Gathered", "assemble", "bench_info", "build_certificate", "combined_covariance",
+           "decide_conformity", "gather",
            "issue_certificate", "publish_certificate"]

@@ -11,12 +11,17 @@ import math
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from analysis.units import kelvin_to_celsius
 from core.errors import UserError
 from core.jsonio import dumps
 
 FORMAT = "tablebench-certificate"
 FORMAT_VERSION = 1
 ANALYSES = ("noise", "periodic", "drift")
+CALIBRATION_CERTIFICATE = "CALIBRATION CERTIFICATE"
+NOISE_REPORT = "NOISE REPORT"
+"""The document a static record gets instead of a calibration certificate (:mod:`benches.certificate.noise_report`);
+also its verdict (no conformity statement)."""
 
 MODEL_TEXT = "f_out = f + (S + T) f + b + D (f∘f) + diag(r) c(ω) + v"
 GYRO_MODEL_TEXT = "ω_out = (I + S_g + T_g) ω_ib + b_g + G f + S2 (ω_ib∘ω_ib) + A |ω_ib| + v_g"
@@ -93,6 +98,9 @@ class BenchInfo:
     rate_accuracy: float = 0.0
     latency: float = 0.0
     reference_standards: list[dict[str, str]] = field(default_factory=list)
+    ambient: dict[str, float | None] = field(default_factory=dict)
+    """The laboratory's ambient conditions (bench ``site.ambient``, SI: temperature K, tolerance K, relative
+    humidity fraction, pressure Pa); empty or None values: not stated."""
 
 
 @dataclass
@@ -146,6 +154,15 @@ class Certificate:
     plots: dict[str, bytes] = field(default_factory=dict)
     analysis_plots: list[tuple[str, bytes]] = field(default_factory=list)
     supersedes: str = ""
+    document: str = CALIBRATION_CERTIFICATE
+    """:data:`CALIBRATION_CERTIFICATE`, or :data:`NOISE_REPORT` for a static record."""
+    noise: dict[str, Any] = field(default_factory=dict)
+    """A noise report's analysis (record step, method, the noise.json-format result, channel statistics)."""
+
+    @property
+    def is_noise_report(self) -> bool:
+        """True for the noise report of a static record (no parameters, no conformity statement)."""
+        return self.document == NOISE_REPORT
 
     @property
     def has_gyro(self) -> bool:
@@ -169,6 +186,8 @@ class Certificate:
 
     def to_dict(self) -> dict[str, Any]:
         """The machine-readable certificate (SI values; plots by name and SHA-256)."""
+        if self.is_noise_report:
+            return self._noise_report_dict()
         d = {
             "format": FORMAT,
             "format_version": FORMAT_VERSION,
@@ -215,12 +234,57 @@ class Certificate:
         }
         return d
 
+    def _noise_report_dict(self) -> dict[str, Any]:
+        """The machine-readable noise report (SI values in ``noise.analysis``, the noise.json format)."""
+        return {
+            "format": FORMAT,
+            "format_version": FORMAT_VERSION,
+            "document": self.document,
+            "certificate_number": self.number,
+            "supersedes": self.supersedes,
+            "issue_date": self.issue_date,
+            "verdict": self.verdict,
+            "complete": self.complete,
+            "incomplete_reason": self.incomplete_reason,
+            "unit": self.unit,
+            "bench": self.bench,
+            "procedure": self.procedure,
+            "recording": self.recording,
+            "environment": self.environment,
+            "noise": self.noise,
+            "warnings": self.warnings,
+            "analyses": self.analyses,
+            "software_version": self.software_version,
+            "plots": {k: hashlib.sha256(v).hexdigest() for k, v in sorted(self.plots.items())},
+        }
+
     def to_json(self) -> str:
         """Deterministic JSON text of :meth:`to_dict` (non-finite numbers as null: "not available")."""
         return dumps(self.to_dict(), nonfinite="null", indent=2)
 
 
 # ---- helpers -------------------------------------------------------------------------------------------------
+
+AMBIENT_NOT_STATED = "not stated in the bench file (site.ambient)"
+
+
+def ambient_text(ambient: dict[str, Any] | None) -> str:
+    """The laboratory's ambient conditions as the certificate states them (°C, % RH, hPa), or "not stated".
+
+    ``ambient``: the certificate's ``environment.laboratory_ambient`` (SI: K, fraction, Pa).
+    """
+    a = ambient or {}
+    t = a.get("temperature_k")
+    if t is None:
+        return AMBIENT_NOT_STATED
+    tol = a.get("temperature_tolerance_k")
+    parts = [f"{kelvin_to_celsius(t):.1f}" + (f" ± {tol:.1f}" if tol is not None else "") + " °C air temperature"]
+    if a.get("relative_humidity") is not None:
+        parts.append(f"{100 * a['relative_humidity']:.0f} % relative humidity")
+    if a.get("pressure_pa") is not None:
+        parts.append(f"{a['pressure_pa'] / 100:.0f} hPa")
+    return ", ".join(parts) + " (laboratory, as stated in the bench file)"
+
 
 
 def format_with_uncertainty(value: float, expanded: float, digits: int = 2) -> tuple[str, str]:

@@ -15,7 +15,9 @@ from pathlib import Path
 import matplotlib
 from fpdf import FPDF, FontFace, XPos, YPos
 
-from .content import GYRO_MODEL_TEXT, MODEL_TEXT, Certificate
+from analysis.identification.plan_legend import plan_legend_text
+
+from .content import GYRO_MODEL_TEXT, MODEL_TEXT, Certificate, ambient_text
 
 _FONT = "DejaVu"
 _GREY = (235, 235, 235)
@@ -28,13 +30,17 @@ _VERDICT_COLOURS = {
     "NO LIMITS": (90, 90, 90),
 }
 _COMPONENT_SHORT = {
-    "white_noise": "White noise",
-    "bias_instability": "Bias inst.",
-    "attitude": "Attitude",
-    "axis_orthogonality": "Axis orth.",
-    "local_g": "Local g",
-    "model_mismatch": "Mismatch",
+    "white_noise": "Noise",
+    "bias_instability": "Flick.",
+    "attitude": "Attit.",
+    "local_g": "g",
+    "model_mismatch": "Mism.",
+    "azimuth": "Azim.",
+    "latitude": "Lat.",
+    "axis_orthogonality": "Orth.",
+    "time_base": "Time",
 }
+"""Column heads of the budget table (each named in full under "Input quantities", with its key)."""
 LAB_NAME = "tablebench calibration laboratory"
 
 
@@ -70,7 +76,8 @@ class _CertificatePdf(FPDF):
             return
         self.set_font(_FONT, "", 7.5)
         self.set_text_color(90, 90, 90)
-        self.cell(0, 4, f"Calibration certificate {self.cert.number} — issued {self.cert.issue_date}", align="L")
+        self.cell(0, 4, f"{self.cert.document.capitalize()} {self.cert.number} — issued {self.cert.issue_date}",
+                  align="L")  # fmt: skip
         self.set_x(self.l_margin)
         self.cell(
             0, 4, f"Unit {self.cert.unit.get('serial_number', '')}", align="R", new_x=XPos.LMARGIN, new_y=YPos.NEXT
@@ -175,19 +182,21 @@ def _title_block(pdf: _CertificatePdf, c: Certificate) -> None:
     pdf.set_xy(pdf.l_margin + 4, 14)
     pdf.set_text_color(255, 255, 255)
     pdf.set_font(_FONT, "B", 17)
-    pdf.cell(110, 8, "CALIBRATION CERTIFICATE")
+    pdf.cell(110, 8, c.document)
     pdf.set_font(_FONT, "", 8.5)
     pdf.set_xy(pdf.l_margin + 115, 14.5)
     pdf.multi_cell(
         pdf.epw - 119,
         4.2,
-        f"Certificate No. {c.number}\nIssue date {c.issue_date}\nPage 1 of {{nb}}"
+        f"{'Report' if c.is_noise_report else 'Certificate'} No. {c.number}\nIssue date {c.issue_date}\n"
+        "Page 1 of {nb}"
         + (f"\nSupersedes No. {c.supersedes}" if getattr(c, "supersedes", "") else ""),
         align="R",
     )
     pdf.set_xy(pdf.l_margin + 4, 23)
     pdf.set_font(_FONT, "", 9)
-    pdf.cell(110, 6, f"{c.item_title} — three-axis turntable calibration")
+    pdf.cell(110, 6, "Static record at one attitude — noise characterisation (no calibration)" if c.is_noise_report
+             else f"{c.item_title} — three-axis turntable calibration")  # fmt: skip
     pdf.set_text_color(0, 0, 0)
     pdf.set_y(35)
     pdf.set_font(_FONT, "", 8)
@@ -300,7 +309,8 @@ def _first_page(pdf: _CertificatePdf, c: Certificate) -> None:
             ("Local gravity g", g_txt),
             ("Procedure", f"{proc.get('name', '')}; SHA-256 of its text: {proc.get('sha256', '')}" + _overrides(proc)),
             ("Date of calibration", _dates_text(rec)),
-            ("Environment", f"Unit temperature {temp_txt}"),
+            ("Environment", f"Laboratory ambient: {ambient_text(c.environment.get('laboratory_ambient'))}; "
+                            f"unit temperature {temp_txt}"),
             ("Recording", rec_txt),
             ("Identification", ident_txt),
             ("Software", sw_txt),
@@ -335,14 +345,14 @@ def _overrides(proc: dict) -> str:
     return "; parameters overridden for this run: " + ", ".join(f"{k} = {v:g}" for k, v in sorted(ov.items()))
 
 
-def _signature_block(pdf: _CertificatePdf) -> None:
+def _signature_block(pdf: _CertificatePdf, first: str = "Calibrated by") -> None:
     if pdf.get_y() > pdf.h - 55:
         pdf.add_page()
     pdf.set_y(max(pdf.get_y() + 4, pdf.h - 52))
     pdf.set_font(_FONT, "B", 9)
     half = pdf.epw / 2
     y = pdf.get_y()
-    for i, title in enumerate(("Calibrated by", "Approved by (authorised signatory)")):
+    for i, title in enumerate((first, "Approved by (authorised signatory)")):
         x = pdf.l_margin + i * half
         pdf.set_xy(x, y)
         pdf.set_font(_FONT, "B", 9)
@@ -398,7 +408,8 @@ def _results_page(pdf: _CertificatePdf, c: Certificate) -> None:
         "display during the run shows the filter's white-noise ± (standard, k = 1); 'tablebench identify' and "
         "calibration.json give u, the identification's combined standard uncertainty (white noise ⊕ bias "
         "instability, k = 1); this certificate's U adds the type-B components of the budget (table, gravity, "
-        "model mismatch) and is expanded, U = 2u. Values in SI and the full "
+        "model mismatch) and is expanded, U = 2u. The pre-run plan ('tablebench plan', printed by 'run' and quoted "
+        f"in the warnings) predicts 1σ figures; its {plan_legend_text()}. Values in SI and the full "
         "covariance are in the machine-readable certificate (JSON). µg = 9.80665e-6 m/s²; ppm = 1e-6; ″ = arcsecond.",
         size=7.6,
     )
@@ -420,26 +431,28 @@ def _budget_page(pdf: _CertificatePdf, c: Certificate) -> None:
     rows = []
     for p in c.parameters:
         u_c = p.display_expanded / c.coverage_factor
-        dec = max(2 - math.floor(math.log10(u_c)), 0) if u_c > 0 else 3
+        dec = max(1 - math.floor(math.log10(u_c)), 0) if u_c > 0 else 2  # u to two significant digits
         rows.append(
             [p.name, p.display_unit]
             + [f"{p.display_budget[k]:.{dec}f}" for k in keys]
             + [f"{u_c:.{dec}f}", p.expanded_text]
         )
     nk = len(keys)
-    rest = pdf.epw - 20 - 16 - 22 - 24
+    size = 7.8 if nk <= 7 else 6.6  # the whole unit's budget has a dozen columns: one line per cell
+    rest = pdf.epw - 22 - 15 - 14 - 14
     pdf.grid(
         head,
         rows,
-        (20, 16) + (rest / nk,) * nk + (22, 24),
+        (22, 15) + (rest / nk,) * nk + (14, 14),
         ("LEFT", "LEFT") + ("RIGHT",) * (nk + 2),
-        7.8,
+        size,
     )
     pdf.ln(1.5)
     pdf.set_font(_FONT, "B", 8.5)
     pdf.cell(0, 5, "Input quantities", new_x=XPos.LMARGIN, new_y=YPos.NEXT)
     for comp in c.budget_components:
-        pdf.para(f"• {comp['label']} (type {comp['type']}): {comp['source']}", size=7.8)
+        short = _COMPONENT_SHORT.get(comp["key"], comp["key"])
+        pdf.para(f"• {short} — {comp['label']} (type {comp['type']}): {comp['source']}", size=7.8)
     pdf.ln(1)
     pdf.para(
         "Method (GUM law of propagation, linear estimator): the budget starts from the identification's own "
@@ -571,12 +584,80 @@ def render_pdf(cert: Certificate) -> bytes:
     pdf.set_subject(f"Accelerometer triad {cert.unit.get('model', '')} {cert.unit.get('serial_number', '')}")
     pdf.set_creator(f"tablebench {cert.software_version}")
     pdf.set_producer(f"tablebench {cert.software_version} (fpdf2)")
+    if cert.is_noise_report:
+        _noise_report_pages(pdf, cert)
+        return bytes(pdf.output())
     _first_page(pdf, cert)
     _results_page(pdf, cert)
     _budget_page(pdf, cert)
     _plots_pages(pdf, cert)
     _warnings_and_analyses(pdf, cert)
     return bytes(pdf.output())
+
+
+def _noise_report_pages(pdf: _CertificatePdf, c: Certificate) -> None:
+    """The noise report of a static record (:mod:`benches.certificate.noise_report`): identity and conditions,
+    the noise terms with U (k = 2), the record's statistics, the Allan deviation, warnings; no conformity."""
+    pdf.add_page()
+    _title_block(pdf, c)
+    pdf.set_font(_FONT, "B", 12)
+    pdf.set_text_color(*_VERDICT_COLOURS["NO LIMITS"])
+    pdf.cell(0, 8, "  NOISE REPORT — no calibration, no conformity statement", border=1,
+             new_x=XPos.LMARGIN, new_y=YPos.NEXT)  # fmt: skip
+    pdf.set_text_color(0, 0, 0)
+    pdf.para(
+        "The recording is a static record: the unit held one attitude and the table did not rotate. That "
+        "determines the unit's noise, reported here, but none of the error model's parameters (bias, scale factor, "
+        "misalignment need several attitudes, the size effect needs spins); this document is therefore not a "
+        "calibration certificate.",
+        size=8.2,
+    )
+    pdf.ln(1)
+    b, rec, n = c.bench, c.recording, c.noise
+    temp = c.environment.get("unit_temperature_c") or {}
+    temp_txt = f"{temp['mean']:.2f} °C mean (unit's internal sensor)" if temp else "not recorded"
+    pdf.key_values(
+        [
+            ("Item measured", f"{c.unit.get('model', '')}, serial No. {c.unit.get('serial_number', '')}"),
+            ("Bench", f"{b.get('name', '')}: turntable {b.get('table_model', '')}, serial No. "
+                      f"{b.get('table_serial_number', '')} (held at rest)"),
+            ("Site", str(b.get("site") or "—")),
+            ("Procedure", f"{c.procedure.get('name', '')}; SHA-256 of its text: {c.procedure.get('sha256', '')}"
+                          + _overrides(c.procedure)),
+            ("Date of measurement", _dates_text(rec)),
+            ("Environment", f"Laboratory ambient: {ambient_text(c.environment.get('laboratory_ambient'))}; "
+                            f"unit temperature {temp_txt}"),
+            ("Recording", f"{rec.get('file')} ({rec.get('status')}, {rec.get('samples')} samples at "
+                          f"{rec.get('sample_rate_hz', 0):g} Hz)\nSHA-256 {rec.get('sha256')}"),
+            ("Record analysed", f"step {n.get('step')!r}: {n.get('samples', 0)} samples, "
+                                f"{float(n.get('duration_s') or 0) / 60:.1f} min of bench time"),
+            ("Method", str(n.get("method", ""))),
+            ("Software", f"tablebench {c.software_version}"),
+        ]
+    )  # fmt: skip
+    pdf.section("Noise terms (expanded uncertainty U, k = 2)")
+    rows = c.analyses.get("noise") or []
+    if rows:
+        pdf.grid(["Channel", "Term", "Value"], [[r["channel"], r["item"], r["value"]] for r in rows],
+                 (25, 20, pdf.epw - 45), ("LEFT", "LEFT", "LEFT"), 7.6)  # fmt: skip
+        pdf.para("Q quantisation, N white noise (velocity / angle random walk), B bias instability, K random walk, "
+                 "R ramp (IEEE 952 / IEEE 1293 notation); a term whose U exceeds its value is not resolved by this "
+                 "record.", size=7.4)  # fmt: skip
+    else:
+        pdf.para("No noise terms (see the warnings).")
+    stats = c.analyses.get("record") or []
+    if stats:
+        pdf.section("Record statistics (for information)")
+        pdf.grid(["Channel", "Item", "Value"], [[r["channel"], r["item"], r["value"]] for r in stats],
+                 (25, 45, pdf.epw - 70), ("LEFT", "LEFT", "LEFT"), 7.6)  # fmt: skip
+    if "noise" in c.plots:
+        pdf.add_page()
+        pdf.section("Overlapping Allan deviation of the record")
+        pdf.figure(c.plots["noise"], 175)
+    pdf.section("Warnings and limitations")
+    for w in c.warnings or ["None."]:
+        pdf.para(f"• {w}", size=8)
+    _signature_block(pdf, "Measured by")
 
 
 __all__ = ["render_pdf"]

@@ -111,6 +111,76 @@ def plot_residuals(
         return _render(fig)
 
 
+CONVERGENCE_FRAME_U = 4.0
+"""Half-height of a convergence panel in final standard uncertainties: the ±2σ band fills half the frame, so
+the converged trace's steps are visible against it (8σ left it a flat line in a mostly empty panel)."""
+
+
+def convergence_frame(values: NDArray[np.float64], sigmas: NDArray[np.float64]) -> tuple[float, float] | None:
+    """The y-range of one convergence panel: the final value ± max(4 u_final, 1.2 × the second half's largest
+    distance from it), display units; None when the trace is empty or not finite.
+
+    The early, prior-dominated updates leave the frame, as they should; the late trace and its ±2u band fill it.
+    """
+    v = np.asarray(values, dtype=float)
+    s = np.asarray(sigmas, dtype=float)
+    if v.size == 0 or not np.isfinite(v[-1]):
+        return None
+    centre = float(v[-1])
+    half = v[v.size // 2 :]
+    half = half[np.isfinite(half)]
+    late = float(np.max(np.abs(half - centre))) if half.size else 0.0
+    u = float(s[-1]) if s.size and np.isfinite(s[-1]) else 0.0
+    span = max(CONVERGENCE_FRAME_U * u, 1.2 * late)
+    if not span > 0:
+        span = max(abs(centre) * 1e-3, 1e-12)
+    return centre - span, centre + span
+
+
+def convergence_figure(
+    history: Mapping[str, Any],
+    names: Sequence[str],
+    kinds: Sequence[str],
+    final: NDArray[np.float64] | None = None,
+    identified: Sequence[bool] | None = None,
+) -> Figure:
+    """The convergence figure of :func:`plot_convergence` (one panel per parameter, in ``names`` order)."""
+    t = np.asarray(history.get("time", []), dtype=float)
+    est = np.asarray(history.get("estimate", []), dtype=float).reshape(-1, len(names))
+    sig = np.asarray(history.get("sigma", []), dtype=float).reshape(-1, len(names))
+    tm = t / 60.0 if t.size == est.shape[0] and t.size else np.arange(est.shape[0], dtype=float)
+    rows = max(1, -(-len(names) // 3))
+    fig = Figure(figsize=(7.2, 1.5 * rows))
+    axes = np.atleast_2d(fig.subplots(rows, 3, sharex=True))
+    for p, (name, kind) in enumerate(zip(names, kinds, strict=True)):
+        ax = axes[p // 3][p % 3]
+        v = to_display(kind, est[:, p]) if est.size else np.zeros(0)
+        s = to_display(kind, sig[:, p]) if sig.size else np.zeros(0)
+        if v.size:
+            ax.fill_between(tm, v - 2 * s, v + 2 * s, step="post", color="#9db7e0", alpha=0.6, lw=0)
+            ax.step(tm, v, where="post", color="#1f4e9c")
+        elif not ax.has_data():
+            ax.text(0.5, 0.5, "no filter history", ha="center", va="center", transform=ax.transAxes, fontsize=7)
+        if final is not None and np.isfinite(final[p]):
+            ax.axhline(to_display(kind, float(final[p])), color="black", lw=0.6, ls=":")
+        frame = convergence_frame(v, s)
+        if frame is not None:
+            ax.set_ylim(*frame)
+        ax.set_title(f"{name} [{display_unit(kind)}]", pad=2)
+        if identified is not None and not identified[p]:
+            ax.text(0.5, 0.9, "not identified (prior only)", ha="center", va="top", transform=ax.transAxes,
+                    fontsize=6.5, color="#a03000")  # fmt: skip
+    for ax in axes[-1]:
+        ax.set_xlabel("bench time, min" if t.size == est.shape[0] and t.size else "update")
+    fig.suptitle(
+        f"Estimate after each step (band: ±2u of the filter; frame: final ± max({CONVERGENCE_FRAME_U:g}u, late "
+        "spread))",
+        fontsize=9,
+    )
+    fig.tight_layout()
+    return fig
+
+
 def plot_convergence(
     history: Mapping[str, Any],
     names: Sequence[str],
@@ -118,56 +188,24 @@ def plot_convergence(
     final: NDArray[np.float64] | None = None,
     identified: Sequence[bool] | None = None,
 ) -> bytes:
-    """Estimate of every parameter after each update, with ±2σ bands, in display units (one panel each).
+    """Estimate of every parameter after each update, with ±2u bands, in display units (one panel each), PNG.
+
+    Each panel is framed by :func:`convergence_frame` (final ± a few u), so the converged value reads against
+    its own uncertainty rather than as a flat line.
 
     Parameters
     ----------
     history : mapping
-        ``calibration.json`` ``history``: time (K,) s, estimate (K, 18) SI, sigma (K, 18) SI.
+        ``calibration.json`` ``history``: time (K,) s, estimate (K, n) SI, sigma (K, n) SI (standard, k = 1).
     names, kinds : sequence of str
         Parameter names and quantity kinds (``analysis.units.DISPLAY_UNITS`` keys).
-    final : (18,) array, optional
+    final : (n,) array, optional
         Final estimate (drawn as a dotted line).
     identified : sequence of bool, optional
         Per parameter; a not-identified one is labelled so in its panel (its trace is the prior's).
     """
-    t = np.asarray(history.get("time", []), dtype=float)
-    est = np.asarray(history.get("estimate", []), dtype=float).reshape(-1, len(names))
-    sig = np.asarray(history.get("sigma", []), dtype=float).reshape(-1, len(names))
-    tm = t / 60.0 if t.size == est.shape[0] and t.size else np.arange(est.shape[0], dtype=float)
     with _context():
-        rows = max(1, -(-len(names) // 3))
-        fig = Figure(figsize=(7.2, 1.5 * rows))
-        axes = np.atleast_2d(fig.subplots(rows, 3, sharex=True))
-        for p, (name, kind) in enumerate(zip(names, kinds, strict=True)):
-            ax = axes[p // 3][p % 3]
-            v = to_display(kind, est[:, p]) if est.size else np.zeros(0)
-            s = to_display(kind, sig[:, p]) if sig.size else np.zeros(0)
-            if v.size:
-                ax.fill_between(tm, v - 2 * s, v + 2 * s, step="post", color="#9db7e0", alpha=0.6, lw=0)
-                ax.step(tm, v, where="post", color="#1f4e9c")
-                # zoom on the converged part: final ± max(8 σ_final, spread of the second half); the early,
-                # prior-dominated updates leave the frame, as they should
-                half = v[v.size // 2 :]
-                centre = float(v[-1])
-                span = max(8.0 * float(s[-1]), 1.5 * float(np.max(np.abs(half - centre))), 1e-30)
-                if np.isfinite(span) and np.isfinite(centre):
-                    ax.set_ylim(centre - span, centre + span)
-            elif not ax.has_data():
-                ax.text(0.5, 0.5, "no filter history", ha="center", va="center", transform=ax.transAxes, fontsize=7)
-            if final is not None and np.isfinite(final[p]):
-                ax.axhline(to_display(kind, float(final[p])), color="black", lw=0.6, ls=":")
-            ax.set_title(f"{name} [{display_unit(kind)}]", pad=2)
-            if identified is not None and not identified[p]:
-                ax.text(0.5, 0.9, "not identified (prior only)", ha="center", va="top", transform=ax.transAxes,
-                        fontsize=6.5, color="#a03000")  # fmt: skip
-        for ax in axes[-1]:
-            ax.set_xlabel("bench time, min" if t.size == est.shape[0] and t.size else "update")
-        fig.suptitle(
-            "Estimate after each step (band: ±2σ of the filter; frame: final ± max(8σ, late spread))", fontsize=9
-        )
-        fig.tight_layout()
-        return _render(fig)
+        return _render(convergence_figure(history, names, kinds, final, identified))
 
 
 def plot_coverage(geometry: Sequence[StepGeometry]) -> bytes:
@@ -212,4 +250,4 @@ def plot_coverage(geometry: Sequence[StepGeometry]) -> bytes:
         return _render(fig)
 
 
-__all__ = ["plot_convergence", "plot_coverage", "plot_residuals"]
+__all__ = ["convergence_figure", "convergence_frame", "plot_convergence", "plot_coverage", "plot_residuals"]

@@ -40,7 +40,7 @@ class RunFolderSink:
 
         def paths(number: str) -> tuple[Path, Path]:
             if out_pdf is None:
-                return free_paths(run, number)
+                return free_paths(run, number, "noise-report" if doc.certificate.is_noise_report else "certificate")
             pdf = Path(out_pdf)
             return pdf, Path(out_json) if out_json is not None else pdf.with_suffix(".json")
 

@@ -12,7 +12,9 @@ ALLOWED = {  # module → package modules it may import (module-level or lazily)
     "budget": set(),
     "plots": set(),
     "pdf": {"content"},
-    "build": {"content", "budget", "plots", "pdf"},
+    "analyses": {"content"},
+    "noise_report": {"analyses", "content", "plots"},
+    "build": {"analyses", "content", "budget", "noise_report", "plots", "pdf"},
     "__init__": {"build", "content"},
 }
 

@@ -188,13 +188,16 @@ def test_noise_periodic_and_drift_analyses_are_included_when_present(tmp_path):
     cert = json.loads(js.read_text(encoding="utf-8"))
     assert set(cert["analyses"]) == {"noise", "periodic", "drift"}
     # k = 2 for every ± on the certificate (the analysis file holds the standard uncertainty 0.015)
-    assert {"channel": "accel_x", "item": "N", "value": "14.99 ± 0.03 µg/√Hz (U, k = 2)"} in cert["analyses"]["noise"]
+    # value and U to the same decimal, U to two significant digits (GUM 7.2.6, as in the results table)
+    v, u = format_with_uncertainty(14.99, 2 * 0.015)
+    assert {"channel": "accel_x", "item": "N", "value": f"{v} ± {u} µg/√Hz (U, k = 2)"} in cert["analyses"]["noise"]
     assert any("12.5" in r["value"] for r in cert["analyses"]["periodic"])
-    assert all("rad/s" in r["value"] for r in cert["analyses"]["periodic"])  # units from periodic.json
+    # periodic.json is SI (rad/s); the certificate shows the gyro's display unit, as in the results table
+    assert all("deg/h" in r["value"] and "rad/s" not in r["value"] for r in cert["analyses"]["periodic"])
     assert any(r["item"] == "ARMA(1,1)" for r in cert["analyses"]["drift"])
     assert list(cert["analysis_plots"]) == ["noise/noise.png"]
     text = "\n".join(_text(pdf))
-    assert "Noise analysis" in text and "14.99 ± 0.03 µg/√Hz (U, k = 2)" in text and "ARMA(1,1)" in text
+    assert "Noise analysis" in text and f"{v} ± {u} µg/√Hz (U, k = 2)" in text and "ARMA(1,1)" in text
 
 
 def test_an_unidentified_limited_parameter_makes_the_result_inconclusive(run_ok, tmp_path):

@@ -25,7 +25,8 @@ def test_set_override_is_visible_everywhere(tmp_path, capsys):
     assert "duration_s=20 warmup_s=5" in capsys.readouterr().out
     cal = json.loads((run / "calibration.json").read_text(encoding="utf-8"))
     assert cal["run"]["procedure_overrides"] == {"duration_s": 20.0, "warmup_s": 5.0}
-    cert = json.loads((run / "certificate.json").read_text(encoding="utf-8"))
+    # a static record gets a noise report (issue 26) instead of a calibration certificate: the same blocks
+    cert = json.loads((run / "noise-report.json").read_text(encoding="utf-8"))
     assert cert["procedure"]["procedure_overrides"] == {"duration_s": 20.0, "warmup_s": 5.0}
-    text = " ".join(p.extract_text() for p in pypdf.PdfReader(str(run / "certificate.pdf")).pages)
+    text = " ".join(p.extract_text() for p in pypdf.PdfReader(str(run / "noise-report.pdf")).pages)
     assert "duration_s = 20" in " ".join(text.split()) and "warmup_s = 5" in " ".join(text.split())

@@ -18,7 +18,9 @@ EXAMPLES = """examples:
   tablebench certificate RUN --out cert.pdf --json cert.json --issue-date 2026-11-22
   tablebench certificate RUN --allow-incomplete      # an interrupted run: marked INCOMPLETE on page 1
 
-exit codes: 0 issued (PASS / INCONCLUSIVE / INCOMPLETE / NO LIMITS), 1 issued and marked FAIL,
+a static record (one attitude, no rotation: the static-noise procedure) gets a NOISE REPORT instead
+(RUN/noise-report.pdf and .json: the noise terms of its record with U, k = 2; no conformity statement).
+exit codes: 0 issued (PASS / INCONCLUSIVE / INCOMPLETE / NO LIMITS / NOISE REPORT), 1 issued and marked FAIL,
             2 cannot issue (bad input, incomplete run without --allow-incomplete)
 """
 
@@ -81,7 +83,11 @@ def run(args: argparse.Namespace) -> int:
     except (CertificateError, RecordingError) as exc:
         raise UsageError(str(exc)) from None
     verdict = cert.verdict
-    print(f"certificate {verdict}: {pdf}", file=sys.stderr)
+    if cert.is_noise_report:  # a static record: its noise, no calibration
+        print(f"noise report (a static record: no calibration parameters, no conformity statement): {pdf}",
+              file=sys.stderr)  # fmt: skip
+    else:
+        print(f"certificate {verdict}: {pdf}", file=sys.stderr)
     print(pdf)
     print(js)
     return 1 if verdict == "FAIL" else 0

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from analysis.identification.plan_legend import PLAN_LEGEND
 from benches.cli.arguments import add_bench_argument, add_procedure_arguments, parse_overrides
 from benches.session import prepare
 from core.errors import UsageError
@@ -23,7 +24,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Predict, from the procedure's geometry and durations and the unit's noise and bias stability, "
         "the 1σ of every accelerometer parameter, the information rank, and which parameters will not be "
         "identified and what change would fix it. Nothing moves.",
-        epilog=EXAMPLES,
+        epilog="the table's " + "\n".join(PLAN_LEGEND) + "\n\n" + EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add_bench_argument(p)

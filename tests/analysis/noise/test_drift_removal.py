@@ -1,4 +1,5 @@
-"""Frequency-drift removal before the deviations (analysis/noise/drift_removal.py), against numpy's least squares."""
+"""Frequency-drift removal before the deviations (analysis/noise/drift_removal.py), against numpy's least squares
+and allantools' polynomial detrend."""
 
 from __future__ import annotations
 
@@ -7,6 +8,22 @@ import pytest
 
 from analysis.noise.drift_removal import remove_drift
 from analysis.noise.terms import analyse_noise
+
+
+@pytest.mark.parametrize(("model", "data_type", "degree"),
+                         [("linear", "freq", 1), ("quadratic", "freq", 2), ("linear", "phase", 2),
+                          ("quadratic", "phase", 3)])  # fmt: skip
+def test_residual_equals_allantools_detrend(model: str, data_type: str, degree: int) -> None:
+    """allantools.ci.detrend (np.polyfit of that degree on the sample index, as its noise identification uses):
+    the same residual to 1e-9 of the record (a linear frequency drift is a quadratic phase)."""
+    from allantools import ci
+
+    rng = np.random.default_rng(degree + 10)
+    n = 10_000
+    t = np.arange(n) / 20.0
+    y = rng.normal(0.0, 1e-3, n) + 2e-5 * t + 3e-8 * t**2 + (4e-11 * t**3 if data_type == "phase" else 0.0) + 0.5
+    res, _ = remove_drift(y, 20.0, model, data_type)
+    np.testing.assert_allclose(res, ci.detrend(y, degree), rtol=0, atol=1e-9 * np.abs(y).max())
 
 
 @pytest.mark.parametrize(("model", "order"), [("linear", 1), ("quadratic", 2)])

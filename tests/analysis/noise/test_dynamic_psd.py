@@ -1,5 +1,5 @@
-"""Dynamic Allan deviation (analysis/noise/dynamic.py) against allantools per window; the PSD's noise terms
-(analysis/noise/psd.py) against the Allan terms and the truth on simulated records."""
+"""Dynamic Allan deviation (analysis/noise/dynamic.py) against allantools per window; the PSD (analysis/noise/
+psd.py) against allantools' Welch PSD, its noise terms against the Allan terms and the truth on simulated records."""
 
 from __future__ import annotations
 
@@ -29,6 +29,19 @@ def test_dynamic_adev_equals_allantools_per_window_and_sees_a_noise_burst() -> N
     burst = (d["t_start"] >= 300.0) & (d["t_start"] + 100.0 <= 400.0)
     quiet = d["t_start"] + 100.0 <= 300.0
     assert d["adev"][burst, 0].min() > 3.0 * d["adev"][quiet, 0].max()
+
+
+@pytest.mark.parametrize("n", [10_000, 8_192])
+def test_welch_psd_equals_allantools_scipy_psd(n: int) -> None:
+    """allantools.noise.scipy_psd (Welch, Hann, 50 % overlap, segments of N/4) = ``rate_psd(..., segments=7)``
+    (segments of 2N/(7 + 1)): the same ordinates (the zero-frequency one dropped) to 1e-9."""
+    from allantools import noise
+
+    y = np.random.default_rng(n).normal(0.0, 1e-3, n) + 1e-7 * np.arange(n) + 0.2
+    f_ref, p_ref = noise.scipy_psd(y, 20.0, 4)
+    ours = rate_psd(y, 20.0, segments=7)
+    np.testing.assert_allclose(ours["f"], f_ref[1:], rtol=1e-12)
+    np.testing.assert_allclose(ours["psd"], p_ref[1:], rtol=1e-9)
 
 
 def test_dynamic_adev_refuses_a_window_longer_than_the_record() -> None:
