@@ -40,7 +40,7 @@ from drivers.protocols import ImuBlock, TableState
 from procedures.steps import CompiledProcedure, Hold, Spin, Step, Warmup
 from procedures.trajectory import nominal_samples
 
-from .bench_config import BenchConfig
+from .bench_config import BenchConfig, noise_problem
 from .calibration_result import (
     CalibrationResult,
     FilterHistory,
@@ -123,12 +123,10 @@ def configured_noise_variance(config: BenchConfig, model: ModelSpec | None = Non
     acc = np.asarray(config.unit.noise.vrw, dtype=float) ** 2 * fs
     if model is None or model.n_axes == 3:
         return acc
+    problem = noise_problem(config)  # the one rule, shared with check, plan and run
+    if problem is not None:
+        raise IdentificationError(problem)
     arw = np.asarray(config.unit.noise.arw, dtype=float)
-    if np.any(arw <= 0):
-        raise IdentificationError(
-            f"bench {config.name!r}: unit.noise.arw_deg_per_sqrt_h is missing or zero; the gyro identification "
-            "needs the datasheet angle random walk (or identify with --noise warm-up)"
-        )
     return np.concatenate([acc, arw**2 * fs])
 
 
@@ -349,6 +347,11 @@ class LiveIdentifier:
         if self._n >= self._flush_n and not self._spin:
             self.flush()
 
+    def unseen(self) -> set[str]:
+        """Parameters the motion so far does not see (their estimate is only the prior's): shown as "not identified
+        yet", never as a number, in the progress line and the live view."""
+        return set(unobservable_parameters(self.filter.information, self.filter.r_var, model=self.model))
+
     def parameter_kinds(self) -> list[tuple[str, str]]:
         """(name, quantity kind) of every state the filter estimates, in its order (for the live view)."""
         m = self.filter.model
@@ -381,7 +384,7 @@ class LiveIdentifier:
         del self._readings[:-3]
         if self.progress is not None:
             x, s = self.filter.estimate, self.filter.sigma
-            unseen = set(unobservable_parameters(self.filter.information, self.filter.r_var, model=self.model))
+            unseen = self.unseen()
             parts = []
             for name in self.show:
                 k = self.model.index(name)

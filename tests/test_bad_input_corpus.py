@@ -143,6 +143,9 @@ def _issue_26_files(root: Path, run: Path, sim: str, f: dict[str, Path]) -> None
     assert "    vrw_ug_per_sqrt_hz: [15.0, 15.0, 15.0]\n" in sim
     f["vrw0"] = root / "vrw0.yaml"  # accepted by check, crashed plan and run
     f["vrw0"].write_text(sim.replace("vrw_ug_per_sqrt_hz: [15.0, 15.0, 15.0]", "vrw_ug_per_sqrt_hz: [0, 0, 0]", 1))
+    assert "    arw_deg_per_sqrt_h: [0.01, 0.01, 0.01]\n" in sim
+    f["arw0"] = root / "arw0.yaml"  # accepted by check, refused by plan and run
+    f["arw0"].write_text(sim.replace("arw_deg_per_sqrt_h: [0.01, 0.01, 0.01]", "arw_deg_per_sqrt_h: [0, 0, 0]", 1))
     f["huge-header"] = root / "huge-header.npy"  # a header claiming 2.2 TiB over 800 bytes of data
     with f["huge-header"].open("wb") as fh:
         np.lib.format.write_array_header_1_0(fh, {"descr": "<f8", "fortran_order": False, "shape": (10**11, 3)})
@@ -161,6 +164,9 @@ def _issue_26_files(root: Path, run: Path, sim: str, f: dict[str, Path]) -> None
     f["ctrl-yaml"].write_text("name: ctrl\nsteps: \x07\n  - warmup: {duration_s: 1}\n", encoding="utf-8")
     f["rec-json"] = root / "rec-copy.json"  # a recording under a .json name: still a recording
     shutil.copyfile(run / "recording.h5", f["rec-json"])
+    f["issued"] = root / "issued-run"  # a run folder with its certificate issued (never overwritten)
+    shutil.copytree(run, f["issued"])
+    (f["issued"] / "certificate.json").write_text('{"certificate_number": "TB-000001"}\n', encoding="utf-8")
     f["rec-npy"] = root / "rec-copy.npy"  # a recording under a .npy name: still a recording
     shutil.copyfile(run / "recording.h5", f["rec-npy"])
     f["ctrl-bench"] = root / "ctrl-bench.yaml"  # a control character in a bench file
@@ -299,6 +305,11 @@ OVERWRITES = [
     Case("identify/--out=its-recording", ("identify", "{run}", "--out", "{run}/recording.h5"), "recording.h5"),
     Case("identify/--out=a-recording", ("identify", "{run}", "--out", "{rec-json}"), "rec-copy.json"),
     Case(
+        "identify/--out=its-certificate",
+        ("identify", "{issued}", "--out", "{issued}/certificate.json"),
+        "certificate.json",
+    ),
+    Case(
         "certificate/--json=its-calibration",
         ("certificate", "{run}", "--out", "{root}/cert-26.pdf", "--json", "{run}/calibration.json"),
         "calibration.json",
@@ -327,6 +338,9 @@ SPECIFIC += [
     Case("check/--bench=vrw0", ("check", "{tiny}", "--bench", "{vrw0}"), "vrw_ug_per_sqrt_hz"),
     Case("plan/--bench=vrw0", _argv("plan", {}, {"--bench": "{vrw0}"}), "vrw_ug_per_sqrt_hz"),
     Case("run/--bench=vrw0", _argv("run", {}, {"--bench": "{vrw0}"}), "vrw_ug_per_sqrt_hz"),
+    Case("check/--bench=arw0", ("check", "{tiny}", "--bench", "{arw0}"), "arw_deg_per_sqrt_h"),
+    Case("plan/--bench=arw0", _argv("plan", {}, {"--bench": "{arw0}"}), "arw_deg_per_sqrt_h"),
+    Case("run/--bench=arw0", _argv("run", {}, {"--bench": "{arw0}"}), "arw_deg_per_sqrt_h"),
     Case("table/move-1e9", ("table", "move", "0", "0", "1e9"), "inner"),
     Case("check/yaml-control-character", ("check", "{ctrl-yaml}"), "{ctrl-yaml}:2"),
     Case("run/--procedure=yaml-control-character", _argv("run", {}, {"--procedure": "{ctrl-yaml}"}), "{ctrl-yaml}:2"),
