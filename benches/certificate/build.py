@@ -662,7 +662,8 @@ def build_certificate(
                 bench_block=_bench_block(g), recording_block=_recording_block(g),
                 procedure_block=_procedure_block(g), temperature=g.temperature,
                 creation_date=_creation_datetime(str(g.attrs.get("created_utc", ""))).isoformat(),
-                software=software_version(), with_plots=with_plots,
+                software=software_version(), with_plots=with_plots, analyses=g.analyses,
+                analysis_plots=g.analysis_plots,
             )  # fmt: skip
         g = _gather_open(rr, run, rec_path, cal_path, rr.sha256, allow_incomplete, bench)
     return assemble(g, decide_conformity(g), date, with_plots)

@@ -56,6 +56,7 @@ from drivers.sim.config import (
     TableModel,
     TemperatureModel,
 )
+from drivers.sim.thermal_section import parse_thermal
 
 RATE_RW = DEG_PER_HOUR_PER_SQRT_HOUR  # 1 °/h/√h in rad/s/√s
 DPH_PER_G = DEG_PER_HOUR / G0  # 1 °/h per g in rad/s per m/s²
@@ -189,6 +190,7 @@ SIMULATION = Section(
         "accel_noise",
         "gyro_noise",
         "temperature",
+        "thermal",
         "periodic",
         "arma",
         "anti_alias_hz",
@@ -244,6 +246,7 @@ def parse_simulation(d: dict, smap: SourceMap, site: Site, table: Table, unit: U
         accel_noise=accel_noise,
         gyro_noise=gyro_noise,
         temperature=temperature,
+        thermal=parse_thermal(d, smap, p),
         periodic=_periodic(d, smap, p, fs),
         arma=_arma(d, smap, p),
         anti_alias_hz=aa or None,

@@ -173,6 +173,7 @@ def _printed_nees(text: str) -> tuple[float, int]:
 
 def test_run_and_identify_print_the_nees_with_the_certificates_type_b_terms(simulated_run):
     run, text = simulated_run
+    assert "static record" not in text and (run / "certificate.pdf").exists()  # a calibration, not a noise report
     expected, dof = _nees_of_certificate(run)
     got, n = _printed_nees(text)
     assert n == dof and got == pytest.approx(expected, abs=0.006), (got, expected)
