@@ -31,7 +31,6 @@ from benches.recording import StepRecord
 
 from .analyses import noise_rows
 from .content import NOISE_REPORT, BenchInfo, Certificate, ambient_text
-from .plots import _context, _render
 
 STATIC_KINDS = frozenset({"warmup", "hold", "note"})
 """Step kinds of a static record (a soak or a ramp is a thermal procedure: not a noise record)."""
@@ -149,6 +148,8 @@ def build_noise_report(
     plots: dict[str, bytes] = {}
     if with_plots and noise["channels"]:
         from analysis.noise.plot import plot_noise  # lazy: matplotlib (--help time)
+
+        from .plots import _context, _render  # lazy: matplotlib (--help time)
 
         with _context():
             plots["noise"] = _render(plot_noise(noise, title=f"Overlapping Allan deviation, step {step.name!r}"))

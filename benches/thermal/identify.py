@@ -15,6 +15,13 @@ The per-sample noise is the bench's configured white noise (VRW² × rate, ARW²
 quantisation (LSB²/12). The bench's bias instability (``unit.noise``) is added to each plateau's bias
 variances: the bias wanders by about that much within a sequence, which white noise alone does not cover
 (the same per-step term as the single-temperature budget, ``benches.identify.bias_stability``).
+
+The gyro scale factors' rate reference is the encoder angle over the unit's time rescaled by the run's time
+base (1 + ε), and the reference second itself has an uncertainty: both are common to every plateau of the
+run, so they are not in the plateaus' (independent) covariances. They shift every plateau's gyro scale
+factors by the same δ = −δε, i.e. only the constant coefficients c_0 of gS_x, gS_y, gS_z, fully correlated:
+added to the model's covariance after the fit (:func:`analysis.thermal.model.with_common_offset`), as the
+single-temperature identification adds them to its gyro scale factors.
 """
 
 from __future__ import annotations
@@ -29,7 +36,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from analysis.thermal.model import PlateauEstimate, ThermalModel, fit_thermal_model
+from analysis.thermal.model import PlateauEstimate, ThermalModel, fit_thermal_model, with_common_offset
 from analysis.units import CELSIUS_ZERO
 from benches.identify import (
     ACCEL_INVALID,
@@ -43,6 +50,7 @@ from benches.identify import (
 )
 from benches.recorded_run import RecordedRun
 from benches.thermal.plateau import THERMAL_PARAM_NAMES, PlateauData, identify_plateau
+from benches.timebase import reference_rate_covariance
 
 _REPEAT = re.compile(r"~(\d+)$")
 
@@ -99,6 +107,18 @@ def _plateau_of_steps(rr: RecordedRun) -> tuple[dict[str, str], dict[str, float]
             m = _REPEAT.search(s.name)
             of[s.name] = f"{ramp} #{m.group(1)}" if ramp is not None and m else current
     return of, setpoints, starts
+
+
+GYRO_SCALES = ("gS_x", "gS_y", "gS_z")
+
+
+def time_base_scale_covariance(tb: Any) -> NDArray[np.float64]:
+    """(3, 3) covariance common to the three gyro scale factors of every plateau from the run's time base:
+    u²(ε) (δS_g = −δε) plus the reference second's u² (:func:`benches.timebase.reference_rate_covariance`)."""
+    cov = np.asarray(getattr(tb, "covariance", np.zeros((2, 2))), dtype=float)
+    var_eps = float(cov[1, 1]) if cov.shape == (2, 2) and np.isfinite(cov[1, 1]) else 0.0
+    ref = reference_rate_covariance([f"gyro_S_{a}" for a in "xyz"], tb.check if isinstance(tb.check, dict) else {})
+    return np.full((3, 3), var_eps) + ref
 
 
 def _variances(config: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -206,6 +226,7 @@ def identify_thermal(
             )  # fmt: skip
         except ValueError as exc:
             raise IdentificationError(f"{rr.path}: thermal model: {exc}") from None
+        model = with_common_offset(model, GYRO_SCALES, time_base_scale_covariance(data.time_base))
         return ThermalCalibration(
             str(rr.path), results, model, skipped=skipped, incomplete_steps=list(data.incomplete_steps)
         )
