@@ -32,15 +32,12 @@ _VERDICT_COLOURS = {
 _COMPONENT_SHORT = {
     "white_noise": "Noise",
     "bias_instability": "Flick.",
-    "rate": "Rate",
     "attitude": "Attit.",
     "local_g": "g",
     "model_mismatch": "Mism.",
     "azimuth": "Azim.",
     "latitude": "Lat.",
-    "axis_0": "Ax. o",
-    "axis_1": "Ax. m",
-    "axis_2": "Ax. i",
+    "axis_orthogonality": "Orth.",
     "time_base": "Time",
 }
 """Column heads of the budget table (each named in full under "Input quantities", with its key)."""
