@@ -24,6 +24,7 @@ from analysis.timebase import RunSignals, TimeBase, clock_check, coarse_mapping,
 from analysis.timebase.events import moving_readings
 
 from .recording import Recording, TableReadings, TimeSources
+from .recording.layout import IMU_CHUNK
 from .reference import reference_for_samples
 
 WINDOW_S = 1.5
@@ -53,7 +54,7 @@ def _sample_ranges(
     hi = np.clip(k + pad, 0, n)
     out: list[tuple[int, int]] = []
     for a, b in zip(lo.tolist(), hi.tolist(), strict=True):
-        if out and a <= out[-1][1]:
+        if out and a <= out[-1][1] + IMU_CHUNK:  # one read per stored chunk: a chunk is decompressed whole
             out[-1] = (out[-1][0], max(out[-1][1], b))
         else:
             out.append((a, b))

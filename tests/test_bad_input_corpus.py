@@ -759,9 +759,11 @@ def _fill_path(text: str, paths: dict[str, Path]) -> str:
     return text
 
 
-def test_certificate_pages_say_which_clock_and_warn_of_an_unstated_rate_accuracy(tmp_path: Path) -> None:
+def test_certificate_pages_say_which_clock_and_what_the_spin_rate_reference_is(tmp_path: Path) -> None:
     """Rendered pages (pypdfium2 text of the PDF): the dates say which clock is which and give the bench time;
-    a size effect issued with the table's rate accuracy not stated is a warning, not "None"; no '∋' on page 2."""
+    the spins' rate reference is the encoder angle over time, so a table whose rate accuracy is not stated is no
+    reason for a warning (it once was, when the reference was the reported rate) and never prints "None"; no '∋'
+    on page 2."""
     import pypdfium2
 
     run = make_run_folder(tmp_path / "run")
@@ -776,8 +778,9 @@ def test_certificate_pages_say_which_clock_and_warn_of_an_unstated_rate_accuracy
     rate_stated = bool(cert.get("bench", {}).get("rate_accuracy_ppm"))
     sizes_identified = [n for n, p in cert["parameters"].items() if n.startswith("r_") and p.get("identifiable", True)]
     assert sizes_identified and not rate_stated  # the fixture's bench (benches/sim.yaml) states no rate accuracy
-    assert "rate accuracy is not stated" in text, text[-3000:]
-    assert any("rate accuracy is not stated" in w for w in cert["warnings"])
+    assert "encoder angle over the spin's time" in text, text[-3000:]
+    assert "None" not in text.split("Traceability")[-1][:600]
+    assert not any("rate accuracy" in w for w in cert["warnings"])
 
 
 def test_plan_table_has_a_legend_for_its_columns(corpus: Corpus, monkeypatch) -> None:

@@ -71,7 +71,6 @@ from .content import (
     format_with_uncertainty,
 )
 from .noise_report import build_noise_report, is_static_record
-from .plots import plot_convergence, plot_coverage, plot_residuals
 
 
 def _load_bench_config(text: str) -> BenchConfig:
@@ -402,7 +401,6 @@ def _budget(cal: CalibrationResult, geometry: list[StepGeometry], binfo: BenchIn
             g_uncertainty=binfo.g_uncertainty,
             g_source=binfo.g_source,
             attitude_accuracy=binfo.attitude_accuracy,
-            rate_accuracy=binfo.rate_accuracy,
             bias_instability=None if binfo.bias_instability is None else np.asarray(binfo.bias_instability),
             gyro_bias_instability=None if binfo.gyro_bias_instability is None else np.asarray(
                 binfo.gyro_bias_instability
@@ -471,13 +469,6 @@ def decide_conformity(g: Gathered) -> Decision:
         warnings.append(
             f"the laboratory's ambient conditions are {AMBIENT_NOT_STATED}: the certificate cannot state the "
             "conditions of the calibration (ISO/IEC 17025 7.8.4.1); state site.ambient and re-issue"
-        )
-    sizes = [p.name for p in results if p.identifiable and p.name.startswith("r_")]
-    if sizes and not binfo.rate_accuracy:
-        warnings.append(
-            f"{', '.join(sizes)} (size effect) issued although the table's rate accuracy is not stated in the bench "
-            "file (turntable.rate_accuracy_ppm): the budget holds no type-B term for the spin rate, so U may be "
-            "understated; state it and re-issue"
         )
     warnings.extend(g.event_warnings)
     if not g.integrity["verified"]:
@@ -599,6 +590,8 @@ def assemble(g: Gathered, d: Decision, issue_date: str, with_plots: bool = True)
         analysis_plots=g.analysis_plots,
     )
     if with_plots:
+        from .plots import plot_convergence, plot_coverage, plot_residuals  # lazy: matplotlib (--help time)
+
         cert.plots["residuals"] = plot_residuals(g.per_step, cal.noise_variance[:3])
         if cal.noise_variance.size == 6:
             cert.plots["gyro_residuals"] = plot_residuals(g.per_step, cal.noise_variance[3:], triad="gyro")
@@ -670,7 +663,8 @@ def build_certificate(
                 bench_block=_bench_block(g), recording_block=_recording_block(g),
                 procedure_block=_procedure_block(g), temperature=g.temperature,
                 creation_date=_creation_datetime(str(g.attrs.get("created_utc", ""))).isoformat(),
-                software=software_version(), with_plots=with_plots,
+                software=software_version(), with_plots=with_plots, analyses=g.analyses,
+                analysis_plots=g.analysis_plots,
             )  # fmt: skip
         g = _gather_open(rr, run, rec_path, cal_path, rr.sha256, allow_incomplete, bench)
     return assemble(g, decide_conformity(g), date, with_plots)

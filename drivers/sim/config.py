@@ -253,16 +253,24 @@ class BudgetInputs:
     gravity_anomaly_std : m/s². True local g = the bench's g + δg, δg ~ N(0, u(g)²), once per run.
     attitude_error_bound : rad. Every motion command (position or rate) leaves the table at a true attitude
         C_b^n,true = (I + [δφ×]) C_b^n,reported, δφ uniform in ±bound per navigation axis, until the next one.
-    rate_error_bound : relative. The reported rate of gimbal axis j is (1 + ε_j) × the true rate, ε_j uniform
-        in ±bound, once per run and axis.
+    rate_error_bound : relative. Gimbal axis j turns at (1 + ε_j) × its commanded rate, ε_j uniform in ±bound,
+        once per run and axis; its encoder reports the true angles and its reported rate is the measured rate
+        of that motion (a real table's rate error: docs/methods/simulation.md).
     azimuth_std : rad. The outer gimbal's zero is off East by δψ ~ N(0, std²), once per run: the true
         C_b^n = R_z(δψ) C_b^n,reported (the Earth rate is seen in the true frame; gravity is vertical either way).
+    axis_tilt_bound : rad. The table's axis non-orthogonality: the middle axis tilted by ε₁ (about the outer
+        frame's y) and the inner axis by ε₂ (about the middle frame's z), each uniform in ±bound, once per run,
+        added to ``TableModel.non_orthogonality`` (``analysis.identification.table_axes``).
+    latitude_std : rad. The site's true latitude is the bench's + δφ, δφ ~ N(0, std²), once per run (the Earth
+        rate the unit senses).
     """
 
     gravity_anomaly_std: float = 0.0
     attitude_error_bound: float = 0.0
     rate_error_bound: float = 0.0
     azimuth_std: float = 0.0
+    axis_tilt_bound: float = 0.0
+    latitude_std: float = 0.0
 
 
 @dataclass(frozen=True)
