@@ -3,6 +3,11 @@
 The machine these figures come from is shared (2 cores, up to 8 engineers' jobs): absolute times swing with the
 load, so every figure is a ratio of times measured back to back in one process, the two sides alternating and
 the order swapped each repetition (A B, B A, A B, …), reported as the median over the repetitions with the range.
+Times are the process's CPU time (``time.process_time``; one BLAS thread, so CPU time = the work of the call):
+under a load of ~15 runnable jobs on 2 cores, wall-clock time stretches a 0.4 s call (shared with the other jobs
+for many scheduler slices) far more than a 1 ms one (often done within one slice), which biased wall-clock ratios
+towards the shorter side (Theo1: 292× by wall clock, see issue 30); CPU time is what a quiet machine's wall clock
+would show.
 """
 
 from __future__ import annotations
@@ -37,16 +42,16 @@ def thread_note() -> str:
 def alternate(fns: dict[str, Callable[[], object]], reps: int) -> tuple[dict[str, list[float]], dict[str, object]]:
     """Time every callable ``reps`` times, alternating, the order reversed every other repetition.
 
-    Returns the times (s) per name, in repetition order, and each callable's last result.
+    Returns the CPU times (s) per name, in repetition order, and each callable's last result.
     """
     times: dict[str, list[float]] = {k: [] for k in fns}
     last: dict[str, object] = {}
     names = list(fns)
     for r in range(reps):
         for k in names if r % 2 == 0 else names[::-1]:
-            t0 = time.perf_counter()
+            t0 = time.process_time()
             last[k] = fns[k]()
-            times[k].append(time.perf_counter() - t0)
+            times[k].append(time.process_time() - t0)
     return times, last
 
 
@@ -76,7 +81,8 @@ def load_note(start: tuple[float, float, float]) -> str:
     """The machine-load sentence every section carries."""
     return (
         f"Machine: {os.cpu_count()} cores shared by 8 engineers' jobs (1-min load average {start[0]:.1f} at the start, "
-        f"{os.getloadavg()[0]:.1f} at the end of this run): absolute times vary with the load; every ratio is "
-        "same-run, the two sides timed back to back, alternating (order swapped each repetition), median over the "
-        "repetitions with the range."
+        f"{os.getloadavg()[0]:.1f} at the end of this run). Times are process CPU time (`time.process_time`, one "
+        "BLAS thread), not wall clock: under this load the wall clock stretches long calls far more than short ones. "
+        "Every ratio is same-run, the two sides timed back to back, alternating (order swapped each repetition), "
+        "median over the repetitions with the range."
     )

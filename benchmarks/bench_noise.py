@@ -54,9 +54,10 @@ def _record(n: int, seed: int = 1, channels: int = 1) -> np.ndarray:
 
 
 def _time(fn) -> tuple[object, float]:
-    t0 = time.perf_counter()
+    """Result and CPU time (s) of fn() (process CPU time: see benchmarks/_same_run.py)."""
+    t0 = time.process_time()
     out = fn()
-    return out, time.perf_counter() - t0
+    return out, time.process_time() - t0
 
 
 def _peak(fn) -> float:
@@ -165,7 +166,7 @@ def part_classic_big(at, n: int, runs: int) -> str:
     return (
         f"### ADEV, OADEV, MDEV, TOTDEV together at N = {n:.0e}, octave τ (m = 1 … {int(ms[ms <= n // 3].max())}, "
         f"{taus.size} τ, same list for both)\n\n"
-        "| | median time (s) | all repetitions (s) | speed-up vs allantools, median (range) | peak memory "
+        "| | median CPU time (s) | all repetitions (s) | speed-up vs allantools, median (range) | peak memory "
         "(tracemalloc) |\n|---|---|---|---|---|\n"
         + row("allantools 2024.06 (values, no intervals)", "at")
         + "\n"
@@ -202,7 +203,7 @@ def part_total_big(n: int) -> str:
         )
     return (
         f"### Total family and Theo1 at N = {n:.0e}, full octave grid (allantools: not attempted)\n\n"
-        "| estimator | τ | time (s) | per τ (s) | peak memory (tracemalloc) |\n|---|---|---|---|---|\n"
+        "| estimator | τ | CPU time (s) | per τ (s) | peak memory (tracemalloc) |\n|---|---|---|---|---|\n"
         + "\n".join(rows)
         + "\n\nOne run each, under tracemalloc (time and memory of the same call; tracemalloc adds a little time). "
         "Peak memory: the phase, the "
