@@ -81,6 +81,7 @@ __all__ = [
     "TurntableSpec",
     "UnitSpec",
     "load_bench",
+    "noise_problem",
     "load_bench_text",
     "PARAM_GROUPS",
     "unit_frame_format",
@@ -818,6 +819,23 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
         reference_standards=_reference_standards(root, smap),
         chamber=chamber,
     )
+
+
+def noise_problem(config: BenchConfig) -> str | None:
+    """Why the bench's configured noise cannot weight the whole unit's identification, or None if it can.
+
+    The ONE "is this bench usable" rule of the noise section, shared by ``check``, ``plan`` and ``run``
+    (:func:`benches.session.prepare`) and the identification (:func:`benches.identify.configured_noise_variance`):
+    the velocity random walk is > 0 by the loader; the gyro's angle random walk must be > 0 on every axis too,
+    since the identification weights every gyro sample by it (R = ARW² fs).
+    """
+    if np.any(np.asarray(config.unit.noise.arw, dtype=float) <= 0):
+        return (
+            f"bench {config.name!r}: unit.noise.arw_deg_per_sqrt_h is missing or zero; the gyro identification "
+            "needs the datasheet angle random walk; state it (a recording made already can be identified with "
+            "--noise warm-up)"
+        )
+    return None
 
 
 def chamber_limits(config: Any) -> tuple[float, float] | None:

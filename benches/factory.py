@@ -46,6 +46,7 @@ from drivers.protocols import InertialUnit, Turntable
 from drivers.sim.acl_controller import AclController
 from drivers.sim.acl_server import AclTableServer
 from drivers.sim.aerosmith_controller import AerosmithController
+from drivers.sim.aerosmith_server import AerosmithTableServer
 from drivers.sim.chamber_loopback import serve_chamber
 from drivers.sim.inprocess import SimInertialUnit, SimTurntable
 from drivers.sim.loopback import Loopback
@@ -207,8 +208,6 @@ def _open_simulated(
     tt = config.turntable
     acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
     aero = getattr(tt, "sim_controller", "") == "ideal-aerosmith"
-    if aero and transport != "in-process":
-        raise _bad(config, "the simulated Ideal Aerosmith table runs in-process only: use --transport in-process")
     if transport == "in-process":
         unit = SimInertialUnit(world)
         if aero:
@@ -245,13 +244,19 @@ def _open_simulated(
     try:
         lb = Loopback(
             world,
-            dialect="acutrol" if acl else "modbus",
+            dialect="aerosmith" if aero else "acutrol" if acl else "modbus",
             make_acl_table=(
                 (lambda transport: acl_turntable(transport, tt, clock=None if realtime else world.host_time))
                 if acl
                 else None
             ),
             acl=tt.acl,
+            make_aerosmith_table=(
+                (lambda stream: aerosmith_table(stream, tt, clock=None if realtime else world.host_time))
+                if aero
+                else None
+            ),
+            aerosmith=getattr(tt, "aerosmith", None),
             word_order=getattr(tt, "float_word_order", None),
             register_map=getattr(tt, "modbus_map", None),
             watchdog_s=max(float(wd), LOOPBACK_MIN_WATCHDOG_S) if wd else None,
@@ -285,14 +290,16 @@ def _acl_options(tt: TurntableSpec) -> dict[str, Any]:
     }
 
 
-def aerosmith_table(stream: Any, tt: TurntableSpec) -> AerosmithTable:
-    """The Ideal Aerosmith driver for a bench's turntable section on an open byte stream."""
+def aerosmith_table(stream: Any, tt: TurntableSpec, clock: Callable[[], float] | None = None) -> AerosmithTable:
+    """The Ideal Aerosmith driver for a bench's turntable section on an open byte stream (``clock``: the host
+    clock, None = the real one)."""
     return AerosmithTable(
         stream,
         tuple(tt.limits),  # type: ignore[arg-type]
         settings=tt.aerosmith,
         position_tolerance=tt.position_tolerance,
         rate_tolerance=tt.rate_tolerance,
+        **({"clock": clock} if clock is not None else {}),
     )
 
 
@@ -358,15 +365,21 @@ def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str)
     tt = config.turntable
     acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
     aero = getattr(tt, "sim_controller", "") == "ideal-aerosmith"
-    if aero and transport != "in-process":
-        raise _bad(config, "the simulated Ideal Aerosmith table runs in-process only: use --transport in-process")
     closers: list[Callable[[], None]] = []
     ok = False
     try:
-        if aero:
+        if aero and transport == "in-process":
             table = aerosmith_table(AerosmithController(world, tt.aerosmith).stream(DEFAULT_TIMEOUT_S), tt)
             what = "simulated Ideal Aerosmith (in-memory)"
             closers.append(table.close)
+        elif aero:
+            asrv = AerosmithTableServer(world, tt.aerosmith)
+            closers.append(asrv.close)
+            aconn = connect.aerosmith_table(
+                asrv.url, lambda stream: aerosmith_table(stream, tt), timeout=DEFAULT_TIMEOUT_S
+            )
+            closers.insert(0, aconn.close)
+            table, what = aconn.driver, f"simulated Ideal Aerosmith over pyserial {asrv.url}"
         elif transport == "in-process":
             if acl:
                 table: Turntable = acl_turntable(

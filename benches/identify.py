@@ -40,7 +40,7 @@ from drivers.protocols import ImuBlock, TableState
 from procedures.steps import CompiledProcedure, Hold, Spin, Step, Warmup
 from procedures.trajectory import nominal_samples
 
-from .bench_config import BenchConfig
+from .bench_config import BenchConfig, noise_problem
 from .calibration_result import (
     CalibrationResult,
     FilterHistory,
@@ -57,7 +57,7 @@ from .progress import ProgressDisplay
 from .recorded_run import RecordedRun, run_of
 from .recording import RecordingError, StepRecord, TableReadings
 from .reference import reference_at, reference_for_samples
-from .timebase import run_time_base, table_in_unit_time, time_base_sensitivity
+from .timebase import reference_rate_covariance, run_time_base, table_in_unit_time, time_base_sensitivity
 
 ACCEL_MODEL: ModelSpec = get_model("accelerometer")
 """The accelerometer model (:mod:`analysis.identification.specification` registry)."""
@@ -123,12 +123,10 @@ def configured_noise_variance(config: BenchConfig, model: ModelSpec | None = Non
     acc = np.asarray(config.unit.noise.vrw, dtype=float) ** 2 * fs
     if model is None or model.n_axes == 3:
         return acc
+    problem = noise_problem(config)  # the one rule, shared with check, plan and run
+    if problem is not None:
+        raise IdentificationError(problem)
     arw = np.asarray(config.unit.noise.arw, dtype=float)
-    if np.any(arw <= 0):
-        raise IdentificationError(
-            f"bench {config.name!r}: unit.noise.arw_deg_per_sqrt_h is missing or zero; the gyro identification "
-            "needs the datasheet angle random walk (or identify with --noise warm-up)"
-        )
     return np.concatenate([acc, arw**2 * fs])
 
 
@@ -189,10 +187,10 @@ def window_reference(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """The reference of one acquisition window (body frame, SI): f_ref, table rate ω, angles, and ``earth``.
 
-    ``earth`` is what the gyro reference adds to ω: the Earth rate C_n^b Ω^n at the site, and during a spin
-    the difference between the table rate from the encoder angles' slope over the window
-    (:func:`angle_over_time`) and the interpolated reported rate — so the gyro sees ω_ib from angle over
-    time while the accelerometer's centripetal term keeps the reported rate. ``clock_rate`` is the factor from
+    ``earth`` is what the gyro reference adds to ω: the Earth rate C_n^b Ω^n at the site. During a spin ω is
+    the table rate from the encoder angles' slope over the window (:func:`angle_over_time`) for both triads
+    (the gyro's scale and the accelerometers' centripetal term), not the reported rate: a table turns at
+    (1 + ε) × its command and only its angles say by how much. ``clock_rate`` is the factor from
     the readings' time scale to true time: with the readings on the unit's clock (t_unit = (t_table − t₀)/(1+ε))
     and the controller's clock running (1 + ε_c) fast against the host's, the slope over unit time is
     multiplied by (1 + ε_c)/(1 + ε) − 1 + 1 (:func:`reference_clock_factor`): the rate is per second of the
@@ -207,7 +205,7 @@ def window_reference(
         slope = angle_over_time(t, table_time, table_angles, span)
         if slope is not None:
             slope = slope * (1.0 + clock_rate)
-            earth = earth + body_rate(ang, np.broadcast_to(slope, ang.shape), mnt) - om
+            om = body_rate(ang, np.broadcast_to(slope, ang.shape), mnt)
     return fr, om, ang, earth
 
 
@@ -349,6 +347,11 @@ class LiveIdentifier:
         if self._n >= self._flush_n and not self._spin:
             self.flush()
 
+    def unseen(self) -> set[str]:
+        """Parameters the motion so far does not see (their estimate is only the prior's): shown as "not identified
+        yet", never as a number, in the progress line and the live view."""
+        return set(unobservable_parameters(self.filter.information, self.filter.r_var, model=self.model))
+
     def parameter_kinds(self) -> list[tuple[str, str]]:
         """(name, quantity kind) of every state the filter estimates, in its order (for the live view)."""
         m = self.filter.model
@@ -381,7 +384,7 @@ class LiveIdentifier:
         del self._readings[:-3]
         if self.progress is not None:
             x, s = self.filter.estimate, self.filter.sigma
-            unseen = set(unobservable_parameters(self.filter.information, self.filter.r_var, model=self.model))
+            unseen = self.unseen()
             parts = []
             for name in self.show:
                 k = self.model.index(name)
@@ -722,7 +725,9 @@ def _time_base_covariance(
 
     The accelerometer rows are the time-base analysis's sensitivities; the gyro's scale factors take ε 1 : 1
     (their rate reference is the encoder angle over the unit's time rescaled by 1 + ε, so δS_g = −δε), the
-    other gyro rows are 0 (the offset only turns the Earth rate during spins, well below their u).
+    other gyro rows are 0 (the offset only turns the Earth rate during spins, well below their u). The reference
+    second's own u (the controller clock's rate against the host's, which rescales the same reference) is added
+    to the gyro scale factors (benches.timebase.reference_rate_covariance).
     """
     tb = data.time_base
     cov = np.asarray(tb.covariance, dtype=float)
@@ -740,7 +745,7 @@ def _time_base_covariance(
     for a in ("x", "y", "z"):
         if f"gyro_S_{a}" in data.model.names:
             jac[data.model.index(f"gyro_S_{a}"), 1] = -1.0
-    return jac @ cov @ jac.T, jac
+    return jac @ cov @ jac.T + reference_rate_covariance(list(data.model.names), tb.check), jac
 
 
 def _time_base_warnings(data: IdentificationData) -> list[str]:
@@ -748,11 +753,12 @@ def _time_base_warnings(data: IdentificationData) -> list[str]:
     a host-clock check that disagrees, a time base that could not be measured.
 
     Within a motion the budget carries a reading's timing error up to the table's attitude accuracy (its
-    rectangular u) over the run's fastest rate (analysis.timebase.misfit_cause)."""
+    rectangular u) over the fastest rate of the identified steps (a reference evaluated at rest does not depend
+    on time; analysis.timebase.misfit_cause)."""
     tb = data.time_base
     out = [n for n in tb.notes if "disagrees" in n or "without a stated uncertainty" in n]
     host = tb.check.get("table_stamped_by") == "host"
-    w_max = float(np.max(np.abs(data.table.rates))) if data.table is not None and len(data.table) else 0.0
+    w_max = max((float(np.max(np.linalg.norm(w.omega, axis=1))) for w in data.windows if w.omega.size), default=0.0)
     att = float(data.config.turntable.attitude_accuracy) / math.sqrt(3.0)
     cause = misfit_cause(tb, host_stamped=host, carried=att / w_max if w_max > 0 else math.inf)
     if cause:

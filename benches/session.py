@@ -27,7 +27,7 @@ from procedures.loader import load_procedure
 from procedures.paths import default_bench_path, resolve_bench, resolve_procedure
 from procedures.steps import CompiledProcedure, Soak, Step
 
-from .bench_config import BenchConfig, chamber_limits, load_bench
+from .bench_config import BenchConfig, chamber_limits, load_bench, noise_problem
 from .progress import ProgressDisplay
 from .recorded_run import RecordedRun, open_run
 from .recording import Hdf5Recorder, RecordingError, open_recording
@@ -68,6 +68,9 @@ def prepare(
     bench_path = resolve_bench(bench) if bench else default_bench_path()
     procedure_path = resolve_procedure(procedure or DEFAULT_PROCEDURE)
     config = load_bench(bench_path)
+    problem = noise_problem(config)  # the one "is this bench usable" rule of check, plan, run and identify
+    if problem is not None:
+        raise ConfigError(bench_path, None, problem.replace(f"bench {config.name!r}: ", "", 1))
     proc = load_procedure(procedure_path, overrides or None)
     compiled = compile_procedure(
         proc, limits=config.turntable.limits, mounting=config.unit.mounting, chamber=chamber_limits(config)

@@ -24,6 +24,7 @@ from analysis.timebase import RunSignals, TimeBase, clock_check, coarse_mapping,
 from analysis.timebase.events import moving_readings
 
 from .recording import Recording, TableReadings, TimeSources
+from .recording.layout import IMU_CHUNK
 from .reference import reference_for_samples
 
 WINDOW_S = 1.5
@@ -31,9 +32,12 @@ WINDOW_S = 1.5
 
 
 def _sample_ranges(
-    rec: Recording, timing: TimeSources | None, table: TableReadings, fs: float
+    rec: Recording, timing: TimeSources | None, table: TableReadings, fs: float, initial: tuple[float, float]
 ) -> list[tuple[int, int]]:
-    """Row ranges of the samples around motions (all samples if the recording lacks its sample indices)."""
+    """Row ranges of the samples around motions (all samples if the recording lacks its sample indices).
+
+    A reading's sample is found through the coarse mapping ``initial`` (t₀, ε), not through the samples received
+    before it: a link that delivers frames in bursts of seconds makes the latter lag the table by a burst."""
     n = rec.n_samples
     if timing is None or timing.table_sample_index.shape[0] != len(table):
         return [(0, n)]
@@ -43,12 +47,14 @@ def _sample_ranges(
     # only the starts and ends of motions matter (a long spin's middle is never in an event window)
     edge = mv & ~(np.concatenate([[False], mv[:-1]]) & np.concatenate([mv[1:], [False]]))
     pad = int((WINDOW_S + 1.0) * fs)
-    k = timing.table_sample_index[edge]
+    t_first = float(rec.samples(0, 1, ("time",)).time[0]) if n else 0.0
+    t0, eps = initial
+    k = np.rint(((np.asarray(table.time, float)[edge] - t0) / (1.0 + eps) - t_first) * fs).astype(np.int64)
     lo = np.clip(k - pad, 0, n)
     hi = np.clip(k + pad, 0, n)
     out: list[tuple[int, int]] = []
     for a, b in zip(lo.tolist(), hi.tolist(), strict=True):
-        if out and a <= out[-1][1]:
+        if out and a <= out[-1][1] + IMU_CHUNK:  # one read per stored chunk: a chunk is decompressed whole
             out[-1] = (out[-1][0], max(out[-1][1], b))
         else:
             out.append((a, b))
@@ -56,12 +62,19 @@ def _sample_ranges(
 
 
 def run_signals(
-    rec: Recording, table: TableReadings, *, g: float, mounting: NDArray[np.float64], latency: float
+    rec: Recording,
+    table: TableReadings,
+    *,
+    g: float,
+    mounting: NDArray[np.float64],
+    latency: float,
+    initial: tuple[float, float] = (0.0, 0.0),
 ) -> tuple[RunSignals, TimeSources | None]:
-    """The arrays :func:`analysis.timebase.estimate_time_base` needs, read from an open recording."""
+    """The arrays :func:`analysis.timebase.estimate_time_base` needs, read from an open recording (the samples
+    around the motions, found with the coarse mapping ``initial``: :func:`initial_mapping`)."""
     timing = rec.timing()
     fs = float(rec.header.sample_rate_hz)
-    ranges = _sample_ranges(rec, timing, table, fs)
+    ranges = _sample_ranges(rec, timing, table, fs, initial)
     parts = [rec.samples(a, b, ("time", "gyro")) for a, b in ranges]
     keep = [i for i, p in enumerate(parts) if p.time is not None and p.time.size]
     t = np.concatenate([parts[i].time for i in keep]) if keep else np.zeros(0)
@@ -92,6 +105,27 @@ def _unit_time_of(rec: Recording, index: NDArray[np.int64]) -> NDArray[np.float6
     return t_first + np.asarray(index, dtype=float) / float(rec.header.sample_rate_hz)
 
 
+def initial_mapping(rec: Recording, table: TableReadings) -> tuple[float, float]:
+    """The coarse (t₀, ε) from the reading times against the samples received before each reading
+    (:func:`analysis.timebase.coarse_mapping`); (0, 0) when the recording lacks its time sources."""
+    timing = rec.timing()
+    if timing is None or timing.table_sample_index.shape[0] != len(table) or not rec.n_samples or not len(table):
+        return 0.0, 0.0
+    tu = _unit_time_of(rec, np.clip(timing.table_sample_index - 1, 0, rec.n_samples - 1))
+    sig = RunSignals(
+        t=tu,
+        accel=np.zeros((tu.size, 3)),
+        gyro=None,
+        table_time=np.asarray(table.time, float),
+        angles=np.asarray(table.angles, float),
+        rates=np.asarray(table.rates, float),
+        sample_index=np.arange(1, tu.size + 1),
+        g=0.0,
+        mounting=np.eye(3),
+    )
+    return coarse_mapping(sig)
+
+
 def run_time_base(
     rec: Recording,
     table: TableReadings,
@@ -102,11 +136,8 @@ def run_time_base(
     declared: str | None = None,
 ) -> TimeBase:
     """Estimate (and check) the time base of an open recording; see the module docstring."""
-    sig, timing = run_signals(rec, table, g=g, mounting=mounting, latency=latency)
-    initial = (0.0, 0.0)
-    if timing is not None and timing.table_sample_index.shape[0] == len(table) and rec.n_samples:
-        tu = _unit_time_of(rec, np.clip(timing.table_sample_index - 1, 0, rec.n_samples - 1))
-        initial = coarse_mapping(replace(sig, t=tu, sample_index=np.arange(1, tu.size + 1)))
+    initial = initial_mapping(rec, table)
+    sig, timing = run_signals(rec, table, g=g, mounting=mounting, latency=latency, initial=initial)
     tb = estimate_time_base(sig, window=WINDOW_S, initial=initial)
     check: dict[str, Any] = {}
     if timing is not None and timing.block_end_sample.size > 2 and rec.n_samples:
@@ -181,6 +212,30 @@ def time_base_sensitivity(
     return np.column_stack([(solve(steps[0], 0.0) - x0) / steps[0], (solve(0.0, steps[1]) - x0) / steps[1]])
 
 
+def reference_rate_u(check: dict[str, Any]) -> float:
+    """u of the controller clock's rate against the host's (relative; 0 when the run has none): the rate the
+    gyro's reference second is corrected by (``benches.identify.reference_clock_factor``), so a gyro scale factor
+    inherits it 1 : 1. A short run on a busy host measures it poorly (tens of ppm in a minute): it is carried,
+    never assumed away."""
+    if not isinstance(check, dict):
+        return 0.0
+    e_c, u_c = check.get("controller_vs_host_rate"), check.get("u_controller_vs_host_rate")
+    if not isinstance(e_c, int | float) or not math.isfinite(e_c):
+        return 0.0
+    return float(u_c) if isinstance(u_c, int | float) and math.isfinite(u_c) else 0.0
+
+
+def reference_rate_covariance(names: list[str], check: dict[str, Any]) -> NDArray[np.float64]:
+    """Covariance (n, n) of parameters ``names`` from the reference second's u (:func:`reference_rate_u`): u² on
+    the gyro scale factors, fully correlated (one reference second for the three)."""
+    out = np.zeros((len(names), len(names)))
+    u = reference_rate_u(check)
+    idx = [k for k, n in enumerate(names) if n.startswith("gyro_S_")]
+    if u > 0 and idx:
+        out[np.ix_(idx, idx)] = u * u
+    return out
+
+
 def table_in_unit_time(table: TableReadings, tb: TimeBase) -> TableReadings:
     """The readings with their times on the unit's clock (where the reference is evaluated)."""
     if tb.offset == 0.0 and tb.rate == 0.0:
@@ -188,4 +243,13 @@ def table_in_unit_time(table: TableReadings, tb: TimeBase) -> TableReadings:
     return replace(table, time=tb.to_unit_time(table.time))
 
 
-__all__ = ["WINDOW_S", "run_signals", "run_time_base", "table_in_unit_time", "time_base_sensitivity"]
+__all__ = [
+    "WINDOW_S",
+    "initial_mapping",
+    "reference_rate_covariance",
+    "reference_rate_u",
+    "run_signals",
+    "run_time_base",
+    "table_in_unit_time",
+    "time_base_sensitivity",
+]

@@ -3,10 +3,10 @@
 Runs seeded ``ten-step-fast-spin`` calibrations on a bench whose truth differs from ``benches/sim.yaml`` and
 which **realises every type-B input the budget claims** (``realise_uncertainty_inputs: true``: a local
 gravity anomaly drawn from u(g), a table attitude error per positioning within the table's stated accuracy,
-a table rate error per gimbal axis within its stated rate accuracy; the unit's white noise and flicker bias
-instability are always realised). Each run is identified and certified exactly as the CLI does; the
-certificate's u (combined standard uncertainty) and U = 2u are scored against the simulator's truth per
-parameter class (b, S, τ, d, r).
+a table rate error per gimbal axis within its stated rate accuracy (the table turns off its command); the
+unit's white noise and flicker bias instability are always realised). Each run is identified and certified
+exactly as the CLI does; the certificate's u (combined standard uncertainty) and U = 2u are scored against
+the simulator's truth per parameter class (b, S, τ, d, r).
 
 Used by the slow test ``tests/benches/test_uncertainty_coverage.py`` and by
 ``benchmarks/bench_calibration.py`` (section "coverage" of RESULTS.md).
@@ -39,7 +39,8 @@ REALISED = {
     "bias_instability": "realised (flicker as a Gauss–Markov sum over the band the identification assumes)",
     "attitude": "realised (a new navigation-frame attitude error per motion command, uniform within ±a)",
     "local_g": "realised (true g = bench g + δg, δg ~ N(0, u(g)²) per run)",
-    "rate": "realised (reported rate = (1 + ε_j) × true rate, ε_j uniform within ±a per gimbal axis and run)",
+    "table_rate": "realised, not a budget input (the axis turns at (1 + ε_j) × its command, ε_j uniform within ±a "
+    "per gimbal axis and run; the spins' reference is the encoder angle over time, which sees it)",
     "model_mismatch": "exercised by the simulator's unmodelled physics (full lever-arm and angular-acceleration "
     "terms, anti-alias filter, quantisation); evaluated from the residuals",
 }

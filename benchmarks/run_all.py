@@ -15,6 +15,7 @@ BENCHMARKS = (
     "bench_simulation",
     "bench_transports",
     "bench_frames",
+    "bench_decode_formats",
     "bench_procedure",
     "bench_identification",
     "bench_calibration",

@@ -9,6 +9,9 @@ JSON and PNG written through it; :func:`save_npy`; the certificate's PDF and JSO
   and run folders named on the command line with :func:`protect_inputs`; a run folder protects its
   ``recording.h5``, ``bench.yaml`` and ``procedure.yaml``);
 - an output path must not be an existing HDF5 file (a recording: nothing but the recorder appends to one);
+- an output path must not be an issued document of a run folder (``certificate*.pdf``/``.json``,
+  ``noise-report*.pdf``/``.json`` beside a ``recording.h5``): an issued certificate is never overwritten, by
+  any command;
 - an output path must be creatable: it is not a folder, and its folder exists or can be created (the check
   creates it).
 
@@ -18,6 +21,7 @@ Each refusal is a :class:`core.errors.OutputError` naming the option and the pat
 from __future__ import annotations
 
 import os
+import re
 import tempfile
 from collections.abc import Iterable
 from pathlib import Path
@@ -32,6 +36,9 @@ HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 """The first 8 bytes of an HDF5 file (a recording)."""
 RUN_FOLDER_INPUTS = ("recording.h5", "bench.yaml", "procedure.yaml")
 """The files of a run folder that a command reading the folder uses as inputs."""
+
+ISSUED_DOCUMENTS = re.compile(r"(certificate|noise-report)(-[A-Za-z0-9-]+)?\.(pdf|json)", re.IGNORECASE)
+"""The names of the documents issued into a run folder (benches.certificate_register.free_paths)."""
 
 _protected: list[Path] = []
 
@@ -102,6 +109,11 @@ def check_output(path: str | Path, option: str = "--out", *, inputs: Iterable[st
         if is_recording_file(p):
             raise OutputError(
                 f"{option} {p}: is a recording (HDF5); a recording is never overwritten, choose another path"
+            )
+        if ISSUED_DOCUMENTS.fullmatch(p.name) and (p.parent / "recording.h5").exists():
+            raise OutputError(
+                f"{option} {p}: is a document issued for this run; an issued certificate is never overwritten, "
+                "choose another path"
             )
     try:
         p.parent.mkdir(parents=True, exist_ok=True)

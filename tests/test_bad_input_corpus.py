@@ -143,6 +143,9 @@ def _issue_26_files(root: Path, run: Path, sim: str, f: dict[str, Path]) -> None
     assert "    vrw_ug_per_sqrt_hz: [15.0, 15.0, 15.0]\n" in sim
     f["vrw0"] = root / "vrw0.yaml"  # accepted by check, crashed plan and run
     f["vrw0"].write_text(sim.replace("vrw_ug_per_sqrt_hz: [15.0, 15.0, 15.0]", "vrw_ug_per_sqrt_hz: [0, 0, 0]", 1))
+    assert "    arw_deg_per_sqrt_h: [0.01, 0.01, 0.01]\n" in sim
+    f["arw0"] = root / "arw0.yaml"  # accepted by check, refused by plan and run
+    f["arw0"].write_text(sim.replace("arw_deg_per_sqrt_h: [0.01, 0.01, 0.01]", "arw_deg_per_sqrt_h: [0, 0, 0]", 1))
     f["huge-header"] = root / "huge-header.npy"  # a header claiming 2.2 TiB over 800 bytes of data
     with f["huge-header"].open("wb") as fh:
         np.lib.format.write_array_header_1_0(fh, {"descr": "<f8", "fortran_order": False, "shape": (10**11, 3)})
@@ -161,6 +164,13 @@ def _issue_26_files(root: Path, run: Path, sim: str, f: dict[str, Path]) -> None
     f["ctrl-yaml"].write_text("name: ctrl\nsteps: \x07\n  - warmup: {duration_s: 1}\n", encoding="utf-8")
     f["rec-json"] = root / "rec-copy.json"  # a recording under a .json name: still a recording
     shutil.copyfile(run / "recording.h5", f["rec-json"])
+    f["issued"] = root / "issued-run"  # a run folder with its certificate issued (never overwritten)
+    shutil.copytree(run, f["issued"])
+    (f["issued"] / "certificate.json").write_text('{"certificate_number": "TB-000001"}\n', encoding="utf-8")
+    f["rec-npy"] = root / "rec-copy.npy"  # a recording under a .npy name: still a recording
+    shutil.copyfile(run / "recording.h5", f["rec-npy"])
+    f["ctrl-bench"] = root / "ctrl-bench.yaml"  # a control character in a bench file
+    f["ctrl-bench"].write_text(sim.replace("name: sim-navgrade", "name: sim-\x1b[31mnavgrade", 1), encoding="utf-8")
     f["capture-csv"] = root / "capture.csv"  # a binary capture under a name decode writes CSV to
     shutil.copyfile(root / "capture.bin", f["capture-csv"])
 
@@ -295,11 +305,26 @@ OVERWRITES = [
     Case("identify/--out=its-recording", ("identify", "{run}", "--out", "{run}/recording.h5"), "recording.h5"),
     Case("identify/--out=a-recording", ("identify", "{run}", "--out", "{rec-json}"), "rec-copy.json"),
     Case(
+        "identify/--out=its-certificate",
+        ("identify", "{issued}", "--out", "{issued}/certificate.json"),
+        "certificate.json",
+    ),
+    Case(
         "certificate/--json=its-calibration",
         ("certificate", "{run}", "--out", "{root}/cert-26.pdf", "--json", "{run}/calibration.json"),
         "calibration.json",
     ),
     Case("correct/--out=its-input", ("correct", "{run}/calibration.json", "{raw3}", "--out", "{raw3}"), "raw3.npy"),
+    Case(
+        "correct/--out=a-recording",
+        ("correct", "{run}/calibration.json", "{raw3}", "--out", "{rec-npy}"),
+        "rec-copy.npy",
+    ),
+    Case(
+        "certificate/--json=a-recording",
+        ("certificate", "{run}", "--out", "{root}/cert-26b.pdf", "--json", "{rec-json}"),
+        "rec-copy.json",
+    ),
     Case(
         "decode/--out=its-capture",
         ("decode", "{capture-csv}", "--frame", "kvh-1750-a", "--out", "{capture-csv}"),
@@ -313,8 +338,14 @@ SPECIFIC += [
     Case("check/--bench=vrw0", ("check", "{tiny}", "--bench", "{vrw0}"), "vrw_ug_per_sqrt_hz"),
     Case("plan/--bench=vrw0", _argv("plan", {}, {"--bench": "{vrw0}"}), "vrw_ug_per_sqrt_hz"),
     Case("run/--bench=vrw0", _argv("run", {}, {"--bench": "{vrw0}"}), "vrw_ug_per_sqrt_hz"),
+    Case("check/--bench=arw0", ("check", "{tiny}", "--bench", "{arw0}"), "arw_deg_per_sqrt_h"),
+    Case("plan/--bench=arw0", _argv("plan", {}, {"--bench": "{arw0}"}), "arw_deg_per_sqrt_h"),
+    Case("run/--bench=arw0", _argv("run", {}, {"--bench": "{arw0}"}), "arw_deg_per_sqrt_h"),
     Case("table/move-1e9", ("table", "move", "0", "0", "1e9"), "inner"),
     Case("check/yaml-control-character", ("check", "{ctrl-yaml}"), "{ctrl-yaml}:2"),
+    Case("run/--procedure=yaml-control-character", _argv("run", {}, {"--procedure": "{ctrl-yaml}"}), "{ctrl-yaml}:2"),
+    Case("plan/--bench=yaml-control-character", _argv("plan", {}, {"--bench": "{ctrl-bench}"}), "{ctrl-bench}:"),
+    Case("certificate/--out=its-recording", ("certificate", "{run}", "--out", "{run}/recording.h5"), "--out"),
     *(
         Case(f"correct/{k}", ("correct", "{run}/calibration.json", f"{{{k}}}", "--out", "{root}/h.npy"), f"{{{k}}}")
         for k in ("huge-header", "complex-npy")
@@ -415,6 +446,26 @@ def test_every_command_is_covered() -> None:
 
 
 # ---- issue 26: nothing lost, nothing false ---------------------------------------------------------------------
+# Every case the issue names, and where it is tested (cases above: test_bad_input_is_one_clear_line_and_exit_2):
+#   data loss: identify --out RUN/recording.h5 (and certificate/correct/decode over an input or a recording):
+#     OVERWRITES + test_no_output_replaces_an_input_or_a_recording; certificate --out RUN/recording.h5: a case;
+#   disk full, then --resume / --salvage: test_disk_full_then_resume_and_salvage_recover_the_completed_steps;
+#   the false "brought to rest": test_link_lost_and_stop_failed_says_the_table_may_still_be_moving;
+#   tracebacks: vrw [0, 0, 0] (check, plan, run), a 2.2 TiB .npy header (correct, noise, periodic, drift): cases;
+#   the hang: table/move-1e9;
+#   Ctrl-C and progress per analysis command (noise, periodic, drift, certificate, identify, correct):
+#     test_ctrl_c_stops_every_analysis_within_a_second_and_writes_nothing;
+#   smaller: warnings of empty CSV / complex .npy / constant data, duplicate CSV names: cases per analysis
+#     command; correct --out X.json, certificate --out /proc/nope, YAML control characters (check, run, plan): cases;
+#     run's bad --out before the plan: test_run_refuses_a_bad_out_before_printing_the_plan; runs DIR with one
+#     damaged run: test_runs_prints_each_damage_once; a loopback run resumed: test_resuming_a_loopback_run_...;
+#     progress past its estimate, unidentifiable live parameters of a static record, the static-noise
+#     INCONCLUSIVE note: tests/benches/test_static_record.py;
+#   the certificate a metrologist flagged (rendered pages): which clock, the size effect with rate accuracy not
+#     stated, no '∋': test_certificate_pages_say_which_clock_and_warn_of_an_unstated_rate_accuracy; the plan
+#     legend: test_plan_table_has_a_legend_for_its_columns; the noise report of a static record:
+#     tests/benches/test_static_record.py; ambient conditions, the analyses' digits and units, the plan legend on
+#     the certificate, the convergence frame, the NEES with type-B terms: tests/benches/test_certificate_content.py.
 
 
 def _digest(path: Path) -> str:
@@ -618,7 +669,11 @@ def long_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     # eight channels: periodic calibrates on the first seconds only, so one channel is done within a second of
     # its first progress line on an idle machine (the signal would come after the end)
     np.save(tmp / "tones.npy", np.sin(2 * np.pi * 1.3 * t)[:, None] * 1e-3 + rng.standard_normal((n, 8)) * 1e-3)
-    return {"hour": tmp / "hour.npy", "tones": tmp / "tones.npy", "run": make_run_folder(tmp / "run"), "tmp": tmp}
+    # correct: a million six-axis samples (accelerometer and gyro through the whole unit's inverse model)
+    m = 1_000_000
+    np.save(tmp / "raw6.npy", np.tile([0.0, 0.0, G0, 0.0, 0.0, 0.0], (m, 1)) + rng.standard_normal((m, 6)) * 1e-3)
+    paths = {"hour": tmp / "hour.npy", "tones": tmp / "tones.npy", "raw6": tmp / "raw6.npy"}
+    return {**paths, "run": make_run_folder(tmp / "run"), "tmp": tmp}
 
 
 INTERRUPTS = [
@@ -628,6 +683,8 @@ INTERRUPTS = [
     pytest.param("drift", "{hour}", ("--rate", "100"), "SIGINT", id="drift-SIGINT"),
     pytest.param("drift", "{hour}", ("--rate", "100"), "SIGTERM", id="drift-SIGTERM"),
     pytest.param("certificate", "{run}", (), "SIGINT", id="certificate-SIGINT"),
+    pytest.param("identify", "{run}", (), "SIGINT", id="identify-SIGINT"),
+    pytest.param("correct", "{raw6}", (), "SIGTERM", id="correct-SIGTERM"),
 ]
 
 
@@ -644,6 +701,10 @@ def test_ctrl_c_stops_every_analysis_within_a_second_and_writes_nothing(long_inp
     src = _fill_path(source, long_inputs)
     if cmd == "certificate":
         argv = [cmd, src, "--out", str(out / "cert.pdf"), *extra]
+    elif cmd == "identify":
+        argv = [cmd, src, "--out", str(out / "cal.json"), *extra]
+    elif cmd == "correct":
+        argv = [cmd, str(long_inputs["run"] / "calibration.json"), src, "--out", str(out / "corrected.npy"), *extra]
     else:
         argv = [cmd, src, "--out", str(out), *extra]
     proc = subprocess.Popen(
@@ -684,6 +745,8 @@ def test_ctrl_c_stops_every_analysis_within_a_second_and_writes_nothing(long_inp
             json.loads(data)
         elif p.suffix == ".pdf":
             assert data.startswith(b"%PDF") and data.rstrip().endswith(b"%%EOF"), f"{cmd} left a partial {p.name}"
+        elif p.suffix == ".npy":
+            np.load(p)  # complete: its header and every row are there
         elif p.suffix == ".png":
             assert data.startswith(b"\x89PNG") and data.endswith(b"IEND\xaeB`\x82"), f"{cmd} left a partial {p.name}"
         else:
@@ -696,9 +759,11 @@ def _fill_path(text: str, paths: dict[str, Path]) -> str:
     return text
 
 
-def test_certificate_pages_say_which_clock_and_warn_of_an_unstated_rate_accuracy(tmp_path: Path) -> None:
+def test_certificate_pages_say_which_clock_and_what_the_spin_rate_reference_is(tmp_path: Path) -> None:
     """Rendered pages (pypdfium2 text of the PDF): the dates say which clock is which and give the bench time;
-    a size effect issued with the table's rate accuracy not stated is a warning, not "None"; no '∋' on page 2."""
+    the spins' rate reference is the encoder angle over time, so a table whose rate accuracy is not stated is no
+    reason for a warning (it once was, when the reference was the reported rate) and never prints "None"; no '∋'
+    on page 2."""
     import pypdfium2
 
     run = make_run_folder(tmp_path / "run")
@@ -713,8 +778,9 @@ def test_certificate_pages_say_which_clock_and_warn_of_an_unstated_rate_accuracy
     rate_stated = bool(cert.get("bench", {}).get("rate_accuracy_ppm"))
     sizes_identified = [n for n, p in cert["parameters"].items() if n.startswith("r_") and p.get("identifiable", True)]
     assert sizes_identified and not rate_stated  # the fixture's bench (benches/sim.yaml) states no rate accuracy
-    assert "rate accuracy is not stated" in text, text[-3000:]
-    assert any("rate accuracy is not stated" in w for w in cert["warnings"])
+    assert "encoder angle over the spin's time" in text, text[-3000:]
+    assert "None" not in text.split("Traceability")[-1][:600]
+    assert not any("rate accuracy" in w for w in cert["warnings"])
 
 
 def test_plan_table_has_a_legend_for_its_columns(corpus: Corpus, monkeypatch) -> None:
@@ -723,4 +789,6 @@ def test_plan_table_has_a_legend_for_its_columns(corpus: Corpus, monkeypatch) ->
     assert code == 0, err[-1500:]
     text = out + err
     assert "σ white" in text and "σ white = " in text and "σ total = " in text and "σ data = " in text
+    code, out, err = run_cli(["plan", "--help"])  # and where a user looks before running it
+    assert code == 0 and "σ white = " in out and "σ total = " in out and "σ data = " in out, out[-1500:]
 

@@ -24,9 +24,9 @@ from elsewhere, e.g. the time base, enter the same way):
    f_true − f_rep = C_n^b [g_n×] δφ_s = [f×] C_n^b δφ_s. The table's stated accuracy ±a is taken as a
    rectangular distribution per axis: u = a/√3 (GUM 4.3.7).
 4. **Local gravity** (type B): f_true = f_rep (1 + δg/g), one δg for the whole run; u(g) from the bench.
-5. **Table rate accuracy** (type B, the size effect r): the reported rate of gimbal axis j is off by a
-   relative ε_j (rectangular ±a_rate, one per axis and run). The centripetal regressor scales with ω², so
-   during a spin about j the unmodelled term is −2 ε_j r ∘ c(ω); its sensitivity uses the identified r̂.
+5. The table's **rate accuracy** is not an input: a table with a rate error turns at (1 + ε) × its command,
+   and the reference rate of a spin is the encoder angle over time (both triads; the centripetal term and
+   the gyro scale), which sees that motion (docs/methods/gyro-calibration.md).
 6. **Model mismatch** (type A, from the residuals): the per-step mean residuals scatter more than the
    claimed components explain (noise R/n, the per-step part of the flicker, the attitude error): the excess
    variance per axis σ²_mm = Σ_s (m²_{s,a} − expected_{s,a}) / (K − 6) (clipped at 0) is propagated as an
@@ -256,23 +256,6 @@ def gravity_sensitivity(
     return sum((c[:, 0] for c in sens if c is not None), np.zeros(m.n_params))
 
 
-def rate_sensitivity(
-    a_inv: NDArray[np.float64],
-    geometry: Sequence[StepGeometry],
-    noise_var: NDArray[np.float64],
-    x_hat: NDArray[np.float64],
-    model: ModelSpec | None = None,
-) -> NDArray[np.float64]:
-    """∂x̂/∂ε_j for a relative reported-rate error ε_j of gimbal axis j, (n, 3) (the size effect's c ∝ ω²)."""
-    m = resolve(model)
-    out = np.zeros((m.n_params, 3))
-    sens = input_sensitivity(a_inv, geometry, noise_var, lambda geo: m.rate_shape(geo.f, geo.omega, x_hat), m)
-    for geo, c in zip(geometry, sens, strict=True):
-        if geo.spin_axis is not None and c is not None:
-            out[:, geo.spin_axis] += c[:, 0]
-    return out
-
-
 def step_offset_sensitivity(
     a_inv: NDArray[np.float64],
     geometry: Sequence[StepGeometry],
@@ -329,15 +312,13 @@ def reference_inputs(
     model: ModelSpec,
     geometry: Sequence[StepGeometry],
     *,
-    x_hat: NDArray[np.float64],
     g: float,
     g_uncertainty: float,
     g_source: str,
     attitude_accuracy: float,
-    rate_accuracy: float = 0.0,
 ) -> list[BudgetInput]:
-    """The bench's type-B inputs common to every model: table attitude, local g and table rate accuracy."""
-    from analysis.units import ARCSEC, PPM
+    """The bench's type-B inputs common to every model: table attitude and local g."""
+    from analysis.units import ARCSEC
 
     u_att = attitude_accuracy / math.sqrt(3.0)
     out = [
@@ -353,18 +334,6 @@ def reference_inputs(
             np.array([[g_uncertainty**2]]), lambda geo: model.gravity_shape(geo.f, geo.omega, g),
         ),
     ]  # fmt: skip
-    if rate_accuracy > 0 and any(geo.spin_axis is not None for geo in geometry):
-        u_rate = rate_accuracy / math.sqrt(3.0)
-        for j in range(3):
-            out.append(
-                BudgetInput(
-                    f"rate_{j}", "Table rate accuracy (size effect)",
-                    f"±{rate_accuracy / PPM:.3g} ppm of rate per gimbal axis (bench file), rectangular, "
-                    f"u = {u_rate / PPM:.3g} ppm, one per axis and run",
-                    np.array([[u_rate**2]]),
-                    lambda geo, j=j: model.rate_shape(geo.f, geo.omega, x_hat) if geo.spin_axis == j else None,
-                )
-            )  # fmt: skip
     return out
 
 
@@ -392,12 +361,10 @@ def build_budget(
     geometry: Sequence[StepGeometry],
     noise_var: NDArray[np.float64],
     *,
-    x_hat: NDArray[np.float64],
     g: float,
     g_uncertainty: float,
     g_source: str,
     attitude_accuracy: float,
-    rate_accuracy: float = 0.0,
     flicker_step_variance: Mapping[str, NDArray[np.float64]] | None = None,
     residuals_per_step: Sequence[Mapping[str, object]] = (),
     coverage_factor: float = COVERAGE_FACTOR,
@@ -415,12 +382,10 @@ def build_budget(
         Reference points of the steps the identification used.
     noise_var : (n_axes,)
         Per-sample white-noise variance per axis used by the identification, SI².
-    x_hat : (n,)
-        The identified parameters, SI (the rate component needs r̂).
     g, g_uncertainty, g_source
         Local gravity and its standard uncertainty, m/s², and how g was obtained (wording).
-    attitude_accuracy, rate_accuracy : float
-        Table attitude accuracy bound, rad, and rate accuracy bound, relative (rectangular; 0: not claimed).
+    attitude_accuracy : float
+        Table attitude accuracy bound, rad (rectangular; 0: not claimed).
     flicker_step_variance : mapping, optional
         Per step name, the flicker variance (n_axes,) of its mean not common to all steps, for the
         model-mismatch test.
@@ -452,14 +417,10 @@ def build_budget(
         ),
     ]  # fmt: skip
     inputs = reference_inputs(
-        m, geometry, x_hat=np.asarray(x_hat, dtype=float), g=g, g_uncertainty=g_uncertainty, g_source=g_source,
-        attitude_accuracy=attitude_accuracy, rate_accuracy=rate_accuracy,
+        m, geometry, g=g, g_uncertainty=g_uncertainty, g_source=g_source,
+        attitude_accuracy=attitude_accuracy,
     )  # fmt: skip
-    rate_parts = [input_component(i, a_inv, geometry, nv, m) for i in inputs if i.key.startswith("rate_")]
-    comps += [input_component(i, a_inv, geometry, nv, m) for i in inputs if not i.key.startswith("rate_")]
-    if rate_parts:
-        cov_rate = sum((c.covariance for c in rate_parts), np.zeros((n, n)))
-        comps.append(BudgetComponent("rate", rate_parts[0].label, rate_parts[0].source, "B", cov_rate))
+    comps += [input_component(i, a_inv, geometry, nv, m) for i in inputs]
     comps += [input_component(i, a_inv, geometry, nv, m) for i in extra_inputs]
     notes: list[str] = []
     comps.append(
@@ -511,7 +472,6 @@ __all__ = [
     "gravity_sensitivity",
     "input_component",
     "input_sensitivity",
-    "rate_sensitivity",
     "reference_inputs",
     "step_offset_sensitivity",
 ]

@@ -139,7 +139,7 @@ def axis_inputs(model: ModelSpec, u_tilt: float, source: str) -> list[BudgetInpu
 
     return [
         BudgetInput(
-            f"axis_{j}", "Table axis orthogonality and wobble",
+            f"axis_{j}", f"Table axis orthogonality and wobble, {('outer', 'middle', 'inner')[j]} gimbal",
             f"u = {u_tilt / ARCSEC:.3g}″ tilt of each gimbal axis, two components, one per axis and run ({source})",
             np.eye(2) * u_tilt**2, shape_for(j),
         )

@@ -391,12 +391,6 @@ class AccelerometerModel(ModelSpec):
         """f_true = f_rep (1 + δg/g): ∂f/∂g = f/g."""
         return (_as_n3(f, "f") / g)[:, :, None]
 
-    def rate_shape(self, f, omega, x_hat):  # type: ignore[no-untyped-def]
-        """The centripetal regressor scales with ω²: a reported rate (1 + ε) too high leaves −2 ε r̂∘c."""
-        xs = np.asarray(x_hat, dtype=float).reshape(-1)
-        r_hat = xs if xs.shape == (3,) else self.as_state(xs)[SIZE_EFFECT]  # r̂ alone or the whole state
-        return (-2.0 * r_hat[None, :] * centripetal(omega))[:, :, None]
-
 
 ACCELEROMETER: AccelerometerModel = register(AccelerometerModel())  # type: ignore[assignment]
 """The registered accelerometer model (``get_model("accelerometer")``)."""

@@ -174,11 +174,6 @@ class ModelSpec:
         ff = as_n3(f, "f")
         return np.zeros((ff.shape[0], self.n_axes, 1))
 
-    def rate_shape(self, f: ArrayLike, omega: ArrayLike, x_hat: ArrayLike) -> NDArray[np.float64]:
-        """Error per unit relative error ε of the reported table rate (m, n_axes, 1) (model terms in ω)."""
-        ff = as_n3(f, "f")
-        return np.zeros((ff.shape[0], self.n_axes, 1))
-
     # ---- validation ----------------------------------------------------------------------------------------------
     def as_state(self, x: ArrayLike, name: str = "x") -> NDArray[np.float64]:
         """Validate a state vector: (n_params,), finite, SI, in :attr:`names` order."""
@@ -492,12 +487,6 @@ class UnitModel(ModelSpec):
 
     def gravity_shape(self, f, omega, g):  # type: ignore[no-untyped-def]
         return np.concatenate([p.gravity_shape(f, omega, g) for p in self._parts], axis=1)
-
-    def rate_shape(self, f, omega, x_hat):  # type: ignore[no-untyped-def]
-        xs = self.as_state(x_hat)
-        return np.concatenate(
-            [p.rate_shape(f, omega, xs[g]) for p, g in zip(self._parts, self.groups, strict=True)], axis=1
-        )
 
     def correct_outputs(self, x: ArrayLike, y: ArrayLike, *, max_iter: int = 8) -> NDArray[np.float64]:
         """Compensate the unit's outputs alone (no reference): the exact joint inverse, (n, n_axes), SI.

@@ -4,8 +4,10 @@ The host's clock sees the unit's blocks arrive (transport latency, batching) and
 requested and answered. Straight lines through those give the unit's rate against the host and the
 controller's rate against the host, hence a rate for t_table against t_unit that does not use the motions at
 all: the motion-based estimate is checked against it (docs/methods/time-base.md: "bounded by what the
-controller's and the host's clocks say"). Latencies are stationary, so their jitter only adds scatter; σ of a
-slope is from the residuals (a one-sided jitter does not bias a slope). Seconds throughout.
+controller's and the host's clocks say"). The controller's line uses only the readings with the shortest
+request→answer time (a minimum-delay filter, as NTP's: a busy host's or a queue's delay does not enter); the
+unit's uses every block (their arrival delay is a stationary sawtooth of the link's bursts, whose lower
+envelope aliases with the unit's rate and is not safer). σ of a slope is from the residuals. Seconds throughout.
 """
 
 from __future__ import annotations
@@ -31,6 +33,19 @@ def _slope(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[float, float
     r = y - y.mean() - b * xc
     s = math.sqrt(float(np.sum(r * r)) / (x.size - 2))
     return b, s / math.sqrt(sxx), s
+
+
+def _fastest(x: NDArray[np.float64], y: NDArray[np.float64], delay: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """The points whose transport ``delay`` is in its lowest fifth (a minimum-delay filter, as NTP's): their
+    time stamps bracket the event tightly, a queue's or a busy host's delay does not enter. All points when
+    those are fewer than 10 or span less than half of ``x``."""
+    ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(delay)
+    if np.count_nonzero(ok) < 10:
+        return np.isfinite(x) & np.isfinite(y)
+    keep = ok & (delay <= np.quantile(delay[ok], 0.2))
+    if np.count_nonzero(keep) < 10 or np.ptp(x[keep]) < 0.5 * np.ptp(x[ok]):
+        return np.isfinite(x) & np.isfinite(y)
+    return keep
 
 
 def clock_check(
@@ -69,7 +84,9 @@ def clock_check(
         out["reading_latency_spread_s"] = float(np.nanstd(rtt))
     have_ctrl = table_controller_time is not None and np.any(np.isfinite(table_controller_time))
     if have_ctrl:
-        e_ch, u_ch, _ = _slope(h_mid, np.asarray(table_controller_time, float))
+        ct = np.asarray(table_controller_time, float)
+        fast = _fastest(h_mid, ct, rtt)
+        e_ch, u_ch, _ = _slope(h_mid[fast], ct[fast])
         if not math.isfinite(e_ch):
             return out
         out.update(controller_vs_host_rate=e_ch - 1.0, u_controller_vs_host_rate=u_ch)
@@ -88,31 +105,40 @@ def clock_check(
 def misfit_cause(estimate: TimeBase, host_stamped: bool, carried: float) -> str | None:
     """One line naming the cause when the timing misfit around motions exceeds what the budget carries, else None.
 
-    Two misfits are tested. Within a motion: the typical residual of an event's fit expressed as time (a
-    reading's time stamp that jitters turns the reference by ω·jitter); the budget carries ``carried`` (s; the
-    caller's: the table's attitude accuracy over the fastest rate), and 3 × that is the limit. Between motions:
-    the per-motion offsets scatter about the fitted line by more than 3 × their own σ (Birge ratio > 3; the
-    offset's u is already scaled by it, but a scatter that large means the model t₀ + (1 + ε) t does not hold).
-    The cause is named from the recorded clocks: host-stamped readings whose answer latency jitters, a unit link
-    whose frames arrive in bursts, or a drifting clock.
+    Two misfits are tested. Within a motion: the timing jitter the events' residuals show beyond the unit's and
+    the encoder's noise (:attr:`TimingEvent.jitter`, median over the motions; a reading whose time stamp jitters
+    turns the reference by ω·jitter). The budget carries ``carried`` (s; the caller's: the table's attitude
+    accuracy over the fastest rate of the identified steps) and 3 × that is the limit. Between motions: the
+    per-motion offsets scatter about the fitted line by more than 3 × their own σ (Birge ratio > 3; the offset's
+    u is already scaled by it, but a scatter that large means the model t₀ + (1 + ε) t does not hold).
+
+    The cause is named from the recorded clocks: readings stamped by the host whose answer latency jitters
+    (the host's request → answer spread explains the jitter), a unit link whose frames arrive in bursts (its
+    arrival scatter does), or otherwise — between motions — a latency or a clock that changes during the run,
+    and — within motions — time stamps that are not latched with the angles.
     """
     if not estimate.events:
         return None
     r = np.array([e.residual for e in estimate.events])
     scatter = float(np.sqrt(np.mean(r * r))) if len(estimate.events) >= 3 else 0.0
-    inside = np.array([e.rms_time for e in estimate.events])
-    inside = inside[np.isfinite(inside)]
-    within = float(np.median(inside)) if inside.size else 0.0
+    within = float(np.median([e.jitter for e in estimate.events]))
     bad_within = within > 3.0 * max(carried, 1e-9)
     bad_between = math.isfinite(estimate.misfit) and estimate.misfit > 3.0 and len(estimate.events) >= 3
     if not (bad_within or bad_between):
         return None
     worst = within if bad_within else scatter
-    what = "within motions" if bad_within else "between motions"
-    base = (
-        f"timing misfit around the motions: {worst * 1e3:.3f} ms {what} (limit {3 * carried * 1e3:.3f} ms "
-        f"within, Birge ratio {estimate.misfit:.1f} between), beyond what the uncertainty budget carries"
-    )
+    if bad_within:
+        base = (
+            f"timing misfit around the motions: the table's time stamps jitter by {within * 1e3:.3f} ms within "
+            f"the motions, beyond the {3 * carried * 1e3:.3f} ms the uncertainty budget carries (3 × the table's "
+            "attitude accuracy over the fastest spin rate)"
+        )
+    else:
+        base = (
+            f"timing misfit around the motions: the clock offset changes between motions by {scatter * 1e3:.3f} ms "
+            f"(Birge ratio {estimate.misfit:.1f} about one offset and rate), beyond what the uncertainty budget "
+            "carries"
+        )
     ck = estimate.check
     rl = ck.get("reading_latency_spread_s")
     ll = ck.get("link_latency_spread_s")
@@ -126,4 +152,12 @@ def misfit_cause(estimate: TimeBase, host_stamped: bool, carried: float) -> str 
             f"{base}: the unit's frames arrive in bursts (arrival scatter {ll * 1e3:.2f} ms about a steady "
             "clock); check the serial link / device-server buffering"
         )
-    return f"{base}: a clock drifts during the run (not a constant rate); check the unit's and controller's clocks"
+    if bad_within:
+        return (
+            f"{base}: the readings' time stamps are not latched with their angles; check the controller's time "
+            "variable and that the positions and the time are read in one message"
+        )
+    return (
+        f"{base}: a latency or a clock changes during the run (not a constant rate); check the unit's and the "
+        "controller's clocks and the host's load"
+    )

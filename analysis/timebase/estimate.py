@@ -71,7 +71,14 @@ class RunSignals:
 
 
 def coarse_mapping(sig: RunSignals) -> tuple[float, float]:
-    """(t₀, ε) from the reading times against the unit time of the sample before each reading (to ~ms)."""
+    """(t₀, ε) from the reading times against the unit time of the sample before each reading (to ~ms).
+
+    A reading is requested once the samples before it have arrived, so its time is the mapped unit time plus a
+    delay that is never negative and is smallest for a reading requested right after a block arrived: the line
+    is the *lower envelope* of the points (refitted on the lowest tenth of the residuals), so a link that
+    delivers the frames in bursts of seconds (the readings after a burst's first block wait for nothing but
+    are stamped seconds after their samples) does not shift it by half a burst.
+    """
     if sig.sample_index is None or sig.t.size == 0:
         return 0.0, 0.0
     k = np.clip(np.asarray(sig.sample_index, dtype=np.int64) - 1, 0, sig.t.size - 1)
@@ -79,8 +86,15 @@ def coarse_mapping(sig: RunSignals) -> tuple[float, float]:
     c = sig.table_time
     ok = np.isfinite(c) & np.isfinite(tu)
     if np.count_nonzero(ok) < 2 or np.ptp(tu[ok]) <= 0:
-        return float(np.median(c[ok] - tu[ok])) if np.any(ok) else 0.0, 0.0
-    slope, icpt = np.polyfit(tu[ok], c[ok], 1)
+        return float(np.min(c[ok] - tu[ok])) if np.any(ok) else 0.0, 0.0
+    x, y = tu[ok], c[ok]
+    slope, icpt = np.polyfit(x, y, 1)
+    for _ in range(4):
+        r = y - (icpt + slope * x)
+        low = r <= np.quantile(r, 0.1)
+        if np.count_nonzero(low) < 2 or np.ptp(x[low]) <= 0.25 * np.ptp(x):
+            break  # the lowest points bunch together: keep the last line
+        slope, icpt = np.polyfit(x[low], y[low], 1)
     return float(icpt), float(slope - 1.0)
 
 
@@ -102,6 +116,25 @@ def _solve(x: NDArray[np.float64], y: NDArray[np.float64], col: int) -> tuple[ND
     xc = x[:, col] - others @ q  # the δ column with the nuisances projected out
     info = float(xc @ xc)
     return p, (math.sqrt(s2 / info) if info > 0 else math.nan), math.sqrt(float(r @ r) / r.size)
+
+
+def excess_jitter(r: NDArray[np.float64], moving: NDArray[np.bool_], speed: float) -> float:
+    """Timing jitter (s) shown by a fit's residuals ``r`` ((n,) or (n, k)): the excess of their variance while
+    the table moves over their variance at rest, over ``speed`` (the signal's RMS rate of change while moving).
+
+    At rest only the unit's and the encoder's noise is in the residuals; while moving a jittering time stamp
+    adds speed × jitter. 0 when the excess is not significant (the moving variance within 3σ of the resting one,
+    σ of a variance ratio ≈ √(2/n_moving + 2/n_rest)) or either part has fewer than 3 points.
+    """
+    r2 = np.asarray(r, float) ** 2
+    r2 = r2.sum(axis=1) if r2.ndim == 2 else r2
+    n_m, n_r = int(np.count_nonzero(moving)), int(np.count_nonzero(~moving))
+    if n_m < 3 or n_r < 3 or not speed > 0:
+        return 0.0
+    vm, vr = float(np.mean(r2[moving])), float(np.mean(r2[~moving]))
+    if vm <= vr * (1.0 + 3.0 * math.sqrt(2.0 / n_m + 2.0 / n_r)):
+        return 0.0
+    return math.sqrt(vm - vr) / speed
 
 
 def _gyro_event(sig: RunSignals, w: MotionWindow, t0: float, eps: float) -> TimingEvent | None:
@@ -137,6 +170,7 @@ def _gyro_event(sig: RunSignals, w: MotionWindow, t0: float, eps: float) -> Timi
     if not math.isfinite(sd) or abs(float(p[1])) > MAX_SCALE_MISMATCH:
         return None  # the gyros' angle disagrees with the table's: saturated, or a misconfigured output
     speed = float(np.sqrt(np.mean(grad[w.moving] ** 2))) if np.any(w.moving) else 0.0
+    resid = theta - a_i - x @ p
     return TimingEvent(
         t_unit=float(np.mean(s0[w.moving] if np.any(w.moving) else s0)),
         offset=t0 - (1.0 + eps) * delta,
@@ -144,6 +178,7 @@ def _gyro_event(sig: RunSignals, w: MotionWindow, t0: float, eps: float) -> Timi
         axis=w.axis,
         readings=int(idx.size),
         rms_time=rms / speed if speed > 0 else math.nan,
+        jitter=excess_jitter(resid, w.moving, speed),
     )
 
 
@@ -188,26 +223,26 @@ def constant_acceleration_intervals(
 
 def _shared_shift(
     x0: NDArray[np.float64], y: NDArray[np.float64], d: NDArray[np.float64]
-) -> tuple[float, float, float]:
+) -> tuple[float, float, float, NDArray[np.float64]]:
     """y[:, a] ≈ x0 · q_a + d[:, a] · δ for a = x, y, z (own nuisances q_a per accelerometer, one shift δ).
 
     The nuisances are projected out per column (one least-squares solve of the shared design for all six
-    right-hand sides), then δ is the pooled regression of what remains. Returns δ, its σ (residual-scaled) and
-    the RMS residual.
+    right-hand sides), then δ is the pooled regression of what remains. Returns δ, its σ (residual-scaled), the
+    RMS residual and the residuals (n, 3).
     """
     coef, _res, rank, _sv = np.linalg.lstsq(x0, np.column_stack([y, d]), rcond=None)
     rest = np.column_stack([y, d]) - x0 @ coef
     yr, dr = rest[:, :3], rest[:, 3:]
     info = float(np.sum(dr * dr))
     if info <= 0:
-        return 0.0, math.nan, math.nan
+        return 0.0, math.nan, math.nan, yr
     delta = float(np.sum(dr * yr)) / info
     r = yr - dr * delta
     dof = 3 * (x0.shape[0] - int(rank)) - 1
     if dof < 2:
-        return delta, math.nan, math.nan
+        return delta, math.nan, math.nan, r
     ss = float(np.sum(r * r))
-    return delta, math.sqrt(ss / dof / info), math.sqrt(ss / r.size)
+    return delta, math.sqrt(ss / dof / info), math.sqrt(ss / r.size), r
 
 
 def _accel_reference(
@@ -252,6 +287,7 @@ def _accel_event(sig: RunSignals, w: MotionWindow, t0: float, eps: float) -> Tim
     u_b = body_rate(sig.angles[w.readings[0]], np.eye(3)[w.axis], sig.mounting)
     u_b = u_b / np.linalg.norm(u_b)
     delta, sd, rms, step, speed = 0.0, math.nan, math.nan, 0.0, 0.0
+    resid, mv = np.zeros((0, 3)), np.zeros(0, bool)
     for _ in range(4):
         c_all = t0 + (1.0 + eps) * (sig.t - sig.latency - delta)
         k = np.searchsorted(hi_t, c_all)  # the interval each sample could fall in
@@ -267,7 +303,7 @@ def _accel_event(sig: RunSignals, w: MotionWindow, t0: float, eps: float) -> Tim
         x0 = np.column_stack([np.ones_like(c), f_ref, w2, alphas[seg_k]])
         x0 = x0[:, np.any(x0 != 0.0, axis=0)]  # no tangential/centripetal column where the table never turned
         dcol = -(1.0 + eps) * fdot  # ∂f/∂δ per accelerometer (M ≈ 1)
-        step, sd, rms = _shared_shift(x0, sig.accel[inside], dcol)
+        step, sd, rms, resid = _shared_shift(x0, sig.accel[inside], dcol)
         delta += step
         mv = np.abs(om) > 0
         speed = float(np.sqrt(np.mean(np.sum(fdot[mv] ** 2, axis=1)))) if np.any(mv) else 0.0
@@ -284,6 +320,7 @@ def _accel_event(sig: RunSignals, w: MotionWindow, t0: float, eps: float) -> Tim
         axis=w.axis,
         readings=len(ivs) + 1,
         rms_time=rms / speed,
+        jitter=excess_jitter(resid, mv, speed),
     )
 
 
@@ -365,7 +402,7 @@ def estimate_time_base(
         )
     if len(events) == 1:
         notes.append("one motion only: the rate is taken from the reading times, without a stated uncertainty")
-    evs = [TimingEvent(e.t_unit, e.offset, e.u, e.axis, e.readings, e.rms_time, float(r))
+    evs = [TimingEvent(e.t_unit, e.offset, e.u, e.axis, e.readings, e.rms_time, float(r), e.jitter)
            for e, r in zip(events, resid, strict=True)]  # fmt: skip
     return TimeBase(
         offset=t0,

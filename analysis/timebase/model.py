@@ -36,6 +36,10 @@ class TimingEvent:
         RMS of the fit's residuals expressed as time (residual / rate of change of the signal), s.
     residual : float
         The event's offset minus the run's fitted line, s (filled by the run fit).
+    jitter : float
+        Timing jitter within the motion, s: the excess of the fit's residuals while the table moves over those
+        at rest (the unit's and the encoder's noise), expressed as time; 0 when the excess is not significant
+        (the moving residuals' variance within 3σ of the resting ones').
     """
 
     t_unit: float
@@ -45,6 +49,7 @@ class TimingEvent:
     readings: int
     rms_time: float
     residual: float = 0.0
+    jitter: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -118,6 +123,7 @@ class TimeBase:
                     "readings": e.readings,
                     "rms_time_s": e.rms_time,
                     "residual_s": e.residual,
+                    "jitter_s": e.jitter,
                 }
                 for e in self.events
             ],
@@ -138,6 +144,7 @@ class TimeBase:
                 int(e["readings"]),
                 float(e["rms_time_s"]),
                 float(e.get("residual_s", 0.0)),
+                float(e.get("jitter_s", 0.0)),
             )
             for e in d.get("events", [])
         ]

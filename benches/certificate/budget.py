@@ -31,7 +31,7 @@ from analysis.units import ARCSEC
 from benches.calibration_result import CalibrationResult
 from benches.identify import acquisition_span, earth_in_body
 from benches.reference import reference_for_samples
-from benches.timebase import table_in_unit_time
+from benches.timebase import reference_rate_covariance, reference_rate_u, table_in_unit_time
 
 if TYPE_CHECKING:  # pragma: no cover
     from benches.recording import Recording
@@ -151,7 +151,6 @@ def budget_for_run(
     g_uncertainty: float,
     g_source: str,
     attitude_accuracy: float,
-    rate_accuracy: float,
     bias_instability: NDArray[np.float64] | None,
     gyro_bias_instability: NDArray[np.float64] | None = None,
     latitude: float | None = None,
@@ -165,7 +164,6 @@ def budget_for_run(
     time-base analysis produced one), and the table axes' orthogonality and wobble (the attitude accuracy
     taken as the bound of each axis's tilt).
     """
-    x = cal.x
     p_id = cal.covariance
     nv = cal.noise_variance
     notes: list[str] = []
@@ -187,12 +185,10 @@ def budget_for_run(
         p_w,
         geometry,
         nv,
-        x_hat=x,
         g=g,
         g_uncertainty=g_uncertainty,
         g_source=g_source,
         attitude_accuracy=attitude_accuracy,
-        rate_accuracy=rate_accuracy,
         flicker_step_variance=None if bias_instability is None else flicker_step_variance(geometry, bias_instability),
         residuals_per_step=per_step,
         model=model,
@@ -267,4 +263,10 @@ def time_base_covariance(cal: CalibrationResult) -> tuple[NDArray[np.float64], s
         f"t0 = {tb.offset * 1e3:.4f} ms, u = {tb.u_offset * 1e6:.3g} µs; eps = {tb.rate * 1e6:+.3f} ppm, "
         f"u = {tb.u_rate * 1e6:.3g} ppm; offset → misalignment and size effect through the spins"
     )
-    return jac @ cov @ jac.T, src
+    p_ref = reference_rate_covariance(list(names), tb.check) if "gyro_S_x" in blk.sensitivity else z
+    if np.any(p_ref):
+        src += (
+            f"; the reference second (controller clock against the host's), u = "
+            f"{reference_rate_u(tb.check) * 1e6:.3g} ppm → gyro scale factor 1:1"
+        )
+    return jac @ cov @ jac.T + p_ref, src

@@ -402,7 +402,6 @@ def _budget(cal: CalibrationResult, geometry: list[StepGeometry], binfo: BenchIn
             g_uncertainty=binfo.g_uncertainty,
             g_source=binfo.g_source,
             attitude_accuracy=binfo.attitude_accuracy,
-            rate_accuracy=binfo.rate_accuracy,
             bias_instability=None if binfo.bias_instability is None else np.asarray(binfo.bias_instability),
             gyro_bias_instability=None if binfo.gyro_bias_instability is None else np.asarray(
                 binfo.gyro_bias_instability
@@ -471,13 +470,6 @@ def decide_conformity(g: Gathered) -> Decision:
         warnings.append(
             f"the laboratory's ambient conditions are {AMBIENT_NOT_STATED}: the certificate cannot state the "
             "conditions of the calibration (ISO/IEC 17025 7.8.4.1); state site.ambient and re-issue"
-        )
-    sizes = [p.name for p in results if p.identifiable and p.name.startswith("r_")]
-    if sizes and not binfo.rate_accuracy:
-        warnings.append(
-            f"{', '.join(sizes)} (size effect) issued although the table's rate accuracy is not stated in the bench "
-            "file (turntable.rate_accuracy_ppm): the budget holds no type-B term for the spin rate, so U may be "
-            "understated; state it and re-issue"
         )
     warnings.extend(g.event_warnings)
     if not g.integrity["verified"]:

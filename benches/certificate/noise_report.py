@@ -10,7 +10,8 @@ Allan deviation of the record step (:func:`analysis.noise.terms.analyse_noise`, 
 with its expanded uncertainty U (k = 2), and the record's mean and standard deviation. The report states no
 conformity (there are no noise limits in a bench file) and says what to run for a calibration.
 
-The report is a :class:`benches.certificate.content.Certificate` with ``document`` :data:`NOISE_REPORT`:
+docs/certificate.md says what each document states and why. The report is a
+:class:`benches.certificate.content.Certificate` with ``document`` :data:`NOISE_REPORT`:
 numbered from the same register, published through the same result sinks (``RUN/noise-report.pdf`` and
 ``.json``), rendered by :mod:`benches.certificate.pdf`. The same recording gives the same bytes apart from
 the issue date (the analysis is deterministic).

@@ -30,13 +30,20 @@ _VERDICT_COLOURS = {
     "NO LIMITS": (90, 90, 90),
 }
 _COMPONENT_SHORT = {
-    "white_noise": "White noise",
-    "bias_instability": "Bias inst.",
-    "rate": "Table rate",
-    "attitude": "Attitude",
-    "local_g": "Local g",
-    "model_mismatch": "Mismatch",
+    "white_noise": "Noise",
+    "bias_instability": "Flick.",
+    "rate": "Rate",
+    "attitude": "Attit.",
+    "local_g": "g",
+    "model_mismatch": "Mism.",
+    "azimuth": "Azim.",
+    "latitude": "Lat.",
+    "axis_0": "Ax. o",
+    "axis_1": "Ax. m",
+    "axis_2": "Ax. i",
+    "time_base": "Time",
 }
+"""Column heads of the budget table (each named in full under "Input quantities", with its key)."""
 LAB_NAME = "tablebench calibration laboratory"
 
 
@@ -427,26 +434,28 @@ def _budget_page(pdf: _CertificatePdf, c: Certificate) -> None:
     rows = []
     for p in c.parameters:
         u_c = p.display_expanded / c.coverage_factor
-        dec = max(2 - math.floor(math.log10(u_c)), 0) if u_c > 0 else 3
+        dec = max(1 - math.floor(math.log10(u_c)), 0) if u_c > 0 else 2  # u to two significant digits
         rows.append(
             [p.name, p.display_unit]
             + [f"{p.display_budget[k]:.{dec}f}" for k in keys]
             + [f"{u_c:.{dec}f}", p.expanded_text]
         )
     nk = len(keys)
-    rest = pdf.epw - 20 - 16 - 22 - 24
+    size = 7.8 if nk <= 7 else 6.6  # the whole unit's budget has a dozen columns: one line per cell
+    rest = pdf.epw - 22 - 15 - 14 - 14
     pdf.grid(
         head,
         rows,
-        (20, 16) + (rest / nk,) * nk + (22, 24),
+        (22, 15) + (rest / nk,) * nk + (14, 14),
         ("LEFT", "LEFT") + ("RIGHT",) * (nk + 2),
-        7.8,
+        size,
     )
     pdf.ln(1.5)
     pdf.set_font(_FONT, "B", 8.5)
     pdf.cell(0, 5, "Input quantities", new_x=XPos.LMARGIN, new_y=YPos.NEXT)
     for comp in c.budget_components:
-        pdf.para(f"• {comp['label']} (type {comp['type']}): {comp['source']}", size=7.8)
+        short = _COMPONENT_SHORT.get(comp["key"], comp["key"])
+        pdf.para(f"• {short} — {comp['label']} (type {comp['type']}): {comp['source']}", size=7.8)
     pdf.ln(1)
     pdf.para(
         "Method (GUM law of propagation, linear estimator): the budget starts from the identification's own "
@@ -531,9 +540,11 @@ def _warnings_and_analyses(pdf: _CertificatePdf, c: Certificate) -> None:
         "Metrological traceability: the reference specific force is computed from the turntable's reported "
         f"attitude (stated accuracy ±{b.get('attitude_accuracy_arcsec', 0):.2f}″ per axis) and the local gravity "
         f"g = {b.get('g', 0):.6f} m/s² ({b.get('g_source', '')}, u(g) = {b.get('g_uncertainty', 0):.1e} m/s²); the "
-        "centripetal reference from the turntable's reported rate"
-        + (f" (stated accuracy ±{rate_acc:.3g} ppm)" if rate_acc else " (rate accuracy not stated in the bench file)")
-        + ". Each enters the uncertainty budget as a type-B component."
+        "angular-rate reference of every spin (the accelerometers' centripetal term and the gyro scale) from the "
+        "turntable's encoder angle over the spin's time, which does not depend on how closely the table follows its "
+        "commanded rate"
+        + (f" (stated rate accuracy ±{rate_acc:.3g} ppm)" if rate_acc else "")
+        + ". The attitude and gravity enter the uncertainty budget as type-B components."
     )
     stds = b.get("reference_standards") or []
     if b.get("simulated"):

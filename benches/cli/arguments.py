@@ -10,7 +10,7 @@ import argparse
 import math
 
 from core.errors import UsageError
-from drivers.sim.config import MAX_SEED
+from core.seeds import MAX_SEED
 
 
 def parse_overrides(items: list[str]) -> dict[str, float]:

@@ -217,14 +217,18 @@ class LiveObserver:
         self._fused = filt.n_samples
         x, s = filt.estimate, filt.sigma
         kinds = self._parameter_kinds()
+        unseen = ident.unseen() if hasattr(ident, "unseen") else set()
+        seen = [n not in unseen for n, _k in kinds]  # an unseen estimate is the prior's: no number shown for it
         self.feed.publish(
             "estimates",
             {
                 "bench_s": _r(self._n / self.rate, 3),
                 "step": step.name,
-                "values": [_r(to_display(k, float(x[i])), 6) for i, (_n, k) in enumerate(kinds)],
-                "u": [_r(to_display(k, float(s[i])), 6) for i, (_n, k) in enumerate(kinds)],
-                "u_meaning": "filter white-noise 1σ (k = 1)",
+                "values": [_r(to_display(k, float(x[i])), 6) if seen[i] else None for i, (_n, k) in enumerate(kinds)],
+                "u": [_r(to_display(k, float(s[i])), 6) if seen[i] else None for i, (_n, k) in enumerate(kinds)],
+                "identified": seen,
+                "u_meaning": "filter white-noise 1σ (k = 1); null: not identified yet (the motion so far does not "
+                "see it)",
             },
         )
 

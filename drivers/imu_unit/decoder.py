@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivers.imu_unit.checksums import CrcEngine
-from drivers.imu_unit.description import FieldDesc, FrameDescription
+from drivers.imu_unit.description import ChecksumDesc, FieldDesc, FrameDescription
 
 log = logging.getLogger(__name__)
 
@@ -45,12 +45,14 @@ class DecodeStats:
     rejected: int = 0
     garbage_bytes: int = 0
     bit_frames: int = 0  # built-in-test frames (a ``role: bit`` layout): recognised, neither data nor garbage
+    other_frames: int = 0  # other messages the unit interleaves (a ``role: other`` layout): checked, skipped
 
     def add(self, other: DecodeStats) -> None:
         self.frames += other.frames
         self.rejected += other.rejected
         self.garbage_bytes += other.garbage_bytes
         self.bit_frames += other.bit_frames
+        self.other_frames += other.other_frames
 
 
 @dataclass
@@ -104,6 +106,9 @@ class FrameCodec:
             dtype=np.intp,
         ).reshape(-1, 3)
         self._wide_signed = np.array([f.type == "int24" for f in self.wide], dtype=np.int32)
+        # 32-bit fields sent least significant 16-bit word first (each word big-endian): read big-endian, halves swapped
+        self._swapped = [f for f in desc.fields if f.low_word_first]
+        self._end = np.frombuffer(desc.end, np.uint8)
         cs = desc.checksum
         self.crc = CrcEngine(cs.spec) if cs is not None else None
         if cs is not None:
@@ -117,6 +122,8 @@ class FrameCodec:
         24-bit fields of the frame are gathered and sign-extended together."""
         rec = np.ascontiguousarray(rows).view(self.dtype).reshape(-1)
         out: dict[str, NDArray] = {f.name: rec[f.name] for f in self.desc.fields if f.size != 3}
+        for f in self._swapped:
+            out[f.name] = _swap_words(out[f.name])
         if self.wide:
             b = rows[:, self._wide_idx].astype(np.int32)  # (k, n_wide, 3), bytes in big-endian order
             v = (b[:, :, 0] << 16) | (b[:, :, 1] << 8) | b[:, :, 2]
@@ -127,10 +134,20 @@ class FrameCodec:
         return out
 
     def checksums_ok(self, rows: NDArray[np.uint8]) -> NDArray[np.bool_]:
-        """Whether each frame row's checksum checks (all True without a checksum)."""
+        """Whether each frame row's checksum checks (all True without a checksum) and its end bytes are
+        the described ones."""
         cs = self.desc.checksum
+        if self._end.size:
+            end_ok = np.all(rows[:, self.length - self._end.size :] == self._end, axis=1)
+            if cs is None or self.crc is None:
+                return end_ok
+            return end_ok & self._checksum_ok(rows, cs)
         if cs is None or self.crc is None:
             return np.ones(rows.shape[0], dtype=bool)
+        return self._checksum_ok(rows, cs)
+
+    def _checksum_ok(self, rows: NDArray[np.uint8], cs: ChecksumDesc) -> NDArray[np.bool_]:
+        assert self.crc is not None
         body = rows[:, cs.start : cs.end]
         if cs.pad:
             body = np.concatenate([body, np.zeros((rows.shape[0], cs.pad), np.uint8)], axis=1)
@@ -146,16 +163,20 @@ class FrameCodec:
         """
         rec = np.zeros(n, dtype=self.dtype)
         wide = {f.name: f for f in self.wide}
+        swapped = {f.name for f in self._swapped}
         for name, v in values.items():
             f = wide.get(name)
             if f is None:
-                rec[name] = np.asarray(v).astype(self.dtype.fields[name][0], copy=False)
+                x = np.asarray(v).astype(self.dtype.fields[name][0], copy=False)
+                rec[name] = _swap_words(x) if name in swapped else x
                 continue
             x = np.asarray(v).astype(np.int64) & 0xFFFFFF
             b = np.stack([(x >> 16) & 0xFF, (x >> 8) & 0xFF, x & 0xFF], axis=1).astype(np.uint8)
             rec[name] = b if f.byte_order == "big" else b[:, ::-1]
         rows = rec.view(np.uint8).reshape(n, self.length)
         rows[:, : len(self.desc.sync)] = np.frombuffer(self.desc.sync, np.uint8)
+        if self._end.size:
+            rows[:, self.length - self._end.size :] = self._end
         cs = self.desc.checksum
         if cs is not None and self.crc is not None:
             body = rows[:, cs.start : cs.end]
@@ -197,7 +218,8 @@ class FrameDecoder:
             self._syncs = [np.frombuffer(d.sync, np.uint8) for _r, d in self.layouts]
             self._lens = np.array([d.length for _r, d in self.layouts], dtype=np.int64)
             self._roles = [r for r, _d in self.layouts]
-            self._is_bit = np.array([r == "bit" for r in self._roles])
+            self._is_bit = np.array([r != "data" for r in self._roles])  # bit and other: never samples
+            self._is_other = np.array([r == "other" for r in self._roles])
             self._has_bit = bool(self._is_bit.any())
             self._first = np.zeros(256, dtype=bool)
             self._first[[int(sy[0]) for sy in self._syncs]] = True
@@ -443,7 +465,9 @@ class FrameDecoder:
             is_bit = self._is_bit[glay]
             data = ~is_bit
             batch = FrameBatch(layout=glay[data])
-            stats.frames, stats.bit_frames = int(data.sum()), int(is_bit.sum())
+            n_other = int(self._is_other[glay].sum())
+            stats.frames, stats.bit_frames = int(data.sum()), int(is_bit.sum()) - n_other
+            stats.other_frames = n_other
         else:
             batch = FrameBatch(layout=glay)
             stats.frames = int(glay.size)
@@ -457,6 +481,8 @@ class FrameDecoder:
             fb = FrameBatch(self._codecs[k].values(rows), rows)
             if self._roles[k] == "bit":
                 batch.bit[self.layouts[k][1].name] = fb
+            elif self._roles[k] == "other":
+                continue
             else:
                 batch.groups[k] = fb
         if len(batch.groups) == 1:  # the usual case: every data frame in one layout (its values as they are)
@@ -523,3 +549,12 @@ def _non_overlapping(pos: NDArray[np.intp], length: int) -> NDArray[np.intp]:
             keep.append(i)
             end = p + length
     return np.asarray(keep, dtype=np.intp)
+
+
+def _swap_words(v: NDArray) -> NDArray:
+    """Swap the 16-bit halves of 32-bit integers (keeps the dtype; its own inverse)."""
+    u = np.asarray(v).astype(np.int64) & 0xFFFFFFFF
+    w = ((u & 0xFFFF) << 16) | (u >> 16)
+    if np.asarray(v).dtype.kind == "i":
+        w = w - ((w >> 31) & 1) * (1 << 32)
+    return w.astype(np.asarray(v).dtype)

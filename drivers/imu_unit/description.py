@@ -97,12 +97,15 @@ FLAG_BITS: dict[str, int] = {**{ch: i for i, ch in enumerate(RECORDED)}, "temper
 """Normalised per-sample status flags (``ImuBlock.status``): bit set = that channel is invalid.
 Bits 0–2 accel x/y/z, 3–5 gyro x/y/z, 6 temperature, 7 a unit-level problem; 0 = every channel valid."""
 
+LOW_WORD_FIRST = "big-low-word-first"
+"""Field byte order: big-endian 16-bit words, least significant word first (32-bit integer fields only)."""
+
 _POW2 = re.compile(r"^\s*2\s*(\^|\*\*)\s*([-+]?\d+)\s*$")
 
 
 DESCRIPTION_KEYS: tuple[str, ...] = (
     "name", "title", "notes", "byte_order", "sync", "length", "options", "fields", "counter", "status",
-    "checksum", "time", "trailer",
+    "checksum", "time", "trailer", "end",
 )  # fmt: skip
 """Top-level keys of a single-layout frame description (a multi-layout one adds ``layouts``)."""
 
@@ -152,6 +155,8 @@ class FieldDesc:
     mux_modulus: int = 0
     sim_value: float = 0.0
     path: KeyPath = ()
+    add: Any = 0
+    """A constant added after scaling, in the field's unit (literal or selected by option, like ``scale``)."""
 
     @property
     def size(self) -> int:
@@ -161,6 +166,12 @@ class FieldDesc:
         """numpy dtype of the (widened) value."""
         kind = TYPES[self.type][0]
         return np.dtype(("<" if self.byte_order == "little" else ">") + kind)
+
+    @property
+    def low_word_first(self) -> bool:
+        """A 32-bit value sent as two big-endian 16-bit words, the least significant word first (ADIS
+        ``*_LOW`` / ``*_OUT`` register pairs in a 32-bit burst)."""
+        return self.byte_order == LOW_WORD_FIRST
 
 
 @dataclass(frozen=True)
@@ -215,12 +226,15 @@ class FrameDescription:
     time_field: str | None = None
     time_modulus: int = 0
     trailer: bytes = b""
+    end: bytes = b""
+    """Constant bytes closing every frame (inside ``length``), checked like the checksum (Epson's CR)."""
     notes: str = ""
     smap: SourceMap = field(default_factory=lambda: SourceMap("<description>"), repr=False, compare=False)
     alternates: tuple[tuple[str, FrameDescription], ...] = ()
     """Multi-layout descriptions ("length by identifier"): the other layouts as (role, description), role
     ``data`` (decoded into samples like the primary layout, which is this description's own fields) or
-    ``bit`` (built-in-test frames: recognised and counted, kept for the caller, never samples)."""
+    ``bit`` (built-in-test frames: recognised and counted, kept for the caller, never samples) or ``other``
+    (another message the unit interleaves, e.g. the HG4930's control message: checked, counted, skipped)."""
 
     def field_named(self, name: str) -> FieldDesc:
         for f in self.fields:
@@ -351,11 +365,13 @@ def parse_description(data: Any, smap: SourceMap) -> FrameDescription:
     order = get_str(d, smap, (), "byte_order", "big", choices=["big", "little"])
     sync = _bytes(d, smap, (), "sync", True)
     length = _int(d, smap, (), "length", None, 2, 4096)
-    if len(sync) >= length:
-        raise smap.error(("sync",), f"{len(sync)} sync bytes leave nothing of a {length}-byte frame")
+    end = _bytes(d, smap, (), "end", False)
+    if len(sync) + len(end) >= length:
+        raise smap.error(("sync",), f"{len(sync) + len(end)} sync/end bytes leave nothing of a {length}-byte frame")
     options = _parse_options(d, smap)
     occupied = np.zeros(length, dtype=bool)
     occupied[: len(sync)] = True
+    occupied[length - len(end) :] = True
     fields = _parse_fields(d, smap, length, order, options, occupied)
     names = {f.name for f in fields}
     time_field, time_mod = _parse_time(d, smap, fields)
@@ -374,6 +390,7 @@ def parse_description(data: Any, smap: SourceMap) -> FrameDescription:
         time_field=time_field,
         time_modulus=time_mod,
         trailer=_bytes(d, smap, (), "trailer", False),
+        end=end,
         notes=str(d.get("notes", "")),
         smap=smap,
     )
@@ -438,7 +455,9 @@ def _parse_field(
 ) -> FieldDesc:
     """One entry of ``fields``."""
     fd = get_mapping(fd, smap, p)
-    check_keys(fd, smap, p, ["name", "offset", "type", "byte_order", "channel", "scale", "unit", "mux", "sim_value"])
+    check_keys(
+        fd, smap, p, ["name", "offset", "type", "byte_order", "channel", "scale", "unit", "mux", "sim_value", "add"]
+    )
     fname = get_str(fd, smap, p, "name")
     ftype = get_str(fd, smap, p, "type", choices=list(TYPES))
     off = _int(fd, smap, p, "offset", None, 0, length - 1)
@@ -446,9 +465,13 @@ def _parse_field(
     if off + size > length:
         raise smap.error(p + ("offset",), f"{fname} ({ftype}) at {off} runs past the {length}-byte frame")
     if occupied[off : off + size].any():
-        raise smap.error(p + ("offset",), f"{fname} at bytes {off}…{off + size - 1} overlaps the sync or another field")
+        raise smap.error(
+            p + ("offset",), f"{fname} at bytes {off}…{off + size - 1} overlaps the sync, end bytes or another field"
+        )
     occupied[off : off + size] = True
-    forder = get_str(fd, smap, p, "byte_order", order, choices=["big", "little"])
+    forder = get_str(fd, smap, p, "byte_order", order, choices=["big", "little", LOW_WORD_FIRST])
+    if forder == LOW_WORD_FIRST and ftype not in ("int32", "uint32"):
+        raise smap.error(p + ("byte_order",), f"{LOW_WORD_FIRST} is for int32/uint32 fields, not {ftype}")
     channel = fd.get("channel")
     if channel is not None and channel not in CHANNEL_KINDS:
         raise smap.error(p + ("channel",), f"unknown channel {channel!r}; known: {', '.join(CHANNEL_KINDS)}")
@@ -461,10 +484,14 @@ def _parse_field(
     else:
         _check_selectable(scale, smap, p + ("scale",), options, "scale")
         _check_selectable(unit, smap, p + ("unit",), options, "unit")
+    add = fd.get("add", 0)
+    if add != 0 and (fd.get("mux") is not None or channel is None):
+        raise smap.error(p + ("add",), "only a plain field with a channel takes add (the value of a raw 0)")
+    _check_selectable(add, smap, p + ("add",), options, "scale")
     sim_value = parse_number(fd.get("sim_value", 0))
     if sim_value is None:
         raise smap.error(p + ("sim_value",), "expected a number")
-    return FieldDesc(fname, off, ftype, forder, channel, scale, unit, tuple(mux), selector, modulus, sim_value, p)
+    return FieldDesc(fname, off, ftype, forder, channel, scale, unit, tuple(mux), selector, modulus, sim_value, p, add)
 
 
 def _parse_mux(
@@ -642,7 +669,7 @@ def _parse_layouts(d: dict, smap: SourceMap) -> FrameDescription:
     name = get_str(d, smap, (), "name")
     entries = d.get("layouts")
     if not isinstance(entries, list) or not entries:
-        raise smap.error(("layouts",), "expected a list of frame names/paths or {frame, role: data|bit}")
+        raise smap.error(("layouts",), "expected a list of frame names/paths or {frame, role: data|bit|other}")
     own = None
     if "sync" in d:
         own = parse_description({k: v for k, v in d.items() if k != "layouts"}, smap)
@@ -656,7 +683,7 @@ def _parse_layouts(d: dict, smap: SourceMap) -> FrameDescription:
         if isinstance(e, dict):
             check_keys(e, smap, p, ["frame", "role"])
             ref = get_str(e, smap, p, "frame")
-            role = get_str(e, smap, p, "role", "data", choices=["data", "bit"])
+            role = get_str(e, smap, p, "role", "data", choices=["data", "bit", "other"])
         elif isinstance(e, str):
             ref = e
         else:
@@ -782,8 +809,10 @@ class FrameFormat:
             )
         if self.alternates:
             nd = sum(r == "data" for r, _f in self.alternates)
-            nb = len(self.alternates) - nd
-            text += f"; also {nd} other data layout(s) and {nb} built-in-test layout(s), chosen by identifier"
+            no = sum(r == "other" for r, _f in self.alternates)
+            nb = len(self.alternates) - nd - no
+            skipped = f", {no} skipped message layout(s)" if no else ""
+            text += f"; also {nd} other data layout(s){skipped} and {nb} built-in-test layout(s), chosen by identifier"
         return text
 
 
@@ -798,16 +827,17 @@ def _resolve(v: Any, options: dict[str, Any]) -> Any:
 
 
 def _conversion(
-    channel: str, scale: Any, unit: Any, options: dict[str, Any], desc: FrameDescription, path: KeyPath
+    channel: str, scale: Any, unit: Any, options: dict[str, Any], desc: FrameDescription, path: KeyPath, add: Any = 0
 ) -> Conversion:
     s = parse_number(_resolve(scale, options))
+    a = parse_number(_resolve(add, options)) or 0.0
     u = str(_resolve(unit, options))
     assert s is not None
     factor, kind = UNITS[u]
     allowed = CHANNEL_KINDS.get(channel, ("any",))
     if kind not in allowed and "any" not in allowed and kind != "any":
         raise desc.smap.error(path, f"unit {u!r} does not fit channel {channel} (needs a {'/'.join(allowed)} unit)")
-    offset = TEMP_OFFSET.get(u, 0.0)
+    offset = TEMP_OFFSET.get(u, 0.0) + a * factor
     return Conversion(channel, s * factor, offset, kind in ("inc", "dv"), u, s)
 
 
@@ -853,7 +883,7 @@ def compile_format(
             for slot, ch, sc, un in f.mux:
                 conv[(f.name, slot)] = _conversion(ch, sc, un, opts, desc, f.path + ("mux", "slots", str(slot)))
         elif f.channel is not None:
-            conv[f.name] = _conversion(f.channel, f.scale, f.unit, opts, desc, f.path)
+            conv[f.name] = _conversion(f.channel, f.scale, f.unit, opts, desc, f.path, f.add)
     step = 1
     c = desc.counter
     if c is not None:

@@ -239,13 +239,13 @@ class SampleConverter:
                     status[raw != 0] |= mask
             elif st.valid == "bits_clear":
                 r = raw.astype(np.int64)
-                bad_bits = sum(1 << bit for _ch, bit in st.bits)
+                bad_bits = sum(1 << bit for bit in {b for _ch, b in st.bits})  # a bit may flag several channels
                 if (r & bad_bits).any():  # some channel flagged (clipping…): flag it
                     for ch, bit in st.bits:
                         status[((r >> bit) & 1) == 1] |= np.uint16(1 << FLAG_BITS[ch])
             else:
                 r = raw.astype(np.int64)
-                valid_bits = sum(1 << bit for _ch, bit in st.bits)
+                valid_bits = sum(1 << bit for bit in {b for _ch, b in st.bits})
                 if ((~r) & valid_bits).any():  # some channel not valid (rare): flag it
                     for ch, bit in st.bits:
                         status[((r >> bit) & 1) == 0] |= np.uint16(1 << FLAG_BITS[ch])

@@ -19,6 +19,7 @@ import numpy as np
 from analysis.earth import normal_gravity
 from analysis.identification.model import PARAM_NAMES
 from analysis.units import ARCSEC, DEG, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MM, PPM, UG, UG_PER_G2
+from core.seeds import MAX_SEED as _MAX_SEED
 from drivers.imu_unit.counts import CountScale
 from drivers.protocols import AxisLimits, FaultCode
 from drivers.sim.thermal_config import ChamberSim, ThermalTruth
@@ -44,8 +45,8 @@ def _good_table_limits() -> tuple[AxisLimits, AxisLimits, AxisLimits]:
     return (lim, lim, lim)
 
 
-MAX_SEED = 2**63 - 1
-"""Largest simulator seed: the range of the bench file's ``simulation.seed`` and of ``--seed``."""
+MAX_SEED = _MAX_SEED
+"""Largest simulator seed: the range of the bench file's ``simulation.seed`` and of ``--seed`` (:mod:`core.seeds`)."""
 
 
 @dataclass(frozen=True)
@@ -252,8 +253,9 @@ class BudgetInputs:
     gravity_anomaly_std : m/s². True local g = the bench's g + δg, δg ~ N(0, u(g)²), once per run.
     attitude_error_bound : rad. Every motion command (position or rate) leaves the table at a true attitude
         C_b^n,true = (I + [δφ×]) C_b^n,reported, δφ uniform in ±bound per navigation axis, until the next one.
-    rate_error_bound : relative. The reported rate of gimbal axis j is (1 + ε_j) × the true rate, ε_j uniform
-        in ±bound, once per run and axis.
+    rate_error_bound : relative. Gimbal axis j turns at (1 + ε_j) × its commanded rate, ε_j uniform in ±bound,
+        once per run and axis; its encoder reports the true angles and its reported rate is the measured rate
+        of that motion (a real table's rate error: docs/methods/simulation.md).
     azimuth_std : rad. The outer gimbal's zero is off East by δψ ~ N(0, std²), once per run: the true
         C_b^n = R_z(δψ) C_b^n,reported (the Earth rate is seen in the true frame; gravity is vertical either way).
     """

@@ -3,14 +3,16 @@
 :class:`Loopback` starts, for ONE :class:`~drivers.sim.world.SimulatedWorld`,
 
 * a turntable controller server — the ACUTROL command language
-  (:class:`~drivers.sim.acl_server.AclTableServer`) or Modbus TCP
-  (:class:`~drivers.sim.modbus_controller.ModbusTableServer`),
+  (:class:`~drivers.sim.acl_server.AclTableServer`), Modbus TCP
+  (:class:`~drivers.sim.modbus_controller.ModbusTableServer`) or the Ideal Aerosmith text language
+  (:class:`~drivers.sim.aerosmith_server.AerosmithTableServer`, reached as a serial device server),
 * the serial unit server (:class:`~drivers.sim.serial_unit.SerialUnitServer`),
 
 then connects the real drivers to them exactly as on hardware (:mod:`drivers.connect`):
 :class:`~drivers.acutrol.AclTurntable` through pyvisa with the pyvisa-py backend (VISA resource
-``TCPIP0::127.0.0.1::PORT::SOCKET``) or :class:`~drivers.modbus.table.ModbusTurntable` through a pymodbus
-``ModbusTcpClient``, and :class:`~drivers.imu_unit.serial_unit.SerialInertialUnit` in polled (burst) mode through
+``TCPIP0::127.0.0.1::PORT::SOCKET``), :class:`~drivers.modbus.table.ModbusTurntable` through a pymodbus
+``ModbusTcpClient`` or :class:`~drivers.aerosmith.AerosmithTable` through pyserial's ``socket://`` URL, and
+:class:`~drivers.imu_unit.serial_unit.SerialInertialUnit` in polled (burst) mode through
 ``serial.serial_for_url``, so the simulated clock advances exactly with the samples the host reads: a loopback
 run equals the in-process run with the same seed and commands (Modbus: bit for bit; ACL: the in-process bench
 runs the same driver against the same controller without the wire, so the two are identical too).
@@ -24,10 +26,13 @@ from typing import Any, BinaryIO, Literal
 
 from drivers import connect
 from drivers.acutrol import AclSettings, AclTurntable
+from drivers.aerosmith import AerosmithTable
+from drivers.aerosmith.settings import AerosmithSettings
 from drivers.imu_unit.description import FrameFormat
 from drivers.modbus.register_map import ModbusMap
 from drivers.protocols import InertialUnit, Turntable
 from drivers.sim.acl_server import AclTableServer
+from drivers.sim.aerosmith_server import AerosmithTableServer
 from drivers.sim.modbus_controller import ModbusTableServer
 from drivers.sim.serial_unit import Corruption, SerialUnitServer
 from drivers.sim.world import SimulatedWorld
@@ -35,7 +40,7 @@ from drivers.transport import MessageTransport, VisaTransport, open_visa
 
 log = logging.getLogger(__name__)
 
-Dialect = Literal["acutrol", "modbus"]
+Dialect = Literal["acutrol", "modbus", "aerosmith"]
 
 
 class Loopback:
@@ -44,8 +49,13 @@ class Loopback:
     Parameters
     ----------
     world : SimulatedWorld
-    dialect : {"acutrol", "modbus"}
+    dialect : {"acutrol", "modbus", "aerosmith"}
         Turntable controller protocol.
+    make_aerosmith_table : callable or None
+        ``dialect="aerosmith"``: builds the Ideal Aerosmith driver from the open byte stream (the factory's
+        settings); None: the driver with the world's limits and ``aerosmith`` settings.
+    aerosmith : AerosmithSettings or None
+        ``dialect="aerosmith"``: the open points of the table language, for both ends.
     make_acl_table : callable or None
         ``dialect="acutrol"``: builds the ACL driver from an open MessageTransport (the factory's settings).
     acl : AclSettings or None
@@ -80,6 +90,8 @@ class Loopback:
         dialect: Dialect = "modbus",
         make_acl_table: Callable[[MessageTransport], AclTurntable] | None = None,
         acl: AclSettings | None = None,
+        make_aerosmith_table: Callable[[Any], Any] | None = None,
+        aerosmith: AerosmithSettings | None = None,
         word_order: Literal["big", "little"] | None = None,
         register_map: ModbusMap | None = None,
         watchdog_s: float | None = None,
@@ -92,14 +104,14 @@ class Loopback:
         unit_raw_name: str = "",
         realtime: bool = False,
     ) -> None:
-        if dialect not in ("acutrol", "modbus"):
-            raise ValueError(f"loopback dialect must be 'acutrol' or 'modbus', got {dialect!r}")
+        if dialect not in ("acutrol", "modbus", "aerosmith"):
+            raise ValueError(f"loopback dialect must be 'acutrol', 'modbus' or 'aerosmith', got {dialect!r}")
         self.world = world
         self.dialect = dialect
         self._closers: list[Callable[[], None]] = []
         self.realtime = bool(realtime)
         clock: dict[str, Any] = {} if realtime else {"clock": world.host_time}  # real time: the host's own clock
-        self.table_server: ModbusTableServer | AclTableServer | None = None
+        self.table_server: ModbusTableServer | AclTableServer | AerosmithTableServer | None = None
         try:
             if dialect == "modbus":
                 self.table_server = ModbusTableServer(
@@ -118,6 +130,15 @@ class Loopback:
                     unit_id=unit_id,
                     timeout=timeout,
                     retries=0,
+                )
+            elif dialect == "aerosmith":
+                self.table_server = AerosmithTableServer(world, aerosmith)
+                settings = self.table_server.settings
+                table = connect.aerosmith_table(
+                    self.table_server.url,
+                    make_aerosmith_table
+                    or (lambda stream: AerosmithTable(stream, world.table_limits(), settings=settings, **clock)),
+                    timeout=timeout,
                 )
             else:
                 self.table_server = AclTableServer(world, acl)
@@ -171,9 +192,13 @@ class Loopback:
 
     def describe(self) -> str:
         """One line: which protocols on which ports."""
-        table = (
-            "Modbus TCP" if self.dialect == "modbus" else f"ACUTROL (ACL via pyvisa-py {self.table_server.resource})"
-        )
+        srv = self.table_server
+        if self.dialect == "modbus":
+            table = "Modbus TCP"
+        elif isinstance(srv, AerosmithTableServer):
+            table = f"Ideal Aerosmith (text commands via pyserial {srv.url})"
+        else:
+            table = f"ACUTROL (ACL via pyvisa-py {getattr(srv, 'resource', '?')})"
         return (
             f"loopback: {table} controller on 127.0.0.1:{self.table_server.port}, "
             f"serial unit (polled, {self.unit_server.frame.name}) on 127.0.0.1:{self.unit_server.port}"

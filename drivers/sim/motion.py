@@ -125,9 +125,17 @@ def plan_stop(t0: float, p0: float, v0: float, limits: AxisLimits) -> AxisPlan:
     return AxisPlan(t, p, v, a, mode=AxisMode.STOP, t_still=t1, t_done=t1)
 
 
-def plan_rate(t0: float, p0: float, v0: float, rate: float, limits: AxisLimits) -> AxisPlan:
-    """Ramp from rate ``v0`` to ``rate`` (rad/s) at the acceleration limit, then hold the rate."""
+def plan_rate(
+    t0: float, p0: float, v0: float, rate: float, limits: AxisLimits, realised: float | None = None
+) -> AxisPlan:
+    """Ramp from rate ``v0`` to ``rate`` (rad/s, the command) at the acceleration limit, then hold the rate.
+
+    ``realised`` (rad/s, default ``rate``) is the rate the axis really turns at: a table with a rate error ε
+    turns at (1 + ε) × its command (docs/methods/simulation.md); ``rate_cmd`` keeps the command.
+    """
     rows: list[tuple[float, float, float, float]] = []
+    cmd = rate
+    rate = cmd if realised is None else float(realised)
     dv = rate - v0
     t1, p1 = t0, p0
     if dv != 0.0:
@@ -138,7 +146,7 @@ def plan_rate(t0: float, p0: float, v0: float, rate: float, limits: AxisLimits) 
     rows.append((t1, p1, rate, 0.0))
     t, p, v, a = _segments(rows)
     still = t1 if rate == 0.0 else math.inf
-    return AxisPlan(t, p, v, a, mode=AxisMode.RATE, rate_cmd=rate, t_still=still, t_done=t1)
+    return AxisPlan(t, p, v, a, mode=AxisMode.RATE, rate_cmd=cmd, t_still=still, t_done=t1)
 
 
 def plan_position(

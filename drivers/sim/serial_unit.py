@@ -213,6 +213,8 @@ class SerialUnitServer(SingleClientServer):
         factor = self.initial_stream_factor
         rate = float(self.world.sample_rate)
         t0 = time.monotonic()
+        if factor > 0:
+            self.world.anchor_wall_clock(t0, factor)
         streamed = 0
         while not self._stop.is_set():
             r, _, _ = select.select([conn], [], [], self.chunk_s if factor > 0 else 0.05)
@@ -236,6 +238,7 @@ class SerialUnitServer(SingleClientServer):
                     elif word == "STREAM" and arg is not None and arg >= 0:
                         factor = arg
                         t0, streamed = time.monotonic(), 0
+                        self.world.anchor_wall_clock(t0, factor)
                     else:
                         log.warning("simulated unit: ignoring unknown command %r", line[:80])
             if factor > 0:

@@ -9,7 +9,8 @@ With ideal clocks (``SimConfig.clocks.mode == "ideal"``) it is also the table's 
 t_k = k / f_s, commands take effect at ``time`` and readings are taken and stamped there. With separate clocks
 (docs/methods/time-base.md, :class:`~drivers.sim.config.ClockModel`) the physics runs on true time τ: sample k is
 taken at τ_k = k / (f_s (1 + ε_u)); the host's clock (true time) advances with the unit's deliveries (batches, transport
-latency) and with every controller transaction (a reading or a command, each latched after a request latency
+latency) — or, while the unit streams free-running (:meth:`anchor_wall_clock`), with the host's real clock — and
+with every controller transaction (a reading or a command, each latched after a request latency
 and answered after an answer latency); a command takes effect at its latch time (earlier samples keep the
 previous motion: each axis keeps the plans it replaced until no sample can need them); a reading is the table
 at its latch time, stamped with the controller's clock c₀ + (1 + ε_c) τ. Faults, limit hits and the watchdog
@@ -25,7 +26,10 @@ absolute commanded angle (continuous axes report unwrapped angles), then a dampe
 once the transient envelope is inside the tolerance for ``in_position_time``. Rate commands ramp at the
 acceleration limit; AT_RATE when reached. Physical rate jitter (first-order Gauss–Markov, only on axes
 spinning in rate mode) enters the unit's gyro/lever-arm physics but not the angles (its angle effect is
-σ·τ_c, far below an arcsecond). Reported angles carry white jitter and encoder quantisation. Optional
+σ·τ_c, far below an arcsecond). Reported angles carry white jitter and encoder quantisation. A realised
+table rate error ε_j (``BudgetInputs.rate_error_bound``) makes gimbal axis j turn at (1 + ε_j) × its commanded
+rate: the true angle advances at that rate, the encoder reports it, and the reported rate is the measured
+rate of that motion (not the command); AT_RATE still refers to the controller's own loop. Optional
 gimbal-axis tilts (non-orthogonality) and inner-axis wobble change the true attitude and body rate (their
 effect on the angular acceleration, arcsec × ω̇, is neglected); the reported angles do not show them.
 Faults: STALL / AMPLIFIER / POSITION_LIMIT halt the axes at once; INTERLOCK / COMMUNICATION_LOST and the
@@ -40,6 +44,7 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Sequence
+from time import monotonic
 from typing import Protocol
 
 import numpy as np
@@ -160,6 +165,7 @@ class SimulatedWorld:
         self._host = 0.0  # host clock now (= true time), s
         self._latch_t = 0.0  # true time of the last controller transaction
         self._last_request = self._last_answer = 0.0
+        self._wall: tuple[float, float, float] | None = None  # streaming: (monotonic, true time, speed) at start
 
     def _tau(self, k: int | NDArray[np.int64]) -> float | NDArray[np.float64]:
         """True time of unit sample ``k`` (ideal clocks: k / f_s)."""
@@ -167,6 +173,15 @@ class SimulatedWorld:
 
     def _controller_clock(self, tau: float) -> float:
         return self._c0 + (1.0 + self._eps_c) * tau if self._sep else tau
+
+    def anchor_wall_clock(self, wall: float, factor: float) -> None:
+        """The unit started streaming at host monotonic time ``wall``, ``factor`` samples per nominal sample
+        period of the host's clock (1 + ε_u: real time; 0: stopped, back to polled). While it streams, true
+        time advances with the host's real clock (× factor / (1 + ε_u)), so a controller transaction is latched
+        when it is requested — not when the last burst of frames was produced."""
+        with self._lock:
+            speed = float(factor) / self.unit_clock_factor if self._sep else float(factor)
+            self._wall = (float(wall), float(self._tau(self._k)), speed) if factor > 0 else None
 
     def _jitter(self, mean: float) -> float:
         return float(self._rng_clock.exponential(mean)) if mean > 0 else 0.0
@@ -177,6 +192,8 @@ class SimulatedWorld:
             self._latch_t = self._last_request = self._last_answer = self._host = self._k / self._fs
             return self._latch_t
         ck = self.cfg.clocks
+        if self._wall is not None:  # real time: the host's clock is the real one
+            self._host = max(self._host, self._wall[1] + (monotonic() - self._wall[0]) * self._wall[2])
         self._last_request = self._host
         self._latch_t = self._host + ck.reading_latency + self._jitter(ck.reading_jitter)
         self._host = self._last_answer = self._latch_t + ck.answer_latency + self._jitter(ck.answer_jitter)
@@ -187,6 +204,8 @@ class SimulatedWorld:
         if not self._sep:
             self._host = (k_last + 1) / self._fs
             return
+        if self._wall is not None:
+            return  # real time: the frames travel a real socket and the host's clock is the real one
         ck = self.cfg.clocks
         b = int(ck.batch_frames)
         batch_end = (k_last // b + 1) * b - 1
@@ -366,7 +385,9 @@ class SimulatedWorld:
                 )
             t = max(self._command_time(), self._switch[axis])
             p0, v0 = self._plans[axis].state(t)
-            self._set_plan(axis, plan_rate(t, p0, v0, rate, lim), t)
+            # the table turns at (1 + ε_j) × the command (its realised rate error); the encoder sees that motion
+            realised = rate * (1.0 + float(self._rate_error[axis]))
+            self._set_plan(axis, plan_rate(t, p0, v0, rate, lim, realised), t)
             self._new_attitude_error()
             self._feed()
 
@@ -403,7 +424,7 @@ class SimulatedWorld:
             t = self._transaction()
             pa, va, _ = self._evaluate(np.array([t]))
             p, v = pa[0], va[0]
-            v = (v + self._jit_state * self._spin_mask()) * (1.0 + self._rate_error)
+            v = v + self._jit_state * self._spin_mask()  # the measured rate of the true (encoder) motion
             tb = self.cfg.table
             if tb.position_jitter > 0:
                 rng = np.random.default_rng([self._reading_entropy, self._k])

@@ -129,3 +129,20 @@ def test_progress_never_shows_elapsed_past_its_own_estimate():
             assert a[0] * 3600 + a[1] * 60 + a[2] <= a[3] * 3600 + a[4] * 60 + a[5], ln
         assert not re.search(r"ETA -\d", ln), ln  # never a negative ETA ("--:--:--": unknown)
     assert "past the 0:53:31 estimate" in lines[3]
+
+
+def test_the_live_views_estimates_show_no_number_for_what_the_motion_cannot_see(static_run):
+    """The run's live feed (RUN/live.jsonl, what the browser view shows): an estimate the motion does not see is
+    null and flagged, not the prior's number; one it sees (the gyro's level-axis biases) is a number."""
+    run, _ = static_run
+    events = [json.loads(ln) for ln in (run / "live.jsonl").read_text(encoding="utf-8").splitlines() if ln.strip()]
+    names = [p["name"] for p in next(e for e in events if e["event"] == "run")["data"]["parameters"]]
+    est = [e["data"] for e in events if e["event"] == "estimates"]
+    assert est, "no live estimates"
+    for d in est:
+        for name in ("S_x", "tau_xy", "r_x", "r_y", "r_z", "gyro_S_x"):
+            i = names.index(name)
+            assert d["values"][i] is None and d["u"][i] is None and d["identified"][i] is False, (name, d["step"])
+    last = est[-1]
+    i = names.index("gyro_b_x")
+    assert last["identified"][i] is True and isinstance(last["values"][i], float)

@@ -16,7 +16,17 @@ from tests.simbench import bench_variant, run_procedure, short_ten_step
 RATE = 250.0
 
 
-@pytest.mark.parametrize("frame,length", [("xsens-mti-mtdata2", 151), ("vectornav-vn100-imu", 58)])
+NEW_FORMATS = [
+    ("xsens-mti-mtdata2", 151),
+    ("vectornav-vn100-imu", 58),
+    ("epson-g370-burst", 36),
+    ("honeywell-hg4930", 44),
+    ("adis16475-usb-iss", 35),
+]
+COUNTED = {"xsens-mti-mtdata2", "adis16475-usb-iss"}  # the others send no usable frame counter
+
+
+@pytest.mark.parametrize("frame,length", NEW_FORMATS)
 def test_ten_step_over_loopback_in_each_new_format_equals_in_process(tmp_path: Path, frame, length):
     proc = tmp_path / "ten-step-short.yaml"
     proc.write_text(short_ten_step(hold_s=2, warmup_s=5, name="ten-step-short"), encoding="utf-8")
@@ -36,7 +46,7 @@ def test_ten_step_over_loopback_in_each_new_format_equals_in_process(tmp_path: P
     assert any(f"frame {frame}" in e for e in events)
     assert not any("missing" in e or "reset" in e or "rejected" in e for e in events)
     assert np.all(smp.status == 0)
-    if frame != "vectornav-vn100-imu":  # VectorNav sends no counter
+    if frame in COUNTED:
         assert np.array_equal(smp.counter, np.arange(n))
     assert len((wire / "unit-raw.bin").read_bytes()) == n * length
     a = identify_run(wire).to_dict()
@@ -50,7 +60,7 @@ def test_ten_step_over_loopback_in_each_new_format_equals_in_process(tmp_path: P
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("frame", ["xsens-mti-mtdata2", "vectornav-vn100-imu"])
+@pytest.mark.parametrize("frame", [f for f, _n in NEW_FORMATS])
 def test_whole_ten_step_fast_spin_over_loopback_equals_in_process(tmp_path: Path, frame):
     """The whole shipped ten-step-fast-spin (≈ 49 min of bench time, 250 Hz) in each new format."""
     bench = bench_variant(

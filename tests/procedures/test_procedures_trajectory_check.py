@@ -65,7 +65,8 @@ def fake_bench(monkeypatch: pytest.MonkeyPatch) -> dict:
             name="fake-sim",
             path=Path(path),
             turntable=SimpleNamespace(limits=state["limits"]),
-            unit=SimpleNamespace(mounting=np.eye(3), sample_rate=state["rate"]),
+            unit=SimpleNamespace(mounting=np.eye(3), sample_rate=state["rate"],
+                                 noise=SimpleNamespace(arw=np.full(3, 3e-6))),  # a usable gyro noise  # fmt: skip
         )
 
     monkeypatch.setattr(session, "load_bench", load_bench)

@@ -11,12 +11,14 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from analysis.identification.model import correct
 from benches.calibration_integrity import load_verified
 from benches.cli.analysis_input import InputError, read_npy, recording_path
+from benches.cli.work import Work
 from core.errors import UsageError
 from core.outputs import check_output, save_npy
 
@@ -67,8 +69,46 @@ def run(args: argparse.Namespace) -> int:
     x, skipped = cal.compensation_vector()
     model = cal.error_model
     src = recording_path(args.input)
-    gyro_out = None
-    times = None
+    if src.suffix.lower() not in (".h5", ".hdf5") and not src.exists():
+        raise InputError(f"{src}: no such file")
+
+    def compute(work: Work) -> tuple[np.ndarray, np.ndarray | None, list[str]]:
+        """Read the input and correct it (in the worker: Ctrl-C answered at once, progress with an ETA)."""
+        work.stage("reading the input")
+        f_out, omega, gyro_out, times, notes = _read_input(src, model)
+        work.advance(0.5, "correcting the samples")
+        try:
+            if gyro_out is not None:
+                f = model.correct_outputs(x, np.hstack([f_out, gyro_out]))  # type: ignore[attr-defined]
+            else:
+                f = correct(x[:18], f_out, omega)
+        except ValueError as exc:
+            raise UsageError(str(exc)) from None
+        return f, times, notes
+
+    t_path = Path(args.out).with_name(Path(args.out).stem + "_time.npy")
+    with Work("correct", 1.0) as work:  # the interrupt and progress of 'run' (benches.cli.work)
+        f, times, notes = work.run(compute, work)
+        for line in notes:
+            print(line, file=sys.stderr)
+        with work.writing():  # all or nothing: a Ctrl-C now is held until both files are complete
+            save_npy(args.out, f)
+            if times is not None:
+                save_npy(t_path, times)
+    if times is not None:
+        print(f"sample times (bench s) → {t_path}", file=sys.stderr)
+    if skipped:
+        print(f"not applied (not identified): {', '.join(skipped)}", file=sys.stderr)
+    print(f"corrected {f.shape[0]} samples → {args.out}")
+    return 0
+
+
+_Arrays = tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, list[str]]
+
+
+def _read_input(src: Path, model: Any) -> _Arrays:
+    """(f_out, ω, gyro output or None, bench times or None, notes for the user) of a recording or an .npy file."""
+    notes: list[str] = []
     if src.suffix.lower() in (".h5", ".hdf5"):
         from benches.identify import IdentificationError, load_run  # lazy: filterpy, scipy (--help time)
 
@@ -77,43 +117,22 @@ def run(args: argparse.Namespace) -> int:
         except IdentificationError as exc:
             raise UsageError(str(exc)) from None
         f_out = np.concatenate([w.f_out for w in rr.windows])
-        if model.n_axes == 6:
-            gyro_out = np.concatenate([w.gyro for w in rr.windows])  # type: ignore[misc]
+        gyro_out = np.concatenate([w.gyro for w in rr.windows]) if model.n_axes == 6 else None  # type: ignore[misc]
         omega = np.concatenate([w.omega for w in rr.windows])
         times = np.concatenate([w.t for w in rr.windows])
-        print(
+        notes.append(
             f"{src}: returns only the samples of the {len(rr.windows)} hold/spin acquisition windows "
-            "(warm-up, moves, settling and ramps are left out, as in the identification); bench times:",
-            file=sys.stderr,
+            "(warm-up, moves, settling and ramps are left out, as in the identification); bench times:"
         )
         for w in rr.windows:
-            line = f"  {w.name:<24s} {w.kind:<5s} {w.t[0]:10.3f} – {w.t[-1]:10.3f} s  ({len(w.t)} samples)"
-            print(line, file=sys.stderr)
-    else:
-        if not src.exists():
-            raise InputError(f"{src}: no such file")
-        data = read_npy(src)  # the one loader: shape checked against the file size before allocating
-        if data.ndim != 2 or data.shape[1] not in (3, 6):
-            raise InputError(f"{src}: expected a numeric (n, 3) or (n, 6) array in SI units, got {data.shape}")
-        if not np.all(np.isfinite(data)):
-            raise InputError(f"{src}: contains NaN/inf; remove them first")
-        f_out = data[:, :3].astype(float)
-        omega = data[:, 3:6].astype(float) if data.shape[1] == 6 else np.zeros_like(f_out)
-        if data.shape[1] == 6 and model.n_axes == 6:
-            gyro_out = omega
-    try:
-        if gyro_out is not None:
-            f = model.correct_outputs(x, np.hstack([f_out, gyro_out]))  # type: ignore[attr-defined]
-        else:
-            f = correct(x[:18], f_out, omega)
-    except ValueError as exc:
-        raise UsageError(str(exc)) from None
-    save_npy(args.out, f)
-    if times is not None:
-        t_path = Path(args.out).with_name(Path(args.out).stem + "_time.npy")
-        save_npy(t_path, times)
-        print(f"sample times (bench s) → {t_path}", file=sys.stderr)
-    if skipped:
-        print(f"not applied (not identified): {', '.join(skipped)}", file=sys.stderr)
-    print(f"corrected {f.shape[0]} samples → {args.out}")
-    return 0
+            notes.append(f"  {w.name:<24s} {w.kind:<5s} {w.t[0]:10.3f} – {w.t[-1]:10.3f} s  ({len(w.t)} samples)")
+        return f_out, omega, gyro_out, times, notes
+    data = read_npy(src)  # the one loader: shape checked against the file size before allocating
+    if data.ndim != 2 or data.shape[1] not in (3, 6):
+        raise InputError(f"{src}: expected a numeric (n, 3) or (n, 6) array in SI units, got {data.shape}")
+    if not np.all(np.isfinite(data)):
+        raise InputError(f"{src}: contains NaN/inf; remove them first")
+    f_out = data[:, :3].astype(float)
+    omega = data[:, 3:6].astype(float) if data.shape[1] == 6 else np.zeros_like(f_out)
+    gyro_out = omega if data.shape[1] == 6 and model.n_axes == 6 else None
+    return f_out, omega, gyro_out, None, notes

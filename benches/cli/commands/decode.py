@@ -197,6 +197,8 @@ def run(args: argparse.Namespace) -> int:
     )
     if stats.bit_frames or any(r == "bit" for r, _f in fmt.alternates):
         print(f"built-in-test frames {stats.bit_frames} (recognised; not samples, not garbage)")
+    if stats.other_frames or any(r == "other" for r, _f in fmt.alternates):
+        print(f"other messages {stats.other_frames} (checked and skipped; not samples, not garbage)")
     if n == 0:
         raise UsageError(
             f"{path}: no valid {fmt.name} frame in {size} bytes; check --frame, the baud rate and the unit's output "
@@ -223,6 +225,7 @@ def run(args: argparse.Namespace) -> int:
                     "resets": samples.resets,
                     "duplicates": samples.duplicates,
                     "bit_frames": stats.bit_frames,
+                    "other_frames": stats.other_frames,
                 }
                 write_decoded_samples(out, names, table, summary)
             else:

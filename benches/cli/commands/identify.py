@@ -5,15 +5,17 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # pragma: no cover
     pass
 
 from benches.cli.arguments import add_registry_arguments, sink_options
+from benches.cli.work import Work, figure_png
 from benches.results import CalibrationDocument, sinks_for_run
 from benches.session import combined_covariance_or_none
 from core.errors import UsageError
+from core.jsonio import write_text_atomic
 from core.outputs import check_output
 
 EXAMPLES = """examples:
@@ -67,23 +69,36 @@ def run(args: argparse.Namespace) -> int:
     target = check_output(args.out or folder / "calibration.json")  # before the work: never over an input
     if not target.name.lower().endswith(".json"):
         raise UsageError(f"--out {args.out}: give a .json file name (the calibration is JSON)")
-    try:
-        result = identify_run(
-            args.run, method=args.method, noise=args.noise, time_base=args.time_base,
-            with_gyro=False if args.accelerometer_only else None,
-        )  # fmt: skip
-    except IdentificationError as exc:
-        raise UsageError(str(exc)) from None
-    out = sinks_for_run(folder, sink_options(args)).calibration(
-        CalibrationDocument(run=folder, result=result, path=target if args.out else None)
-    ).path
-    print(result.summary(combined_covariance_or_none(result, Path(args.run))))
-    tb = result.time_base.estimate if result.time_base is not None else None
-    if tb is not None and tb.events:
-        from analysis.timebase.plot import plot_timing_residuals  # lazy: matplotlib (--help time)
+    def compute(work: Work) -> tuple[Any, Any, bytes | None]:
+        """Identify, then the certificate's budget for the NEES (in the worker: Ctrl-C answered at once)."""
+        work.stage("reading the recording and identifying the model")
+        try:
+            result = identify_run(
+                args.run, method=args.method, noise=args.noise, time_base=args.time_base,
+                with_gyro=False if args.accelerometer_only else None,
+            )  # fmt: skip
+        except IdentificationError as exc:
+            raise UsageError(str(exc)) from None
+        work.advance(0.8, "the certificate's uncertainty budget (NEES against a simulator's truth)")
+        cov = combined_covariance_or_none(result, Path(args.run))
+        tb = result.time_base.estimate if result.time_base is not None else None
+        png = None
+        if tb is not None and tb.events:
+            from analysis.timebase.plot import plot_timing_residuals  # lazy: matplotlib (--help time)
 
-        png = out.parent / "time-base.png"
-        plot_timing_residuals(tb).savefig(png, dpi=110)
-        print(f"timing residual around the motions: {png}", file=sys.stderr)
+            png = figure_png(plot_timing_residuals(tb), 110)
+        return result, cov, png
+
+    with Work("identify", 1.0) as work:  # the interrupt and progress of 'run' (benches.cli.work)
+        result, cov, png = work.run(compute, work)
+        with work.writing():  # all or nothing: a Ctrl-C now is held until the files are complete
+            out = sinks_for_run(folder, sink_options(args)).calibration(
+                CalibrationDocument(run=folder, result=result, path=target if args.out else None)
+            ).path
+            if png is not None:
+                write_text_atomic(out.parent / "time-base.png", png)
+    print(result.summary(cov))
+    if png is not None:
+        print(f"timing residual around the motions: {out.parent / 'time-base.png'}", file=sys.stderr)
     print(f"calibration: {out}", file=sys.stderr)
     return 0

@@ -91,8 +91,12 @@ function redraw() {
   if (plots.conv && S.history.t.length) {
     const k = S.selected;
     const v = S.history.values.map((r) => r[k]), u = S.history.u.map((r) => r[k]);
-    plots.conv.setData([S.history.t, v, v.map((a, i) => a - u[i]), v.map((a, i) => a + u[i])]);
-    plots.conv.setScale("y", { min: Math.min(...v.map((a, i) => a - u[i])), max: Math.max(...v.map((a, i) => a + u[i])) });
+    // null: not identified yet at that update (a gap, never a number)
+    const lo = v.map((a, i) => (a === null || u[i] === null ? null : a - u[i]));
+    const hi = v.map((a, i) => (a === null || u[i] === null ? null : a + u[i]));
+    plots.conv.setData([S.history.t, v, lo, hi]);
+    const los = lo.filter((a) => a !== null), his = hi.filter((a) => a !== null);
+    if (los.length) plots.conv.setScale("y", { min: Math.min(...los), max: Math.max(...his) });
   }
 }
 setInterval(redraw, 400);
@@ -208,7 +212,8 @@ function onEstimates(d) {
   S.history.u.push(d.u);
   const rows = document.querySelectorAll("#estimates tbody tr");
   rows.forEach((tr, i) => {
-    const [v, u] = fmtPair(d.values[i], d.u[i]);
+    const unseen = d.identified && d.identified[i] === false;  // the motion so far does not see it: no number
+    const [v, u] = unseen ? ["not identified yet", "—"] : fmtPair(d.values[i], d.u[i]);
     tr.children[1].textContent = v;
     tr.children[2].textContent = u;
   });

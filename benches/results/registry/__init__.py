@@ -11,7 +11,20 @@ See ``docs/registry.md``.
 
 from __future__ import annotations
 
-from .sink import RegistrySink, add_run, sink_factory
+import importlib
+from typing import Any
+
 from .store import ENV, AddOutcome, Registry, RegistryError, resolve_url
+
+_LAZY = {"RegistrySink": "sink", "add_run": "sink", "sink_factory": "sink"}
+"""Names imported on first use: the sink reads recordings (h5py, the identification), which the reading
+commands (``registry list/show/trend``) never need — a technician's wait is mostly imports."""
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = ["ENV", "AddOutcome", "Registry", "RegistryError", "RegistrySink", "add_run", "resolve_url", "sink_factory"]

@@ -12,14 +12,11 @@ import json
 from collections.abc import Callable
 from pathlib import Path
 
-from analysis.identification.model import PARAM_NAMES
 from core.errors import OutputError
 from core.jsonio import write_text_atomic
 
 from . import queries
-from .record import RunRecordError, bench_settings
 from .report import compare_table, due_report, export_text, history_table, plot_trend
-from .sink import add_run
 from .store import Registry, RegistryError, resolve_url
 
 
@@ -47,6 +44,9 @@ def _history(reg: Registry, serial: str) -> list[queries.CalibrationRow]:
 
 
 def do_add(args: argparse.Namespace) -> str:
+    from .record import RunRecordError  # lazy: h5py, scipy (--help time)
+    from .sink import add_run  # lazy: h5py, scipy (--help time)
+
     reg = open_from_args(args)
     lines = []
     for run in args.run:
@@ -76,11 +76,12 @@ def do_show(args: argparse.Namespace) -> str:
 
 
 def do_trend(args: argparse.Namespace) -> str:
-    if args.param not in PARAM_NAMES:
-        raise RegistryError(f"--param {args.param}: not a parameter; one of {' '.join(PARAM_NAMES)}")
     if not str(args.out).lower().endswith(".png"):
         raise OutputError(f"--out {args.out}: give a .png file name")
     rows = _history(open_from_args(args), args.serial)
+    if args.param not in rows[0].names:
+        raise RegistryError(f"--param {args.param}: not a parameter of {args.serial}'s calibrations; one of "
+                            f"{' '.join(rows[0].names)}")  # fmt: skip
     try:
         path = plot_trend(rows, args.param, Path(args.out))
     except OSError as exc:
@@ -108,6 +109,8 @@ def do_due(args: argparse.Namespace) -> str:
         for r in rows:
             by_cfg.setdefault(r.configuration, []).append(r)
         for cfg, hist in sorted(by_cfg.items()):
+            from .record import bench_settings  # lazy: h5py (--help time)
+
             s = bench_settings(hist[-1].run_folder)[1]
             d = due_report(hist, s, now)
             m2 = "—" if d["method2_control_chart_days"] is None else f"{d['method2_control_chart_days']:.0f} d"

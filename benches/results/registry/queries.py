@@ -27,9 +27,15 @@ class CalibrationRow:
 
     Attributes
     ----------
-    values, u, expanded : (18,) arrays
+    names, kinds : tuple of str
+        The parameters of the rows read together (a unit's history): the accelerometer triad's 18 first
+        (:data:`analysis.identification.model.PARAM_NAMES`), then every further parameter any of the rows has
+        (the gyro triad's of a whole-unit calibration) in its model's order; ``kinds`` their quantity kinds
+        (:data:`analysis.units.DISPLAY_UNITS` keys).
+    values, u, expanded : arrays over ``names``
         Estimates, standard uncertainties u and expanded uncertainties U (k = 2; the certificate's when the run
-        was certified, else 2u of the identification) in ``PARAM_NAMES`` order.
+        was certified, else 2u of the identification); NaN for a parameter this calibration's model lacks
+        (its ``identified`` entry is then False).
     """
 
     id: int
@@ -59,6 +65,13 @@ class CalibrationRow:
     as_found_of: int | None
     as_found: str | None
     as_left: str | None
+    names: tuple[str, ...] = tuple(PARAM_NAMES)
+    kinds: tuple[str, ...] = ()
+
+    def block(self, names: tuple[str, ...] | list[str]) -> list[int]:
+        """Indices of ``names`` in this row's arrays (KeyError-free: every row has the accelerometer's)."""
+        pos = {n: i for i, n in enumerate(self.names)}
+        return [pos[n] for n in names]
 
 
 def units(reg: Registry) -> list[dict[str, Any]]:
@@ -99,14 +112,38 @@ def _params(conn: Any, ids: list[int]) -> dict[int, dict[str, Any]]:
     return out
 
 
+def _names(rows: list[Any], params: dict[int, dict[str, Any]]) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The parameters of rows read together, and their kinds: the accelerometer's 18 first, then the rest in
+    the order the calibrations name them (their ``parameter_names``)."""
+    names = list(PARAM_NAMES)
+    seen = set(names)
+    for r in rows:
+        try:
+            order = [str(n) for n in json.loads(r.parameter_names)]
+        except (TypeError, ValueError):
+            order = []
+        for n in order + sorted(params[r.id]):
+            if n not in seen:
+                seen.add(n)
+                names.append(n)
+    kinds: dict[str, str] = {}
+    for r in rows:
+        for n, p in params[r.id].items():
+            kinds.setdefault(n, p.kind)
+    return tuple(names), tuple(kinds.get(n, "") for n in names)
+
+
 def _to_rows(conn: Any, rows: list[Any]) -> list[CalibrationRow]:
     params = _params(conn, [r.id for r in rows])
+    names, kinds = _names(rows, params)
+    nan = float("nan")
     out = []
     for r in rows:
         ps = params[r.id]
         missing = [n for n in PARAM_NAMES if n not in ps]
         if missing:
             raise RegistryError(f"registry: calibration {r.digest[:12]} lacks parameters {missing}; add the run again")
+        got = [ps.get(n) for n in names]
         out.append(
             CalibrationRow(
                 id=r.id,
@@ -126,16 +163,18 @@ def _to_rows(conn: Any, rows: list[Any]) -> list[CalibrationRow]:
                 decision=r.decision,
                 certificate_number=r.certificate_number,
                 supersedes=r.supersedes,
-                values=np.array([ps[n].value for n in PARAM_NAMES], dtype=float),
-                u=np.array([ps[n].u for n in PARAM_NAMES], dtype=float),
-                expanded=np.array([ps[n].expanded for n in PARAM_NAMES], dtype=float),
-                identified=np.array([bool(ps[n].identified) for n in PARAM_NAMES]),
+                values=np.array([nan if p is None else p.value for p in got], dtype=float),
+                u=np.array([nan if p is None else p.u for p in got], dtype=float),
+                expanded=np.array([nan if p is None else p.expanded for p in got], dtype=float),
+                identified=np.array([p is not None and bool(p.identified) for p in got]),
                 covariance=r.covariance,
                 certificate_covariance=r.certificate_covariance,
-                budgets=tuple(ps[n].budget for n in PARAM_NAMES),
+                budgets=tuple(None if p is None else p.budget for p in got),
                 as_found_of=r.as_found_of,
                 as_found=r.as_found,
                 as_left=r.as_left,
+                names=names,
+                kinds=kinds,
             )  # fmt: skip
         )
     return out
@@ -155,8 +194,6 @@ def every_calibration(reg: Registry) -> list[CalibrationRow]:
 
 def series(reg: Registry, serial: str, param: str) -> list[dict[str, Any]]:
     """One parameter of one unit over time: run time, value, u, U, identified, bench, certificate (oldest first)."""
-    if param not in PARAM_NAMES:
-        raise RegistryError(f"--param {param}: not a parameter; one of {' '.join(PARAM_NAMES)}")
     c, u, p, b = S.calibrations.c, S.units.c, S.parameters.c, S.benches.c
     q = (
         select(
@@ -171,7 +208,7 @@ def series(reg: Registry, serial: str, param: str) -> list[dict[str, Any]]:
         .order_by(c.run_utc, c.id)
     )
     with reg.connect() as conn:
-        return [
+        found = [
             {
                 "run_utc": r[0],
                 "value": r[1],
@@ -185,6 +222,11 @@ def series(reg: Registry, serial: str, param: str) -> list[dict[str, Any]]:
             }  # fmt: skip
             for r in conn.execute(q)
         ]
+    if not found:
+        raise RegistryError(
+            f"--param {param}: not a parameter of any calibration of {serial} (see: tablebench registry show {serial})"
+        )
+    return found
 
 
 def by_run(reg: Registry, run: str) -> CalibrationRow:

@@ -143,12 +143,13 @@ def run_record(
             "in the bench file — a registry keeps a unit's history by its serial number"
         )
     run_utc = _run_time(raw, run) or recorded_utc
-    # the registry keeps the accelerometer triad's 18 parameters (its schema and as found / as left are the
-    # accelerometer model's); a whole-unit calibration contributes that block of its values and covariance
-    idx = [list(result.parameters).index(n) for n in PARAM_NAMES]
+    # every parameter of the calibration's model (the accelerometer triad's 18, and the gyro triad's when the
+    # run calibrated the whole unit), in the model's order; as found / as left use the accelerometer block
+    names = list(result.parameters)
+    idx = [names.index(n) for n in PARAM_NAMES]
     params = []
     cert_params = (cert_last or {}).get("parameters", {})
-    for n in PARAM_NAMES:
+    for n in names:
         p = result.parameters[n]
         cp = cert_params.get(n) or {}
         expanded = cp.get("expanded_uncertainty")
@@ -188,8 +189,8 @@ def run_record(
         "status": str(info.get("status", "")),
         "operator": operator if operator else default_operator(),
         "software_version": str(raw.get("software_version", "")),
-        "parameter_names": canonical(list(PARAM_NAMES)),
-        "covariance": canonical(np.asarray(result.covariance)[np.ix_(idx, idx)].tolist()),
+        "parameter_names": canonical(names),
+        "covariance": canonical(np.asarray(result.covariance).tolist()),
     }
     return {
         "unit": {
@@ -206,7 +207,8 @@ def run_record(
         "parameters": params,
         "certificates": certificates,
         "certificate_covariance": cert_cov,
-        "x": np.asarray(result.x)[idx],
+        "x": np.asarray(result.x)[idx],  # the accelerometer block (as found / as left)
+        "x_identified": [bool(result.parameters[n].identified) for n in PARAM_NAMES],
     }
 
 

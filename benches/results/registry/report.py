@@ -19,7 +19,6 @@ from typing import Any
 
 import numpy as np
 
-from analysis.identification.model import PARAM_KINDS, PARAM_NAMES
 from analysis.units import DISPLAY_UNITS
 from core.jsonio import dumps
 
@@ -37,16 +36,26 @@ from .stats import (
 
 EXPORT_FORMAT = "tablebench-registry-export"
 EXPORT_VERSION = 1
-MODEL_TEXT = "f_out = f + (S + T) f + b + D (f∘f) + diag(r) c(ω) + v"
+MODEL_TEXT = (
+    "accelerometer: f_out = f + (S + T) f + b + D (f∘f) + diag(r) c(ω) + v; gyro (whole-unit calibrations): "
+    "ω_out = (I + S_g + T_g) ω_ib + b_g + G f + S2 (ω_ib∘ω_ib) + A |ω_ib| + v_g"
+)
 EQUATION = (
     "f = (I + S + T)⁻¹ (f_out − b − D (f∘f) − diag(r) c(ω)), c(ω) = [ω_y²+ω_z², ω_z²+ω_x², ω_x²+ω_y²], solved "
-    "iteratively (tablebench correct); x_si in parameter_names order, S = diag(S_x, S_y, S_z), T the "
-    "misalignments τ_ij at row i, column j, D = diag(d); entries with use = false are set to 0"
+    "iteratively (tablebench correct); gyro: ω_ib = (I + S_g + T_g)⁻¹ (ω_out − b_g − G f) when S2 = A = 0, "
+    "else Newton's iteration on (I + S_g + T_g) ω + S2∘ω² + A∘|ω| = ω_out − b_g − G f; x_si in "
+    "parameter_names order, S = diag(S_x, S_y, S_z), T the misalignments τ_ij at row i, column j, D = diag(d) "
+    "(the gyro's likewise with the gyro_ names); entries with use = false are set to 0"
+)
+UNITS_TEXT = (
+    "SI: b m/s², S 1, τ rad, d s²/m, r m; gyro_b rad/s, gyro_S 1, gyro_tau rad, gyro_G rad/s per m/s², "
+    "gyro_S2 s/rad, gyro_A 1; u standard, U = 2u expanded (k = 2); null where a calibration lacks a parameter"
 )
 
 
-def _disp(name: str) -> tuple[str, float]:
-    return DISPLAY_UNITS[PARAM_KINDS[PARAM_NAMES.index(name)]]
+def _disp(kind: str) -> tuple[str, float]:
+    """Display unit and its size in SI of a quantity kind (SI itself for a kind without a display unit)."""
+    return DISPLAY_UNITS.get(kind, ("SI", 1.0))
 
 
 def _rms_text(as_json: str | None) -> str:
@@ -72,9 +81,9 @@ def history_table(rows: Sequence[CalibrationRow]) -> str:
             f"{_rms_text(r.as_found):22s} {_rms_text(r.as_left)}"
         )
     out += ["", "parameter values (display units), last calibration ± U (k = 2), and the unit's precision:"]
-    out.append(f"{'param':7s} {'unit':7s} {'last':>12s} {'U':>10s} {'s_r':>10s} {'s_R':>10s}  n  benches")
-    for i, n in enumerate(PARAM_NAMES):
-        unit, one = _disp(n)
+    out.append(f"{'param':11s} {'unit':8s} {'last':>12s} {'U':>10s} {'s_r':>10s} {'s_R':>10s}  n  benches")
+    for i, n in enumerate(r0.names):
+        unit, one = _disp(r0.kinds[i])
         groups: dict[str, list[float]] = {}
         for r in rows:
             if r.identified[i]:
@@ -83,10 +92,11 @@ def history_table(rows: Sequence[CalibrationRow]) -> str:
         last = rows[-1]
         sr = "—" if pr.s_r is None else f"{pr.s_r / one:.4g}"
         sR = "—" if pr.s_R is None else f"{pr.s_R / one:.4g}"  # noqa: N806 - ISO 5725 symbol
-        out.append(
-            f"{n:7s} {unit:7s} {last.values[i] / one:12.4f} {last.expanded[i] / one:10.4f} {sr:>10s} {sR:>10s} "
-            f"{pr.calibrations:2d}  {pr.benches}"
-        )
+        if math.isnan(last.values[i]):  # the last calibration's model lacks it (an accelerometer-only run)
+            val, big_u = f"{'—':>12s}", f"{'—':>10s}"
+        else:
+            val, big_u = f"{last.values[i] / one:12.4f}", f"{last.expanded[i] / one:10.4f}"
+        out.append(f"{n:11s} {unit:8s} {val} {big_u} {sr:>10s} {sR:>10s} {pr.calibrations:2d}  {pr.benches}")
     out.append(
         "s_r: repeatability on one bench (pooled), s_R: reproducibility across benches (ISO 5725-2); — : not "
         "enough calibrations (s_r needs 2 on one bench, s_R 2 benches)"
@@ -95,11 +105,14 @@ def history_table(rows: Sequence[CalibrationRow]) -> str:
 
 
 def en_between(a: CalibrationRow, b: CalibrationRow) -> dict[str, float | None]:
-    """E_n per parameter between two calibrations (None where either did not identify it)."""
+    """E_n per parameter between two calibrations (None where either did not identify it); the parameters of
+    ``a`` that ``b`` has too."""
+    b_at = {n: k for k, n in enumerate(b.names)}
     return {
-        n: (normalised_error(a.values[i], a.expanded[i], b.values[i], b.expanded[i])
-            if a.identified[i] and b.identified[i] else None)  # fmt: skip
-        for i, n in enumerate(PARAM_NAMES)
+        n: (normalised_error(a.values[i], a.expanded[i], b.values[b_at[n]], b.expanded[b_at[n]])
+            if a.identified[i] and b.identified[b_at[n]] else None)  # fmt: skip
+        for i, n in enumerate(a.names)
+        if n in b_at
     }
 
 
@@ -109,18 +122,22 @@ def compare_table(a: CalibrationRow, b: CalibrationRow) -> str:
     out = [
         f"A: {a.run_folder} ({a.serial}, {a.run_utc[:19]}, {a.certificate_number or 'not certified'})",
         f"B: {b.run_folder} ({b.serial}, {b.run_utc[:19]}, {b.certificate_number or 'not certified'})",
-        f"{'param':7s} {'unit':7s} {'A':>12s} {'U_A':>9s} {'B':>12s} {'U_B':>9s} {'B − A':>11s} {'E_n':>7s}",
+        f"{'param':11s} {'unit':8s} {'A':>12s} {'U_A':>9s} {'B':>12s} {'U_B':>9s} {'B − A':>11s} {'E_n':>7s}",
     ]
     worst = 0.0
-    for i, n in enumerate(PARAM_NAMES):
-        unit, one = _disp(n)
+    b_at = {n: k for k, n in enumerate(b.names)}
+    for i, n in enumerate(a.names):
+        if n not in en:
+            continue
+        j = b_at[n]
+        unit, one = _disp(a.kinds[i])
         e = en[n]
         e_txt = "—" if e is None else f"{e:7.2f}"
         flag = "" if e is None or e <= 1 else "  disagree"
         worst = max(worst, e or 0.0)
         out.append(
-            f"{n:7s} {unit:7s} {a.values[i] / one:12.4f} {a.expanded[i] / one:9.4f} {b.values[i] / one:12.4f} "
-            f"{b.expanded[i] / one:9.4f} {(b.values[i] - a.values[i]) / one:11.4f} {e_txt:>7s}{flag}"
+            f"{n:11s} {unit:8s} {a.values[i] / one:12.4f} {a.expanded[i] / one:9.4f} {b.values[j] / one:12.4f} "
+            f"{b.expanded[j] / one:9.4f} {(b.values[j] - a.values[i]) / one:11.4f} {e_txt:>7s}{flag}"
         )
     verdict = "agree" if worst <= 1 else "DISAGREE"
     out.append(f"E_n = |B − A| / √(U_A² + U_B²), U at k = 2; max E_n {worst:.2f} ({verdict})")
@@ -129,18 +146,19 @@ def compare_table(a: CalibrationRow, b: CalibrationRow) -> str:
 
 def plot_trend(rows: Sequence[CalibrationRow], param: str, out: Path) -> Path:
     """values ± U over time, control limits from the unit's history, E_n between consecutive calibrations."""
-    import matplotlib  # lazy: matplotlib (--help time)
+    # the object API without pyplot (less start-up for a one-figure command)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # lazy: matplotlib (--help time)
+    from matplotlib.figure import Figure  # lazy: matplotlib (--help time)
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # lazy: matplotlib (--help time)
-
-    i = PARAM_NAMES.index(param)
-    unit, one = _disp(param)
+    i = rows[0].names.index(param)
+    unit, one = _disp(rows[0].kinds[i])
     t = [parse_time(r.run_utc) for r in rows]
     v = np.array([r.values[i] for r in rows]) / one
     u = np.array([r.expanded[i] for r in rows]) / one
     ok = np.array([bool(r.identified[i]) for r in rows])
-    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    fig = Figure(figsize=(8, 6))
+    FigureCanvasAgg(fig)
+    ax, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
     ax.errorbar([t[k] for k in np.flatnonzero(ok)], v[ok], yerr=u[ok], fmt="o", capsize=3, label="value ± U (k = 2)")
     if np.any(~ok):
         ax.plot([t[k] for k in np.flatnonzero(~ok)], v[~ok], "x", color="grey", label="not identified")
@@ -166,7 +184,6 @@ def plot_trend(rows: Sequence[CalibrationRow], param: str, out: Path) -> Path:
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)
-    plt.close(fig)
     return out
 
 
@@ -183,7 +200,7 @@ def due_report(rows: Sequence[CalibrationRow], s: IntervalSettings, now: _dt.dat
     t0 = parse_time(rows[0].run_utc)
     days = [(parse_time(r.run_utc) - t0).total_seconds() / 86400.0 for r in rows]
     drifts = []
-    for i, n in enumerate(PARAM_NAMES):
+    for i, n in enumerate(last.names):
         if not last.identified[i]:
             continue
         sel = [k for k, r in enumerate(rows) if r.identified[i]]
@@ -233,7 +250,7 @@ def export_document(rows: Sequence[CalibrationRow]) -> dict[str, Any]:
                 "parameters": {
                     n: {"value": float(r.values[i]), "u": float(r.u[i]), "U": float(r.expanded[i]),
                         "identified": bool(r.identified[i]), "budget_u": loads(r.budgets[i])}  # fmt: skip
-                    for i, n in enumerate(PARAM_NAMES)
+                    for i, n in enumerate(r.names)
                 },
                 "covariance": loads(r.covariance),
                 "certificate_covariance": loads(r.certificate_covariance),
@@ -249,8 +266,9 @@ def export_document(rows: Sequence[CalibrationRow]) -> dict[str, Any]:
         "unit": {"serial": r0.serial, "model": r0.model},
         "model": MODEL_TEXT,
         "equation": EQUATION,
-        "parameter_names": list(PARAM_NAMES),
-        "units": "SI: b m/s², S 1, τ rad, d s²/m, r m; u standard, U = 2u expanded (k = 2)",
+        "parameter_names": list(r0.names),
+        "parameter_kinds": list(r0.kinds),
+        "units": UNITS_TEXT,
         "calibrations": cals,
     }
 
@@ -265,10 +283,10 @@ def export_text(rows: Sequence[CalibrationRow], fmt: str) -> str:
                 "kind", "value_si", "u_si", "U_si", "identified", "En_vs_previous"])  # fmt: skip
     for k, r in enumerate(rows):
         en = en_between(rows[k - 1], r) if k > 0 else {}
-        for i, n in enumerate(PARAM_NAMES):
+        for i, n in enumerate(r.names):
             e = en.get(n)
             w.writerow([r.serial, r.model, r.configuration, r.run_utc, r.bench, r.certificate_number or "",
-                        r.decision or "", n, PARAM_KINDS[i], repr(float(r.values[i])), repr(float(r.u[i])),
+                        r.decision or "", n, r.kinds[i], repr(float(r.values[i])), repr(float(r.u[i])),
                         repr(float(r.expanded[i])), str(bool(r.identified[i])).lower(),
                         "" if e is None else repr(float(e))])  # fmt: skip
     return buf.getvalue()

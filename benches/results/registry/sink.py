@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis.identification.model import PARAM_NAMES
 from benches.results.sink import AnalysisDocument, CalibrationDocument, CertificateDocument
 from core.errors import UserError
 
@@ -39,9 +40,11 @@ def add_run(
     rec = run_record(run, operator=operator, configuration=configuration, recorded_utc=_utc_now())
     cal = rec["calibration"]
     prev = previous_of(reg, rec["unit"], cal["run_utc"], cal["digest"])
-    ident = [p["identified"] for p in rec["parameters"]]
-    x_found = _compensation(prev.values, prev.identified) if prev is not None else None
-    res = as_found_as_left(run, _compensation(rec["x"], ident), x_found, cal["recording_sha256"])
+    x_found = None
+    if prev is not None:  # the previous calibration's accelerometer block, by name
+        acc = prev.block(PARAM_NAMES)
+        x_found = _compensation(prev.values[acc], prev.identified[acc])
+    res = as_found_as_left(run, _compensation(rec["x"], rec["x_identified"]), x_found, cal["recording_sha256"])
     if res is not None:
         found, left = res
         cal["as_left"] = canonical(left)

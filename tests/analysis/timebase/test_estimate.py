@@ -153,11 +153,30 @@ def test_misfit_cause_names_host_stamped_readings():
     tb = TimeBase(events=between, misfit=50.0, check={"reading_latency_spread_s": 1.5e-3})
     line = misfit_cause(tb, host_stamped=True, carried=1e-5)
     assert line is not None and "between motions" in line and "stamped by the host" in line
-    assert "time_variable" in line
-    # consistent events (Birge ratio ≤ 3) whose in-motion misfit the budget carries: nothing to say
+    assert "time_variable" in line and "\n" not in line
+    # consistent events (Birge ratio ≤ 3) whose in-motion jitter the budget carries: nothing to say
     assert misfit_cause(TimeBase(events=between, misfit=1.0), host_stamped=True, carried=1e-3) is None
     # readings jittering within each motion by 1 ms, beyond the 10 µs the budget carries; the unit's link bursts
-    within = [TimingEvent(float(i), 0.0, 1e-5, 2, 10, 1e-3, 0.0) for i in range(4)]
+    within = [TimingEvent(float(i), 0.0, 1e-5, 2, 10, 1e-3, 0.0, 1e-3) for i in range(4)]
     tb = TimeBase(events=within, misfit=1.0, check={"link_latency_spread_s": 2e-3})
     line = misfit_cause(tb, host_stamped=False, carried=1e-5)
-    assert line is not None and "within motions" in line and "bursts" in line
+    assert line is not None and "within the motions" in line and "bursts" in line
+    # neither link explains it: the time stamps are not latched with the angles
+    line = misfit_cause(TimeBase(events=within, misfit=1.0), host_stamped=False, carried=1e-5)
+    assert line is not None and "not latched with their angles" in line
+    # the scatter in the residuals alone (jitter 0: not above the noise at rest) is never flagged
+    noisy = [TimingEvent(float(i), 0.0, 1e-5, 2, 10, 1e-3, 0.0, 0.0) for i in range(4)]
+    assert misfit_cause(TimeBase(events=noisy, misfit=1.0), host_stamped=True, carried=1e-5) is None
+
+
+def test_excess_jitter_separates_timing_jitter_from_noise():
+    from analysis.timebase.estimate import excess_jitter
+
+    rng = np.random.default_rng(11)
+    moving = np.r_[np.zeros(300, bool), np.ones(300, bool)]
+    speed = 0.5  # rad/s
+    noise = rng.normal(0, 1e-6, 600)  # the encoder's noise, rad, the same at rest and moving
+    assert excess_jitter(noise, moving, speed) == 0.0
+    jit = 2e-4  # s
+    r = noise + moving * rng.normal(0, jit, 600) * speed
+    assert excess_jitter(r, moving, speed) == pytest.approx(jit, rel=0.15)

@@ -199,3 +199,34 @@ def test_the_commands_and_their_bad_input(factory, tmp_path):
         assert p.returncode == 2, (args, p.stdout, p.stderr)
         lines = p.stderr.strip().splitlines()
         assert len(lines) == 1 and "Traceback" not in p.stderr, (args, p.stderr)
+
+
+def test_a_history_mixing_accelerometer_only_and_whole_unit_calibrations(factory, registry_url):
+    """An older accelerometer-only calibration and a whole-unit one (gyro parameters too) in one history: the
+    history has every parameter of either; the older one has none of the gyro's (NaN, not identified), compare
+    and E_n skip them, the export says null — on both engines."""
+    from benches.results.registry.record import canonical, run_record
+    from benches.results.registry.report import compare_table, en_between
+
+    r1, r2, _ = _three_runs(factory, f"mix-{registry_url[:6]}")
+    reg = Registry(registry_url)
+    add_run(reg, r1)
+    rec = run_record(r2)
+    gyro = [("gyro_b_x", "gyro_bias", 2.4e-6, 1.0e-7), ("gyro_S_y", "gyro_scale", 35e-6, 2e-6)]
+    rec["parameters"] += [{"name": n, "kind": k, "value": v, "u": u, "expanded": 2 * u, "identified": True,
+                           "budget": None} for n, k, v, u in gyro]  # fmt: skip
+    names = [p["name"] for p in rec["parameters"]]
+    rec["calibration"]["parameter_names"] = canonical(names)
+    reg.add(rec)
+    old, new = history(reg, "SIM-U-0001")
+    assert list(old.names) == list(new.names) == names
+    i = names.index("gyro_S_y")
+    assert np.isnan(old.values[i]) and not old.identified[i]
+    assert new.values[i] == 35e-6 and new.identified[i] and new.kinds[i] == "gyro_scale"
+    en = en_between(old, new)
+    assert en["gyro_S_y"] is None and en["b_x"] is not None
+    assert "gyro_S_y" in compare_table(old, new)
+    doc = json.loads(export_text([old, new], "json"))
+    assert doc["calibrations"][0]["parameters"]["gyro_S_y"]["value"] is None
+    assert doc["calibrations"][1]["parameters"]["gyro_S_y"]["value"] == 35e-6
+    assert [p["value"] for p in series(reg, "SIM-U-0001", "gyro_b_x")] == [2.4e-6]

@@ -3,10 +3,12 @@ costs one line and never the certificate; `registry add` later records the same 
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
 
+from analysis.units import DISPLAY_UNITS
 from benches.results.registry import Registry
 from benches.results.registry.queries import history
 from tests.certificate_fixtures import make_run_folder
@@ -54,7 +56,8 @@ def test_an_unreachable_registry_costs_one_line_and_registry_add_records_the_run
 
 def test_a_whole_unit_run_records_into_the_registry_by_itself(tmp_path):
     """`run` on the simulated bench (accelerometer and gyro triads: 33 states) records into the registry without
-    any further command; the registry keeps the accelerometer triad's 18 parameters of it."""
+    any further command; the registry keeps every parameter of it (both triads), values as calibration.json's,
+    and its full covariance; history, trend, compare and export show the gyro parameters in display units."""
     from tests.simbench import bench_variant, short_ten_step
 
     bench = bench_variant(tmp_path, rate=100.0)
@@ -67,4 +70,28 @@ def test_a_whole_unit_run_records_into_the_registry_by_itself(tmp_path):
     assert p.returncode == 0, p.stderr[-2000:]
     assert "registry: could not" not in p.stderr, p.stderr[-2000:]
     [row] = history(Registry(url), "SIM-U-0001")
-    assert len(row.values) == 18 and row.certificate_number
+    assert row.certificate_number
+    cal = json.loads((tmp_path / "r" / "calibration.json").read_text(encoding="utf-8"))
+    names = list(cal["parameter_names"])
+    assert any(n.startswith("gyro_") for n in names)
+    assert list(row.names) == names
+    for i, n in enumerate(names):
+        assert row.values[i] == cal["parameters"][n]["value"], n
+    cov = json.loads(row.covariance)
+    assert len(cov) == len(names) and all(len(r) == len(names) for r in cov)
+    reg = ["--registry", url]
+    shown = subprocess.run([*CLI, "registry", "show", "SIM-U-0001", *reg], capture_output=True, text=True,
+                           timeout=120, env=_env(), cwd=tmp_path)  # fmt: skip
+    assert shown.returncode == 0, shown.stderr
+    gyro_b = [ln for ln in shown.stdout.splitlines() if ln.startswith("gyro_b_x")]
+    assert gyro_b and DISPLAY_UNITS["gyro_bias"][0] in gyro_b[0].split(), shown.stdout
+    out = tmp_path / "trend.png"
+    tr = subprocess.run([*CLI, "registry", "trend", "SIM-U-0001", "--param", "gyro_S_y", "--out", str(out), *reg],
+                        capture_output=True, text=True, timeout=120, env=_env(), cwd=tmp_path)  # fmt: skip
+    assert tr.returncode == 0 and out.stat().st_size > 0, tr.stderr
+    ex = tmp_path / "u.json"
+    e = subprocess.run([*CLI, "registry", "export", "SIM-U-0001", "--format", "json", "--out", str(ex), *reg],
+                       capture_output=True, text=True, timeout=120, env=_env(), cwd=tmp_path)  # fmt: skip
+    assert e.returncode == 0, e.stderr
+    doc = json.loads(ex.read_text(encoding="utf-8"))
+    assert doc["parameter_names"] == names and "gyro_S_y" in doc["calibrations"][0]["parameters"]

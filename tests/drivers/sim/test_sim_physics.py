@@ -170,3 +170,38 @@ def test_wobble_and_non_orthogonality_tilt_the_unit() -> None:
     g = SimConfig().local_g
     assert out[0][1] == pytest.approx(0.0, abs=0.2 * UG)
     assert abs(out[1][1]) == pytest.approx(g * wob, rel=1e-3)
+
+
+def test_table_turns_at_its_realised_rate_error_and_the_encoder_reports_that_motion() -> None:
+    """A table with a rate error ε turns at (1 + ε) × its command (docs/methods/simulation.md): the true (encoder)
+    angle advances at that rate, the reported rate is that measured rate, and the gyro senses it — so the
+    encoder angle over time is the gyro's scale reference (a world that scaled only the reported rate fails)."""
+    from drivers.sim.config import BudgetInputs, GyroTruth
+
+    s_y = 300e-6
+    cfg = SimConfig(
+        table=replace(TableModel(), rate_jitter=0.0, position_jitter=0.0),
+        gyro=GyroTruth(scale=(0.0, s_y, 0.0)),
+        budget_inputs=BudgetInputs(rate_error_bound=0.02),
+    )
+    w = SimulatedWorld(cfg, seed=2)
+    eps = float(w.truth_arrays()["table_rate_error"][2])
+    assert abs(eps) > 2e-3  # a large realised error on the inner axis (the test needs one)
+    table, unit = SimTurntable(w), SimInertialUnit(w)
+    cmd = 60.0 * DEG
+    table.spin(2, cmd)  # inner gimbal = body y at zero angles (identity mounting)
+    _read(unit, table, int(2 * cfg.sample_rate))  # ramp (0.6 s at 100 °/s²) done, watchdog fed
+    s0 = table.read_state()
+    n_rev = 2
+    n = int(round(n_rev * 2 * math.pi / (cmd * (1 + eps)) * cfg.sample_rate))  # whole turns at the true rate
+    data = _read(unit, table, n)
+    s1 = table.read_state()
+    slope = (s1.angles[2] - s0.angles[2]) / (s1.time - s0.time)
+    # the encoder angle advances at the realised rate, to the encoder's resolution (2π / 2²⁴ over 2 turns)
+    assert slope == pytest.approx(cmd * (1 + eps), rel=1e-7)
+    # the reported rate is the measured rate of that motion, not the command scaled after the fact
+    assert s1.rates[2] == pytest.approx(slope, rel=1e-7)
+    # the gyro senses the true motion: (1 + S_y) × the encoder rate (+ Earth rate's y part over whole turns)
+    assert data[:, 4].mean() == pytest.approx((1 + s_y) * slope + EARTH_RATE * math.cos(cfg.latitude), rel=1e-6)
+    # and the host's at-rate decision sees the table off its command by ε (what its tolerance must admit)
+    assert abs(s1.rates[2] - cmd) == pytest.approx(abs(eps) * cmd, rel=1e-6)
