@@ -27,6 +27,11 @@ EARTH_RATE: float = 7.292115e-5
 """Earth rotation rate Ω, rad/s (WGS-84)."""
 
 
+DEFAULT_LATITUDE_U: float = 4.84813681109536e-06
+"""Standard uncertainty of a site latitude, rad (1″ ≈ 30 m on the ground: a map or GNSS reading), used when the
+bench states none (the certificate's budget; the simulator realises it with ``realise_uncertainty_inputs``)."""
+
+
 def normal_gravity(latitude: float, height: float = 0.0) -> float:
     """WGS-84 normal gravity magnitude (Somigliana) with the second-order height correction.
 

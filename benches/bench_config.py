@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +31,9 @@ from analysis.units import (
     UG_PER_SQRT_HZ,
     celsius_to_kelvin,
 )
+from benches import devices
 from benches.results.recalibration import parse_configuration, parse_recalibration
+from core.declare import Section, number, text
 from core.yaml_source import (
     ConfigError,
     KeyPath,
@@ -48,9 +50,9 @@ from core.yaml_source import get_int as _int
 from core.yaml_source import get_list_of_maps as _list_of_maps
 from core.yaml_source import get_matrix as _matrix
 from core.yaml_source import get_section as _section
-from drivers.acutrol.settings import AclSettings, default_profile
+from drivers.acutrol.settings import AclSettings
 from drivers.aerosmith.settings import AerosmithSettings
-from drivers.chamber.bench_section import ChamberSection, parse_chamber
+from drivers.chamber.bench_section import ChamberSection
 from drivers.imu_unit.counts import CountScale
 from drivers.imu_unit.description import (
     DEFAULT_FRAME,
@@ -62,15 +64,13 @@ from drivers.imu_unit.description import (
     shipped_frames,
 )
 from drivers.imu_unit.serial_unit import count_format
-from drivers.modbus.register_map import ModbusMap, load_modbus_map
+from drivers.modbus.register_map import ModbusMap
 from drivers.protocols import AXIS_NAMES, AxisLimits
-from drivers.sim.acl_controller import SIM_TIME_VARIABLE
 from drivers.sim.bench_section import parse_simulation
 from drivers.sim.config import (
     ACCEL_PARAM_NAMES,
     SimConfig,
 )
-from drivers.sim.thermal_config import ChamberSim
 
 __all__ = [
     "Ambient",
@@ -207,8 +207,13 @@ class TurntableSpec:
         """The host's at-rate window, rad/s: the stated tolerance plus the table's stated rate accuracy at its
         fastest axis (a table that turns 300 ppm fast at 60 °/s is 0.018 °/s off its command, and at rate)."""
         return self.rate_tolerance + self.rate_accuracy * max(lim.rate_max for lim in self.limits)
-    sim_controller: str = "acutrol"  # simulated benches: which controller the simulator speaks
+
+    sim_controller: str = field(default_factory=lambda: devices.default_simulated_controller())
+    """Simulated benches: which controller the simulator speaks (``simulation.controller``, :mod:`benches.devices`)."""
     aerosmith: AerosmithSettings | None = None  # Ideal Aerosmith open points (driver ideal-aerosmith or simulated)
+    settings: Any = None
+    """The own settings of a controller registered outside the shipped ones
+    (:class:`benches.devices.ControllerKind`)."""
 
 
 @dataclass(frozen=True)
@@ -263,6 +268,9 @@ class BenchConfig:
     reference_standards: tuple[ReferenceStandard, ...] = ()
     chamber: ChamberSection | None = None
     """The temperature chamber (``chamber:`` section, docs/protocols/chambers.md), None without one."""
+    auxiliary: dict[str, Any] = field(default_factory=dict)
+    """The bench's auxiliary devices: section key → settings, for every registered kind it names
+    (:func:`benches.devices.register_auxiliary`; the chamber is one)."""
 
 
 @dataclass(frozen=True)
@@ -357,101 +365,9 @@ def _axis(d: dict, smap: SourceMap, p: KeyPath) -> AxisLimits:
     )
 
 
-TURNTABLE_DRIVERS = ["sim", "acutrol", "modbus-tcp", "ideal-aerosmith"]
-SIM_CONTROLLERS = ["acutrol", "modbus", "modbus-strict", "ideal-aerosmith"]
-"""Simulated controllers: an ACUTROL (ACL), the tablebench Modbus controller, a strict PLC (same register map
-and world, its watchdog running from power-up, not from the first heartbeat), or an Ideal Aerosmith single-axis
-table (in-process)."""
-
-
-def _aerosmith(d: dict | None, smap: SourceMap, p: KeyPath) -> AerosmithSettings:
-    """The ``turntable.aerosmith`` section: the open points of the Ideal Aerosmith table language."""
-    d = d or {}
-    check_keys(d, smap, p, ["axis", "command_terminator", "prompt", "position_query", "rate_query"])
-    dflt = AerosmithSettings()
-    return AerosmithSettings(
-        axis=get_str(d, smap, p, "axis", dflt.axis, choices=list(AXIS_NAMES)),
-        command_terminator=get_str(d, smap, p, "command_terminator", dflt.command_terminator),
-        prompt=get_str(d, smap, p, "prompt", dflt.prompt),
-        position_query=get_str(d, smap, p, "position_query", dflt.position_query),
-        rate_query=get_str(d, smap, p, "rate_query", dflt.rate_query),
-    )
-
-
-def _acl(d: dict | None, smap: SourceMap, p: KeyPath, resource: str | None, simulated: bool) -> AclSettings:
-    """The ``turntable.acl`` section: the open points of the ACUTROL command language (spec defaults)."""
-    d = d or {}
-    check_keys(
-        d,
-        smap,
-        p,
-        [
-            "reply_profile",
-            "mode_reply",
-            "decimals",
-            "axes",
-            "full_scale_deg",
-            "time_variable",
-            "time_scale_s",
-            "error_queue",
-            "open_interlocks_at_end",
-        ],
-    )
-    profile = get_str(d, smap, p, "reply_profile", default_profile(resource or ""), choices=["gpib", "tcp"])
-    axes = (1, 2, 3)
-    if d.get("axes") is not None:
-        ad = get_mapping(d["axes"], smap, p + ("axes",))
-        check_keys(ad, smap, p + ("axes",), list(AXIS_NAMES))
-        axes = tuple(_int(ad, smap, p + ("axes",), n, i + 1, 1, 99) for i, n in enumerate(AXIS_NAMES))  # type: ignore[assignment]
-        if len(set(axes)) != 3:
-            raise smap.error(p + ("axes",), f"outer, middle and inner need three different axis numbers, got {axes}")
-    tv = d.get("time_variable")
-    if tv is None:
-        # absent: a simulated controller serves its clock; an explicit null: readings stamped by the host
-        time_variable = SIM_TIME_VARIABLE if simulated and "time_variable" not in d else None
-    else:
-        time_variable = _int(d, smap, p, "time_variable", 0, 0, 99999)
-    oi = d.get("open_interlocks_at_end", False)
-    if not isinstance(oi, bool):
-        raise smap.error(p + ("open_interlocks_at_end",), f"expected true or false, got {oi!r}")
-    return AclSettings(
-        reply_profile=profile,  # type: ignore[arg-type]
-        mode_reply=get_str(d, smap, p, "mode_reply", "letter", choices=["letter", "word"]),  # type: ignore[arg-type]
-        decimals=_int(d, smap, p, "decimals", 4, 0, 12),
-        axes=axes,  # type: ignore[arg-type]
-        full_scale_deg=get_number(
-            d, smap, p, "full_scale_deg", 360.0, minimum=0, exclusive_minimum=True, maximum=36000
-        ),
-        time_variable=time_variable,
-        time_scale_s=get_number(d, smap, p, "time_scale_s", 0.001, minimum=0, exclusive_minimum=True),
-        error_queue=get_str(d, smap, p, "error_queue", "QERROR"),
-        open_interlocks_at_end=oi,
-        source=(
-            f"{smap.file}:{smap.line(p + ('reply_profile',))} turntable.acl.reply_profile"
-            if "reply_profile" in d
-            else f"{smap.file}:{smap.line(p[:-1] + ('resource',))} (the default for turntable.resource)"
-        ),
-    )
-
-
-def _modbus_map(d: dict, smap: SourceMap, p: KeyPath, not_modbus: bool) -> ModbusMap | None:
-    """``turntable.modbus_map``: the register map file (a path relative to the bench file), or None."""
-    if d.get("modbus_map") is None:
-        return None
-    if not_modbus:
-        raise smap.error(p + ("modbus_map",), "is only for a Modbus table (driver 'modbus-tcp' or a simulated one)")
-    map_path = Path(get_str(d, smap, p, "modbus_map"))
-    if not map_path.is_absolute():
-        map_path = Path(smap.file).parent / map_path
-    if not map_path.is_file():
-        raise smap.error(
-            p + ("modbus_map",), f"register map file {map_path} not found (a path relative to the bench file)"
-        )
-    return load_modbus_map(map_path)
-
-
-def _table_axes(d: dict, smap: SourceMap, p: KeyPath, aerosmith: AerosmithSettings | None) -> list[AxisLimits]:
-    """``turntable.axes``: the limits of each gimbal, or ``absent`` for one the table does not have."""
+def _table_axes(d: dict, smap: SourceMap, p: KeyPath, check_axis: Any = None) -> list[AxisLimits]:
+    """``turntable.axes``: the limits of each gimbal, or ``absent`` for one the table does not have;
+    ``check_axis(name)`` refuses an axis the controller cannot have (before its keys are read)."""
     axes = _section(d, smap, p, "axes")
     assert axes is not None
     check_keys(axes, smap, p + ("axes",), list(AXIS_NAMES))
@@ -460,134 +376,99 @@ def _table_axes(d: dict, smap: SourceMap, p: KeyPath, aerosmith: AerosmithSettin
         if axes.get(name) == "absent":  # a gimbal the table does not have (a single-axis table's other two)
             limits.append(AxisLimits.absent_axis())
             continue
-        if aerosmith is not None and name != aerosmith.axis:
-            raise smap.error(
-                p + ("axes", name),
-                f"an Ideal Aerosmith table has one axis ({aerosmith.axis}, turntable.aerosmith.axis); write "
-                f"'{name}: absent'",
-            )
+        if check_axis is not None:
+            check_axis(name)
         ad = _section(axes, smap, p + ("axes",), name)
         assert ad is not None
         limits.append(_axis(ad, smap, p + ("axes", name)))
     return limits
 
 
-def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> TurntableSpec:
-    p: KeyPath = ("turntable",)
-    check_keys(
-        d,
-        smap,
-        p,
-        [
-            "driver",
-            "address",
-            "resource",
-            "acl",
-            "model",
-            "serial_number",
-            "axes",
-            "position_tolerance_arcsec",
-            "rate_tolerance_dps",
-            "in_position_time_s",
-            "attitude_accuracy_arcsec",
-            "rate_accuracy_ppm",
-            "azimuth_uncertainty_arcsec",
-            "heartbeat_period_s",
-            "watchdog_s",
-            "float_word_order",
-            "modbus_map",
-            "aerosmith",
-        ],
-    )
-    driver = get_str(d, smap, p, "driver", choices=TURNTABLE_DRIVERS)
-    address = _opt_str(d, smap, p, "address")
-    resource = _opt_str(d, smap, p, "resource")
-    acl_speaker = driver == "acutrol" or (driver == "sim" and (sim_controller or "acutrol") == "acutrol")
-    aero = driver == "ideal-aerosmith" or (driver == "sim" and sim_controller == "ideal-aerosmith")
-    if driver == "ideal-aerosmith" and not address:
+TURNTABLE = Section(
+    number("position_tolerance_arcsec", 2.0 * ARCSEC, unit=ARCSEC, minimum=0, exclusive_minimum=True,
+           attr="position_tolerance"),
+    number("rate_tolerance_dps", 0.01 * DEG, unit=DEG, minimum=0, exclusive_minimum=True, attr="rate_tolerance"),
+    number("in_position_time_s", 0.2, minimum=0, attr="in_position_time"),
+    number("attitude_accuracy_arcsec", 1.0 * ARCSEC, unit=ARCSEC, minimum=0, attr="attitude_accuracy"),
+    number("rate_accuracy_ppm", 0.0, unit=1e-6, minimum=0, maximum=1e5, attr="rate_accuracy"),
+    number("azimuth_uncertainty_arcsec", None, unit=ARCSEC, minimum=0, maximum=36000, attr="azimuth_uncertainty"),
+    number("heartbeat_period_s", 0.5, minimum=0, exclusive_minimum=True, attr="heartbeat_period"),
+    number("watchdog_s", 2.0, minimum=0, attr="watchdog"),
+    text("float_word_order", None, choices=["big", "little"]),
+)  # fmt: skip
+"""The ``turntable`` keys every controller takes (SI); ``driver``, the link (``address`` or ``resource``),
+``model``, ``serial_number``, ``axes`` and each controller's own keys (:mod:`benches.devices`) are read by
+:func:`_turntable`."""
+
+
+def _turntable_keys() -> list[str]:
+    own = [k for kind in devices.controllers() for k in kind.own_keys]
+    return ["driver", "address", "resource", *own, "model", "serial_number", "axes", *TURNTABLE.keys()]
+
+
+def _link_checks(d: dict, smap: SourceMap, p: KeyPath, driver: str, kind: devices.ControllerKind) -> str | None:
+    """The controller's link (``resource`` or ``address``) checked against the driver; its value (None: none)."""
+    address, resource = _opt_str(d, smap, p, "address"), _opt_str(d, smap, p, "resource")
+    real = driver != devices.SIMULATED
+    link = resource if kind.link_key == "resource" else address
+    if real and not link:
+        raise smap.error(p + (kind.link_key,), kind.link_required)
+    if resource and not (real and kind.link_key == "resource"):
+        names = " or ".join(repr(k.name) for k in devices.controllers() if k.link_key == "resource")
+        raise smap.error(p + ("resource",), f"is only for driver {names} (this table is {driver!r})")
+    if real and kind.link_key != "address" and address:
         raise smap.error(
-            p + ("address",),
-            "is required for driver 'ideal-aerosmith': the serial port (e.g. '/dev/ttyUSB0', 'COM3' or "
-            "'socket://host:port' for a device server; 9600 8N1)",
+            p + ("address",), f"is not used by driver {driver!r}; name the controller with {kind.link_key}:"
         )
-    if d.get("aerosmith") is not None and not aero:
-        raise smap.error(
-            p + ("aerosmith",), "is only for an Ideal Aerosmith table (driver 'ideal-aerosmith' or simulated)"
-        )
-    if driver == "modbus-tcp" and not address:
-        raise smap.error(p + ("address",), "is required for driver 'modbus-tcp' (e.g. '192.168.0.10:502')")
-    if driver == "acutrol" and not resource:
-        raise smap.error(
-            p + ("resource",),
-            "is required for driver 'acutrol': a VISA resource string, e.g. 'TCPIP0::192.168.53.1::9878::SOCKET', "
-            "'GPIB0::1::INSTR' or 'ASRL/dev/ttyS0::INSTR'",
-        )
-    if driver != "acutrol" and resource:
-        raise smap.error(p + ("resource",), f"is only for driver 'acutrol' (this table is {driver!r})")
-    if driver == "acutrol" and address:
-        raise smap.error(p + ("address",), "is not used by driver 'acutrol'; name the controller with resource:")
-    modbus_map = _modbus_map(d, smap, p, acl_speaker or aero)
-    if d.get("acl") is not None and not acl_speaker:
-        raise smap.error(p + ("acl",), "is only for an ACUTROL table (driver 'acutrol' or a simulated ACUTROL)")
-    if acl_speaker or aero:
+    for other in devices.controllers():
+        for key, message in other.own_keys.items():
+            if other is not kind and d.get(key) is not None:
+                raise smap.error(p + (key,), message)
+    if kind.no_watchdog:
         for key in ("heartbeat_period_s", "watchdog_s"):
             if d.get(key) is not None:
                 raise smap.error(
                     p + (key,),
-                    f"the {'ACUTROL command language' if acl_speaker else 'Ideal Aerosmith command set'} has no host "
-                    "heartbeat or watchdog; remove this key (the host stops the axes itself on every exit path)",
+                    f"{kind.no_watchdog} has no host heartbeat or watchdog; remove this key (the host stops the axes "
+                    "itself on every exit path)",
                 )
-    aerosmith = None
-    if aero:
-        ap = p + ("aerosmith",)
-        aerosmith = _aerosmith(get_mapping(d["aerosmith"], smap, ap) if d.get("aerosmith") else None, smap, ap)
-    limits = _table_axes(d, smap, p, aerosmith)
-    acl = None
-    if acl_speaker:
-        ap = p + ("acl",)
-        acl_d = get_mapping(d["acl"], smap, ap) if d.get("acl") is not None else None
-        acl = _acl(acl_d, smap, ap, resource, simulated=driver == "sim")
-        half = acl.full_scale_deg / 2.0
-        for name, lim in zip(AXIS_NAMES, limits, strict=True):
-            for key, v in (("position_min_deg", lim.position_min), ("position_max_deg", lim.position_max)):
-                if v is not None and abs(v / DEG) > half + 1e-9:
-                    raise smap.error(
-                        p + ("axes", name, key),
-                        f"{v / DEG:g}° is outside the controller's full-scale range ±{half:g}° (turntable.acl."
-                        "full_scale_deg)",
-                    )
-    word_order = get_str(d, smap, p, "float_word_order", None, choices=["big", "little"])
-    if modbus_map is not None and word_order is not None and word_order != modbus_map.word_order:
-        raise smap.error(
-            p + ("float_word_order",),
-            f"{word_order!r} contradicts the register map {modbus_map.source} (word_order: {modbus_map.word_order}); "
-            "remove float_word_order (the map is the authority) or correct the map",
-        )
-    wd = get_number(d, smap, p, "watchdog_s", 2.0, minimum=0)
-    hb = get_number(d, smap, p, "heartbeat_period_s", 0.5, minimum=0, exclusive_minimum=True)
+    return link
+
+
+def _turntable(d: dict, smap: SourceMap, sim_controller: str | None) -> TurntableSpec:
+    """The ``turntable`` section: :data:`TURNTABLE`, then the controller's own settings through the device registry
+    (:mod:`benches.devices`: the controller a real ``driver`` or the simulated ``simulation.controller`` names)."""
+    p: KeyPath = ("turntable",)
+    check_keys(d, smap, p, _turntable_keys())
+    driver = get_str(d, smap, p, "driver", choices=[devices.SIMULATED, *devices.controller_names()])
+    sim_controller = sim_controller or devices.default_simulated_controller()
+    kind = devices.controller_of(driver, sim_controller)
+    link = _link_checks(d, smap, p, driver, kind)
+    own: dict[str, Any] = {}
+    if kind.parse_settings is not None:
+        own = kind.parse_settings(d, smap, p, link=link, simulated=driver == devices.SIMULATED)
+    check_axis = None
+    if kind.check_axis is not None:
+        axis_check = kind.check_axis
+        check_axis = lambda name: axis_check(own, name, smap, p)  # noqa: E731
+    limits = _table_axes(d, smap, p, check_axis)
+    if kind.check_limits is not None:
+        kind.check_limits(own, limits, smap, p)
+    values = TURNTABLE.read(d, smap, p, check=False)
+    wd, hb = values["watchdog"], values["heartbeat_period"]
     if wd and hb >= wd:
         raise smap.error(p + ("heartbeat_period_s",), f"{hb:g} s must be shorter than watchdog_s ({wd:g} s)")
+    values["watchdog"] = None if kind.no_watchdog else (wd or None)
     return TurntableSpec(
         driver=driver,
-        address=address,
+        address=_opt_str(d, smap, p, "address"),
         limits=(limits[0], limits[1], limits[2]),
-        position_tolerance=get_number(d, smap, p, "position_tolerance_arcsec", 2.0, minimum=0, exclusive_minimum=True)
-        * ARCSEC,
-        in_position_time=get_number(d, smap, p, "in_position_time_s", 0.2, minimum=0),
-        attitude_accuracy=get_number(d, smap, p, "attitude_accuracy_arcsec", 1.0, minimum=0) * ARCSEC,
-        heartbeat_period=hb,
-        watchdog=None if acl_speaker or aero else (wd or None),
         model=str(d.get("model") or ""),
         serial_number=str(d.get("serial_number") or ""),
-        float_word_order=word_order,
-        rate_accuracy=get_number(d, smap, p, "rate_accuracy_ppm", 0.0, minimum=0, maximum=1e5) * 1e-6,
-        azimuth_uncertainty=_optional_arcsec(d, smap, p, "azimuth_uncertainty_arcsec"),
-        modbus_map=modbus_map,
-        resource=resource,
-        acl=acl,
-        rate_tolerance=get_number(d, smap, p, "rate_tolerance_dps", 0.01, minimum=0, exclusive_minimum=True) * DEG,
-        sim_controller=sim_controller or "acutrol",
-        aerosmith=aerosmith,
+        resource=_opt_str(d, smap, p, "resource"),
+        sim_controller=sim_controller,
+        **values,
+        **own,
     )
 
 
@@ -644,10 +525,10 @@ def _unit(d: dict, smap: SourceMap) -> UnitSpec:
             "configuration",
         ],
     )
-    driver = get_str(d, smap, p, "driver", choices=["sim", "serial"])
+    driver = get_str(d, smap, p, "driver", choices=devices.unit_names())
     address = _opt_str(d, smap, p, "address")
-    if driver == "serial" and not address:
-        raise smap.error(p + ("address",), "is required for driver 'serial' (e.g. '/dev/ttyUSB0')")
+    if driver != devices.SIMULATED and not address:
+        raise smap.error(p + ("address",), devices.unit_kind(driver).link_required)
     frame = get_str(d, smap, p, "frame", DEFAULT_FRAME)
     sc = _section(d, smap, p, "scale", required=frame == DEFAULT_FRAME)
     if sc is None:  # another frame format carries its own scale; the simulator's internal counts are fine
@@ -778,9 +659,9 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
         root,
         smap,
         (),
-        ["name", "site", "turntable", "unit", "limits", "simulation", "reference_standards", "chamber",
-         "recalibration"],
-    )
+        ["name", "site", "turntable", "unit", "limits", "simulation", "reference_standards",
+         *devices.auxiliary_keys(), "recalibration"],
+    )  # fmt: skip
     parse_recalibration(root.get("recalibration"), smap)  # the registry's settings (docs/registry.md)
     parse_configuration(root.get("unit"), smap)
     name = get_str(root, smap, (), "name")
@@ -788,25 +669,25 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
     sim_raw = root.get("simulation")
     sim_controller = None
     if isinstance(sim_raw, dict):
-        sim_controller = get_str(sim_raw, smap, ("simulation",), "controller", "acutrol", choices=SIM_CONTROLLERS)
+        sim_controller = get_str(
+            sim_raw,
+            smap,
+            ("simulation",),
+            "controller",
+            devices.default_simulated_controller(),
+            choices=devices.simulated_controller_names(),
+        )
     table = _turntable(_section(root, smap, (), "turntable"), smap, sim_controller)  # type: ignore[arg-type]
     unit = _unit(_section(root, smap, (), "unit"), smap)  # type: ignore[arg-type]
     limits = _param_map(_section(root, smap, (), "limits", required=False), smap, ("limits",), positive=True)
     sim_d = _section(root, smap, (), "simulation", required=False)
-    simulated = table.driver == "sim" or unit.driver == "sim"
+    simulated = devices.SIMULATED in (table.driver, unit.driver)
     if simulated and sim_d is None:
         raise smap.error(("simulation",), "is required when a driver is 'sim' (add a simulation: section)")
-    if sim_d is not None and not (table.driver == "sim" and unit.driver == "sim"):
+    if sim_d is not None and not (table.driver == unit.driver == devices.SIMULATED):
         raise smap.error(("simulation",), "is only allowed when both turntable.driver and unit.driver are 'sim'")
     sim = parse_simulation(sim_d, smap, site, table, unit) if sim_d is not None else None
-    chamber = parse_chamber(root["chamber"], smap) if root.get("chamber") is not None else None
-    if chamber is not None and chamber.simulated:
-        if sim is None:
-            raise smap.error(("chamber", "driver"), "sim is only allowed on a simulated bench (simulation: section)")
-        s = chamber.config.settings
-        sim = replace(sim, chamber=ChamberSim(setpoint_min=s.setpoint_min, setpoint_max=s.setpoint_max))
-    elif chamber is not None and sim is not None:
-        raise smap.error(("chamber", "driver"), "a simulated bench needs driver: sim for its chamber")
+    auxiliary, sim = _auxiliary(root, smap, sim)
     return BenchConfig(
         name=name,
         path=path,
@@ -817,8 +698,29 @@ def _build(data: Any, smap: SourceMap, text: str, path: Path) -> BenchConfig:
         limits=limits,
         simulation=sim,
         reference_standards=_reference_standards(root, smap),
-        chamber=chamber,
+        chamber=auxiliary.get("chamber"),
+        auxiliary=auxiliary,
     )
+
+
+def _auxiliary(root: dict, smap: SourceMap, sim: SimConfig | None) -> tuple[dict[str, Any], SimConfig | None]:
+    """The auxiliary devices the bench names (:mod:`benches.devices`): section key → settings; a simulated device
+    needs a simulated bench, whose world it may change (``AuxiliaryKind.simulation``)."""
+    out: dict[str, Any] = {}
+    for key in devices.auxiliary_keys():
+        if root.get(key) is None:
+            continue
+        kind = devices.auxiliary(key)
+        settings = kind.parse(root[key], smap, (key,))
+        if kind.simulated(settings):
+            if sim is None:
+                raise smap.error((key, "driver"), "sim is only allowed on a simulated bench (simulation: section)")
+            if kind.simulation is not None:
+                sim = kind.simulation(sim, settings)
+        elif sim is not None:
+            raise smap.error((key, "driver"), f"a simulated bench needs driver: sim for its {key}")
+        out[key] = settings
+    return out, sim
 
 
 def noise_problem(config: BenchConfig) -> str | None:

@@ -18,9 +18,9 @@ Transports:
     controller's wall-clock watchdog is set to ``max(turntable.watchdog, LOOPBACK_MIN_WATCHDOG_S)`` so a
     stalled CI machine cannot trip it; the world's bench-time watchdog still applies at the configured value.
 ``"hardware"`` (real bench)
-    ``turntable.driver`` "acutrol" (a VISA resource string, opened with pyvisa + pyvisa-py: TCPIP SOCKET,
-    GPIB — needs linux-gpib or gpib-ctypes — or ASRL) or "modbus-tcp" (address ``host:port``, default port
-    502); ``unit.driver`` "serial" (device/URL at ``unit.baudrate``, free-running stream). The factory opens
+    ``turntable.driver`` ``acutrol`` (a VISA resource string, opened with pyvisa + pyvisa-py: TCPIP SOCKET,
+    GPIB — needs linux-gpib or gpib-ctypes — or ASRL) or ``modbus-tcp`` (address ``host:port``, default port
+    502); ``unit.driver`` ``serial`` (device/URL at ``unit.baudrate``, free-running stream). The factory opens
     the links (:mod:`drivers.connect`); the drivers never do. :func:`open_table` opens the table alone.
 
 The unit's frame format is ``unit.frame`` with ``unit.frame_options`` (:func:`benches.bench_config.unit_frame_format`):
@@ -39,28 +39,19 @@ from typing import Any, BinaryIO
 
 from core.yaml_source import ConfigError
 from drivers import connect
-from drivers.acutrol import AclTurntable
-from drivers.aerosmith import AerosmithTable
-from drivers.chamber.connect import open_chamber
 from drivers.protocols import InertialUnit, Turntable
-from drivers.sim.acl_controller import AclController
-from drivers.sim.acl_server import AclTableServer
-from drivers.sim.aerosmith_controller import AerosmithController
-from drivers.sim.aerosmith_server import AerosmithTableServer
-from drivers.sim.chamber_loopback import serve_chamber
-from drivers.sim.inprocess import SimInertialUnit, SimTurntable
+from drivers.sim.inprocess import SimInertialUnit
 from drivers.sim.loopback import Loopback
-from drivers.sim.modbus_controller import ModbusTableServer
 from drivers.sim.world import SimulatedWorld
-from drivers.transport import MessageTransport
 
-from .bench_config import BenchConfig, TurntableSpec, unit_frame_format
+from . import devices
+from .bench_config import BenchConfig, unit_frame_format
 
 log = logging.getLogger(__name__)
 
 TRANSPORTS = ("in-process", "loopback", "hardware")
 LOOPBACK_MIN_WATCHDOG_S = 10.0
-DEFAULT_TIMEOUT_S = 2.0
+DEFAULT_TIMEOUT_S = devices.DEFAULT_TIMEOUT_S
 
 
 @dataclass
@@ -74,8 +65,11 @@ class Bench:
     description: str
     _closers: list[Callable[[], None]] = field(default_factory=list, repr=False)
     aux: dict[str, Any] = field(default_factory=dict)
-    """Named auxiliary devices (``"chamber"``: a :class:`drivers.chamber.base.Chamber`), recorded and commanded by
-    the runner's steps."""
+    """Named auxiliary devices (the bench section that names each, :mod:`benches.devices`; ``"chamber"``: a
+    :class:`drivers.chamber.base.Chamber`), commanded by the runner's steps and, when their kind says so, recorded
+    by the runner under ``/aux/<name>``."""
+    aux_every: dict[str, float] = field(default_factory=dict)
+    """Bench seconds between the runner's recorded readings of each auxiliary device it records."""
 
     def describe(self) -> str:
         """One line for logs and recordings."""
@@ -127,27 +121,21 @@ def open_bench(
     transport: str | None = None,
     run_folder: str | Path | None = None,
 ) -> Bench:
-    """:func:`_open_table_and_unit`, then the bench's auxiliary devices (its temperature chamber: on a simulated
-    bench the world's chamber served in the bench's dialect on loopback, else the real link)."""
+    """:func:`_open_table_and_unit`, then the bench's auxiliary devices (:mod:`benches.devices`: each kind opens
+    its device on the simulated world or on its real link; the temperature chamber is one)."""
     bench = _open_table_and_unit(config, seed=seed, transport=transport, run_folder=run_folder)
-    section = getattr(config, "chamber", None)
-    if section is None:
-        return bench
     try:
-        if section.simulated:
-            assert bench.world is not None
-            server, conn = serve_chamber(bench.world, section.config)
-            bench._closers += [server.close, conn.close]
-        else:
-            conn = open_chamber(section.config)
-            bench._closers.append(conn.close)
+        for key, settings in getattr(config, "auxiliary", {}).items():
+            kind = devices.auxiliary(key)
+            device, closers, line = kind.open(settings, bench.world, DEFAULT_TIMEOUT_S)
+            bench._closers += closers
+            bench.aux[key] = device
+            if kind.record_every is not None:
+                bench.aux_every[key] = float(kind.record_every)
+            bench.description += f"; {line}"
     except BaseException:
         bench.close()
         raise
-    bench.aux["chamber"] = conn.driver
-    bench.description += (
-        f"; chamber: {section.config.dialect} ({'simulated, loopback' if section.simulated else 'real'})"
-    )
     return bench
 
 
@@ -201,70 +189,46 @@ def _transport(config: BenchConfig, transport: str | None) -> str:
     return "hardware"
 
 
+def _twin(config: BenchConfig, transport: str) -> Any:
+    """The simulated controller the bench names (:mod:`benches.devices`), checked against the transport."""
+    twin = devices.simulated_twin(config.turntable, LOOPBACK_MIN_WATCHDOG_S)
+    if twin.in_process_only and transport != "in-process":
+        raise _bad(config, twin.in_process_only)
+    return twin
+
+
 def _open_simulated(
     config: BenchConfig, seed: int | None, transport: str, run_folder: str | Path | None = None
 ) -> Bench:
     world = SimulatedWorld.from_bench(config, seed)
-    tt = config.turntable
-    acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
-    aero = getattr(tt, "sim_controller", "") == "ideal-aerosmith"
+    twin = _twin(config, transport)
     if transport == "in-process":
         unit = SimInertialUnit(world)
-        if aero:
-            table = aerosmith_table(AerosmithController(world, tt.aerosmith).stream(DEFAULT_TIMEOUT_S), tt)
-            what = "simulated Ideal Aerosmith (in-memory)"
-            return Bench(
-                table,
-                unit,
-                world,
-                "in-process",
-                f"{config.name}: simulated bench, {what}",
-                [table.close, unit.close],
-            )
-        if acl:
-            table: Turntable = acl_turntable(
-                AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt, clock=world.host_time
-            )
-            what = "simulated ACUTROL (ACL, in-memory)"
-        else:
-            table, what = SimTurntable(world), "in-process drivers"
+        table, what = twin.in_process(world, DEFAULT_TIMEOUT_S)
+        note = (
+            f" (no byte stream: unit.frame {getattr(config.unit, 'frame', 'tablebench-v1')} and unit.keep_raw "
+            "apply over loopback)"
+            if twin.unit_note
+            else ""
+        )
         return Bench(
             table,
             unit,
             world,
             "in-process",
-            f"{config.name}: simulated bench, {what} (no byte stream: unit.frame "
-            f"{getattr(config.unit, 'frame', 'tablebench-v1')} and unit.keep_raw apply over loopback)",
+            f"{config.name}: simulated bench, {what}{note}",
             [table.close, unit.close],
         )
-    wd = getattr(tt, "watchdog", None)
-    realtime = bool(getattr(config.simulation, "realtime", False))
     closers: list[Callable[[], None]] = []
     raw, raw_name = _raw_sink(config, run_folder, closers)
     try:
         lb = Loopback(
             world,
-            dialect="aerosmith" if aero else "acutrol" if acl else "modbus",
-            make_acl_table=(
-                (lambda transport: acl_turntable(transport, tt, clock=None if realtime else world.host_time))
-                if acl
-                else None
-            ),
-            acl=tt.acl,
-            make_aerosmith_table=(
-                (lambda stream: aerosmith_table(stream, tt, clock=None if realtime else world.host_time))
-                if aero
-                else None
-            ),
-            aerosmith=getattr(tt, "aerosmith", None),
-            word_order=getattr(tt, "float_word_order", None),
-            register_map=getattr(tt, "modbus_map", None),
-            watchdog_s=max(float(wd), LOOPBACK_MIN_WATCHDOG_S) if wd else None,
-            strict_watchdog=getattr(tt, "sim_controller", "") == "modbus-strict",
+            table=twin,
             unit_frame=unit_frame_format(config.unit),
             unit_raw=raw,
             unit_raw_name=raw_name,
-            realtime=realtime,
+            realtime=bool(getattr(config.simulation, "realtime", False)),
         )
     except BaseException:
         for fn in closers:
@@ -280,70 +244,18 @@ def _open_simulated(
     )
 
 
-def _acl_options(tt: TurntableSpec) -> dict[str, Any]:
-    """The ACL driver's settings and tolerances from a bench's turntable section."""
-    return {
-        "settings": tt.acl,
-        "position_tolerance": tt.position_tolerance,
-        "settle_time": tt.in_position_time,
-        "rate_tolerance": tt.at_rate_tolerance,
-    }
-
-
-def aerosmith_table(stream: Any, tt: TurntableSpec, clock: Callable[[], float] | None = None) -> AerosmithTable:
-    """The Ideal Aerosmith driver for a bench's turntable section on an open byte stream (``clock``: the host
-    clock, None = the real one)."""
-    return AerosmithTable(
-        stream,
-        tuple(tt.limits),  # type: ignore[arg-type]
-        settings=tt.aerosmith,
-        position_tolerance=tt.position_tolerance,
-        rate_tolerance=tt.rate_tolerance,
-        **({"clock": clock} if clock is not None else {}),
-    )
-
-
-def acl_turntable(
-    transport: MessageTransport, tt: TurntableSpec, clock: Callable[[], float] | None = None
-) -> AclTurntable:
-    """The ACL driver for a bench's turntable section on an open transport (settings and tolerances from the bench);
-    ``clock``: the host clock (a simulated bench's world clock; None: the host's monotonic clock)."""
-    extra = {} if clock is None else {"clock": clock}
-    return AclTurntable(transport, tuple(tt.limits), **_acl_options(tt), **extra)  # type: ignore[arg-type]
-
-
-def _acutrol_connection(resource: str, tt: TurntableSpec) -> connect.Connection[AclTurntable]:
-    """Open the VISA ``resource`` and the ACL driver on it, with the bench's turntable settings and tolerances."""
-    return connect.acutrol_table(resource, tuple(tt.limits), timeout=DEFAULT_TIMEOUT_S, **_acl_options(tt))  # type: ignore[arg-type]
-
-
 def _hardware_table(config: BenchConfig) -> connect.Connection[Any]:
-    """Open the real turntable (its Connection, with ``.where`` describing it)."""
+    """Open the real turntable (its Connection, with ``.where`` describing it) through the device registry."""
     tt = config.turntable
-    limits = tuple(tt.limits) if getattr(tt, "limits", None) else None
-    if tt.driver == "modbus-tcp":
-        host, port = _host_port(config, tt.address, 502)
-        conn: Any = connect.modbus_table(
-            host,
-            port,
-            word_order=tt.float_word_order,
-            register_map=getattr(tt, "modbus_map", None),
-            limits=limits,  # type: ignore[arg-type]
-            timeout=DEFAULT_TIMEOUT_S,
-            rate_tolerance=getattr(tt, "at_rate_tolerance", None),
+    if tt.driver not in devices.controller_names():
+        raise _bad(
+            config,
+            f"turntable.driver {tt.driver!r} needs a simulation section; real: {', '.join(devices.controller_names())}",
         )
-        conn.where = f"Modbus TCP {host}:{port}"
-    elif tt.driver == "acutrol":
-        conn = _acutrol_connection(tt.resource, tt)
-        conn.where = f"ACUTROL (ACL) at {tt.resource}"
-    elif tt.driver == "ideal-aerosmith":
-        conn = connect.aerosmith_table(
-            tt.address, lambda stream: aerosmith_table(stream, tt), timeout=DEFAULT_TIMEOUT_S
-        )
-        conn.where = f"Ideal Aerosmith at {tt.address} (9600 8N1)"
-    else:
-        raise _bad(config, f"turntable.driver {tt.driver!r} needs a simulation section; real: acutrol, modbus-tcp")
-    return conn
+    try:
+        return devices.connect_controller(tt, DEFAULT_TIMEOUT_S)
+    except devices.AddressError as exc:
+        raise _bad(config, str(exc)) from None
 
 
 def open_table(config: BenchConfig, *, seed: int | None = None, transport: str | None = None) -> Bench:
@@ -362,60 +274,19 @@ def open_table(config: BenchConfig, *, seed: int | None = None, transport: str |
 
 def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str) -> Bench:
     world = SimulatedWorld.from_bench(config, seed)
-    tt = config.turntable
-    acl = getattr(tt, "sim_controller", "acutrol") == "acutrol"
-    aero = getattr(tt, "sim_controller", "") == "ideal-aerosmith"
+    twin = _twin(config, transport)
     closers: list[Callable[[], None]] = []
     ok = False
     try:
-        if aero and transport == "in-process":
-            table = aerosmith_table(AerosmithController(world, tt.aerosmith).stream(DEFAULT_TIMEOUT_S), tt)
-            what = "simulated Ideal Aerosmith (in-memory)"
+        if transport == "in-process":
+            table, what = twin.in_process(world, DEFAULT_TIMEOUT_S, alone=True)
             closers.append(table.close)
-        elif aero:
-            asrv = AerosmithTableServer(world, tt.aerosmith)
-            closers.append(asrv.close)
-            aconn = connect.aerosmith_table(
-                asrv.url, lambda stream: aerosmith_table(stream, tt), timeout=DEFAULT_TIMEOUT_S
-            )
-            closers.insert(0, aconn.close)
-            table, what = aconn.driver, f"simulated Ideal Aerosmith over pyserial {asrv.url}"
-        elif transport == "in-process":
-            if acl:
-                table: Turntable = acl_turntable(
-                    AclController(world, tt.acl).transport(DEFAULT_TIMEOUT_S), tt, clock=world.host_time
-                )
-                what = "simulated ACUTROL (ACL, in-memory)"
-            else:
-                table, what = SimTurntable(world), "simulated table, in-process driver"
-            closers.append(table.close)
-        elif acl:
-            srv = AclTableServer(world, tt.acl)
-            closers.append(srv.close)
-            conn = _acutrol_connection(srv.resource, tt)
-            closers.insert(0, conn.close)
-            table, what = conn.driver, f"simulated ACUTROL over pyvisa-py {srv.resource}"
         else:
-            wd = getattr(tt, "watchdog", None)
-            msrv = ModbusTableServer(
-                world,
-                word_order=tt.float_word_order,
-                register_map=getattr(tt, "modbus_map", None),
-                watchdog_s=max(float(wd), LOOPBACK_MIN_WATCHDOG_S) if wd else None,
-                watchdog_from_power_up=getattr(tt, "sim_controller", "") == "modbus-strict",
-            )
-            closers.append(msrv.close)
-            mconn = connect.modbus_table(
-                "127.0.0.1",
-                msrv.port,
-                word_order=tt.float_word_order,
-                register_map=getattr(tt, "modbus_map", None),
-                timeout=DEFAULT_TIMEOUT_S,
-                retries=0,
-                rate_tolerance=getattr(tt, "at_rate_tolerance", None),
-            )
-            closers.insert(0, mconn.close)
-            table, what = mconn.driver, f"simulated Modbus table on 127.0.0.1:{msrv.port}"
+            server = twin.serve(world)
+            closers.append(server.close)
+            conn = twin.connect(server, DEFAULT_TIMEOUT_S, None, alone=True)
+            closers.insert(0, conn.close)
+            table, what = conn.driver, twin.describe_alone(server)
         ok = True
         return Bench(table, None, world, transport, f"{config.name}: {what}", list(reversed(closers)))  # type: ignore[arg-type]
     finally:
@@ -427,19 +298,6 @@ def _open_simulated_table(config: BenchConfig, seed: int | None, transport: str)
                     log.debug("close after failed open", exc_info=True)
 
 
-def _host_port(config: BenchConfig, address: str | None, default_port: int) -> tuple[str, int]:
-    if not address:
-        raise _bad(config, "turntable.address is required for a Modbus TCP table (e.g. '192.168.0.10:502')")
-    host, _, port = address.rpartition(":") if ":" in address else (address, "", str(default_port))
-    try:
-        p = int(port)
-    except ValueError:
-        raise _bad(
-            config, f"turntable.address {address!r}: port must be an integer (e.g. '192.168.0.10:502')"
-        ) from None
-    return host, p
-
-
 def _open_hardware(config: BenchConfig, run_folder: str | Path | None = None) -> Bench:
     opened: list[connect.Connection[Any]] = []
     closers: list[Callable[[], None]] = []  # the raw-stream file, closed after the drivers
@@ -448,24 +306,13 @@ def _open_hardware(config: BenchConfig, run_folder: str | Path | None = None) ->
         opened.append(_hardware_table(config))
         where = opened[0].where  # type: ignore[attr-defined]
         un = config.unit
-        if un.driver != "serial":
+        if un.driver not in devices.unit_names()[1:]:
             raise _bad(config, f"unit.driver {un.driver!r} needs a simulation section; a real unit uses 'serial'")
         if not un.address:
             raise _bad(config, "unit.address is required for a serial unit (e.g. '/dev/ttyUSB0')")
         fmt = unit_frame_format(un)
         raw, raw_name = _raw_sink(config, run_folder, closers)
-        baud = int(getattr(un, "baudrate", 921600) or 921600)
-        opened.append(
-            connect.serial_unit(
-                un.address,
-                fmt,
-                un.sample_rate,
-                baudrate=baud,
-                timeout=DEFAULT_TIMEOUT_S,
-                raw_sink=raw,
-                raw_name=raw_name,
-            )
-        )
+        opened.append(devices.unit_kind(un.driver).connect(un, fmt, DEFAULT_TIMEOUT_S, raw, raw_name))
         table, unit = opened[0].driver, opened[1].driver
         where_unit = f"unit ({fmt.name}) on {un.address}"
         bench = Bench(

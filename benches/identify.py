@@ -55,7 +55,7 @@ from .calibration_result import (
 )
 from .progress import ProgressDisplay
 from .recorded_run import RecordedRun, run_of
-from .recording import RecordingError, StepRecord, TableReadings
+from .recording import RecordingError, StepRecord, TableReadings, recording_file
 from .reference import reference_at, reference_for_samples
 from .timebase import reference_rate_covariance, run_time_base, table_in_unit_time, time_base_sensitivity
 
@@ -468,8 +468,29 @@ def load_run(
     (benches.timebase), "none" takes the two clocks as one. ``with_gyro``: identify the gyro triad too
     (default: when the recording has gyro data, :func:`has_gyro_data`).
     """
+    key = _data_key(run, time_base, with_gyro)
+    if key is not None and _RECENT.get("key") == key:
+        return _RECENT["data"]
     with _opened(run) as rr:
         return _identification_data(rr, time_base, with_gyro)
+
+
+_RECENT: dict[str, Any] = {}
+"""The identification data of the last :func:`identify_run` of this process, with its key (:func:`_data_key`):
+the registry's as found / as left (:func:`load_run` of the same run folder right after ``run`` or ``identify``
+identified it) takes the windows from here instead of reading and referencing the recording again."""
+
+
+def _data_key(run: str | Path | RecordedRun, time_base: str, with_gyro: bool | None) -> tuple | None:
+    """(recording file, its identity: device, inode, size, modification and change times in ns, the options);
+    None when it cannot be stated (then nothing is remembered or taken)."""
+    try:
+        path = run.path if isinstance(run, RecordedRun) else recording_file(run)
+        st = Path(path).stat()
+    except (OSError, ValueError, TypeError):
+        return None
+    ident = (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+    return (str(Path(path).resolve()), ident, time_base, with_gyro)
 
 
 @contextlib.contextmanager
@@ -936,8 +957,12 @@ def identify_run(
     """
     if method not in ("kalman", "batch"):
         raise IdentificationError(f"unknown method {method!r}; use kalman or batch")
+    key = _data_key(run, time_base, with_gyro)
     with _opened(run) as rr:
         data = _identification_data(rr, time_base, with_gyro)
+        _RECENT.clear()
+        if key is not None and key == _data_key(rr, time_base, with_gyro):  # unchanged while it was read
+            _RECENT.update(key=key, data=data)
         est = estimate(data, method, noise)
         residuals = residual_statistics(data, est)
         unc = combined_uncertainty(data, est)

@@ -107,6 +107,24 @@ class _InterruptFlag:
             signal.signal(sig, old)
 
 
+STEP_EXECUTORS: dict[type[Step], Callable[[Runner, Step], None]] = {}
+"""Step kinds taught to the runner beyond the built-in ones: step class → ``executor(runner, step)``."""
+
+
+def register_step(step_type: type[Step], executor: Callable[[Runner, Step], None]) -> None:
+    """Teach the runner a step kind (a frozen :class:`procedures.steps.Step` subclass): ``executor(runner, step)``
+    runs it with the runner's primitives (``runner.set_device``, acquisition counted in samples, never a sleep).
+    docs/extending.md, recipe 3."""
+    if step_type in STEP_EXECUTORS:
+        raise ValueError(f"step kind {step_type.__name__} already has a runner")
+    STEP_EXECUTORS[step_type] = executor
+
+
+def unregister_step(step_type: type[Step]) -> None:
+    """Forget a step kind taught with :func:`register_step` (a test that taught a toy one)."""
+    STEP_EXECUTORS.pop(step_type, None)
+
+
 class Runner:
     """Run compiled steps on a bench.
 
@@ -149,8 +167,11 @@ class Runner:
         stop_timeout_s: float = 120.0,
         aux: Mapping[str, Any] | None = None,
         resume_soak: Step | None = None,
+        aux_every: Mapping[str, float] | None = None,
     ) -> None:
         self.aux = dict(aux or {})
+        self.aux_every = {name: float(every) for name, every in (aux_every or {}).items() if name in self.aux}
+        self._aux_next = dict.fromkeys(self.aux_every, -math.inf)
         self.resume_soak = resume_soak
         self.aborted = RunAborted  # the exception a chamber step raises to stop the run (benches.thermal.steps)
         self.thermal = ThermalSteps(self) if any(isinstance(s, THERMAL_STEPS) for s in steps) else None
@@ -196,6 +217,8 @@ class Runner:
                 )
             for obs in self.observers:
                 obs.on_block(step, block, state, counts)
+            if self.aux_every:
+                self._record_aux(float(block.time[-1]) if len(block) else state.time)
         self._sample += len(block)
         self._progress_base += len(block) / self.rate
         self._show(self.progress.update, self._progress_base)
@@ -211,6 +234,38 @@ class Runner:
             k = min(self.block, left)
             self._read_block(step, k, counts)
             left -= k
+
+    def _record_aux(self, t: float) -> None:
+        """Record every auxiliary device that is due (``aux_every``) under ``/aux/<name>``."""
+        for name, every in self.aux_every.items():
+            if t >= self._aux_next[name]:
+                self._aux_next[name] = t + every
+                try:
+                    reading = self.aux[name].read()
+                except Exception as exc:  # a device link lost mid-run stops the run with its reason
+                    raise RunAborted("failed", f"auxiliary device {name!r}: reading failed: {exc}") from exc
+                self.rec.add_aux(name, t, reading)  # type: ignore[attr-defined]
+
+    def set_device(self, step: Step, name: str, setpoint: float, *, timeout_s: float) -> None:
+        """Command the auxiliary device ``name`` (a :class:`drivers.protocols.Settable`) to ``setpoint`` (SI) and
+        acquire (recorded, not counted) until it reports ``settled()``; the step fails after ``timeout_s`` of
+        bench time. For step kinds taught to the runner with :func:`register_step`."""
+        device = self.aux.get(name)
+        if device is None:
+            have = ", ".join(sorted(self.aux)) or "none"
+            raise RunAborted("failed", f"step {step.name!r}: the bench has no auxiliary device {name!r} ({have})")
+        try:
+            device.set(float(setpoint))
+        except Exception as exc:
+            raise RunAborted("failed", f"step {step.name!r}: {name} refused set point {setpoint:g}: {exc}") from exc
+        if self._recording:
+            line = f"{name}: set point {setpoint:g}; {device.status()} (step {step.name})"
+            self.rec.event(self._time(), "info", line)
+        limit = self._sample + int(math.ceil(timeout_s * self.rate))
+        while not device.settled():
+            if self._sample >= limit:
+                raise RunAborted("failed", f"step {step.name!r}: {name} did not settle within {timeout_s:.0f} s")
+            self._read_block(step, self.block, False)
 
     def _wait_until(self, step: Step, predicate: Callable[[TableState], bool], timeout_s: float, what: str) -> None:
         limit = self._sample + int(math.ceil(timeout_s * self.rate))
@@ -271,6 +326,8 @@ class Runner:
             self._wait_until(step, self._at_rest, 3 * ramp + 30.0, "come to rest")
         elif isinstance(step, THERMAL_STEPS) and self.thermal is not None:
             self.thermal.execute(step)
+        elif type(step) in STEP_EXECUTORS:
+            STEP_EXECUTORS[type(step)](self, step)
         else:
             raise RunAborted("failed", f"step {step.name!r}: no runner for a {type(step).__name__} step")
 

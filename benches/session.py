@@ -233,6 +233,7 @@ def execute(
                 progress=progress,
                 aux=bench.aux,
                 resume_soak=resume_soak,
+                aux_every=getattr(bench, "aux_every", None),
             )
             try:
                 result = runner.run(replay=replay, start_sample=start_sample)
@@ -379,6 +380,8 @@ def _identify_and_certify(
     from benches.identify import IdentificationError, identify_run  # lazy: filterpy, scipy (--help time)
 
     source: Path | RecordedRun = folder if recorded is None else recorded
+    if recorded is not None and _thermal(folder, recorded, todo, say, done):
+        return done
     if "identification" in todo:
         try:
             result = identify_run(source, method="kalman")
@@ -409,6 +412,26 @@ def _identify_and_certify(
         for line in verdict_explanation(js, verdict, spins=_has_spins(folder)):
             say(line)
     return done
+
+
+def _thermal(folder: Path, recorded: RecordedRun, todo: list[str], say: Callable[..., None], done: list[str]) -> bool:
+    """A thermal run (a completed soak step): its thermal calibration and certificate instead of one calibration
+    over every temperature (benches.thermal.calibrate); False for any other run."""
+    from benches.identify import IdentificationError  # lazy: filterpy, scipy (--help time)
+    from benches.thermal.calibrate import is_thermal_run, thermal_calibrate  # lazy: filterpy, scipy (--help time)
+
+    if not is_thermal_run(recorded):
+        return False
+    try:
+        cal, pdf = thermal_calibrate(recorded, certificate="certificate" in todo, say=lambda m: say(m))
+    except IdentificationError as exc:
+        say(f"thermal calibration not possible: {exc}")
+        return True
+    done.extend(["identification"] + (["certificate"] if pdf is not None else []))
+    say(f"thermal calibration: {cal}", err=False)
+    if pdf is not None:
+        say(f"thermal certificate: {pdf}", err=False)
+    return True
 
 
 def combined_covariance_or_none(result: CalibrationResult, source: Path | RecordedRun) -> np.ndarray | None:

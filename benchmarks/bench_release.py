@@ -20,7 +20,10 @@ Stages (each tree on its own recording of the same procedure and seed):
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import re
+import shutil
 import statistics
 import subprocess
 import sys
@@ -49,10 +52,11 @@ for k in range(1, e.size):
 x = x[100:]
 kw = {"include_mean": False} if "include_mean" in inspect.signature(fit_arma).parameters else {}
 fit_arma(x, 1, 1, **kw)
-ts = []
+ts, cs = [], []
 for _ in range(15):
-    t0 = time.perf_counter(); fit_arma(x, 1, 1, **kw); ts.append(time.perf_counter() - t0)
-print(sorted(ts)[len(ts) // 2])
+    t0, c0 = time.perf_counter(), time.process_time(); fit_arma(x, 1, 1, **kw)
+    ts.append(time.perf_counter() - t0); cs.append(time.process_time() - c0)
+print(sorted(ts)[len(ts) // 2], sorted(cs)[len(cs) // 2])
 """
 
 
@@ -85,18 +89,41 @@ def check_tree(tree: Path) -> None:
     print(f"  {tree}: imports {out}", flush=True)
 
 
-def timed(cmd: list[str], tree: Path) -> float:
+def _cpu_s(pid: int) -> float:
+    """User + system CPU seconds of a running process (all its threads), from /proc (0 where there is none)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _wait_cpu(proc: subprocess.Popen) -> tuple[int, float]:
+    """Wait for ``proc``; its exit status and its CPU seconds (user + system, from wait4)."""
+    _, status, usage = os.wait4(proc.pid, 0)
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    return proc.returncode, usage.ru_utime + usage.ru_stime
+
+
+def timed(cmd: list[str], tree: Path) -> tuple[float, float]:
+    """Wall and CPU seconds of one command run in ``tree``."""
     t0 = time.perf_counter()
-    subprocess.run(cmd, cwd=tree, env=env_for(tree), capture_output=True, check=True)
-    return time.perf_counter() - t0
+    proc = subprocess.Popen(cmd, cwd=tree, env=env_for(tree), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    assert proc.stderr is not None
+    err = proc.stderr.read()
+    code, cpu = _wait_cpu(proc)
+    if code != 0:
+        raise RuntimeError(f"{' '.join(cmd[-4:])} failed in {tree}: {err.decode(errors='replace')[-400:]}")
+    return time.perf_counter() - t0, cpu
 
 
-def timed_run(tree: Path, procedure: str, folder: Path, seed: int) -> dict[str, float]:
-    """The whole ``tablebench run`` and its parts, from the times its lines arrive."""
+def timed_run(tree: Path, procedure: str, folder: Path, seed: int) -> dict[str, tuple[float, float]]:
+    """The whole ``tablebench run`` and its parts, from the times its lines arrive (wall) and the process's CPU
+    time read from /proc at those moments."""
     cmd = [sys.executable, "-c", CLI, "run", "--procedure", procedure, "--out", str(folder), "--plain",
            "--seed", str(seed)]  # fmt: skip
     t0 = time.perf_counter()
-    marks: dict[str, float] = {}
+    marks: dict[str, tuple[float, float]] = {}
     proc = subprocess.Popen(cmd, cwd=tree, env=env_for(tree), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                             text=True, bufsize=1)  # fmt: skip
     assert proc.stdout is not None
@@ -105,76 +132,137 @@ def timed_run(tree: Path, procedure: str, folder: Path, seed: int) -> dict[str, 
         for key, prefix in (("first_step", "step "), ("motion_end", "run complete"), ("calibration", "calibration:"),
                             ("certificate", "certificate:")):  # fmt: skip
             if line.startswith(prefix) and key not in marks:
-                marks[key] = now
-    if proc.wait() != 0:
+                marks[key] = (now, _cpu_s(proc.pid))
+    code, cpu = _wait_cpu(proc)
+    if code != 0:
         raise RuntimeError(f"run failed in {tree}")
-    total = time.perf_counter() - t0
+    total = (time.perf_counter() - t0, cpu)
+
+    def span(a: str, b: str) -> tuple[float, float]:
+        return marks[b][0] - marks[a][0], marks[b][1] - marks[a][1]
+
     return {
         "run (whole, in-process)": total,
         "— start-up to the first step": marks["first_step"],
-        "— motion phase": marks["motion_end"] - marks["first_step"],
-        "— identification after the run": marks["calibration"] - marks["motion_end"],
-        "— certificate": marks["certificate"] - marks["calibration"],
+        "— motion phase": span("first_step", "motion_end"),
+        "— identification after the run": span("motion_end", "calibration"),
+        "— certificate": span("calibration", "certificate"),
     }
 
 
-def one_round(tree: Path, procedure: str, seed: int) -> dict[str, float]:
-    """Every stage once for ``tree``."""
+def one_round(tree: Path, procedure: str, seed: int) -> dict[str, tuple[float, float]]:
+    """Every stage once for ``tree``: (wall, CPU) seconds; the recording's size as (MB, MB)."""
     work = Path(tempfile.mkdtemp(prefix="tb-release-"))
-    run = work / "run"
-    out = {"python -c pass (floor)": timed([sys.executable, "-c", "pass"], tree)}
-    out["tablebench --help"] = timed([sys.executable, "-c", CLI, "--help"], tree)
-    out.update(timed_run(tree, procedure, run, seed))
-    out["identify RUN (offline)"] = timed([sys.executable, "-c", CLI, "identify", str(run), "--out",
-                                           str(work / "cal.json")], tree)  # fmt: skip
-    out["certificate RUN (offline)"] = timed([sys.executable, "-c", CLI, "certificate", str(run), "--out",
-                                              str(work / "cert.pdf")], tree)  # fmt: skip
-    arma = subprocess.run([sys.executable, "-c", ARMA], cwd=tree, env=env_for(tree), capture_output=True, text=True,
-                          check=True)  # fmt: skip
-    out["ARMA(1,1) exact ML, n = 5000, mean fixed"] = float(arma.stdout.strip())
-    out["recording size (MB)"] = (run / "recording.h5").stat().st_size / 1e6
-    return out
+    try:
+        run = work / "run"
+        out = {"python -c pass (floor)": timed([sys.executable, "-c", "pass"], tree)}
+        out["tablebench --help"] = timed([sys.executable, "-c", CLI, "--help"], tree)
+        out.update(timed_run(tree, procedure, run, seed))
+        out["identify RUN (offline)"] = timed([sys.executable, "-c", CLI, "identify", str(run), "--out",
+                                               str(work / "cal.json")], tree)  # fmt: skip
+        out["certificate RUN (offline)"] = timed([sys.executable, "-c", CLI, "certificate", str(run), "--out",
+                                                  str(work / "cert.pdf")], tree)  # fmt: skip
+        arma = subprocess.run([sys.executable, "-c", ARMA], cwd=tree, env=env_for(tree), capture_output=True,
+                              text=True, check=True)  # fmt: skip
+        wall, cpu = (float(x) for x in arma.stdout.split())
+        out["ARMA(1,1) exact ML, n = 5000, mean fixed"] = (wall, cpu)
+        size = (run / "recording.h5").stat().st_size / 1e6
+        out["recording size (MB)"] = (size, size)
+        return out
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def results_from_log(log: Path) -> dict[str, list[dict[str, tuple[float, float]]]]:
+    """The per-round figures of the complete rounds in a log of this script (both trees measured)."""
+    rounds: dict[int, dict[str, dict[str, tuple[float, float]]]] = {}
+    for line in log.read_text().splitlines():
+        m = re.match(r"round (\d+) (base|now): (.*)$", line)
+        if m:
+            stages = re.findall(r"(.+?) ([0-9.e+-]+)/([0-9.e+-]+)(?:, |$)", m.group(3))
+            rounds.setdefault(int(m.group(1)), {})[m.group(2)] = {k: (float(w), float(c)) for k, w, c in stages}
+    done = [r for _, r in sorted(rounds.items()) if len(r) == 2]
+    return {k: [r[k] for r in done] for k in ("base", "now")}
+
+
+def table(results: dict[str, list[dict[str, tuple[float, float]]]]) -> str:
+    """The Markdown table: per stage, median wall and CPU of each tree and the medians of the per-round ratios."""
+    stages = list(results["now"][0])
+    rows = ["| stage | base wall | now wall | **now / base (wall)** | base CPU | now CPU | **now / base (CPU)** |",
+            "|---|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
+    for s in stages:
+        unit = " MB" if "MB" in s else " s"
+        w = [statistics.median(r[s][0] for r in results[k]) for k in ("base", "now")]
+        c = [statistics.median(r[s][1] for r in results[k]) for k in ("base", "now")]
+        rw = statistics.median(n[s][0] / b[s][0] for b, n in zip(results["base"], results["now"], strict=True))
+        rc = statistics.median(n[s][1] / b[s][1] for b, n in zip(results["base"], results["now"], strict=True))
+        if "MB" in s:
+            rows.append(f"| {s} | {w[0]:.3g}{unit} | {w[1]:.3g}{unit} | **{rw:.2f}** | | | |")
+        else:
+            rows.append(f"| {s} | {w[0]:.3g}{unit} | {w[1]:.3g}{unit} | **{rw:.2f}** | {c[0]:.3g}{unit} | "
+                        f"{c[1]:.3g}{unit} | **{rc:.2f}** |")  # fmt: skip
+    return "\n".join(rows) + "\n"
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the comparison and write the "release" section of RESULTS.md."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--base", default=DEFAULT_BASE, help=f"the earlier commit (default {DEFAULT_BASE})")
+    ap.add_argument(
+        "--now",
+        default=None,
+        help="measure this commit (a frozen worktree) instead of the working tree, e.g. while editing",
+    )
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--procedure", default="ten-step-fast-spin")
     ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--section", default="release", help="the RESULTS.md section to (re)write")
+    ap.add_argument("--title", default=None, help="its title (default: against the earlier release BASE)")
+    ap.add_argument(
+        "--from-log",
+        default=None,
+        metavar="LOG",
+        help="write the section from the 'round …' lines an earlier (interrupted) run printed",
+    )
     args = ap.parse_args(argv)
     base = tree_for(args.base)
-    trees = {"base": base, "now": ROOT}
+    trees = {"base": base, "now": tree_for(args.now) if args.now else ROOT}
     for tree in trees.values():
         check_tree(tree)
-    results: dict[str, list[dict[str, float]]] = {k: [] for k in trees}
-    for r in range(args.rounds):
+    results: dict[str, list[dict[str, tuple[float, float]]]] = {k: [] for k in trees}
+    out_json = ROOT / "benchmarks" / "out" / f"release-{args.section}.json"
+    if args.from_log:
+        results = results_from_log(Path(args.from_log))
+        args.rounds = len(results["now"])
+    for r in range(0 if args.from_log else args.rounds):
         order = ("base", "now") if r % 2 == 0 else ("now", "base")
         for key in order:
             results[key].append(one_round(trees[key], args.procedure, args.seed))
-            print(f"round {r + 1} {key}: " + ", ".join(f"{k} {v:.3g}" for k, v in results[key][-1].items()), flush=True)
-    stages = list(results["now"][0])
-    med = {k: {s: statistics.median(r[s] for r in results[k]) for s in stages} for k in trees}
-    head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout
+            print(f"round {r + 1} {key}: " + ", ".join(f"{k} {w:.6g}/{c:.6g}" for k, (w, c) in
+                                                       results[key][-1].items()), flush=True)  # fmt: skip
+        out_json.write_text(json.dumps({"base": args.base, "now": args.now, "results": results}, indent=1))
+    head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=trees["now"], capture_output=True,
+                          text=True).stdout.strip()  # fmt: skip
+    now = f"`{head}`" if args.now else f"`{head}` + working tree"
     body = (
-        f"This code (`{head.strip()}` + working tree) against the earlier release `{args.base}`, same Python "
-        f"environment, each stage a separate process importing its own tree; `{args.procedure}` on the default "
-        f"simulated bench, seed {args.seed}; medians of {args.rounds} rounds, the two trees alternated round by "
-        "round; one BLAS thread on both sides.\n\n"
-        "| stage | base | now | now / base |\n|---|---:|---:|---:|\n"
+        f"This code ({now}) against the earlier release `{args.base}`, same Python environment, each stage a "
+        f"separate process importing its own tree; `{args.procedure}` on the default simulated bench, seed "
+        f"{args.seed}; {args.rounds} rounds, the two trees alternated round by round (base first in odd rounds); "
+        "one BLAS thread on both sides. Wall and CPU (user + system of the process, all threads; for the run's "
+        "parts read from /proc when each part's line arrives) are medians over rounds; the ratios are medians of "
+        "the per-round ratios (each round's two trees ran minutes apart, so a drift of the shared machine's speed "
+        "cancels). On a machine shared by several busy processes the CPU ratio is the steadier figure.\n\n"
+        + table(results)
     )
-    for s in stages:
-        unit = "" if "MB" in s else " s"
-        ratio = med["now"][s] / med["base"][s]
-        body += f"| {s} | {med['base'][s]:.3g}{unit} | {med['now'][s]:.3g}{unit} | **{ratio:.2f}** |\n"
-    floor = med["now"]["python -c pass (floor)"]
+    floor = statistics.median(r["python -c pass (floor)"][0] for r in results["now"])
+    helps = statistics.median(r["tablebench --help"][0] for r in results["now"])
     body += (
-        f"\n`tablebench --help` now = {med['now']['tablebench --help'] / floor:.1f}× `python -c pass` "
-        "(target ≤ 8×). Targets (issue 32): whole run ≤ 0.9×, identification ≤ 1.0×, certificate ≤ 1.0× and ≤ 1 s, "
-        "`--help` ≤ 1.0×, ARMA fit ≤ 1.0×, recording size unchanged.\n"
+        f"\n`tablebench --help` now = {helps / floor:.1f}× `python -c pass` (wall; target ≤ 8×). Targets (issue 32): "
+        "whole run ≤ 0.9×, identification ≤ 1.0×, certificate ≤ 1.0× and ≤ 1 s, `--help` ≤ 1.0×, ARMA fit ≤ 1.0×, "
+        "recording size unchanged.\n"
     )
-    write_section("release", f"Against the earlier release {args.base}, stage by stage (issue 32)", body)
+    write_section(args.section, f"{args.title or 'Against the earlier release ' + args.base}, stage by stage "
+                  "(issue 32)", body)  # fmt: skip
     print(body)
     return 0
 

@@ -119,6 +119,10 @@ class ReplayWorld:
     def table_state(self):
         return self._state
 
+    def host_time(self) -> float:
+        """The simulated host clock the loopback drivers stamp with (the replayed frames' time)."""
+        return self._k / self.sample_rate
+
     def table_limits(self):
         return self._limits
 
@@ -134,9 +138,11 @@ class ReplayWorld:
 def transport_only(world, seconds: float, dialect: str, acl=None) -> float:
     """× real time of the loopback transports + decoding alone (physics pre-computed)."""
     from drivers.sim.loopback import Loopback
+    from drivers.sim.table_twins import AclTwin, ModbusTwin
 
     replay = ReplayWorld(world, seconds)
-    with Loopback(replay, dialect=dialect, acl=acl) as lb:  # type: ignore[arg-type]
+    twin = AclTwin(acl) if dialect == "acutrol" else ModbusTwin()
+    with Loopback(replay, table=twin) as lb:  # type: ignore[arg-type]
         wall, accel = acquisition(lb, seconds)
     assert accel.shape[0] == int(seconds * world.sample_rate)  # every sample crossed the wire
     return seconds / wall

@@ -39,6 +39,8 @@ REALISED = {
     "bias_instability": "realised (flicker as a Gauss–Markov sum over the band the identification assumes)",
     "attitude": "realised (a new navigation-frame attitude error per motion command, uniform within ±a)",
     "local_g": "realised (true g = bench g + δg, δg ~ N(0, u(g)²) per run)",
+    "axis_orthogonality": "realised (middle and inner axis tilts ε₁, ε₂ uniform within ± the attitude accuracy, once "
+    "per run)",
     "table_rate": "realised, not a budget input (the axis turns at (1 + ε_j) × its command, ε_j uniform within ±a "
     "per gimbal axis and run; the spins' reference is the encoder angle over time, which sees it)",
     "model_mismatch": "exercised by the simulator's unmodelled physics (full lever-arm and angular-acceleration "
@@ -94,20 +96,22 @@ class CoverageResult:
     expanded: np.ndarray
     component_var: dict[str, np.ndarray] = field(default_factory=dict)
     seeds: list[int] = field(default_factory=list)
+    classes: dict[str, slice | list[int]] = field(default_factory=lambda: dict(CLASSES))
+    """Parameter classes scored: index ranges (or index lists) of the state vector."""
 
     def fraction_outside(self, cls: str) -> float:
         """Fraction of |error| > U (k = 2) over the runs and the class's parameters."""
-        sl = CLASSES[cls]
+        sl = self.classes[cls]
         return float(np.mean(np.abs(self.errors[:, sl]) > self.expanded[:, sl]))
 
     def rms_normalised(self, cls: str) -> float:
         """RMS of error/u over the runs and the class's parameters."""
-        sl = CLASSES[cls]
+        sl = self.classes[cls]
         return float(np.sqrt(np.mean((self.errors[:, sl] / self.u[:, sl]) ** 2)))
 
     def share(self, cls: str) -> dict[str, float]:
         """Mean share of each budget component in u² over the class."""
-        sl = CLASSES[cls]
+        sl = self.classes[cls]
         total = np.mean(self.u[:, sl] ** 2)
         return {k: float(np.mean(v[:, sl]) / total) for k, v in self.component_var.items()}
 

@@ -39,6 +39,7 @@ from analysis.drift.arma_likelihood import exact_residuals
 from analysis.drift.arma_optimiser import (
     Convergence,
     Jacobian,
+    Optimum,
     Residuals,
     admissible,
     convergence,
@@ -466,8 +467,12 @@ def _note(*parts: str) -> str:
     return "; ".join(s for s in parts if s)
 
 
-def _check_point(problem: tuple[Residuals, Jacobian], params: NDArray[np.float64]) -> Convergence:
+def _check_point(problem: tuple[Residuals, Jacobian], best: Optimum) -> Convergence:
+    """The convergence measures at an optimum (those its optimiser computed there, else computed here)."""
+    if best.check is not None:
+        return best.check
     residuals, jacobian = problem
+    params = best.params
     e = residuals(params)
     A, g = normal_equations(jacobian(params, e), e)
     return convergence(A, g, dot(e, e), e.size)
@@ -486,7 +491,7 @@ def _maximise(
     runs = [levenberg_marquardt(*problem, s, p) for s in starts]
     best = min(runs, key=lambda r: r.cost)
     iterations = sum(r.iterations for r in runs)
-    conv = _check_point(problem, best.params)
+    conv = _check_point(problem, best)
     optimiser = "levenberg-marquardt"
     if conv.converged:
         return best.params, conv, iterations, optimiser
@@ -499,7 +504,7 @@ def _maximise(
         runs.append(polished)
     best = min(runs, key=lambda r: r.cost)
     optimiser = f"levenberg-marquardt + bfgs from {len(fallback_starts)} starts (levenberg-marquardt stalled)"
-    return best.params, _check_point(problem, best.params), iterations, optimiser
+    return best.params, _check_point(problem, best), iterations, optimiser
 
 
 def fit_arma(

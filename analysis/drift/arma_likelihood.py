@@ -175,7 +175,8 @@ def exact_residuals(
     r = p + q
     # Responses decay like ρᵗ (ρ the largest reciprocal MA root), so only their first `span` samples are non-zero
     # in double precision (e^{−40} ≈ 4e-18).
-    rho = float(np.max(np.abs(np.roots(den)))) if q else 0.0
+    # (q = 1: the one root is θ₁ itself, as np.roots finds it, without its eigenvalue solver)
+    rho = (abs(float(theta[0])) if q == 1 else float(np.max(np.abs(np.roots(den))))) if q else 0.0
     span = n if rho >= 1.0 - 1e-12 else min(n, max(p, q) + 1 + int(np.ceil(40.0 / -np.log(max(rho, 1e-300)))))
     e_c = signal.lfilter(num, den, x)
     ones = _response_to_ones(num, den, n, span) if estimate_mean else None

@@ -142,6 +142,8 @@ class Optimum:
     cost: float
     iterations: int
     stopped_by_criteria: bool
+    check: Convergence | None = None
+    """The convergence measures at ``params`` when the optimiser computed them there (saves recomputing them)."""
 
 
 def levenberg_marquardt(
@@ -161,8 +163,9 @@ def levenberg_marquardt(
     flat = 0
     for it in range(1, max_iter + 1):
         A, g = normal_equations(jacobian(params, e), e)
-        if convergence(A, g, cost, m).converged:
-            return Optimum(params, cost, it - 1, True)
+        conv = convergence(A, g, cost, m)
+        if conv.converged:
+            return Optimum(params, cost, it - 1, True, conv)
         d = np.diag(A).copy()
         d[d <= 0.0] = 1.0
         accepted = False

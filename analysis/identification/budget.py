@@ -85,6 +85,9 @@ class StepGeometry:
         Acquisition window in bench time, s (for the flicker correlation).
     earth : (m, 3) array or None
         Earth rate in the body frame, rad/s (gyro models; None = 0).
+    angles, rates : (m, 3) arrays or None
+        Reported gimbal angles (ψ, θ, γ), rad, and gimbal rates, rad/s, per point (the table-axis inputs,
+        :mod:`analysis.identification.table_axes`; None: those inputs are not evaluated).
     """
 
     name: str
@@ -96,6 +99,8 @@ class StepGeometry:
     spin_axis: int | None = None
     window: tuple[float, float] = (0.0, 0.0)
     earth: NDArray[np.float64] | None = None
+    angles: NDArray[np.float64] | None = None
+    rates: NDArray[np.float64] | None = None
 
     @property
     def samples(self) -> int:

@@ -13,9 +13,8 @@ depends on
   off by a relative ε scales every gyro output by 1 + ε (e_k = ω_ib,k per unit ε: S_g 1:1), and a residual
   offset δt turns the reference during a spin by ω δt (gyro rows: the Earth rate turned, [Ω_b×] ω δt; the
   accelerometer rows are the time-base analysis's own, already in the identification's covariance).
-* **table axis orthogonality and wobble** (per gimbal axis, one for the run): the spin axis is off its
-  nominal direction by a small tilt δn ⊥ n: e_k = |ω| δn in the body frame (T_g against the table frame,
-  the accelerometer sees it through f only to second order).
+The table's axis non-orthogonality tilts the spin axes of the outer and middle gimbals in the body frame and
+turns the holds' attitude for both triads: :mod:`analysis.identification.table_axes`.
 
 Each returns the error shape per step for the model's measurement axes; the rows of other triads are 0.
 """
@@ -23,7 +22,6 @@ Each returns the error shape per step for the model's measurement axes; the rows
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -115,36 +113,4 @@ def time_base_inputs(model: ModelSpec, u_rate: float, u_offset: float, source: s
     return out
 
 
-def axis_inputs(model: ModelSpec, u_tilt: float, source: str) -> list[BudgetInput]:
-    """Table axis orthogonality and wobble: a tilt of u (rad) of each gimbal's spin axis, two components."""
-    g = _gyro_axes(model)
-    if g is None or u_tilt <= 0:
-        return []
-
-    def shape_for(j: int) -> Callable[[StepGeometry], NDArray[np.float64] | None]:
-        def shape(geo: StepGeometry) -> NDArray[np.float64] | None:
-            if geo.spin_axis != j:
-                return None
-            w = geo.omega
-            mag = np.linalg.norm(w, axis=1, keepdims=True)
-            n = w / np.maximum(mag, 1e-300)
-            ref = np.where(np.abs(n[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
-            p1 = np.cross(n, ref)
-            p1 /= np.linalg.norm(p1, axis=1, keepdims=True)
-            p2 = np.cross(n, p1)
-            e = np.stack([mag * p1, mag * p2], axis=2)  # (m, 3, 2)
-            return _place(model, g, e)
-
-        return shape
-
-    return [
-        BudgetInput(
-            f"axis_{j}", f"Table axis orthogonality and wobble, {('outer', 'middle', 'inner')[j]} gimbal",
-            f"u = {u_tilt / ARCSEC:.3g}″ tilt of each gimbal axis, two components, one per axis and run ({source})",
-            np.eye(2) * u_tilt**2, shape_for(j),
-        )
-        for j in range(3)
-    ]  # fmt: skip
-
-
-__all__ = ["axis_inputs", "earth_rate_inputs", "time_base_inputs"]
+__all__ = ["earth_rate_inputs", "time_base_inputs"]

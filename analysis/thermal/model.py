@@ -408,6 +408,24 @@ def fit_thermal_model(
     )
 
 
+def with_common_offset(model: ThermalModel, names: Sequence[str], covariance: ArrayLike) -> ThermalModel:
+    """``model`` with an error common to every plateau added: an offset δ of the parameters ``names`` shared by
+    all plateaus (covariance ``covariance``, len(names)²) shifts only their constant coefficients c_0 by δ
+    (a polynomial fitted to data shifted by a constant shifts by that constant), so the covariance of those
+    c_0 grows by ``covariance``; the other coefficients are unchanged. Used for a reference common to the whole
+    run, such as the time base that scales every gyro scale-factor estimate."""
+    c = np.asarray(covariance, dtype=float)
+    if c.shape != (len(names), len(names)):
+        raise ValueError(f"covariance must be ({len(names)}, {len(names)}), got {c.shape}")
+    idx = [model.slices()[model.names.index(n)].start for n in names]
+    cov = model.covariance.copy()
+    cov[np.ix_(idx, idx)] += c
+    return ThermalModel(
+        model.names, model.reference, model.orders, model.rate_term, model.coefficients, cov,
+        model.temperature_range, model.chi2, model.n_data, model.bic, model.bic_table,
+    )  # fmt: skip
+
+
 def compensation_residual(model: ThermalModel, plateaus: Sequence[PlateauEstimate]) -> list[dict[str, object]]:
     """After compensation: per plateau, estimate − model (SI) with its standard uncertainty (the plateau's and
     the model's, which are correlated: u² = C_ii − (A Σ Aᵀ)_ii for the plateaus the model was fitted on)."""

@@ -47,5 +47,5 @@ def plot_timing_residuals(tb: TimeBase) -> Figure:
     ax2.set_ylabel("in-motion residual as time, µs")
     ax2.set_xlabel("unit time, s")
     FigureCanvasAgg(fig)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.11, right=0.98, top=0.94, bottom=0.09, hspace=0.22)  # fixed: no tight_layout pass
     return fig

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from analysis.earth import DEFAULT_LATITUDE_U
 from analysis.gimbal import body_to_nav
 from analysis.identification.bias_drift import flicker_components, window_mean_covariance
 from analysis.identification.budget import (
@@ -25,12 +26,13 @@ from analysis.identification.budget import (
     build_budget,
     default_g_uncertainty,
 )
-from analysis.identification.gyro_budget import axis_inputs, earth_rate_inputs, time_base_inputs
+from analysis.identification.gyro_budget import earth_rate_inputs, time_base_inputs
+from analysis.identification.table_axes import orthogonality_input
 from analysis.timebase import TimeBase
 from analysis.units import ARCSEC
 from benches.calibration_result import CalibrationResult
 from benches.identify import acquisition_span, earth_in_body
-from benches.reference import reference_for_samples
+from benches.reference import interpolate_table, reference_for_samples
 from benches.timebase import reference_rate_covariance, reference_rate_u, table_in_unit_time
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -104,10 +106,9 @@ def step_geometry(
         idx = (edges[:-1] + edges[1:] - 1) // 2
         t = f.samples(fields=("time",), index=idx).time
         assert t is not None
-        fr, om, ang = reference_for_samples(
-            t, tt, ta, tr, g=g, mounting=mounting, latency=latency,
-            span=acquisition_span(t_first, t_last, latency, rate),
-        )  # fmt: skip
+        span = acquisition_span(t_first, t_last, latency, rate)
+        fr, om, ang = reference_for_samples(t, tt, ta, tr, g=g, mounting=mounting, latency=latency, span=span)
+        _ang, gimbal_rates = interpolate_table(np.asarray(t, dtype=float) - latency, tt, ta, tr, span)
         spin_axis = None
         if s.kind == "spin":
             sel = (tt >= t_first) & (tt <= t_last)
@@ -117,6 +118,7 @@ def step_geometry(
             StepGeometry(
                 s.name, s.kind, fr, om, np.diff(edges).astype(float), body_to_nav(ang, mounting), spin_axis,
                 (t_first, t_last), None if latitude is None else earth_in_body(ang, latitude, mounting),
+                ang, gimbal_rates,
             )
         )  # fmt: skip
     return out
@@ -161,8 +163,8 @@ def budget_for_run(
     The identification's covariance and its white-noise part come from calibration.json (typed). With the
     gyro model the gyro's inputs join (:mod:`analysis.identification.gyro_budget`): azimuth alignment and
     latitude through the Earth rate, the time base (from the calibration result's ``time_base`` when the
-    time-base analysis produced one), and the table axes' orthogonality and wobble (the attitude accuracy
-    taken as the bound of each axis's tilt).
+    time-base analysis produced one). For every model the table's axis non-orthogonality (middle and inner
+    axis tilts, each bounded by the attitude accuracy; :mod:`analysis.identification.table_axes`) joins.
     """
     p_id = cal.covariance
     nv = cal.noise_variance
@@ -180,6 +182,8 @@ def budget_for_run(
             notes.append("the unit's gyro bias instability is unknown: no flicker share in the mismatch test")
         covered = bool(tb_source) and cal.time_base is not None and "gyro_S_x" in (cal.time_base.sensitivity or {})
         extra = _gyro_inputs(cal, latitude, azimuth_uncertainty, attitude_accuracy, notes, covered)
+    # the table's axis non-orthogonality, bounded by its stated attitude accuracy: both triads (table_axes)
+    extra += orthogonality_input(model, attitude_accuracy, g, "bounded by the table's attitude accuracy")
     budget = build_budget(
         p_id - p_tb,
         p_w,
@@ -204,8 +208,6 @@ def budget_for_run(
 DEFAULT_AZIMUTH_U: float = 20.0 * ARCSEC
 """Standard uncertainty of the table's azimuth alignment when the bench states none (a theodolite/gyrocompass
 survey to ±35″, rectangular); the certificate says that it was assumed."""
-DEFAULT_LATITUDE_U: float = 1.0 * ARCSEC
-"""Standard uncertainty of the site latitude (≈ 30 m on the ground, a map or GNSS reading)."""
 
 
 def _gyro_inputs(
@@ -238,7 +240,6 @@ def _gyro_inputs(
         out += time_base_inputs(model, float(u_rate or 0.0), float(u_off or 0.0), "time-base estimate of this run")
     else:
         notes.append("no time-base estimate in the calibration result: one clock assumed (time base not budgeted)")
-    out += axis_inputs(model, attitude_accuracy / np.sqrt(3.0), "the table's attitude accuracy, rectangular")
     return out
 def time_base_covariance(cal: CalibrationResult) -> tuple[NDArray[np.float64], str]:
     """The parameters' covariance from the run's estimated time base (J Σ Jᵀ, J = ∂x/∂(t₀, ε) from

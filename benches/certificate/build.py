@@ -71,7 +71,6 @@ from .content import (
     format_with_uncertainty,
 )
 from .noise_report import build_noise_report, is_static_record
-from .plots import plot_convergence, plot_coverage, plot_residuals
 
 
 def _load_bench_config(text: str) -> BenchConfig:
@@ -591,6 +590,8 @@ def assemble(g: Gathered, d: Decision, issue_date: str, with_plots: bool = True)
         analysis_plots=g.analysis_plots,
     )
     if with_plots:
+        from .plots import plot_convergence, plot_coverage, plot_residuals  # lazy: matplotlib (--help time)
+
         cert.plots["residuals"] = plot_residuals(g.per_step, cal.noise_variance[:3])
         if cal.noise_variance.size == 6:
             cert.plots["gyro_residuals"] = plot_residuals(g.per_step, cal.noise_variance[3:], triad="gyro")
@@ -662,7 +663,8 @@ def build_certificate(
                 bench_block=_bench_block(g), recording_block=_recording_block(g),
                 procedure_block=_procedure_block(g), temperature=g.temperature,
                 creation_date=_creation_datetime(str(g.attrs.get("created_utc", ""))).isoformat(),
-                software=software_version(), with_plots=with_plots,
+                software=software_version(), with_plots=with_plots, analyses=g.analyses,
+                analysis_plots=g.analysis_plots,
             )  # fmt: skip
         g = _gather_open(rr, run, rec_path, cal_path, rr.sha256, allow_incomplete, bench)
     return assemble(g, decide_conformity(g), date, with_plots)

@@ -256,6 +256,7 @@ class Certificate:
             "analyses": self.analyses,
             "software_version": self.software_version,
             "plots": {k: hashlib.sha256(v).hexdigest() for k, v in sorted(self.plots.items())},
+            "analysis_plots": {k: hashlib.sha256(v).hexdigest() for k, v in self.analysis_plots},
         }
 
     def to_json(self) -> str:

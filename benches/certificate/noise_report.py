@@ -31,7 +31,6 @@ from benches.recording import StepRecord
 
 from .analyses import noise_rows
 from .content import NOISE_REPORT, BenchInfo, Certificate, ambient_text
-from .plots import _context, _render
 
 STATIC_KINDS = frozenset({"warmup", "hold", "note"})
 """Step kinds of a static record (a soak or a ramp is a thermal procedure: not a noise record)."""
@@ -46,14 +45,15 @@ def _angle_gap(a: Sequence[float], b: Sequence[float]) -> float:
     return float(np.max(np.abs(d)))
 
 
-def is_static_record(steps: Sequence[StepRecord]) -> bool:
-    """True when the recording holds one attitude and no rotation: only warm-up / hold / note steps, all at
-    the same gimbal angles (within :data:`SAME_ATTITUDE_RAD`), at least one hold."""
+def is_static_record(steps: Sequence[Any]) -> bool:
+    """True when the recording (its :class:`StepRecord` rows) or the compiled procedure (its steps) holds one
+    attitude and no rotation: only warm-up / hold / note steps, all at the same gimbal angles (within
+    :data:`SAME_ATTITUDE_RAD`; unknown angles ignored), at least one hold."""
     if not steps or any(s.kind not in STATIC_KINDS for s in steps):
         return False
     if not any(s.kind == "hold" for s in steps):
         return False
-    angles = [s.angles for s in steps if all(math.isfinite(a) for a in s.angles)]
+    angles = [s.angles for s in steps if s.angles is not None and all(math.isfinite(a) for a in s.angles)]
     return all(_angle_gap(a, angles[0]) <= SAME_ATTITUDE_RAD for a in angles[1:])
 
 
@@ -114,9 +114,13 @@ def build_noise_report(
     creation_date: str,
     software: str,
     with_plots: bool = True,
+    analyses: dict[str, list[dict[str, str]]] | None = None,
+    analysis_plots: list[tuple[str, bytes]] | None = None,
 ) -> Certificate:
     """The noise report of the static record ``rr`` (see the module docstring); the blocks it shares with a
-    calibration certificate (bench, recording, procedure) are built by :mod:`benches.certificate.build`."""
+    calibration certificate (bench, recording, procedure) are built by :mod:`benches.certificate.build`.
+    ``analyses``/``analysis_plots``: the run folder's own analyses (``RUN/noise``, ``periodic``, ``drift``; rows
+    of :func:`benches.certificate.analyses.analysis_rows`), quoted after the report's own noise terms."""
 
     step = record_step(rr.steps)
     rate = float(recording_block.get("sample_rate_hz") or 0.0)
@@ -145,6 +149,8 @@ def build_noise_report(
     if with_plots and noise["channels"]:
         from analysis.noise.plot import plot_noise  # lazy: matplotlib (--help time)
 
+        from .plots import _context, _render  # lazy: matplotlib (--help time)
+
         with _context():
             plots["noise"] = _render(plot_noise(noise, title=f"Overlapping Allan deviation, step {step.name!r}"))
     ambient = dict(binfo.ambient or {})
@@ -172,7 +178,8 @@ def build_noise_report(
         coverage_factor=2.0,
         covariance=[],
         warnings=warnings,
-        analyses={"noise": rows, "record": stat_rows},
+        analyses={"noise": rows, "record": stat_rows, **{f"run folder {k}": v for k, v in (analyses or {}).items()}},
+        analysis_plots=list(analysis_plots or []),
         software_version=software,
         creation_date=creation_date,
         plots=plots,

@@ -32,15 +32,12 @@ _VERDICT_COLOURS = {
 _COMPONENT_SHORT = {
     "white_noise": "Noise",
     "bias_instability": "Flick.",
-    "rate": "Rate",
     "attitude": "Attit.",
     "local_g": "g",
     "model_mismatch": "Mism.",
     "azimuth": "Azim.",
     "latitude": "Lat.",
-    "axis_0": "Ax. o",
-    "axis_1": "Ax. m",
-    "axis_2": "Ax. i",
+    "axis_orthogonality": "Orth.",
     "time_base": "Time",
 }
 """Column heads of the budget table (each named in full under "Input quantities", with its key)."""
@@ -598,6 +595,27 @@ def render_pdf(cert: Certificate) -> bytes:
     return bytes(pdf.output())
 
 
+def _run_folder_analyses(pdf: _CertificatePdf, c: Certificate) -> None:
+    """The analyses the user ran on the record (``RUN/noise``, ``periodic``, ``drift``), quoted in a noise report."""
+    titles = {"noise": "Noise analysis of the run folder (tablebench noise)", "periodic": "Periodic error",
+              "drift": "Drift model"}  # fmt: skip
+    for key, rows in c.analyses.items():
+        if not key.startswith("run folder "):
+            continue
+        kind = key.removeprefix("run folder ")
+        pdf.section(titles.get(kind, kind))
+        if rows:
+            pdf.grid(["Channel", "Item", "Value"], [[r["channel"], r["item"], r["value"]] for r in rows],
+                     (25, 35, pdf.epw - 60), ("LEFT", "LEFT", "LEFT"), 7.6)  # fmt: skip
+        else:
+            pdf.para("No results in the analysis file.")
+        for name, png in c.analysis_plots:
+            if name.startswith(f"{kind}/"):
+                if pdf.get_y() > pdf.h - 110:
+                    pdf.add_page()
+                pdf.figure(png, 150)
+
+
 def _noise_report_pages(pdf: _CertificatePdf, c: Certificate) -> None:
     """The noise report of a static record (:mod:`benches.certificate.noise_report`): identity and conditions,
     the noise terms with U (k = 2), the record's statistics, the Allan deviation, warnings; no conformity."""
@@ -657,6 +675,7 @@ def _noise_report_pages(pdf: _CertificatePdf, c: Certificate) -> None:
         pdf.add_page()
         pdf.section("Overlapping Allan deviation of the record")
         pdf.figure(c.plots["noise"], 175)
+    _run_folder_analyses(pdf, c)
     pdf.section("Warnings and limitations")
     for w in c.warnings or ["None."]:
         pdf.para(f"• {w}", size=8)

@@ -48,6 +48,9 @@ from .layout import (
 
 # ---- reading -------------------------------------------------------------------------------------------------------
 
+KEPT_FIELDS = ("time", "accel", "gyro", "status")
+"""The sample fields :meth:`Recording.verify` keeps for the acquisition windows (what identification reads)."""
+
 
 class Recording:
     """A recording opened read-only (use :func:`open_recording`; a context manager).
@@ -79,6 +82,7 @@ class Recording:
                 f"(reads {', '.join(map(str, READABLE_VERSIONS))}); use the version that wrote it"
             )
         self._step_rows: int | None = None
+        self._kept: list[tuple[int, int, dict[str, NDArray[Any]]]] = []  # rows decoded by verify(), kept
         self.unfinished_tail = ""
         """Non-empty when rows after the last step row were left unfinished by a failed write (disk full) of a
         run that did not complete: they are ignored (``--resume`` and ``runs --salvage`` drop them)."""
@@ -106,7 +110,8 @@ class Recording:
         self.close()
 
     def close(self) -> None:
-        """Close the file (safe to call twice)."""
+        """Close the file (safe to call twice); the rows kept by :meth:`verify` are released."""
+        self._kept = []
         with contextlib.suppress(Exception):
             self._f.close()
 
@@ -373,10 +378,14 @@ class Recording:
                 prev_end, prev_t = s.end_sample, s.table_end
 
     # ---- verification ------------------------------------------------------------------------------------
-    def verify(self) -> None:
+    def verify(self, keep: bool = True) -> None:
         """Read every dataset (Fletcher-32 of every chunk) and check every complete step's SHA-256.
 
-        The samples are read once, in large chunk-aligned blocks, each step's rows hashed as they pass.
+        The samples are read once, in large chunk-aligned blocks, each step's rows hashed as they pass. With
+        ``keep``, the decoded rows of every complete step's acquisition window (the fields in
+        :data:`KEPT_FIELDS`: what identification reads) are kept as they pass, and :meth:`samples` serves them
+        from memory once every checksum has passed: the identification reads the verified pass's rows
+        instead of decoding the file a second time. :meth:`close` releases them.
 
         Raises
         ------
@@ -386,6 +395,11 @@ class Recording:
         v2 = self.header.format_version >= 2
         done = [s for s in self.steps if s.status == "complete"] if v2 else []
         hashers = [_StepHasher() for _ in done]
+        kept: list[tuple[int, int, dict[str, NDArray[Any]]]] = []
+        if keep:
+            fields = [n for n in KEPT_FIELDS if n in self.sample_fields]
+            kept = [(s.acq_start, min(s.acq_end, self.n_samples), {}) for s in self.complete_steps()]
+            kept = [(a, b, d) for a, b, d in kept if b > a and fields]
         first = 0
         for chunk in self.iter_samples(fields=self.sample_fields):
             a, b = chunk.start, chunk.start + len(chunk)
@@ -398,6 +412,14 @@ class Recording:
                 for name in IMU_FIELDS:
                     hashers[k].update("imu", name, getattr(chunk, name)[lo:hi])
                 k += 1
+            for ka, kb, arrays in kept:
+                lo, hi = max(a, ka), min(b, kb)
+                if lo < hi:
+                    for name in fields:
+                        v = getattr(chunk, name)
+                        if name not in arrays:
+                            arrays[name] = np.empty((kb - ka, *v.shape[1:]), dtype=v.dtype)
+                        arrays[name][lo - ka : hi - ka] = v[lo - a : hi - a]
         table = self.table()
         for s, h in zip(done, hashers, strict=True):
             for name in TABLE_FIELDS:
@@ -414,6 +436,17 @@ class Recording:
         self.truth()
         for name in self.aux_names():
             self.aux(name)
+        for _, _, arrays in kept:
+            for v in arrays.values():
+                v.flags.writeable = False  # served as views: nobody changes the verified rows
+        self._kept = kept  # every checksum passed
+
+    def _kept_rows(self, name: str, a: int, b: int) -> NDArray[Any] | None:
+        """Rows [a, b) of field ``name`` from the rows :meth:`verify` kept (a read-only view), or None."""
+        for ka, kb, arrays in self._kept:
+            if ka <= a and b <= kb and name in arrays:
+                return arrays[name][a - ka : b - ka]
+        return None
 
     # ---- typed access ------------------------------------------------------------------------------------
     def _read_text(self, name: str) -> str:
@@ -493,7 +526,9 @@ class Recording:
                     else:
                         v = np.asarray(self._imu_dataset(name)[idx], dtype=_IMU_DTYPES[name])
                 else:
-                    v = self._imu_rows(name, start, max(start, stop))
+                    v = self._kept_rows(name, start, stop) if stop > start else None
+                    if v is None:
+                        v = self._imu_rows(name, start, max(start, stop))
                 setattr(out, name, v)
         return out
 
@@ -645,8 +680,29 @@ def _walk(f: h5py.File) -> list[tuple[str, h5py.Dataset]]:
     return out
 
 
+_VERIFIED: dict[Path, tuple[int, ...]] = {}
+"""Recordings verified in full by this process → their file identity then (device, inode, size, modification and
+change times in ns). Opening an unchanged file again skips the second full pass (``tablebench run`` opens its
+recording for the identification, the certificate and the registry): any write to the file, or a change of
+its times, changes the identity and it is verified again; every chunk read is still checked (Fletcher-32)."""
+
+
+_KEPT: dict[str, Any] = {}
+"""The rows the last full verification kept (:meth:`Recording.verify`), with the file's key and identity: a
+recording opened again unchanged (no second pass) serves them too (``certificate`` opens the run for its
+budget, the registry for its as found / as left). One recording only, replaced by the next verification."""
+
+
+def _identity(p: Path) -> tuple[int, ...]:
+    st = p.stat()
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+
+
 def open_recording(path: str | Path, *, verify: bool = True) -> Recording:
     """Open a recording (a run folder or its ``recording.h5``) read-only, checked and by default verified.
+
+    A file this process has already verified and which has not changed since (:data:`_VERIFIED`) is not read
+    through a second time.
 
     Raises
     ------
@@ -671,7 +727,16 @@ def open_recording(path: str | Path, *, verify: bool = True) -> Recording:
     try:
         rec = Recording(p, f)
         if verify:
-            rec.verify()
+            key, ident = p.resolve(), _identity(p)
+            if _VERIFIED.get(key) != ident:
+                _VERIFIED.pop(key, None)
+                rec.verify()
+                if rec.integrity_verified:
+                    _VERIFIED[key] = ident
+                    _KEPT.clear()
+                    _KEPT.update(key=(key, ident), kept=rec._kept)
+            elif _KEPT.get("key") == (key, ident):
+                rec._kept = _KEPT["kept"]
     except BaseException:
         f.close()
         raise

@@ -8,9 +8,12 @@ uses the bench's auxiliary device ``"chamber"`` (:class:`drivers.chamber.base.Ch
   time-out. The table holds still; samples are recorded, not counted.
 * ramp: write the start set point, then move the set point by ``ramp_rate`` every ``RAMP_UPDATE`` s of bench
   time while the following steps (the repeated table sequence) run, until the end temperature.
-* every ``RECORD_EVERY`` s of bench time, the chamber's set point, air temperature and state and the unit's
-  temperature go to the recording's event log (one structured line, ``chamber: setpoint_K=… air_K=…
-  unit_K=…``); a chamber alarm stops the run.
+* every ``RECORD_EVERY`` s of bench time, the chamber's set point and air temperature and the unit's
+  temperature go to the recording's own group for the chamber, ``/aux/chamber`` (channels ``setpoint``, ``air``,
+  ``unit``, K; ``running``, ``alarm``, 0/1; ``benches/RECORDING.md``), and the same reading to the event log as
+  one structured line (``chamber: setpoint_K=… air_K=… unit_K=…``); a chamber alarm stops the run.
+* a soak reads the unit in blocks of up to ``SOAK_BLOCK`` s (the table holds still; the soak criterion works
+  on 1-second means), so a long soak costs few reads.
 * every exit path (end, error, Ctrl-C, lost link) leaves the chamber as the safety rules say
   (:func:`drivers.chamber.safety.leave_safe`: safe set point, optional warm-up, stop).
 """
@@ -26,13 +29,19 @@ from analysis.thermal.soak import SoakCriterion, SoakMonitor
 from analysis.units import kelvin_to_celsius
 from drivers.chamber.base import ChamberError
 from drivers.chamber.safety import leave_safe
-from drivers.protocols import ImuBlock
+from drivers.protocols import ImuBlock, Reading
 from procedures.steps import Ramp, Soak, Step
 
 RECORD_EVERY = 30.0
 """Bench seconds between chamber readings in the recording."""
 RAMP_UPDATE = 10.0
 """Bench seconds between set-point updates during a ramp."""
+SOAK_BLOCK = 10.0
+"""Largest read during a soak, bench s (at most a quarter of the soak's dwell)."""
+AUX_NAME = "chamber"
+"""The recording group of the chamber's readings: ``/aux/chamber``."""
+AUX_UNITS = {"setpoint": "K", "air": "K", "unit": "K", "running": "1", "alarm": "1"}
+"""Units of the recorded chamber channels."""
 
 
 class ThermalSteps:
@@ -80,6 +89,11 @@ class ThermalSteps:
             r = self.chamber.read()
         except ChamberError as exc:
             raise self._fail(step, exc) from exc
+        add_aux = getattr(self.r.rec, "add_aux", None)  # a recorder without auxiliary groups: event log only
+        if add_aux is not None:
+            values = {"setpoint": float(r.setpoint), "air": float(r.air), "unit": self._unit,
+                      "running": float(bool(r.running)), "alarm": float(bool(r.alarm))}  # fmt: skip
+            add_aux(AUX_NAME, t, Reading(values, dict(AUX_UNITS)))
         self.r.rec.event(
             t,
             "info",
@@ -133,11 +147,12 @@ class ThermalSteps:
         )
         mon = SoakMonitor(crit, step.target, t)
         self._monitor = mon
+        n = max(self.r.block, int(round(min(SOAK_BLOCK, step.dwell / 4.0) * self.r.rate)))
         try:
             while not mon.settled:
                 if mon.timed_out:
                     raise self.r.aborted("failed", f"step {step.name!r}: soak timed out: {mon.status()}")
-                self.r._acquire(step, self.r.block, False)
+                self.r._read_block(step, n, False)  # one read of up to SOAK_BLOCK s: the table holds still
                 self.r._show(self.r.progress.step, step.name, mon.status())
         finally:
             self._monitor = None

@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from analysis.units import CELSIUS_ZERO, DEG, DEG_PER_HOUR, FOOT, G0, GAUSS, UG
+from core.declare import REQUIRED, CoreReader, Field, Section, integer, text
 from core.yaml_source import (
     ConfigError,
     KeyPath,
@@ -305,6 +306,57 @@ def _int(d: dict, smap: SourceMap, p: KeyPath, key: str, default: Any = None, lo
     return int(v)
 
 
+class _FrameReader(CoreReader):
+    """A frame description's reader (:mod:`core.declare`): core's accessors and messages, integers as this
+    format writes them (decimal or 0x hex, with its own messages)."""
+
+    def read(self, f: Field, d: Any, smap: SourceMap, path: KeyPath, default: Any) -> Any:
+        if f.kind == "integer":
+            dflt = None if default is REQUIRED else default
+            return _int(dict(d), smap, path, f.key, dflt, int(f.minimum or 0), int(f.maximum or 0))
+        return super().read(f, d, smap, path, default)
+
+
+FRAME_READER = _FrameReader()
+BYTE_ORDERS = ("big", "little")
+
+DESCRIPTION = Section(
+    text("name"),
+    text("byte_order", "big", choices=BYTE_ORDERS),
+    integer("length", REQUIRED, 2, 4096),
+    order=DESCRIPTION_KEYS,
+    reader=FRAME_READER,
+)
+"""A single-layout description's own keys; ``sync``, ``trailer``, ``title``, ``notes`` and the sub-sections are
+read by :func:`parse_description` (byte lists; free text; sections of their own)."""
+FIELD = Section(
+    text("name"),
+    text("type", choices=list(TYPES)),
+    text("byte_order", choices=[*BYTE_ORDERS, LOW_WORD_FIRST]),
+    order=["name", "offset", "type", "byte_order", "channel", "scale", "unit", "mux", "sim_value", "add"],
+    reader=FRAME_READER,
+)
+"""One entry of ``fields`` (``byte_order`` defaults to the frame's; ``offset`` is bounded by the frame's length;
+``channel``, ``scale``, ``unit``, ``mux``, ``sim_value`` and ``add`` may come from options, read by
+:func:`_parse_field`)."""
+MUX = Section(text("selector"), integer("modulus", REQUIRED, 1, 256), extra=["slots"], reader=FRAME_READER)
+"""A multiplexed field's ``mux``."""
+MUX_SLOT = Section(text("channel", choices=list(CHANNEL_KINDS)), extra=["scale", "unit"], reader=FRAME_READER)
+"""One slot of a ``mux``."""
+COUNTER = Section(
+    integer("modulus", REQUIRED, 2, 1 << 64), order=["field", "modulus", "step", "tick_hz"], reader=FRAME_READER
+)
+"""``counter`` (its ``field`` names a field; ``step`` is bounded by the modulus; ``tick_hz`` a positive number)."""
+STATUS = Section(
+    text("valid", choices=["bits_set", "bits_clear", "zero", "flags"]),
+    order=["field", "valid", "bits", "channels"],
+    reader=FRAME_READER,
+)
+"""One entry of ``status``."""
+TIME = Section(integer("modulus", 0, 0, 1 << 64), order=["field", "modulus"], reader=FRAME_READER)
+"""``time``: a time-stamp field used as bench time."""
+
+
 def _bytes(d: dict, smap: SourceMap, p: KeyPath, key: str, required: bool) -> bytes:
     v = d.get(key)
     if v is None:
@@ -349,7 +401,7 @@ def _check_selectable(v: Any, smap: SourceMap, p: KeyPath, options: dict[str, Op
     if what == "scale":
         if parse_number(v) is None:
             raise smap.error(p, f"expected a number or a power of two like 2^-14, got {v!r}")
-    elif v not in UNITS:
+    elif not isinstance(v, str) or v not in UNITS:
         raise smap.error(p, f"unknown unit {v!r}; known: {', '.join(UNITS)}")
 
 
@@ -360,11 +412,9 @@ def parse_description(data: Any, smap: SourceMap) -> FrameDescription:
     d = get_mapping(data, smap, ())
     if "layouts" in d:
         return _parse_layouts(d, smap)
-    check_keys(d, smap, (), DESCRIPTION_KEYS)
-    name = get_str(d, smap, (), "name")
-    order = get_str(d, smap, (), "byte_order", "big", choices=["big", "little"])
+    top = DESCRIPTION.read(d, smap, ())
+    name, order, length = top["name"], top["byte_order"], top["length"]
     sync = _bytes(d, smap, (), "sync", True)
-    length = _int(d, smap, (), "length", None, 2, 4096)
     end = _bytes(d, smap, (), "end", False)
     if len(sync) + len(end) >= length:
         raise smap.error(("sync",), f"{len(sync) + len(end)} sync/end bytes leave nothing of a {length}-byte frame")
@@ -455,11 +505,8 @@ def _parse_field(
 ) -> FieldDesc:
     """One entry of ``fields``."""
     fd = get_mapping(fd, smap, p)
-    check_keys(
-        fd, smap, p, ["name", "offset", "type", "byte_order", "channel", "scale", "unit", "mux", "sim_value", "add"]
-    )
-    fname = get_str(fd, smap, p, "name")
-    ftype = get_str(fd, smap, p, "type", choices=list(TYPES))
+    declared = FIELD.read(fd, smap, p, {"byte_order": order})
+    fname, ftype, forder = declared["name"], declared["type"], declared["byte_order"]
     off = _int(fd, smap, p, "offset", None, 0, length - 1)
     size = TYPES[ftype][1]
     if off + size > length:
@@ -469,11 +516,10 @@ def _parse_field(
             p + ("offset",), f"{fname} at bytes {off}…{off + size - 1} overlaps the sync, end bytes or another field"
         )
     occupied[off : off + size] = True
-    forder = get_str(fd, smap, p, "byte_order", order, choices=["big", "little", LOW_WORD_FIRST])
     if forder == LOW_WORD_FIRST and ftype not in ("int32", "uint32"):
         raise smap.error(p + ("byte_order",), f"{LOW_WORD_FIRST} is for int32/uint32 fields, not {ftype}")
     channel = fd.get("channel")
-    if channel is not None and channel not in CHANNEL_KINDS:
+    if channel is not None and (not isinstance(channel, str) or channel not in CHANNEL_KINDS):
         raise smap.error(p + ("channel",), f"unknown channel {channel!r}; known: {', '.join(CHANNEL_KINDS)}")
     scale = fd.get("scale", 1)
     unit = fd.get("unit", "1")
@@ -499,20 +545,19 @@ def _parse_mux(
 ) -> tuple[str, int, list[tuple[int, str, Any, Any]]]:
     """A multiplexed field's ``mux``: (selector field, modulus, [(slot, channel, scale, unit)])."""
     md = get_mapping(m, smap, mp)
-    check_keys(md, smap, mp, ["selector", "modulus", "slots"])
-    selector = get_str(md, smap, mp, "selector")
-    modulus = _int(md, smap, mp, "modulus", None, 1, 256)
+    declared = MUX.read(md, smap, mp)
+    selector, modulus = declared["selector"], declared["modulus"]
     slots = get_mapping(md.get("slots"), smap, mp + ("slots",))
     mux: list[tuple[int, str, Any, Any]] = []
     for k, sd in slots.items():
         sp = mp + ("slots", str(k))
         sd = get_mapping(sd, smap, sp)
-        check_keys(sd, smap, sp, ["channel", "scale", "unit"])
+        MUX_SLOT.reader.check_keys(sd, smap, sp, MUX_SLOT.keys())
         try:
             slot = int(k)
         except ValueError:
             raise smap.error(sp, f"slot {k!r} must be an integer 0…{modulus - 1}") from None
-        sch = get_str(sd, smap, sp, "channel", choices=list(CHANNEL_KINDS))
+        sch = MUX_SLOT.read(sd, smap, sp, check=False)["channel"]
         mux.append((slot, sch, sd.get("scale", 1), sd.get("unit", "1")))
         _check_selectable(sd.get("scale", 1), smap, sp + ("scale",), options, "scale")
         _check_selectable(sd.get("unit", "1"), smap, sp + ("unit",), options, "unit")
@@ -525,9 +570,9 @@ def _parse_counter(d: dict, smap: SourceMap, names: set[str]) -> CounterDesc | N
         return None
     p: KeyPath = ("counter",)
     cd = get_mapping(d["counter"], smap, p)
-    check_keys(cd, smap, p, ["field", "modulus", "step", "tick_hz"])
+    COUNTER.reader.check_keys(cd, smap, p, COUNTER.keys())
     cf = get_str(cd, smap, p, "field", choices=sorted(names))
-    modulus = _int(cd, smap, p, "modulus", None, 2, 1 << 64)
+    modulus = COUNTER.read(cd, smap, p, check=False)["modulus"]
     if "step" in cd and "tick_hz" in cd:
         raise smap.error(p, "give step or tick_hz, not both")
     step = _int(cd, smap, p, "step", 1, 1, modulus // 2) if "tick_hz" not in cd else None
@@ -546,9 +591,9 @@ def _parse_status(d: dict, smap: SourceMap, names: set[str]) -> tuple[StatusDesc
     for i, sd in enumerate(sl):
         p: KeyPath = ("status", i)
         sd = get_mapping(sd, smap, p)
-        check_keys(sd, smap, p, ["field", "valid", "bits", "channels"])
+        STATUS.reader.check_keys(sd, smap, p, STATUS.keys())
         sf = get_str(sd, smap, p, "field", choices=sorted(names))
-        valid = get_str(sd, smap, p, "valid", choices=["bits_set", "bits_clear", "zero", "flags"])
+        valid = STATUS.read(sd, smap, p, check=False)["valid"]
         bits: list[tuple[str, int]] = []
         chans: tuple[str, ...] = ()
         if valid in ("bits_set", "bits_clear"):
@@ -581,24 +626,36 @@ CHECKSUM_KEYS = [
     "pad_to",
     "byte_order",
 ]
+CHECKSUM = Section(text("algorithm", "custom"), order=CHECKSUM_KEYS, reader=FRAME_READER)
+"""``checksum``: the algorithm here; a custom CRC's parameters (:data:`CRC`), the offset (bounded by the frame),
+``covers``, ``pad_to`` and ``byte_order`` (the frame's by default) are read by :func:`_parse_checksum`."""
+CRC = Section(
+    integer("width", REQUIRED, 8, 32),
+    integer("poly", REQUIRED, 1, (1 << 32) - 1),
+    integer("init", 0, 0, (1 << 32) - 1),
+    integer("xorout", 0, 0, (1 << 32) - 1),
+    reader=FRAME_READER,
+)
+"""A ``custom`` checksum's CRC parameters (``refin``/``refout`` are read as truth values)."""
 
 
 def _checksum_spec(cd: dict, smap: SourceMap, p: KeyPath) -> CrcSpec:
     """The checksum algorithm: a preset name, or ``custom`` with its CRC parameters."""
-    algo = get_str(cd, smap, p, "algorithm", "custom")
+    algo = CHECKSUM.read(cd, smap, p, check=False)["algorithm"]
     if algo in SUM_KINDS or algo in PRESETS:
         return CrcSpec.named(algo)
     if algo != "custom":
         known = ", ".join([*SUM_KINDS, "custom", *PRESETS])
         raise smap.error(p + ("algorithm",), f"unknown algorithm {algo!r}; known: {known}")
+    crc = CRC.read(cd, smap, p, check=False)
     spec = CrcSpec(
         "custom",
-        _int(cd, smap, p, "width", None, 8, 32),
-        _int(cd, smap, p, "poly", None, 1, (1 << 32) - 1),
-        _int(cd, smap, p, "init", 0, 0, (1 << 32) - 1),
+        crc["width"],
+        crc["poly"],
+        crc["init"],
         bool(cd.get("refin", False)),
         bool(cd.get("refout", False)),
-        _int(cd, smap, p, "xorout", 0, 0, (1 << 32) - 1),
+        crc["xorout"],
     )
     if spec.width not in (8, 16, 32) or spec.poly >= (1 << spec.width):
         raise smap.error(p + ("width",), "width must be 8, 16 or 32 with poly < 2^width")
@@ -613,7 +670,7 @@ def _parse_checksum(
         return None
     p: KeyPath = ("checksum",)
     cd = get_mapping(d["checksum"], smap, p)
-    check_keys(cd, smap, p, CHECKSUM_KEYS)
+    CHECKSUM.reader.check_keys(cd, smap, p, CHECKSUM.keys())
     spec = _checksum_spec(cd, smap, p)
     off = _int(cd, smap, p, "offset", None, 0, length - 1)
     if off + spec.nbytes > length:
@@ -649,11 +706,11 @@ def _parse_time(d: dict, smap: SourceMap, fields: list[FieldDesc]) -> tuple[str 
         return None, 0
     p: KeyPath = ("time",)
     td = get_mapping(d["time"], smap, p)
-    check_keys(td, smap, p, ["field", "modulus"])
+    TIME.reader.check_keys(td, smap, p, TIME.keys())
     time_field = get_str(td, smap, p, "field", choices=sorted(f.name for f in fields))
     if dict((f.name, f.channel) for f in fields)[time_field] != "time":
         raise smap.error(p + ("field",), f"field {time_field!r} must have channel: time")
-    return time_field, _int(td, smap, p, "modulus", 0, 0, 1 << 64)
+    return time_field, TIME.read(td, smap, p, check=False)["modulus"]
 
 
 def _parse_layouts(d: dict, smap: SourceMap) -> FrameDescription:

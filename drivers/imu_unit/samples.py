@@ -140,6 +140,17 @@ class SampleConverter:
                 out[:, i] = si[:, c]
         return out
 
+    @property
+    def absent_flags(self) -> np.uint16:
+        """Status bits of the recorded channels the format never carries (an accelerometer-only unit's gyro):
+        set on every sample, they say "not measured", not "the unit flagged this sample"."""
+        if self._subs:
+            out = np.uint16(0xFFFF)
+            for sub in self._subs.values():
+                out &= sub.absent_flags
+            return np.uint16(out)
+        return self._absent
+
     def convert(self, batch: FrameBatch) -> Samples:
         """SI samples of ``batch`` (in stream order, duplicates removed)."""
         if self._subs:

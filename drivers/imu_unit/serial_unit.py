@@ -286,7 +286,7 @@ class SerialInertialUnit:
         return self._block(s, stats)
 
     def _block(self, s: Samples, stats: DecodeStats) -> ImuBlock:
-        invalid = int(np.count_nonzero(s.status))
+        invalid = int(np.count_nonzero(s.status & ~self.converter.absent_flags))  # a channel never sent is no fault
         self.rejected_total += stats.rejected
         self.dropped_total += s.gaps
         self.resets_total += s.resets

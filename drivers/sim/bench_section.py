@@ -12,6 +12,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from analysis.earth import DEFAULT_LATITUDE_U
 from analysis.units import (
     ARCSEC,
     DEG,
@@ -55,6 +56,7 @@ from drivers.sim.config import (
     TableModel,
     TemperatureModel,
 )
+from drivers.sim.thermal_section import parse_thermal
 
 RATE_RW = DEG_PER_HOUR_PER_SQRT_HOUR  # 1 °/h/√h in rad/s/√s
 DPH_PER_G = DEG_PER_HOUR / G0  # 1 °/h per g in rad/s per m/s²
@@ -188,6 +190,7 @@ SIMULATION = Section(
         "accel_noise",
         "gyro_noise",
         "temperature",
+        "thermal",
         "periodic",
         "arma",
         "anti_alias_hz",
@@ -243,6 +246,7 @@ def parse_simulation(d: dict, smap: SourceMap, site: Site, table: Table, unit: U
         accel_noise=accel_noise,
         gyro_noise=gyro_noise,
         temperature=temperature,
+        thermal=parse_thermal(d, smap, p),
         periodic=_periodic(d, smap, p, fs),
         arma=_arma(d, smap, p),
         anti_alias_hz=aa or None,
@@ -377,7 +381,8 @@ def parse_clocks(d: dict, smap: SourceMap, p: KeyPath) -> ClockModel:
 
 def _budget_inputs(d: dict, smap: SourceMap, p: KeyPath, site: Site, table: Table) -> BudgetInputs | None:
     """``realise_uncertainty_inputs: true``: the simulator draws (seeded) every type-B input the certificate's
-    budget claims, within the bench's own stated uncertainties (local g anomaly, table attitude and rate)."""
+    budget claims, within the bench's own stated uncertainties (local g anomaly, table attitude, rate, azimuth and
+    axis orthogonality, the site latitude's assumed u)."""
     v = d.get("realise_uncertainty_inputs", False)
     if not isinstance(v, bool):
         raise smap.error(p + ("realise_uncertainty_inputs",), f"expected true or false, got {v!r}")
@@ -388,6 +393,8 @@ def _budget_inputs(d: dict, smap: SourceMap, p: KeyPath, site: Site, table: Tabl
         attitude_error_bound=table.attitude_accuracy,
         rate_error_bound=table.rate_accuracy,
         azimuth_std=float(getattr(table, "azimuth_uncertainty", None) or 0.0),
+        axis_tilt_bound=table.attitude_accuracy,
+        latitude_std=DEFAULT_LATITUDE_U,
     )
 
 

@@ -258,12 +258,19 @@ class BudgetInputs:
         of that motion (a real table's rate error: docs/methods/simulation.md).
     azimuth_std : rad. The outer gimbal's zero is off East by δψ ~ N(0, std²), once per run: the true
         C_b^n = R_z(δψ) C_b^n,reported (the Earth rate is seen in the true frame; gravity is vertical either way).
+    axis_tilt_bound : rad. The table's axis non-orthogonality: the middle axis tilted by ε₁ (about the outer
+        frame's y) and the inner axis by ε₂ (about the middle frame's z), each uniform in ±bound, once per run,
+        added to ``TableModel.non_orthogonality`` (``analysis.identification.table_axes``).
+    latitude_std : rad. The site's true latitude is the bench's + δφ, δφ ~ N(0, std²), once per run (the Earth
+        rate the unit senses).
     """
 
     gravity_anomaly_std: float = 0.0
     attitude_error_bound: float = 0.0
     rate_error_bound: float = 0.0
     azimuth_std: float = 0.0
+    axis_tilt_bound: float = 0.0
+    latitude_std: float = 0.0
 
 
 @dataclass(frozen=True)

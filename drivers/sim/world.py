@@ -100,7 +100,6 @@ class SimulatedWorld:
             raise ValueError(f"sample_rate must be > 0 Hz, got {config.sample_rate}")
         self._seed = int(seed)
         self._k = 0
-        self._earth_n = earth_rate_enu(config.latitude)
         self._mount = np.asarray(config.mounting, dtype=float)
         tb = config.table
         self._limits = tuple(tb.limits)
@@ -132,8 +131,13 @@ class SimulatedWorld:
         rb = float(bi.rate_error_bound) if bi is not None else 0.0
         self._rate_error = self._rng_budget.uniform(-rb, rb, 3) if rb > 0 else np.zeros(3)
         az = float(getattr(bi, "azimuth_std", 0.0) or 0.0) if bi is not None else 0.0
-        self._azimuth_error = float(self._rng_budget.normal(0.0, az)) if az > 0 else 0.0  # drawn last: the
-        # earlier draws (g anomaly, rate errors) are the same with or without it
+        self._azimuth_error = float(self._rng_budget.normal(0.0, az)) if az > 0 else 0.0  # drawn after the
+        # g anomaly and rate errors, which are the same with or without it; so are the later ones
+        tilt = float(getattr(bi, "axis_tilt_bound", 0.0) or 0.0) if bi is not None else 0.0
+        self._axis_tilt = self._rng_budget.uniform(-tilt, tilt, 2) if tilt > 0 else np.zeros(2)
+        lat_sd = float(getattr(bi, "latitude_std", 0.0) or 0.0) if bi is not None else 0.0
+        self._latitude_error = float(self._rng_budget.normal(0.0, lat_sd)) if lat_sd > 0 else 0.0
+        self._earth_n = earth_rate_enu(config.latitude + self._latitude_error)
         self._model = InertialModel(config, unit_ss)
         self.chamber: ChamberPhysics | None = None
         if config.chamber is not None:
@@ -144,7 +148,7 @@ class SimulatedWorld:
         self._jit_a = math.exp(-1.0 / (self._fs * tb.rate_jitter_tau)) if tb.rate_jitter_tau > 0 else 0.0
         self._jit_state = np.zeros(3)
         self._enc_lsb = 2.0 * math.pi / float(2**tb.encoder_bits) if tb.encoder_bits > 0 else 0.0
-        e1, e2 = tb.non_orthogonality
+        e1, e2 = np.asarray(tb.non_orthogonality, dtype=float) + self._axis_tilt
         self._wobble = float(tb.wobble)
         self._nonortho = (e1 != 0.0) or (e2 != 0.0) or self._wobble != 0.0
         self._e1 = _rot_small(1, e1)
@@ -785,9 +789,11 @@ class SimulatedWorld:
             "gravity_anomaly": np.array(self._g_anomaly),
             "table_rate_error": self._rate_error.copy(),
             "table_azimuth_error": np.array(self._azimuth_error),
+            "table_axis_tilt": self._axis_tilt.copy(),
+            "latitude_error": np.array(self._latitude_error),
             "latitude": np.array(c.latitude),
             "earth_rate_enu": self._earth_n.copy(),
-            "non_orthogonality": np.asarray(c.table.non_orthogonality, float),
+            "non_orthogonality": np.asarray(c.table.non_orthogonality, float) + self._axis_tilt,
             "wobble": np.array(c.table.wobble),
         }
         out.update({k: np.array(v) for k, v in self.clock_truth().items()})

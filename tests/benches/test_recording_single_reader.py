@@ -17,8 +17,8 @@ DATASET_PATH = re.compile(r"""["'](/?(imu|table)/(counter|time|accel|gyro|temper
 def _python_files():
     for pkg in PACKAGES:
         root = REPO_ROOT / pkg
-        if root.is_dir():
-            yield from sorted(root.rglob("*.py"))
+        if root.is_dir():  # benchmarks/out: git-ignored worktrees of old commits (benchmarks/bench_release.py)
+            yield from sorted(p for p in root.rglob("*.py") if "out" not in p.relative_to(root).parts[:1])
 
 
 def _imports_h5py(path) -> bool:

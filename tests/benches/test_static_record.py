@@ -59,6 +59,7 @@ def test_a_static_record_gets_a_noise_report_not_a_calibration_certificate(stati
     run, text = static_run
     assert (run / "noise-report.pdf").exists() and not (run / "certificate.pdf").exists()
     assert "noise report: " in text and "\ncertificate: " not in text
+    assert "static record (one attitude, no rotation): the run ends with a NOISE REPORT" in text  # said up front
     pages = _pages(run / "noise-report.pdf")
     whole = " ".join(pages)
     assert "NOISE REPORT" in pages[0] and "CALIBRATION CERTIFICATE" not in whole
@@ -146,3 +147,33 @@ def test_the_live_views_estimates_show_no_number_for_what_the_motion_cannot_see(
     last = est[-1]
     i = names.index("gyro_b_x")
     assert last["identified"][i] is True and isinstance(last["values"][i], float)
+
+
+def test_the_noise_report_is_deterministic(static_run):
+    from benches.certificate.pdf import render_pdf
+
+    run, _ = static_run
+    a = build_certificate(run, issue_date="2026-11-27")
+    b = build_certificate(run, issue_date="2026-11-27")
+    assert a.is_noise_report and a.to_json() == b.to_json()
+    assert render_pdf(a) == render_pdf(b)
+
+
+def test_the_noise_report_quotes_the_analyses_run_on_the_record(static_run, tmp_path):
+    """noise / periodic / drift run on the record (RUN/noise, …) are quoted after the report's own noise terms,
+    as a certificate quotes them."""
+    import shutil
+
+    from benches.certificate.pdf import render_pdf
+    from tests.certificate_fixtures import add_analyses
+
+    run = tmp_path / "run"
+    shutil.copytree(static_run[0], run)
+    add_analyses(run)
+    doc = pypdfium2.PdfDocument(render_pdf(build_certificate(run, issue_date="2026-11-27")))
+    try:
+        text = " ".join(" ".join(doc[i].get_textpage().get_text_range().split()) for i in range(len(doc)))
+    finally:
+        doc.close()
+    assert "NOISE REPORT" in text and "Noise analysis of the run folder" in text
+    assert "Periodic error" in text and "Drift model" in text and "ARMA(1,1)" in text

@@ -21,6 +21,7 @@ from drivers.aerosmith import AerosmithSettings, AerosmithTable
 from drivers.protocols import TableError
 from drivers.sim.aerosmith_server import AerosmithTableServer
 from drivers.sim.loopback import Loopback
+from drivers.sim.table_twins import AerosmithTwin
 from drivers.sim.world import SimulatedWorld
 from tests import REPO_ROOT
 from tests.simbench import run_procedure
@@ -103,7 +104,7 @@ def test_the_servers_reply_bytes():
 
 def test_loopback_object_and_factory_serve_the_aerosmith_dialect():
     world = _world()
-    with Loopback(world, dialect="aerosmith", aerosmith=AerosmithSettings()) as lb:
+    with Loopback(world, table=AerosmithTwin(AerosmithSettings())) as lb:
         assert "Ideal Aerosmith" in lb.describe() and "socket://127.0.0.1:" in lb.describe()
         lb.turntable.spin(2, math.radians(5))
         lb.unit.read(100)

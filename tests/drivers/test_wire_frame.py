@@ -322,6 +322,8 @@ checksum: {algorithm: sum8, offset: 7, covers: [0, 7]}
         ("modulus: 256", "modulus: 256, stride: 1", 7, "unknown key"),
         ("algorithm: sum8", "algorithm: crc-99", 8, "unknown algorithm"),
         ("channel: accel_x, unit: g", "channel: accel_x, unit: deg/s", 5, "does not fit"),
+        ("channel: accel_x, unit: g", "channel: [accel_x], unit: g", 5, "unknown channel"),  # was a TypeError
+        ("channel: accel_x, unit: g", "channel: accel_x, unit: [g]", 5, "unknown unit"),  # was a TypeError
     ],
 )
 def test_bad_description_is_one_line_with_file_and_line(old, new, line, match):

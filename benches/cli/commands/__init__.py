@@ -22,6 +22,7 @@ SUMMARIES: dict[str, str] = {
     "runs": "list recordings with their status; salvage a damaged one",
     "scalefactor": "gyro scale factor, nonlinearity and asymmetry (IEEE 952/1431) from a rate-transfer run",
     "table": "check and jog a bench's turntable (status, idn, move, spin, stop, reset-fault)",
+    "thermal": "thermal calibration of a run: parameters against temperature, thermal_calibration.json, certificate",
     "view": "watch a run (going on or finished) in a browser",
 }
 """Command (= module) name → the one-line help of ``tablebench --help``."""

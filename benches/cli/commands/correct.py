@@ -30,6 +30,12 @@ EXAMPLES = """examples:
   tablebench correct runs/RUN/calibration.json runs/OTHER --out corrected.npy
         # a recording: only its hold/spin acquisition windows (listed with their times), rates from the
         # recorded table readings; the sample times are written to corrected_time.npy
+  tablebench correct runs/THERMAL/thermal_calibration.json runs/OTHER --out corrected.npy
+        # a thermal calibration (tablebench thermal): the parameters at each sample's own temperature (the
+        # recording's temperature channel); output (n, 6) [f m/s², ω_ib rad/s]
+  tablebench correct thermal_calibration.json raw.npy --out corrected.npy --outside-range warn
+        # raw.npy (n, 7): [f_out m/s², ω_out rad/s, unit temperature K]; outside the calibrated temperature
+        # range: refused by default, or applied with a warning (--outside-range warn)
 """
 
 
@@ -52,6 +58,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--out", required=True, metavar="FILE.npy",
         help="corrected specific force (n, 3), m/s², or (n, 6) [f, ω_ib rad/s] with a whole-unit calibration",
     )  # fmt: skip
+    p.add_argument(
+        "--outside-range", choices=["refuse", "warn"], default="refuse",
+        help="thermal calibration: samples outside the calibrated temperature range are refused (default) or "
+        "compensated with the extrapolated model and a warning",
+    )  # fmt: skip
     p.set_defaults(func=run)
 
 
@@ -65,6 +76,10 @@ def run(args: argparse.Namespace) -> int:
     if not str(args.out).lower().endswith(".npy"):
         raise UsageError(f"--out {args.out}: give a .npy file name (the corrected samples are a NumPy array)")
     check_output(args.out)  # before the work: never over an input or a recording
+    from benches.thermal.document import is_thermal_file  # lazy: scipy (--help time)
+
+    if is_thermal_file(args.calibration):
+        return _run_thermal(args)
     cal = load_verified(args.calibration)[0]  # refuses an edited, unsealed or implausible file
     x, skipped = cal.compensation_vector()
     model = cal.error_model
@@ -136,3 +151,60 @@ def _read_input(src: Path, model: Any) -> _Arrays:
     omega = data[:, 3:6].astype(float) if data.shape[1] == 6 else np.zeros_like(f_out)
     gyro_out = omega if data.shape[1] == 6 and model.n_axes == 6 else None
     return f_out, omega, gyro_out, None, notes
+
+
+def _thermal_input(src: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """(f_out, ω_out, temperature K, times or None) of a recording's windows or of an (n, 7) .npy."""
+    if src.suffix.lower() in (".h5", ".hdf5"):
+        from benches.identify import IdentificationError  # lazy: filterpy, scipy (--help time)
+        from benches.thermal.identify import window_samples  # lazy: filterpy, scipy (--help time)
+
+        try:
+            f_out, gyro, temp, times = window_samples(src)
+        except IdentificationError as exc:
+            raise UsageError(str(exc)) from None
+        return f_out, gyro, temp, times
+    if not src.exists():
+        raise InputError(f"{src}: no such file")
+    data = read_npy(src)
+    if data.ndim != 2 or data.shape[1] != 7:
+        raise InputError(
+            f"{src}: a thermal calibration needs (n, 7) [f_out m/s², ω_out rad/s, unit temperature K], got {data.shape}"
+        )
+    if not np.all(np.isfinite(data)):
+        raise InputError(f"{src}: contains NaN/inf; remove them first")
+    return data[:, :3].astype(float), data[:, 3:6].astype(float), data[:, 6].astype(float), None
+
+
+def _run_thermal(args: argparse.Namespace) -> int:
+    """``correct`` with a thermal_calibration.json: parameters at each sample's temperature."""
+    from benches.thermal.correct import OutsideRangeError, thermal_correct  # lazy: scipy (--help time)
+    from benches.thermal.document import load_thermal  # lazy: scipy (--help time)
+
+    tf = load_thermal(args.calibration)
+    src = recording_path(args.input)
+
+    def compute(work: Work) -> tuple[np.ndarray, np.ndarray | None, str | None]:
+        work.stage("reading the input")
+        f_out, gyro, temp, times = _thermal_input(src)
+        work.advance(0.5, "correcting the samples at their temperatures")
+        try:
+            out, warning = thermal_correct(tf.model, f_out, gyro, temp, args.outside_range)
+        except OutsideRangeError as exc:
+            raise UsageError(f"{args.input}: {exc}") from None
+        return out, times, warning
+
+    t_path = Path(args.out).with_name(Path(args.out).stem + "_time.npy")
+    with Work("correct", 1.0) as work:
+        out, times, warning = work.run(compute, work)
+        if warning is not None:
+            print(f"warning: {warning}", file=sys.stderr)
+        with work.writing():
+            save_npy(args.out, out)
+            if times is not None:
+                save_npy(t_path, times)
+    if times is not None:
+        print(f"sample times (bench s) → {t_path}", file=sys.stderr)
+    print(f"corrected {out.shape[0]} samples with the thermal model (T_ref "
+          f"{tf.model.reference - 273.15:g} °C) → {args.out}")  # fmt: skip
+    return 0

@@ -191,6 +191,14 @@ def _run(args: argparse.Namespace, view: RunView) -> int:
         else:
             _say("pre-run plan (predicted 1σ):")
             _say(plan.table())
+            from benches.certificate.noise_report import is_static_record  # lazy: matplotlib (--help time)
+
+            if is_static_record(prep.compiled.steps):
+                _say(
+                    "this procedure is a static record (one attitude, no rotation): the run ends with a NOISE REPORT "
+                    "of the unit's noise terms, not a calibration certificate; the plan's NOT IDENTIFIED rows are "
+                    "expected (for a calibration: --procedure ten-step)"
+                )
 
     def observers(progress: ProgressDisplay) -> list[SampleObserver]:
         out: list[SampleObserver] = []

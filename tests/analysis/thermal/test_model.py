@@ -85,3 +85,25 @@ def test_residual_after_compensation_and_hysteresis():
     assert d[0, 0] == pytest.approx(-0.2, abs=3 * u[0, 0])
     with pytest.raises(ValueError):
         hysteresis(mh, mc, [REF + 100.0])
+
+
+def test_a_common_offset_shifts_only_the_constant_coefficients_and_adds_its_covariance():
+    from analysis.thermal.model import with_common_offset
+
+    rng = np.random.default_rng(4)
+    pls = synth(rng, [((1e-3, 2e-5), 0.0), ((5e-5, 1e-6, 2e-8), 0.0)], np.array([1e-5, 2e-6]))
+    m = fit_thermal_model(pls, ["a", "s"], reference=REF, orders=[1, 2])
+    delta = 3e-6  # the same shift of "s" at every plateau (a reference common to the run)
+    shifted = [PlateauEstimate(p.temperature, p.x + np.array([0.0, delta]), p.covariance) for p in pls]
+    m2 = fit_thermal_model(shifted, ["a", "s"], reference=REF, orders=[1, 2])
+    diff = m2.coefficients - m.coefficients
+    s0 = m.slices()[1].start
+    np.testing.assert_allclose(diff[s0], delta, rtol=1e-9)  # c_0 of "s" moves by exactly δ ...
+    np.testing.assert_allclose(np.delete(diff, s0), 0.0, atol=1e-12 * abs(delta) + 1e-20)  # ... nothing else
+    u2 = 4e-12
+    m3 = with_common_offset(m, ["s"], [[u2]])
+    added = m3.covariance - m.covariance
+    assert added[s0, s0] == pytest.approx(u2) and np.count_nonzero(added) == 1
+    _, u_before = m.evaluate([REF + 30.0])
+    _, u_after = m3.evaluate([REF + 30.0])
+    assert u_after[0, 1] == pytest.approx(np.hypot(u_before[0, 1], 2e-6)) and u_after[0, 0] == u_before[0, 0]

@@ -1,0 +1,109 @@
+"""Type-B input of the budget: the table's axis non-orthogonality (GUM; pure maths).
+
+A real three-axis table's gimbal axes are not exactly perpendicular. With the gimbal chain of the project
+(``docs/methods/simulation.md``, ``analysis.gimbal``) the two angles that matter are
+
+    C_t^n = R_z(ψ) E1 R_x(θ) E2 R_y(γ),  E1 = R_y(ε₁) (middle axis tilted about the outer frame's y),
+    E2 = R_z(ε₂) (inner axis tilted about the middle frame's z);
+
+the outer axis's own tilt from the vertical is a levelling (attitude) error and the rotations about the
+axes themselves are encoder zeros, both in the per-step attitude input. The reported reference assumes
+ε₁ = ε₂ = 0, so the true reference differs, for both triads, by
+
+* accelerometers: f_true − f_rep = g (C_n^b,true − C_n^b,rep) e_Up (the holds' gravity turned);
+* gyros: ω_ib,true − ω_ib,rep = (ω^b,true − ω^b,rep) + (C_n^b,true − C_n^b,rep) Ω^n: during a spin of the
+  outer or middle gimbal its axis is tilted in the body frame by about |ω| ε (T_g against the table frame),
+  and the Earth rate turns with the attitude. A spin of the inner gimbal is about the body's own mounting
+  axis and sees neither angle.
+
+The error shapes are the exact first-order derivatives (central differences of the chain above at
+ε = 0, step 1e-6 rad: the linearisation error is ~1e-12 relative). One input for the run with two
+components, each ε uniform within ± the bound (rectangular, u = a/√3, GUM 4.3.7). The centripetal size
+effect's change with the tilted rate (r ω² ε, < 1e-7 m/s² at 60 °/s) is neglected. Frames: n = ENU,
+b = body, t = inner gimbal.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from analysis import gimbal
+from analysis.identification.budget import BudgetInput, StepGeometry
+from analysis.identification.specification import ModelSpec
+from analysis.units import ARCSEC
+
+_STEP = 1e-6
+"""Half step of the central difference, rad."""
+
+
+def tilted_chain(
+    angles: NDArray[np.float64], rates: NDArray[np.float64], e1: float, e2: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """C_t^n (m, 3, 3) and ω^t (m, 3) (rad/s, inner-gimbal frame, relative to the ground) of a table whose
+    middle axis is tilted by ``e1`` (about the outer frame's y) and inner axis by ``e2`` (about the middle
+    frame's z), rad, at gimbal angles and rates (m, 3)."""
+    a = np.asarray(angles, dtype=float)
+    r = np.asarray(rates, dtype=float)
+    e_1 = gimbal._ry(np.array(float(e1)))
+    e_2 = gimbal._rz(np.array(float(e2)))
+    inner = e_2 @ gimbal._ry(a[:, 2])  # C_t^m
+    mid = e_1 @ gimbal._rx(a[:, 1]) @ inner  # C_t^o
+    c_tn = gimbal._rz(a[:, 0]) @ mid
+    omega_t = (
+        r[:, 0:1] * mid[:, 2, :]  # ψ̇ (C_t^o)ᵀ e_z
+        + r[:, 1:2] * inner[:, 0, :]  # θ̇ (C_t^m)ᵀ e_x
+        + r[:, 2:3] * np.array([0.0, 1.0, 0.0])
+    )
+    return c_tn, omega_t
+
+
+def _references(
+    geo: StepGeometry, e1: float, e2: float, g: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(f, ω_ib) in the body frame for the step's reference points on a table with tilts e1, e2."""
+    assert geo.angles is not None and geo.rates is not None and geo.c_bn is not None
+    c_tn0, _ = tilted_chain(geo.angles, geo.rates, 0.0, 0.0)
+    mount = np.transpose(c_tn0, (0, 2, 1)) @ np.asarray(geo.c_bn, dtype=float)  # C_b^t (the same at every point)
+    c_tn, omega_t = tilted_chain(geo.angles, geo.rates, e1, e2)
+    c_bn = c_tn @ mount
+    f = g * c_bn[:, 2, :]
+    omega = np.einsum("ni,nij->nj", omega_t, mount)
+    if geo.earth is not None:
+        earth_n = np.einsum("nij,nj->ni", np.asarray(geo.c_bn, dtype=float), geo.earth)  # C_b^n Ω^b
+        omega = omega + np.einsum("ni,nij->nj", earth_n, c_bn)
+    return f, omega
+
+
+def orthogonality_shape(geo: StepGeometry, model: ModelSpec, g: float) -> NDArray[np.float64] | None:
+    """e_k per unit (ε₁, ε₂) for the model's measurement axes, (m, n_axes, 2); None without gimbal angles."""
+    if geo.angles is None or geo.rates is None or geo.c_bn is None:
+        return None
+    cols = []
+    for k in range(2):
+        d = np.zeros(2)
+        d[k] = _STEP
+        fp, wp = _references(geo, d[0], d[1], g)
+        fm, wm = _references(geo, -d[0], -d[1], g)
+        df, dw = (fp - fm) / (2 * _STEP), (wp - wm) / (2 * _STEP)
+        rows = [df if p.output == "accel" else dw if p.output == "gyro" else np.zeros_like(df) for p in model.parts]
+        cols.append(np.concatenate(rows, axis=1))
+    return np.stack(cols, axis=2)
+
+
+def orthogonality_input(model: ModelSpec, bound: float, g: float, source: str) -> list[BudgetInput]:
+    """The table's axis non-orthogonality (ε₁, ε₂), each uniform within ±``bound`` rad, one for the run."""
+    if bound <= 0:
+        return []
+    u = bound / np.sqrt(3.0)
+    return [
+        BudgetInput(
+            "axis_orthogonality", "Table axis orthogonality",
+            f"±{bound / ARCSEC:.3g}″ for each of the middle and inner axes ({source}), rectangular, "
+            f"u = {u / ARCSEC:.3g}″, one for the run",
+            np.eye(2) * u**2, lambda geo: orthogonality_shape(geo, model, g),
+        )
+    ]  # fmt: skip
+
+
+__all__ = ["orthogonality_input", "orthogonality_shape", "tilted_chain"]

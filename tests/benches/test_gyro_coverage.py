@@ -1,0 +1,76 @@
+"""Issue 25 "Done when": the whole unit's certificate (gyros included) covers the truth on a bench that realises
+every type-B input of its budget (benchmarks.gyro_coverage; the slow Monte Carlo writes nothing, the benchmark
+``python -m benchmarks.gyro_coverage`` writes RESULTS.md). The fast tests check the bench and the simulator's
+realisation of the inputs the gyro budget adds."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from analysis.earth import DEFAULT_LATITUDE_U
+from analysis.units import ARCSEC, DEG_PER_HOUR, DEG_PER_SQRT_HOUR
+from benches.bench_config import load_bench
+from benchmarks.gyro_coverage import (
+    COVERAGE_RUNS,
+    PLAN_RATIO,
+    TARGET_OUTSIDE,
+    TARGET_RMS,
+    class_table,
+    plan_ratios,
+    run_unit_coverage,
+    unit_coverage_bench,
+)
+from drivers.sim.world import SimulatedWorld
+
+
+def test_unit_coverage_bench_differs_from_sim_and_realises_every_gyro_budget_input(tmp_path):
+    from procedures.paths import resolve_bench
+
+    cfg = load_bench(unit_coverage_bench(tmp_path))
+    ref = load_bench(resolve_bench("sim"))
+    assert cfg.simulation is not None and ref.simulation is not None
+    assert cfg.simulation.gyro != ref.simulation.gyro and cfg.simulation.accel != ref.simulation.accel
+    bi = cfg.simulation.budget_inputs
+    assert bi is not None and ref.simulation.budget_inputs is None
+    assert bi.azimuth_std == pytest.approx(cfg.turntable.azimuth_uncertainty) == pytest.approx(10 * ARCSEC)
+    assert bi.axis_tilt_bound == pytest.approx(cfg.turntable.attitude_accuracy) == pytest.approx(2 * ARCSEC)
+    assert bi.latitude_std == pytest.approx(DEFAULT_LATITUDE_U)
+    assert bi.gravity_anomaly_std > 0 and bi.attitude_error_bound > 0 and bi.rate_error_bound > 0
+    assert cfg.simulation.clocks.separate  # the time base is realised (and estimated per run)
+    # a navigation-grade FOG (the datasheet the identification uses), so the holds resolve the g-sensitivity
+    np.testing.assert_allclose(cfg.unit.noise.arw, 0.002 * DEG_PER_SQRT_HOUR)
+    assert cfg.unit.noise.gyro_bias_instability[0] == pytest.approx(0.005 * DEG_PER_HOUR)
+
+
+def test_simulator_draws_axis_tilts_and_latitude_within_the_stated_uncertainty(tmp_path):
+    cfg = load_bench(unit_coverage_bench(tmp_path))
+    tilt, lat = [], []
+    for seed in range(300):
+        ta = SimulatedWorld.from_bench(cfg, seed).truth_arrays()
+        tilt.append(ta["table_axis_tilt"])
+        lat.append(float(ta["latitude_error"]))
+        np.testing.assert_allclose(ta["non_orthogonality"], ta["table_axis_tilt"])  # the bench states none itself
+    t = np.array(tilt)
+    a = 2 * ARCSEC
+    assert np.all(np.abs(t) <= a) and np.std(t) == pytest.approx(a / math.sqrt(3), rel=0.1)
+    assert np.std(lat) == pytest.approx(DEFAULT_LATITUDE_U, rel=0.15)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(
+    strict=False,
+    reason="open (issue 25, measured 2026-11-27, benchmarks/RESULTS.md 'gyro_coverage'): 30 runs put gyro S out of "
+    "band (17.8 % outside U, RMS 1.32; its errors follow the table's realised rate error and the reference clock), "
+    "gyro b over-covered (0 %, RMS 0.85) and r marginally over-covered (1.1 %, RMS 0.84); every other class in band",
+)
+def test_unit_certificate_covers_the_truth_per_class_and_the_plan_predicts_the_scatter():
+    uc = run_unit_coverage(COVERAGE_RUNS)
+    rows = {cls: (frac, rms) for cls, _m, frac, rms, _ok, _s in class_table(uc)}
+    for cls, (frac, rms) in rows.items():  # gyro b, S, τ, G and the accelerometer's b, S, τ, d, r
+        assert TARGET_OUTSIDE[0] <= frac <= TARGET_OUTSIDE[1], (cls, frac, rows)
+        assert TARGET_RMS[0] <= rms <= TARGET_RMS[1], (cls, rms, rows)
+    for cls, r in plan_ratios(uc).items():
+        assert np.all((r <= PLAN_RATIO) & (r >= 1 / PLAN_RATIO)), (cls, r)
