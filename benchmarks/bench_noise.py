@@ -13,8 +13,9 @@ Writes the ``noise`` section of benchmarks/RESULTS.md (issue #16):
 3. MTOTDEV, TTOTDEV, HTOTDEV, Theo1 at N = 10⁷, full octave grid (allantools: not attempted): time and peak
    memory.
 
-Times are the best of alternating runs (allantools, tablebench, allantools, …) in one process; peak memory is
-tracemalloc's peak during a separate call, as a multiple of the record (N × 8 bytes per channel).
+Times: alternating repetitions (allantools, tablebench, …, order swapped each repetition) in one process, one BLAS
+thread; each speed-up is the median over the repetitions of t_allantools / t_tablebench with its range; peak memory
+is tracemalloc's peak during a separate call, as a multiple of the record (N × 8 bytes per channel).
 
     python -m benchmarks.bench_noise            # N = 10⁴ and 10⁷ (≈ 10 min on the 2-core machine)
     python -m benchmarks.bench_noise --quick    # N = 2·10³ and 10⁶, for development
@@ -22,15 +23,19 @@ tracemalloc's peak during a separate call, as a multiple of the record (N × 8 b
 
 from __future__ import annotations
 
-import argparse
 import os
-import time
-import tracemalloc
 
-import numpy as np
+os.environ.update(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")  # before numpy: both sides
 
-from analysis.noise.stability import m_grid, stability
-from benchmarks._results import write_section
+import argparse  # noqa: E402
+import time  # noqa: E402
+import tracemalloc  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from analysis.noise.stability import m_grid, stability  # noqa: E402
+from benchmarks._results import write_section  # noqa: E402
+from benchmarks._same_run import alternate, fmt_ratio, load_note, med_ms, thread_note  # noqa: E402
 
 TOTAL = ("mtotdev", "htotdev", "ttotdev", "theo1")
 CLASSIC = ("adev", "oadev", "mdev", "totdev")
@@ -49,9 +54,10 @@ def _record(n: int, seed: int = 1, channels: int = 1) -> np.ndarray:
 
 
 def _time(fn) -> tuple[object, float]:
-    t0 = time.perf_counter()
+    """Result and CPU time (s) of fn() (process CPU time: see benchmarks/_same_run.py)."""
+    t0 = time.process_time()
     out = fn()
-    return out, time.perf_counter() - t0
+    return out, time.process_time() - t0
 
 
 def _peak(fn) -> float:
@@ -62,19 +68,6 @@ def _peak(fn) -> float:
         return float(tracemalloc.get_traced_memory()[1])
     finally:
         tracemalloc.stop()
-
-
-def _alternate(fns: dict, runs: int) -> tuple[dict, dict, dict]:
-    """Run each callable ``runs`` times, alternating; best time, all times and the last result per name."""
-    best = {k: float("inf") for k in fns}
-    alls: dict = {k: [] for k in fns}
-    last: dict = {}
-    for _ in range(runs):
-        for k, fn in fns.items():
-            last[k], dt = _time(fn)
-            best[k] = min(best[k], dt)
-            alls[k].append(dt)
-    return best, alls, last
 
 
 def _ours(y, names, taus, confidence=None):
@@ -107,11 +100,11 @@ def part_total_small(at, n: int, small_m: list[int], runs: int) -> str:
     taus = np.array(small_m, dtype=np.float64) / RATE
     rows = []
     for k in TOTAL:
-        best, alls, last = _alternate(
+        times, last = alternate(
             {
                 "at": lambda k=k: _theirs(at, y, (k,), taus),
-                "ours": lambda k=k: _ours(y, (k,), taus),
                 "ours_ci": lambda k=k: _ours(y, (k,), taus, confidence=0.683),
+                "ours": lambda k=k: _ours(y, (k,), taus),
             },
             runs,
         )
@@ -119,31 +112,33 @@ def part_total_small(at, n: int, small_m: list[int], runs: int) -> str:
         nt = int(np.isfinite(last["ours"].estimates[k].dev[:, 0]).sum())
         (full, t_full), = [_time(lambda k=k: _ours(y, (k,), "octave"))]
         nfull = int(np.isfinite(full.estimates[k].dev[:, 0]).sum())
-        ci = best["ours_ci"]
         rows.append(
-            f"| {k} | {nt} | {_fmt_t(best['at'])} | {ci * 1e3:.2f} ms | **{best['at'] / ci:.0f}×** "
-            f"| {best['ours'] * 1e3:.2f} ms | {best['at'] / best['ours']:.0f}× | {rel:.1e} | {nfull} τ in "
+            f"| {k} | {nt} | {med_ms(times['at'])} | {med_ms(times['ours_ci'])} | {fmt_ratio(times, 'at', 'ours_ci')} "
+            f"| {med_ms(times['ours'])} | {fmt_ratio(times, 'at', 'ours')} | {rel:.1e} | {nfull} τ in "
             f"{t_full * 1e3:.0f} ms |"
         )
     return (
-        f"### Total family and Theo1 at N = {n:.0e} (speed-up on the same τ list, "
-        f"m = {', '.join(map(str, small_m))})\n\n"
-        "| estimator | τ | allantools (s, values only) | tablebench public call | speed-up | tablebench values only "
-        "| speed-up | max rel. diff | tablebench values only, full octave grid |\n"
-        "|---|---|---|---|---|---|---|---|---|\n" + "\n".join(rows) + f"\n\nBest of {runs} alternating runs each; "
-        "both libraries on the identical record and τ list, one thread (numpy's FFT and these loops are single-"
-        "threaded). 'Public call': `stability(..., confidence=0.683)`, values + noise identification + EDF + χ² "
-        "intervals (the headline, the figure a user gets); 'values only': `confidence=None` (allantools computes "
-        "values only). allantools' per-τ loops make a full octave grid take minutes at this N, so only the listed "
-        "m are compared; the last column is tablebench alone.\n"
+        f"### Total family and Theo1 at N = {n:.0e} (same τ list, m = {', '.join(map(str, small_m))})\n\n"
+        "| estimator | τ | allantools 2024.06 (values only; median) | tablebench **public call** (values + noise ID + "
+        "EDF + χ² intervals; median) | speed-up, public call | tablebench values only (`confidence=None`; median) "
+        "| speed-up, values only | max rel. diff | tablebench values only, full octave grid |\n"
+        "|---|---|---|---|---|---|---|---|---|\n" + "\n".join(rows) + f"\n\n{runs} alternating repetitions "
+        "(order swapped each repetition); speed-up = t_allantools / t_tablebench per repetition, median (range). Both "
+        "libraries on the identical record and τ list, single-threaded (one BLAS thread; numpy's FFT and these loops "
+        "are single-threaded anyway). The headline is the **public call** `stability(..., confidence=0.683)` — the "
+        "figure a user gets; allantools computes values only, so the values-only column (`confidence=None`) is the "
+        "like-for-like computation and is labelled so. allantools' per-τ loops make a full octave grid take minutes "
+        "at this N, so only the listed m are compared; the last column is tablebench alone (one run).\n"
     )
 
 
-def _three_channels(at, n: int, taus: np.ndarray, runs: int) -> tuple[float, dict[str, float]]:
-    """Best time of the public call on three channels at once, and the third channel's difference to allantools."""
+def _three_channels(at, n: int, taus: np.ndarray, runs: int) -> tuple[list[float], dict[str, float]]:
+    """Times of the public call on three channels at once, and the third channel's difference to allantools."""
     y3 = _record(n, 3, channels=3)
-    best, _, last = _alternate({"ours": lambda: _ours(y3, CLASSIC, taus, confidence=0.683)}, max(1, runs - 1))
-    return best["ours"], _maxrel(last["ours"], _theirs(at, np.ascontiguousarray(y3[:, 2]), CLASSIC, taus), CLASSIC, 2)
+    times, last = alternate({"ours": lambda: _ours(y3, CLASSIC, taus, confidence=0.683)}, max(1, runs - 1))
+    return times["ours"], _maxrel(
+        last["ours"], _theirs(at, np.ascontiguousarray(y3[:, 2]), CLASSIC, taus), CLASSIC, 2
+    )
 
 
 def part_classic_big(at, n: int, runs: int) -> str:
@@ -155,33 +150,34 @@ def part_classic_big(at, n: int, runs: int) -> str:
         "ours_ci": lambda: _ours(y, CLASSIC, taus, confidence=0.683),
         "ours": lambda: _ours(y, CLASSIC, taus),
     }
-    best, alls, last = _alternate(fns, runs)
+    times, last = alternate(fns, runs)
     rel = _maxrel(last["ours"], last["at"], CLASSIC)
     t3, rel3 = _three_channels(at, n, taus, runs)
     peaks = {k: _peak(fn) for k, fn in fns.items()}
     rec = y.nbytes
 
     def row(label: str, k: str) -> str:
-        ratio = "" if k == "at" else f"**{best['at'] / best[k]:.1f}×**"
+        r = "" if k == "at" else fmt_ratio(times, "at", k)
         return (
-            f"| {label} | {best[k]:.2f} | {', '.join(f'{t:.2f}' for t in alls[k])} | {ratio} | "
+            f"| {label} | {np.median(times[k]):.2f} | {', '.join(f'{t:.2f}' for t in times[k])} | {r} | "
             f"{peaks[k] / 1e6:.0f} MB ({peaks[k] / rec:.1f}× record) |"
         )
 
     return (
         f"### ADEV, OADEV, MDEV, TOTDEV together at N = {n:.0e}, octave τ (m = 1 … {int(ms[ms <= n // 3].max())}, "
         f"{taus.size} τ, same list for both)\n\n"
-        "| | best time (s) | all runs (s) | speed-up vs allantools | peak memory (tracemalloc) |\n"
-        "|---|---|---|---|---|\n"
+        "| | median CPU time (s) | all repetitions (s) | speed-up vs allantools, median (range) | peak memory "
+        "(tracemalloc) |\n|---|---|---|---|---|\n"
         + row("allantools 2024.06 (values, no intervals)", "at")
         + "\n"
-        + row("tablebench `stability`, public call (values + noise ID + EDF + χ² intervals)", "ours_ci")
+        + row("tablebench `stability`, **public call** (values + noise ID + EDF + χ² intervals)", "ours_ci")
         + "\n"
-        + row("tablebench `stability`, values only (`confidence=None`)", "ours")
+        + row("tablebench `stability`, values only (`confidence=None`; like for like)", "ours")
         + "\n\n"
-        f"Three channels at once (public call, 3 × {n:.0e} samples, best of {max(1, runs - 1)}): {t3:.2f} s = "
-        f"{t3 / best['ours_ci']:.2f}× one "
-        "channel. Largest relative difference to allantools: "
+        f"{runs} alternating repetitions, order swapped each repetition. Three channels at once (public call, "
+        f"3 × {n:.0e} samples, {len(t3)} runs, median): {np.median(t3):.2f} s = "
+        f"{np.median(t3) / np.median(times['ours_ci']):.2f}× one channel (same run). Largest relative difference to "
+        "allantools: "
         + ", ".join(f"{k} {v:.1e}" for k, v in rel.items())
         + " (one channel); "
         + ", ".join(f"{k} {v:.1e}" for k, v in rel3.items())
@@ -207,7 +203,7 @@ def part_total_big(n: int) -> str:
         )
     return (
         f"### Total family and Theo1 at N = {n:.0e}, full octave grid (allantools: not attempted)\n\n"
-        "| estimator | τ | time (s) | per τ (s) | peak memory (tracemalloc) |\n|---|---|---|---|---|\n"
+        "| estimator | τ | CPU time (s) | per τ (s) | peak memory (tracemalloc) |\n|---|---|---|---|---|\n"
         + "\n".join(rows)
         + "\n\nOne run each, under tracemalloc (time and memory of the same call; tracemalloc adds a little time). "
         "Peak memory: the phase, the "
@@ -223,7 +219,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="N = 2·10³ / 10⁶ instead of 10⁴ / 10⁷ (development)")
     ap.add_argument("--small-m", default="2,8,16", help="averaging factors of the N = 10⁴ comparison with allantools")
-    ap.add_argument("--runs", type=int, default=3, help="alternating runs per comparison (best is reported)")
+    ap.add_argument(
+        "--runs", type=int, default=5, help="alternating repetitions per comparison (median and range reported)"
+    )
     ap.add_argument("--no-write", action="store_true", help="print only, leave RESULTS.md alone")
     args = ap.parse_args()
     import allantools
@@ -236,13 +234,10 @@ def main() -> None:
         part_classic_big(allantools, n_big, args.runs),
         part_total_big(n_big),
     ]
-    load_end = os.getloadavg()
     body = (
         "Record: white + random-walk rate noise with a ramp and an offset at 1 kHz (frequency data), one channel "
-        f"unless stated. Machine load (1-min average) {load[0]:.1f} at the start and {load_end[0]:.1f} at the end "
-        "of the run (2 cores shared with other work: absolute times vary; the ratios are measured in one run, "
-        f"alternating).{' **--quick run.**' if args.quick else ''}\n\n"
-        + "\n".join(parts)
+        f"unless stated. {load_note(load)} Conditions: {thread_note()}."
+        f"{' **--quick run.**' if args.quick else ''}\n\n" + "\n".join(parts)
     )
     print(body)
     if not args.no_write:
