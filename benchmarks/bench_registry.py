@@ -245,9 +245,10 @@ def main() -> None:
         )
     body += [
         "",
-        f"Machine: 2 cores shared with eight engineers' test runs (load average {load:.1f} at the end), so wall "
-        "times are several times an idle PC's; the CPU column is the work the command does, which the load "
-        "inflates far less. show/trend include opening the registry (engine, schema-version check read from "
+        f"Machine: 2 cores, load average {load:.1f} at the end"
+        + (" (shared with other jobs: wall times are then several times an idle PC's; the CPU column, the work "
+           "the command does, is inflated far less). " if load > 1.5 else " (quiet). ")
+        + "show/trend include opening the registry (engine, schema-version check read from "
         "Alembic's table without importing Alembic) and, for show, the history table with s_r/s_R per parameter.",
     ]
     title = "Calibration registry: show and trend with 10 000 calibrations (issue 27)"

@@ -170,7 +170,8 @@ def plot_trend(rows: Sequence[CalibrationRow], param: str, out: Path) -> Path:
                 ax.axhline(y, color="C3", ls=style, lw=0.8, label=name if k == 0 else None)
     ax.set_ylabel(f"{param} ({unit})")
     ax.set_title(f"{rows[0].serial}: {param}, control limits from the unit's history (σ̂ = MR̄/1.128)")
-    ax.legend(fontsize=7, loc="best")
+    ax.margins(y=0.22)  # room above the points for the legend row
+    ax.legend(fontsize=7, loc="upper left", ncols=4)  # a fixed place: "best" searches every point
     en = [
         normalised_error(rows[k - 1].values[i], rows[k - 1].expanded[i], rows[k].values[i], rows[k].expanded[i])
         if ok[k] and ok[k - 1] else math.nan
@@ -181,7 +182,7 @@ def plot_trend(rows: Sequence[CalibrationRow], param: str, out: Path) -> Path:
     ax2.axhline(1.0, color="C3", ls="--", lw=0.8)
     ax2.set_ylabel("E_n vs previous")
     fig.autofmt_xdate()
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.11, right=0.98, top=0.94, bottom=0.12, hspace=0.08)  # fixed margins: no layout pass
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)
     return out
