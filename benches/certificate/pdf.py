@@ -504,6 +504,21 @@ def _plots_pages(pdf: _CertificatePdf, c: Certificate) -> None:
         pdf.figure(c.plots["gyro_convergence"], 165)
 
 
+def _analysis_section(pdf: _CertificatePdf, c: Certificate, title: str, kind: str, rows: list) -> None:
+    """One analysis quoted on a certificate or noise report: its rows (channel, item, value) and its figures."""
+    pdf.section(title)
+    if rows:
+        pdf.grid(["Channel", "Item", "Value"], [[r["channel"], r["item"], r["value"]] for r in rows],
+                 (25, 35, pdf.epw - 60), ("LEFT", "LEFT", "LEFT"), 7.6)  # fmt: skip
+    else:
+        pdf.para("No results in the analysis file.")
+    for name, png in c.analysis_plots:
+        if name.startswith(f"{kind}/"):
+            if pdf.get_y() > pdf.h - 110:
+                pdf.add_page()
+            pdf.figure(png, 150)
+
+
 def _warnings_and_analyses(pdf: _CertificatePdf, c: Certificate) -> None:
     pdf.add_page()
     pdf.section("Warnings and limitations")
@@ -514,22 +529,7 @@ def _warnings_and_analyses(pdf: _CertificatePdf, c: Certificate) -> None:
         pdf.para("None.")
     titles = {"noise": "Noise analysis (Allan variance terms)", "periodic": "Periodic error", "drift": "Drift model"}
     for kind, rows in c.analyses.items():
-        pdf.section(titles.get(kind, kind))
-        if rows:
-            pdf.grid(
-                ["Channel", "Item", "Value"],
-                [[r["channel"], r["item"], r["value"]] for r in rows],
-                (25, 35, pdf.epw - 60),
-                ("LEFT", "LEFT", "LEFT"),
-                7.6,
-            )
-        else:
-            pdf.para("No results in the analysis file.")
-        for name, png in c.analysis_plots:
-            if name.startswith(f"{kind}/"):
-                if pdf.get_y() > pdf.h - 110:
-                    pdf.add_page()
-                pdf.figure(png, 150)
+        _analysis_section(pdf, c, titles.get(kind, kind), kind, rows)
     pdf.section("Traceability")
     b = c.bench
     rate_acc = b.get("rate_accuracy_ppm") or 0
@@ -603,17 +603,7 @@ def _run_folder_analyses(pdf: _CertificatePdf, c: Certificate) -> None:
         if not key.startswith("run folder "):
             continue
         kind = key.removeprefix("run folder ")
-        pdf.section(titles.get(kind, kind))
-        if rows:
-            pdf.grid(["Channel", "Item", "Value"], [[r["channel"], r["item"], r["value"]] for r in rows],
-                     (25, 35, pdf.epw - 60), ("LEFT", "LEFT", "LEFT"), 7.6)  # fmt: skip
-        else:
-            pdf.para("No results in the analysis file.")
-        for name, png in c.analysis_plots:
-            if name.startswith(f"{kind}/"):
-                if pdf.get_y() > pdf.h - 110:
-                    pdf.add_page()
-                pdf.figure(png, 150)
+        _analysis_section(pdf, c, titles.get(kind, kind), kind, rows)
 
 
 def _noise_report_pages(pdf: _CertificatePdf, c: Certificate) -> None:
