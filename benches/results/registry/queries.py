@@ -65,8 +65,8 @@ class CalibrationRow:
     as_found_of: int | None
     as_found: str | None
     as_left: str | None
-    names: tuple[str, ...] = tuple(PARAM_NAMES)
-    kinds: tuple[str, ...] = ()
+    names: tuple[str, ...]
+    kinds: tuple[str, ...]
 
     def block(self, names: tuple[str, ...] | list[str]) -> list[int]:
         """Indices of ``names`` in this row's arrays (KeyError-free: every row has the accelerometer's)."""
