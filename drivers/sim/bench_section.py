@@ -28,6 +28,7 @@ from analysis.units import (
     UG_PER_SQRT_S,
 )
 from core.declare import Section, components, integer, matrix, number, text
+from core.seeds import MAX_SEED
 from core.yaml_source import (
     KeyPath,
     SourceMap,
@@ -43,7 +44,6 @@ from drivers.imu_unit.counts import CountScale
 from drivers.protocols import AxisLimits, FaultCode
 from drivers.sim.config import (
     CHANNELS,
-    MAX_SEED,
     AccelTruth,
     ArmaDrift,
     BudgetInputs,

@@ -19,7 +19,6 @@ import numpy as np
 from analysis.earth import normal_gravity
 from analysis.identification.model import PARAM_NAMES
 from analysis.units import ARCSEC, DEG, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MM, PPM, UG, UG_PER_G2
-from core.seeds import MAX_SEED as _MAX_SEED
 from drivers.imu_unit.counts import CountScale
 from drivers.protocols import AxisLimits, FaultCode
 from drivers.sim.thermal_config import ChamberSim, ThermalTruth
@@ -43,10 +42,6 @@ _Z3: Mat3 = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
 def _good_table_limits() -> tuple[AxisLimits, AxisLimits, AxisLimits]:
     lim = AxisLimits(rate_max=300.0 * DEG, accel_max=100.0 * DEG)
     return (lim, lim, lim)
-
-
-MAX_SEED = _MAX_SEED
-"""Largest simulator seed: the range of the bench file's ``simulation.seed`` and of ``--seed`` (:mod:`core.seeds`)."""
 
 
 @dataclass(frozen=True)
