@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from analysis.earth import earth_rate_enu
-from analysis.gimbal import body_rate, body_to_nav
+from analysis.gimbal import body_rate, nav_to_body
 from analysis.identification.batch import batch_identify, information_rank, unobservable_parameters
 from analysis.identification.bias_drift import flicker_components, window_mean_covariance
 from analysis.identification.kalman import StreamingIdentifier, estimate_measurement_noise
@@ -150,9 +150,11 @@ def bias_stability(config: BenchConfig, model: ModelSpec | None = None) -> NDArr
 def earth_in_body(
     angles: NDArray[np.float64], latitude: float, mounting: NDArray[np.float64] | None
 ) -> NDArray[np.float64]:
-    """Earth rate in the body frame at gimbal angles (n, 3), rad/s: C_n^b Ω [0, cos φ, sin φ] (ENU)."""
-    c_bn = body_to_nav(angles, mounting)
-    return np.einsum("nji,j->ni", c_bn, earth_rate_enu(latitude))
+    """Earth rate in the body frame at gimbal angles (n, 3), rad/s: C_n^b Ω [0, cos φ, sin φ] (ENU).
+
+    The constant navigation-frame rate rotated into the body frame sample by sample
+    (:func:`analysis.gimbal.nav_to_body`), not through a (n, 3, 3) C_b^n per sample (issue 32)."""
+    return nav_to_body(angles, earth_rate_enu(latitude), mounting)
 
 
 def angle_over_time(
