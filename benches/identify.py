@@ -325,10 +325,12 @@ class LiveIdentifier:
         self._readings: list[TableState] = []
         self._times: list[NDArray[np.float64]] = []
         self._accel: list[NDArray[np.float64]] = []
+        self._gyro: list[NDArray[np.float64]] = []
         self._n = 0
         self._step: str | None = None
         self._spin = False
         self._acq_t0 = 0.0
+        self._unseen: tuple[int, set[str]] | None = None
 
     def on_block(self, step: Step, block: ImuBlock, table: TableState, counts: bool) -> None:
         """Buffer the block if it is inside a hold/spin acquisition window; fuse when enough is buffered."""
@@ -344,15 +346,22 @@ class LiveIdentifier:
         self._step = step.name
         self._spin = isinstance(step, Spin)
         self._times.append(block.time)
-        self._accel.append(np.hstack([block.accel, block.gyro]) if self.model.n_axes == 6 else block.accel)
+        self._accel.append(block.accel)  # joined at the update (one copy per update, not per block)
+        if self.model.n_axes == 6:
+            self._gyro.append(block.gyro)
         self._n += len(block)
         if self._n >= self._flush_n and not self._spin:
             self.flush()
 
     def unseen(self) -> set[str]:
         """Parameters the motion so far does not see (their estimate is only the prior's): shown as "not identified
-        yet", never as a number, in the progress line and the live view."""
-        return set(unobservable_parameters(self.filter.information, self.filter.r_var, model=self.model))
+        yet", never as a number, in the progress line and the live view (worked out once per filter update, when
+        asked)."""
+        n = self.filter.n_samples
+        if self._unseen is None or self._unseen[0] != n:
+            names = unobservable_parameters(self.filter.information, self.filter.r_var, model=self.model)
+            self._unseen = (n, set(names))
+        return set(self._unseen[1])
 
     def parameter_kinds(self) -> list[tuple[str, str]]:
         """(name, quantity kind) of every state the filter estimates, in its order (for the live view)."""
@@ -379,23 +388,32 @@ class LiveIdentifier:
             acquisition_span(self._acq_t0, float(t[-1]), self.latency, float(self.config.unit.sample_rate)),
             self._spin,
         )
-        self.filter.update(np.concatenate(self._accel), f_ref, omega, self._step, t=t, earth=earth)
+        out = np.concatenate(self._accel)
+        if self.model.n_axes == 6:
+            out = np.hstack([out, np.concatenate(self._gyro)])
+        self.filter.update(out, f_ref, omega, self._step, t=t, earth=earth)
         self._times.clear()
         self._accel.clear()
+        self._gyro.clear()
         self._n = 0
         del self._readings[:-3]
         if self.progress is not None:
-            x, s = self.filter.estimate, self.filter.sigma
-            unseen = self.unseen()
-            parts = []
-            for name in self.show:
-                k = self.model.index(name)
-                unit, one = DISPLAY_UNITS[self.model.kinds[k]]
-                if name in unseen:  # the motion so far does not see it: its value is only the prior's
-                    parts.append(f"{name} not identified yet")
-                    continue
-                parts.append(f"{name} {x[k] / one:.4g}±{s[k] / one:.2g} {unit}")
-            self.progress.extra(", ".join(parts) + " (± = filter white-noise 1σ, k = 1)")
+            self.progress.extra(self.estimates_text)  # composed only when the progress line is shown
+
+    def estimates_text(self) -> str:
+        """The progress line's live estimates: ``show``'s parameters ± the filter's white-noise 1σ, or "not
+        identified yet" where the motion so far does not see one."""
+        x, s = self.filter.estimate, self.filter.sigma
+        unseen = self.unseen()
+        parts = []
+        for name in self.show:
+            k = self.model.index(name)
+            unit, one = DISPLAY_UNITS[self.model.kinds[k]]
+            if name in unseen:  # the motion so far does not see it: its value is only the prior's
+                parts.append(f"{name} not identified yet")
+                continue
+            parts.append(f"{name} {x[k] / one:.4g}±{s[k] / one:.2g} {unit}")
+        return ", ".join(parts) + " (± = filter white-noise 1σ, k = 1)"
 
 
 # ---- offline: recording → arrays -------------------------------------------------------------------------------------
