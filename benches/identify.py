@@ -161,17 +161,25 @@ def angle_over_time(
     table_angles: NDArray[np.float64],
     span: tuple[float, float],
 ) -> NDArray[np.float64] | None:
-    """Gimbal rates (3,) rad/s of a spin as the least-squares slope of the encoder angles over the span.
+    """Gimbal rates (3,) rad/s of a spin: the encoder angle turned between the span's first and last reading
+    over the time between them.
 
     The scale reference of the gyro: the angle the encoder measured over the time the controller measured,
-    not a commanded or reported rate. None when the span holds fewer than 3 readings.
+    not a commanded or reported rate. The gyro's mean over the window is the angle the table really turned
+    over the window's time, rate jitter included (real motion: a random walk of the angle); the end-to-end
+    angle reproduces that mean, whereas a least-squares slope through every reading weights the middle of the
+    spin more than its ends and would leave a fifth of the jitter's variance in the scale factor. Only the two
+    end readings' noise (encoder resolution and reading jitter, √2 σ_θ / T) remains. None when the span holds
+    fewer than 2 readings.
     """
-    keep = (table_time >= span[0]) & (table_time <= span[1])
-    if np.count_nonzero(keep) < 3:
+    keep = np.flatnonzero((table_time >= span[0]) & (table_time <= span[1]))
+    if keep.size < 2:
         return None
-    tt = table_time[keep] - float(np.mean(table_time[keep]))
-    ang = table_angles[keep]
-    return (tt @ (ang - ang.mean(axis=0))) / float(tt @ tt)
+    i, j = int(keep[np.argmin(table_time[keep])]), int(keep[np.argmax(table_time[keep])])
+    dt = float(table_time[j] - table_time[i])
+    if not dt > 0:
+        return None
+    return (table_angles[j] - table_angles[i]) / dt
 
 
 def window_reference(
