@@ -41,7 +41,7 @@ def _quantise(v: NDArray[np.float64], lsb: float, dtype: Any = np.int32) -> tupl
 
 def _dequantise(c: NDArray[Any], lsb: float, exc: NDArray[Any] | None, rows: NDArray[np.int64]) -> NDArray[np.float64]:
     """Values of counts ``c`` at recording rows ``rows`` (sorted), exceptions applied."""
-    v = c.astype(np.float64) * lsb
+    v = np.multiply(c, lsb, dtype=np.float64)  # one pass; the same as c.astype(float64) * lsb, bit for bit
     if exc is not None and exc.size:
         lo, hi = np.searchsorted(exc["row"], [rows[0], rows[-1] + 1]) if rows.size else (0, 0)
         if hi > lo:

@@ -448,6 +448,15 @@ class Recording:
                 return arrays[name][a - ka : b - ka]
         return None
 
+    def _kept_index(self, name: str, idx: NDArray[Any]) -> NDArray[Any] | None:
+        """Rows ``idx`` of field ``name`` from the rows :meth:`verify` kept (a copy), or None unless every index
+        falls in one kept window (a fancy-index read of the file decodes every chunk it touches)."""
+        if not self._kept or idx.ndim != 1 or idx.size == 0 or idx.dtype.kind not in "iu":
+            return None
+        lo, hi = int(idx.min()), int(idx.max()) + 1
+        rows = self._kept_rows(name, lo, hi)
+        return None if rows is None else rows[idx - lo]
+
     # ---- typed access ------------------------------------------------------------------------------------
     def _read_text(self, name: str) -> str:
         if name not in self._f:
@@ -520,10 +529,11 @@ class Recording:
             with self._guard(f"/imu/{name}", rows=(start, stop)):
                 if index is not None:
                     idx = np.asarray(index)
-                    if name in self._quanta:
+                    v = self._kept_index(name, idx)
+                    if v is None and name in self._quanta:
                         c = self._imu_dataset(name)[idx]
                         v = _dequantise(c, self._quanta[name], self._exc.get(name), idx.astype(np.int64))
-                    else:
+                    elif v is None:
                         v = np.asarray(self._imu_dataset(name)[idx], dtype=_IMU_DTYPES[name])
                 else:
                     v = self._kept_rows(name, start, stop) if stop > start else None
