@@ -26,8 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from analysis.earth import earth_rate_enu
-from analysis.gimbal import body_rate, nav_to_body
+from analysis.gimbal import body_rate
 from analysis.identification.batch import batch_identify, information_rank, unobservable_parameters
 from analysis.identification.bias_drift import flicker_components, window_mean_covariance
 from analysis.identification.kalman import StreamingIdentifier, estimate_measurement_noise
@@ -56,7 +55,7 @@ from .calibration_result import (
 from .progress import ProgressDisplay
 from .recorded_run import RecordedRun, run_of
 from .recording import RecordingError, StepRecord, TableReadings, recording_file
-from .reference import reference_at, reference_for_samples
+from .reference import acquisition_span, earth_in_body, reference_at, reference_for_samples
 from .timebase import reference_rate_covariance, run_time_base, table_in_unit_time, time_base_sensitivity
 
 ACCEL_MODEL: ModelSpec = get_model("accelerometer")
@@ -145,16 +144,6 @@ def bias_stability(config: BenchConfig, model: ModelSpec | None = None) -> NDArr
     if model is None or model.n_axes == 3:
         return acc
     return np.concatenate([acc, np.asarray(config.unit.noise.gyro_bias_instability, dtype=float)])
-
-
-def earth_in_body(
-    angles: NDArray[np.float64], latitude: float, mounting: NDArray[np.float64] | None
-) -> NDArray[np.float64]:
-    """Earth rate in the body frame at gimbal angles (n, 3), rad/s: C_n^b Ω [0, cos φ, sin φ] (ENU).
-
-    The constant navigation-frame rate rotated into the body frame sample by sample
-    (:func:`analysis.gimbal.nav_to_body`), not through a (n, 3, 3) C_b^n per sample (issue 32)."""
-    return nav_to_body(angles, earth_rate_enu(latitude), mounting)
 
 
 def angle_over_time(
@@ -272,19 +261,6 @@ def plan_for(compiled: CompiledProcedure, config: BenchConfig, model: ModelSpec 
         offset_covariance=offset_covariance([w for _, w in pairs], b),
         model=m,
     )
-
-
-def acquisition_span(t_first: float, t_last: float, latency: float, sample_rate: float) -> tuple[float, float]:
-    """Bench-time span (s) of the table readings that belong to an acquisition window's own motion state.
-
-    From 1.5 sample periods before the first sample's reference time (t_first − latency) to 1.5 sample
-    periods after the last sample: the reading the runner takes with each block is stamped at the next
-    sample, so it closes the window (the half period covers the unit's time-stamp jitter); a reading later
-    than that may already belong to the next motion and is never used
-    (:func:`benches.reference.interpolate_table` extrapolates with the reported rate instead).
-    """
-    dt = 1.5 / sample_rate
-    return (t_first - latency - dt, t_last + dt)
 
 
 # ---- live identification during the run ---------------------------------------------------------------------------
