@@ -585,11 +585,9 @@ def _identification_data(
     truth = None
     if tr is not None and all(n_ in tr.parameters for n_ in ACCEL_MODEL.names):
         truth = {n_: float(v) for n_, v in tr.parameters.items()}  # the truth check uses the model's names
-    every = max(1, n // 10000)  # rows 0, every, 2·every, … (read in chunks: a point selection decodes each chunk)
-    temp = np.concatenate(
-        [c.temperature[(-c.start) % every :: every] for c in rec.iter_samples(fields=("temperature",))]
-        + [np.zeros(0)]
-    )
+    every = max(1, n // 10000)  # rows 0, every, 2·every, … (a point selection of the file decodes each chunk)
+    temp = rec.samples(fields=("temperature",)).temperature  # the verified pass keeps the whole column
+    temp = temp[::every].copy() if temp is not None else np.zeros(0)
     if not windows:
         raise IdentificationError(
             f"{path}: no complete hold or spin step to identify from (procedure {rr.header.procedure_name!r}); "
