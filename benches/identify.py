@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from analysis.earth import earth_rate_enu
-from analysis.gimbal import body_rate, body_to_nav
+from analysis.gimbal import body_rate, nav_to_body
 from analysis.identification.batch import batch_identify, information_rank, unobservable_parameters
 from analysis.identification.bias_drift import flicker_components, window_mean_covariance
 from analysis.identification.kalman import StreamingIdentifier, estimate_measurement_noise
@@ -150,9 +150,11 @@ def bias_stability(config: BenchConfig, model: ModelSpec | None = None) -> NDArr
 def earth_in_body(
     angles: NDArray[np.float64], latitude: float, mounting: NDArray[np.float64] | None
 ) -> NDArray[np.float64]:
-    """Earth rate in the body frame at gimbal angles (n, 3), rad/s: C_n^b Ω [0, cos φ, sin φ] (ENU)."""
-    c_bn = body_to_nav(angles, mounting)
-    return np.einsum("nji,j->ni", c_bn, earth_rate_enu(latitude))
+    """Earth rate in the body frame at gimbal angles (n, 3), rad/s: C_n^b Ω [0, cos φ, sin φ] (ENU).
+
+    The constant navigation-frame rate rotated into the body frame sample by sample
+    (:func:`analysis.gimbal.nav_to_body`), not through a (n, 3, 3) C_b^n per sample (issue 32)."""
+    return nav_to_body(angles, earth_rate_enu(latitude), mounting)
 
 
 def angle_over_time(
@@ -323,10 +325,12 @@ class LiveIdentifier:
         self._readings: list[TableState] = []
         self._times: list[NDArray[np.float64]] = []
         self._accel: list[NDArray[np.float64]] = []
+        self._gyro: list[NDArray[np.float64]] = []
         self._n = 0
         self._step: str | None = None
         self._spin = False
         self._acq_t0 = 0.0
+        self._unseen: tuple[int, set[str]] | None = None
 
     def on_block(self, step: Step, block: ImuBlock, table: TableState, counts: bool) -> None:
         """Buffer the block if it is inside a hold/spin acquisition window; fuse when enough is buffered."""
@@ -342,15 +346,22 @@ class LiveIdentifier:
         self._step = step.name
         self._spin = isinstance(step, Spin)
         self._times.append(block.time)
-        self._accel.append(np.hstack([block.accel, block.gyro]) if self.model.n_axes == 6 else block.accel)
+        self._accel.append(block.accel)  # joined at the update (one copy per update, not per block)
+        if self.model.n_axes == 6:
+            self._gyro.append(block.gyro)
         self._n += len(block)
         if self._n >= self._flush_n and not self._spin:
             self.flush()
 
     def unseen(self) -> set[str]:
         """Parameters the motion so far does not see (their estimate is only the prior's): shown as "not identified
-        yet", never as a number, in the progress line and the live view."""
-        return set(unobservable_parameters(self.filter.information, self.filter.r_var, model=self.model))
+        yet", never as a number, in the progress line and the live view (worked out once per filter update, when
+        asked)."""
+        n = self.filter.n_samples
+        if self._unseen is None or self._unseen[0] != n:
+            names = unobservable_parameters(self.filter.information, self.filter.r_var, model=self.model)
+            self._unseen = (n, set(names))
+        return set(self._unseen[1])
 
     def parameter_kinds(self) -> list[tuple[str, str]]:
         """(name, quantity kind) of every state the filter estimates, in its order (for the live view)."""
@@ -377,23 +388,32 @@ class LiveIdentifier:
             acquisition_span(self._acq_t0, float(t[-1]), self.latency, float(self.config.unit.sample_rate)),
             self._spin,
         )
-        self.filter.update(np.concatenate(self._accel), f_ref, omega, self._step, t=t, earth=earth)
+        out = np.concatenate(self._accel)
+        if self.model.n_axes == 6:
+            out = np.hstack([out, np.concatenate(self._gyro)])
+        self.filter.update(out, f_ref, omega, self._step, t=t, earth=earth)
         self._times.clear()
         self._accel.clear()
+        self._gyro.clear()
         self._n = 0
         del self._readings[:-3]
         if self.progress is not None:
-            x, s = self.filter.estimate, self.filter.sigma
-            unseen = self.unseen()
-            parts = []
-            for name in self.show:
-                k = self.model.index(name)
-                unit, one = DISPLAY_UNITS[self.model.kinds[k]]
-                if name in unseen:  # the motion so far does not see it: its value is only the prior's
-                    parts.append(f"{name} not identified yet")
-                    continue
-                parts.append(f"{name} {x[k] / one:.4g}±{s[k] / one:.2g} {unit}")
-            self.progress.extra(", ".join(parts) + " (± = filter white-noise 1σ, k = 1)")
+            self.progress.extra(self.estimates_text)  # composed only when the progress line is shown
+
+    def estimates_text(self) -> str:
+        """The progress line's live estimates: ``show``'s parameters ± the filter's white-noise 1σ, or "not
+        identified yet" where the motion so far does not see one."""
+        x, s = self.filter.estimate, self.filter.sigma
+        unseen = self.unseen()
+        parts = []
+        for name in self.show:
+            k = self.model.index(name)
+            unit, one = DISPLAY_UNITS[self.model.kinds[k]]
+            if name in unseen:  # the motion so far does not see it: its value is only the prior's
+                parts.append(f"{name} not identified yet")
+                continue
+            parts.append(f"{name} {x[k] / one:.4g}±{s[k] / one:.2g} {unit}")
+        return ", ".join(parts) + " (± = filter white-noise 1σ, k = 1)"
 
 
 # ---- offline: recording → arrays -------------------------------------------------------------------------------------
@@ -589,8 +609,11 @@ def _identification_data(
     truth = None
     if tr is not None and all(n_ in tr.parameters for n_ in ACCEL_MODEL.names):
         truth = {n_: float(v) for n_, v in tr.parameters.items()}  # the truth check uses the model's names
-    temp = rec.samples(fields=("temperature",), index=np.arange(0, n, max(1, n // 10000))).temperature
-    temp = temp if temp is not None else np.zeros(0)
+    every = max(1, n // 10000)  # rows 0, every, 2·every, … (read in chunks: a point selection decodes each chunk)
+    temp = np.concatenate(
+        [c.temperature[(-c.start) % every :: every] for c in rec.iter_samples(fields=("temperature",))]
+        + [np.zeros(0)]
+    )
     if not windows:
         raise IdentificationError(
             f"{path}: no complete hold or spin step to identify from (procedure {rr.header.procedure_name!r}); "

@@ -9,9 +9,13 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Callable
 from typing import TextIO
 
 from analysis.units import format_hms as _hms
+
+BAR_REFRESH_S = 0.1
+"""The live bar is redrawn at most this often (wall s): the runner updates it every block, hundreds per second."""
 
 
 class ProgressDisplay:
@@ -43,7 +47,7 @@ class ProgressDisplay:
         self.t0 = time.monotonic()
         self._last_print = -1e9
         self._step = ""
-        self._extra = ""
+        self._extra: str | Callable[[], str] = ""
         self._bar = None
         if self.live:
             from tqdm import tqdm  # lazy: tqdm (--help time)
@@ -58,14 +62,21 @@ class ProgressDisplay:
         if not self.live:
             print(f"step {name}{': ' + description if description else ''}", file=self.stream, flush=True)
 
-    def extra(self, text: str) -> None:
-        """Set extra text shown with the next update (e.g. live estimates)."""
+    def extra(self, text: str | Callable[[], str]) -> None:
+        """Set extra text shown with the next update (e.g. live estimates); a callable is asked for it only
+        when a line is shown (the runner updates every block; a line is shown far less often)."""
         self._extra = text
 
     def update(self, bench_elapsed_s: float, *, force: bool = False) -> None:
-        """Report that ``bench_elapsed_s`` of the procedure's bench time has passed."""
+        """Report that ``bench_elapsed_s`` of the procedure's bench time has passed (shown at most every
+        ``min_interval_s`` wall seconds on plain lines and every ``BAR_REFRESH_S`` on the live bar, unless
+        ``force``)."""
+        now = time.monotonic()
+        if not force and now - self._last_print < (BAR_REFRESH_S if self._bar is not None else self.min_interval):
+            return
+        self._last_print = now
         frac = min(max(bench_elapsed_s / self.total, 0.0), 1.0)
-        wall = time.monotonic() - self.t0
+        wall = now - self.t0
         speed = bench_elapsed_s / wall if wall > 0 else float("nan")
         bench_left = max(self.total - bench_elapsed_s, 0.0)
         wall_left = bench_left / speed if speed and speed == speed and speed > 0 else float("nan")
@@ -76,18 +87,16 @@ class ProgressDisplay:
             bench_txt = f"bench {_hms(bench_elapsed_s)}, past the {_hms(self.total)} estimate, ETA unknown"
             wall_txt = f"wall {_hms(wall)}"
         text = f"{self._step} | {bench_txt} | {wall_txt} ({speed:.0f}x real time)"
-        if self._extra:
-            text += f" | {self._extra}"
+        extra = self._extra() if callable(self._extra) else self._extra
+        if extra:
+            text += f" | {extra}"
         if self._bar is not None:
             self._bar.n = int(frac * 1000)
             self._bar.set_description_str(f"{100 * frac:5.1f}%", refresh=False)
             self._bar.set_postfix_str(text, refresh=False)
             self._bar.refresh()
             return
-        now = time.monotonic()
-        if force or now - self._last_print >= self.min_interval:
-            self._last_print = now
-            print(f"{100 * frac:5.1f}% {text}", file=self.stream, flush=True)
+        print(f"{100 * frac:5.1f}% {text}", file=self.stream, flush=True)
 
     def close(self) -> None:
         """Finish the display."""
@@ -105,7 +114,7 @@ class NullProgress(ProgressDisplay):
     def step(self, name: str, description: str = "") -> None:  # noqa: D102
         pass
 
-    def extra(self, text: str) -> None:  # noqa: D102
+    def extra(self, text: str | Callable[[], str]) -> None:  # noqa: D102
         pass
 
     def update(self, bench_elapsed_s: float, *, force: bool = False) -> None:  # noqa: D102

@@ -28,9 +28,14 @@ from elsewhere, e.g. the time base, enter the same way):
    and the reference rate of a spin is the encoder angle over time (both triads; the centripetal term and
    the gyro scale), which sees that motion (docs/methods/gyro-calibration.md).
 6. **Model mismatch** (type A, from the residuals): the per-step mean residuals scatter more than the
-   claimed components explain (noise R/n, the per-step part of the flicker, the attitude error): the excess
-   variance per axis σ²_mm = Σ_s (m²_{s,a} − expected_{s,a}) / (K − 6) (clipped at 0) is propagated as an
-   unknown constant error per step and axis.
+   claimed components explain (noise R/n, the per-step part of the flicker, the per-step inputs such as the
+   attitude error, and what the run-common inputs leave after the fit): the excess variance per axis
+   σ²_mm = (Σ_s (m²_{s,a} − fitted_{s,a}) − (K − 6)/K Σ_s expected_{s,a}) / (K − 6) (clipped at 0) is
+   propagated as an unknown constant error per step and axis. ``expected`` is the pre-fit variance of an
+   independent per-step error (noise, flicker, attitude); ``fitted`` the squared step-mean residual a
+   run-common input u (one draw for the run, e.g. the table's axis non-orthogonality) leaves after the fit,
+   r_s = mean_s(e_k − H_k C) with C its sensitivity, E[r_s²] = diag(r_s Cov(u) r_sᵀ): that input is already
+   claimed by its own component, and counting its residual as mismatch too would count it twice.
 
 Combined standard uncertainty u = √diag(Σ components); expanded uncertainty U = k u with k = 2 (≈ 95 %
 for a normal distribution; the effective degrees of freedom are large). Where the spec is silent the
@@ -272,11 +277,54 @@ def step_offset_sensitivity(
     return [a_inv @ _ht_rinv(geo, r_inv, model)[0].sum(axis=0) for geo in geometry]
 
 
+def _step_mean(geo: StepGeometry, e: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Sample-weighted mean over the step's points of a per-point array (m, ...) → (...)."""
+    return np.einsum("k,k...->...", geo.weight, e) / max(float(geo.weight.sum()), 1.0)
+
+
 def attitude_step_variance(geo: StepGeometry, u_att: float, model: ModelSpec | None = None) -> NDArray[np.float64]:
     """Variance (n_axes,) of the step-mean reference error per axis from an attitude error of u per axis."""
-    shape = attitude_shape(geo, model)
-    mean_shape = np.einsum("k,kab->ab", geo.weight, shape) / max(float(geo.weight.sum()), 1.0)
-    return u_att**2 * np.sum(mean_shape**2, axis=1)
+    return u_att**2 * np.sum(_step_mean(geo, attitude_shape(geo, model)) ** 2, axis=1)
+
+
+def input_step_variance(
+    inp: BudgetInput,
+    a_inv: NDArray[np.float64],
+    geometry: Sequence[StepGeometry],
+    noise_var: NDArray[np.float64],
+    model: ModelSpec | None = None,
+) -> tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]]:
+    """What one type-B input adds to the step-mean residuals, per step name, (n_axes,) each, SI².
+
+    Returns (pre-fit, post-fit). A per-step input (an independent draw per step) gives the pre-fit variance
+    diag(ē_s Cov ē_sᵀ) of its step-mean error ē_s; the fit removes its share of it like that of any independent
+    per-step error. A run-common input (one draw for the run) gives the post-fit variance diag(r̄_s Cov r̄_sᵀ) of
+    the step-mean residual it leaves, r̄_s = mean_s(e_k − H_k C), C = A⁻¹ Σ_k Hᵀ R⁻¹ e_k its sensitivity over
+    the whole run (the identification's estimate moves by C u and the residual keeps the rest).
+    """
+    m = resolve(model)
+    pre: dict[str, NDArray[np.float64]] = {}
+    post: dict[str, NDArray[np.float64]] = {}
+    cov = np.asarray(inp.covariance, dtype=float)
+    shapes = [inp.shape(geo) for geo in geometry]
+    if inp.per_step:
+        for geo, e in zip(geometry, shapes, strict=True):
+            if e is not None:
+                mean = _step_mean(geo, e)
+                pre[geo.name] = np.einsum("ab,bc,ac->a", mean, cov, mean)
+        return pre, post
+    sens = input_sensitivity(a_inv, geometry, noise_var, inp.shape, m)
+    if all(c is None for c in sens):
+        return pre, post
+    c_run = sum((c for c in sens if c is not None), np.zeros((m.n_params, cov.shape[0])))
+    for geo, e in zip(geometry, shapes, strict=True):
+        h = m.design_matrix(geo.f, geo.omega, geo.earth)
+        res = -np.einsum("kan,nb->kab", h, c_run)
+        if e is not None:
+            res = res + e
+        mean = _step_mean(geo, res)
+        post[geo.name] = np.einsum("ab,bc,ac->a", mean, cov, mean)
+    return pre, post
 
 
 def mismatch_variance(
@@ -285,13 +333,17 @@ def mismatch_variance(
     noise_var: NDArray[np.float64],
     expected_extra: Mapping[str, NDArray[np.float64]],
     n_params_per_axis: int | Sequence[int] = 6,
+    expected_fitted: Mapping[str, NDArray[np.float64]] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Observed per-step DC residual variance (n_axes,) and its excess over what the budget already claims.
 
     ``per_step`` rows as in ``calibration.json`` ``residuals.per_step`` (name, samples, mean (n_axes), SI);
-    ``expected_extra`` per step name: the claimed variance of the step mean beyond white noise (flicker
-    share, attitude error). ``n_params_per_axis``: the fitted parameters per axis (a K-step fit removes
-    that many of the K degrees of freedom of the step means).
+    ``expected_extra`` per step name: the claimed pre-fit variance of the step mean beyond white noise
+    (flicker share, attitude error; independent per step). ``n_params_per_axis``: the fitted parameters per
+    axis (a K-step fit removes that many of the K degrees of freedom of the step means).
+    ``expected_fitted`` per step name: the claimed squared step-mean residual left AFTER the fit by the
+    run-common inputs (:func:`input_step_variance`), taken off the observed sum as it is. The returned
+    observed variance is the raw Σ m² / (K − p).
     """
     r = np.asarray(noise_var, dtype=float).reshape(-1)
     n_ax = r.size
@@ -308,8 +360,11 @@ def mismatch_variance(
         m = np.asarray(p["mean"], dtype=float).reshape(n_ax)
         obs += m**2
         exp += r / n + np.asarray(expected_extra.get(str(p["name"]), np.zeros(n_ax)), dtype=float)
+    fitted = np.zeros(n_ax)
+    for p in rows:
+        fitted += np.asarray((expected_fitted or {}).get(str(p["name"]), np.zeros(n_ax)), dtype=float)
     obs_var = obs / dof
-    exp_var = exp / len(rows)
+    exp_var = exp / len(rows) + fitted / dof
     return obs_var, np.clip(obs_var - exp_var, 0.0, None)
 
 
@@ -425,12 +480,10 @@ def build_budget(
         m, geometry, g=g, g_uncertainty=g_uncertainty, g_source=g_source,
         attitude_accuracy=attitude_accuracy,
     )  # fmt: skip
+    inputs = [*inputs, *extra_inputs]
     comps += [input_component(i, a_inv, geometry, nv, m) for i in inputs]
-    comps += [input_component(i, a_inv, geometry, nv, m) for i in extra_inputs]
     notes: list[str] = []
-    comps.append(
-        _mismatch_component(m, a_inv, geometry, nv, attitude_accuracy, flicker_step_variance, residuals_per_step)
-    )
+    comps.append(_mismatch_component(m, a_inv, geometry, nv, inputs, flicker_step_variance, residuals_per_step))
     if not residuals_per_step:
         notes.append("no per-step residual statistics: the model-mismatch component is zero (not evaluated)")
     return UncertaintyBudget(comps, coverage_factor, notes)
@@ -441,17 +494,23 @@ def _mismatch_component(
     a_inv: NDArray[np.float64],
     geometry: Sequence[StepGeometry],
     nv: NDArray[np.float64],
-    attitude_accuracy: float,
+    inputs: Sequence[BudgetInput],
     flicker_step_variance: Mapping[str, NDArray[np.float64]] | None,
     residuals_per_step: Sequence[Mapping[str, object]],
 ) -> BudgetComponent:
-    """Model mismatch: per-step residual scatter beyond noise, flicker and attitude, as a constant per step."""
-    u_att = attitude_accuracy / math.sqrt(3.0)
+    """Model mismatch: per-step residual scatter beyond noise, flicker and the claimed type-B inputs (the
+    per-step ones before the fit, the run-common ones after it), as a constant per step."""
     fl = dict(flicker_step_variance or {})
     zero = np.zeros(m.n_axes)
-    expected = {geo.name: attitude_step_variance(geo, u_att, m) + fl.get(geo.name, zero) for geo in geometry}
+    expected = {geo.name: fl.get(geo.name, zero) for geo in geometry}
+    fitted = {geo.name: zero for geo in geometry}
+    if residuals_per_step:
+        for inp in inputs:
+            pre, post = input_step_variance(inp, a_inv, geometry, nv, m)
+            expected = {k: v + pre.get(k, zero) for k, v in expected.items()}
+            fitted = {k: v + post.get(k, zero) for k, v in fitted.items()}
     npa = [len(ax) for ax in m.axis_params]
-    obs, excess = mismatch_variance(geometry, residuals_per_step, nv, expected, npa)
+    obs, excess = mismatch_variance(geometry, residuals_per_step, nv, expected, npa, fitted)
     b_s = step_offset_sensitivity(a_inv, geometry, nv, m)
     cov_mm = sum((b @ np.diag(excess) @ b.T for b in b_s), np.zeros((m.n_params, m.n_params)))
     scale = [DISPLAY_UNITS[m.kinds[ax[0]]] for ax in m.axis_params]  # the axis's bias kind
@@ -459,8 +518,8 @@ def _mismatch_component(
     fmt_x = ", ".join(f"{math.sqrt(v) / one:.2f} {u}" for v, (u, one) in zip(excess, scale, strict=True))
     return BudgetComponent(
         "model_mismatch", "Model mismatch (from residuals)",
-        f"per-step mean residual scatter [{fmt}] per axis, beyond noise, flicker and attitude [{fmt_x}], "
-        "an unknown constant per step", "A", cov_mm,
+        f"per-step mean residual scatter [{fmt}] per axis, beyond noise, flicker and the claimed inputs "
+        f"(attitude, axis orthogonality, …) [{fmt_x}], an unknown constant per step", "A", cov_mm,
     )  # fmt: skip
 
 

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import datetime as _dt
+import hashlib
 import json
 import math
 from dataclasses import dataclass, field
@@ -382,17 +383,55 @@ def _parameter_result(
     return row, reason, unverified
 
 
+_RECENT: dict[str, Any] = {}
+"""The step geometry and GUM budget last formed in this process, with their key (:func:`_budget_key`): the
+certificate of the run just identified takes them from the NEES line's :func:`combined_covariance` instead of
+forming them a second time (the same recording, calibration and bench: the same numbers)."""
+
+
+def _budget_key(rr: RecordedRun, binfo: BenchInfo, cal: CalibrationResult) -> tuple | None:
+    """(recording file and its identity: device, inode, size, modification time; the SHA-256 of the calibration
+    as calibration.json states it; the bench's certificate inputs); None when it cannot be stated."""
+    try:
+        path = Path(rr.path)
+        st = path.stat()
+        doc = json.dumps(cal.to_dict(), sort_keys=True, default=str)
+    except (OSError, TypeError, ValueError):
+        return None
+    ident = (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+    return (str(path.resolve()), ident, hashlib.sha256(doc.encode()).hexdigest(), repr(binfo))
+
+
 def _geometry(rr: RecordedRun, binfo: BenchInfo, cal: CalibrationResult) -> list[StepGeometry]:
     """The reference of each step the identification used (THE reference function, the bench's mounting)."""
+    key = _budget_key(rr, binfo, cal)
+    if key is not None and _RECENT.get("key") == key:
+        return _RECENT["geometry"]
     used = [str(p.get("name")) for p in cal.per_step]
     lat = None if binfo.latitude_deg is None else math.radians(float(binfo.latitude_deg))
     tb = cal.time_base.estimate if cal.time_base is not None else None
-    return step_geometry(rr.recording, binfo.g, None if binfo.mounting is None else np.asarray(binfo.mounting),
-                         latency=binfo.latency, names=used or None, latitude=lat, time_base=tb)  # fmt: skip
+    geometry = step_geometry(rr.recording, binfo.g, None if binfo.mounting is None else np.asarray(binfo.mounting),
+                             latency=binfo.latency, names=used or None, latitude=lat, time_base=tb)  # fmt: skip
+    _RECENT.clear()
+    if key is not None:
+        _RECENT.update(key=key, geometry=geometry)
+    return geometry
 
 
 def _budget(cal: CalibrationResult, geometry: list[StepGeometry], binfo: BenchInfo, where: Path) -> UncertaintyBudget:
-    """The GUM budget of a calibration: its own covariance plus the bench's type-B components."""
+    """The GUM budget of a calibration: its own covariance plus the bench's type-B components (formed once per
+    geometry of :func:`_geometry`: the NEES line and the certificate of one run share it)."""
+    if _RECENT.get("geometry") is geometry and "budget" in _RECENT:
+        return _RECENT["budget"]
+    budget = _form_budget(cal, geometry, binfo, where)
+    if _RECENT.get("geometry") is geometry:
+        _RECENT["budget"] = budget
+    return budget
+
+
+def _form_budget(
+    cal: CalibrationResult, geometry: list[StepGeometry], binfo: BenchInfo, where: Path
+) -> UncertaintyBudget:
     try:
         return budget_for_run(
             cal,

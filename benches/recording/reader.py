@@ -18,18 +18,20 @@ from numpy.typing import NDArray
 
 from core.provenance import text_sha256
 
-from .encoding import EXC_DTYPE, _dequantise, _StepHasher
+from .encoding import EXC_DTYPE, _dequantise, _StepHasher, ns_delta_decode
 from .layout import (
     _H5_ERRORS,
     _IMU_DTYPES,
     FORMAT,
     IMU_CHUNK,
     IMU_FIELDS,
+    NS_DELTA,
     QUANTISED_FIELDS,
     READ_CHUNK,
     READABLE_VERSIONS,
     TABLE_FIELDS,
     TIMING_BLOCK,
+    TIMING_CLOCKS,
     TIMING_TABLE,
     AuxReadings,
     Event,
@@ -41,6 +43,7 @@ from .layout import (
     TableReadings,
     TimeSources,
     Truth,
+    _encoding_of,
     _plain,
     _text,
     recording_file,
@@ -448,6 +451,15 @@ class Recording:
                 return arrays[name][a - ka : b - ka]
         return None
 
+    def _kept_index(self, name: str, idx: NDArray[Any]) -> NDArray[Any] | None:
+        """Rows ``idx`` of field ``name`` from the rows :meth:`verify` kept (a copy), or None unless every index
+        falls in one kept window (a fancy-index read of the file decodes every chunk it touches)."""
+        if not self._kept or idx.ndim != 1 or idx.size == 0 or idx.dtype.kind not in "iu":
+            return None
+        lo, hi = int(idx.min()), int(idx.max()) + 1
+        rows = self._kept_rows(name, lo, hi)
+        return None if rows is None else rows[idx - lo]
+
     # ---- typed access ------------------------------------------------------------------------------------
     def _read_text(self, name: str) -> str:
         if name not in self._f:
@@ -520,10 +532,11 @@ class Recording:
             with self._guard(f"/imu/{name}", rows=(start, stop)):
                 if index is not None:
                     idx = np.asarray(index)
-                    if name in self._quanta:
+                    v = self._kept_index(name, idx)
+                    if v is None and name in self._quanta:
                         c = self._imu_dataset(name)[idx]
                         v = _dequantise(c, self._quanta[name], self._exc.get(name), idx.astype(np.int64))
-                    else:
+                    elif v is None:
                         v = np.asarray(self._imu_dataset(name)[idx], dtype=_IMU_DTYPES[name])
                 else:
                     v = self._kept_rows(name, start, stop) if stop > start else None
@@ -604,7 +617,7 @@ class Recording:
             return None
         with self._guard("/timing"):
             g = self._f["timing"]
-            cols = {name: g[name][()] for name in (*TIMING_TABLE, *TIMING_BLOCK)}
+            cols = {name: self._timing_column(g[name], name) for name in (*TIMING_TABLE, *TIMING_BLOCK)}
         n = min(self.n_table, cols["table_sample_index"].shape[0])
         return TimeSources(
             **{k: v[:n] for k, v in cols.items() if k in TIMING_TABLE},
@@ -612,15 +625,25 @@ class Recording:
             block_host_time=cols["block_host_time"],
         )
 
+    def _timing_column(self, d: Any, name: str) -> NDArray[Any]:
+        """One ``/timing`` column as its values (the clock columns: s, decoded from ns deltas when so stored)."""
+        enc = _encoding_of(d)
+        if enc == NS_DELTA and name in TIMING_CLOCKS:
+            return ns_delta_decode(d[()])
+        if enc:
+            raise RecordingError(
+                f"{self.path}: /timing/{name} has encoding {enc!r}, which this version cannot read; read it with "
+                "the tablebench version that wrote it"
+            )
+        return d[()]
+
     def events(self) -> list[Event]:
         """The event log."""
         if "events" not in self._f:
             return []
         with self._guard("/events"):
             rows = self._f["events"][()]
-            return [
-                Event(float(r["time"]), _text(r["wall_utc"]), _text(r["level"]), _text(r["message"])) for r in rows
-            ]
+            return [Event(float(r["time"]), _text(r["wall_utc"]), _text(r["level"]), _text(r["message"])) for r in rows]
 
     def aux_names(self) -> list[str]:
         """The auxiliary devices recorded (``/aux/<name>``), in name order."""

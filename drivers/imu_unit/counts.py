@@ -200,6 +200,11 @@ def counter_gaps(previous: int | None, counter: NDArray[np.uint32]) -> int:
     a counter jumping back is a unit restart, not 4.29e9 missing frames; see :class:`CounterTracker`)."""
     if counter.size == 0:
         return 0
+    first = int(counter[0])
+    if (previous is None or first == (int(previous) + 1) % (1 << 32)) and int(counter[-1]) - first == counter.size - 1:
+        # the usual block: the counter goes on from ``previous`` by +1 at every frame (no wrap): no gap
+        if counter.size == 1 or bool(np.all(np.diff(counter.astype(np.int64)) == 1)):
+            return 0
     t = CounterTracker(1 << 32, 1)
     if previous is not None:
         t.last_raw, t.last_index = int(previous), 0

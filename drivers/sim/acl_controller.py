@@ -38,6 +38,7 @@ import logging
 import math
 import re
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -91,6 +92,7 @@ _NR1 = re.compile(r"^\d+$")
 _WORDS = {"POSITION": "Position", "RATE": "Rate", "OFF": "Off", "SYNTHESIS": "Synthesis"}
 
 STB_SI, STB_ESB, STB_MSS, STB_EQ = 1, 1 << 5, 1 << 6, 1 << 7
+_UNCOMPILED: list = []  # marker: a message not looked at yet
 
 
 class AclError(Exception):
@@ -228,6 +230,8 @@ class AclController:
         self.errors: collections.deque[str] = collections.deque(maxlen=64)
         self.esr = 0
         self.messages = 0
+        self._spec = f".{int(self.settings.decimals)}f"
+        self._readers: dict[str, list[Callable[[TableState], str]] | None] = {}
 
     # ---- transport for the in-process bench -------------------------------------------------------------------
     def transport(self, timeout: float = 2.0) -> InMemoryTransport:
@@ -236,8 +240,8 @@ class AclController:
 
     # ---- helpers ---------------------------------------------------------------------------------------------
     def _fmt(self, x: float) -> str:
-        s = f"{x:.{int(self.settings.decimals)}f}"
-        if s.startswith("-") and float(s) == 0.0:
+        s = format(x, self._spec)
+        if s[0] == "-" and float(s) == 0.0:
             s = s[1:]
         return s
 
@@ -287,6 +291,15 @@ class AclController:
         """Execute one program message; return the reply lines (without terminators) to send."""
         with self._lock:
             self.messages += 1
+            readers = self._readers.get(message, _UNCOMPILED)
+            if readers is _UNCOMPILED:
+                if len(self._readers) >= 256:  # commands carry numbers: do not keep every message ever sent
+                    self._readers.clear()
+                readers = self._readers[message] = self._compile_reading(message)
+            if readers is not None:  # a valid message of readings only: one frame, no state changed
+                state = self.world.table_state()
+                self._sync_fault(state)
+                return [";".join([read(state) for read in readers])]
             try:
                 cmds = parse_message(message)
             except AclError as exc:
@@ -299,6 +312,44 @@ class AclController:
             if has_query:
                 return [";".join(replies)]
             return [""] if self.settings.reply_profile == "tcp" else []
+
+    def _compile_reading(self, message: str) -> list[Callable[[TableState], str]] | None:
+        """The answer of a message made only of table readings (positions, rates, modes, status byte, the time
+        variable) as one function per query, checked once: the host sends the same reading message every
+        block, and its replies are those :meth:`_execute` gives (same formatting, same frame). None: any other
+        message (or one the controller rejects), executed by :meth:`_execute`."""
+        try:
+            cmds = parse_message(message)
+        except AclError:
+            return None
+        readers: list[Callable[[TableState], str]] = []
+        d = self._fmt
+        for c in cmds:
+            p, a = c.path, c.args
+            try:
+                if p in (("READ", "POSITION"), ("READ", "RATE"), ("MODE",)):
+                    self._nargs(c, 1)
+                    (i,) = self._axes(a[0], False)
+                    if p[1:] == ("POSITION",):
+                        readers.append(lambda s, i=i: d(self._wrap(float(s.angles[i]) / DEG)))
+                    elif p[1:] == ("RATE",):
+                        readers.append(lambda s, i=i: d(float(s.rates[i]) / DEG))
+                    elif self.settings.mode_reply == "letter":
+                        readers.append(lambda s, i=i: self.mode[i][0])
+                    else:
+                        readers.append(lambda s, i=i: _WORDS[self.mode[i]])
+                elif p == ("READ", "VARIABLE"):
+                    self._nargs(c, 1)
+                    if not _NR1.match(a[0]) or int(a[0]) != self._time_var:
+                        return None
+                    readers.append(lambda s: d(float(s.time) / self.settings.time_scale_s))
+                elif p == ("STATUS", "STB") and not a:
+                    readers.append(lambda s: str(self.status_byte()))
+                else:
+                    return None
+            except AclError:
+                return None
+        return readers
 
     def _reject(self, message: str, reason: str, queries: bool) -> list[str]:
         self.errors.append(f'-100,"{reason}"')

@@ -13,6 +13,7 @@ analytic state and the result does not depend on how sample generation is split.
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 
@@ -90,9 +91,22 @@ class AxisPlan:
         return p, v, acc
 
     def state(self, t: float) -> tuple[float, float]:
-        """(angle rad, rate rad/s) at scalar time ``t`` (same arithmetic as :meth:`evaluate`)."""
-        p, v, _ = self.evaluate(np.array([float(t)]))
-        return float(p[0]), float(v[0])
+        """(angle rad, rate rad/s) at scalar time ``t`` (same arithmetic as :meth:`evaluate`, same bits).
+
+        Without a settling transient at ``t`` it is computed on Python floats (a controller reading asks for
+        one time per block: the array machinery cost more than the arithmetic); the operations and their order
+        are those of :meth:`evaluate`, so the result is identical."""
+        t = float(t)
+        if self.settle_t0 is not None and self.settle_amp != 0.0 and t < self.settle_end:
+            p, v, _ = self.evaluate(np.array([t]))
+            return float(p[0]), float(v[0])
+        ts = self.t
+        j = len(ts) - 1
+        if j > 0 and t < ts[-1]:
+            j = min(max(bisect.bisect_right(ts, t) - 1, 0), j)
+        dt = t - float(ts[j])
+        a0, v0 = float(self.a[j]), float(self.v[j])
+        return float(self.p[j]) + v0 * dt + 0.5 * a0 * dt * dt, v0 + a0 * dt
 
 
 def _segments(rows: list[tuple[float, float, float, float]]) -> tuple[NDArray[np.float64], ...]:

@@ -147,6 +147,7 @@ class SimulatedWorld:
         self._reading_entropy = int(reading_ss.generate_state(1)[0])
         self._jit_a = math.exp(-1.0 / (self._fs * tb.rate_jitter_tau)) if tb.rate_jitter_tau > 0 else 0.0
         self._jit_state = np.zeros(3)
+        self._rest_cache: tuple[tuple[bytes, bytes], NDArray[np.float64], NDArray[np.float64]] | None = None
         self._enc_lsb = 2.0 * math.pi / float(2**tb.encoder_bits) if tb.encoder_bits > 0 else 0.0
         e1, e2 = np.asarray(tb.non_orthogonality, dtype=float) + self._axis_tilt
         self._wobble = float(tb.wobble)
@@ -426,8 +427,7 @@ class SimulatedWorld:
         with self._lock:
             self._apply_due_events(self._k)
             t = self._transaction()
-            pa, va, _ = self._evaluate(np.array([t]))
-            p, v = pa[0], va[0]
+            p, v = self._state_at(t)
             v = v + self._jit_state * self._spin_mask()  # the measured rate of the true (encoder) motion
             tb = self.cfg.table
             if tb.position_jitter > 0:
@@ -553,6 +553,15 @@ class SimulatedWorld:
                     ang[m, i], rat[m, i], acc[m, i] = pl.evaluate(t[m])
         return ang, rat, acc
 
+    def _state_at(self, t: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Angles (3,) rad and rates (3,) rad/s at one true time ``t``: :meth:`_evaluate` for one time, on
+        scalars where each axis's current plan applies (the same bits; a reading per block asks for one)."""
+        if any(t < sw and hist for sw, hist in zip(self._switch, self._history, strict=True)):
+            pa, va, _ = self._evaluate(np.array([t]))
+            return pa[0], va[0]
+        (p0, v0), (p1, v1), (p2, v2) = (plan.state(t) for plan in self._plans)
+        return np.array([p0, p1, p2]), np.array([v0, v1, v2])
+
     def _spin_mask(self) -> NDArray[np.float64]:
         return np.array([1.0 if (pl.mode == AxisMode.RATE and pl.rate_cmd != 0.0) else 0.0 for pl in self._plans])
 
@@ -578,10 +587,14 @@ class SimulatedWorld:
         else:
             self._jit_state = np.zeros(3)
         if not np.any(rat) and not np.any(acc) and not np.any(ang[1:] != ang[0]):
-            # at rest during the whole chunk: one attitude, broadcast (identical values, less work)
-            c1, _, _ = self._kinematics(ang[:1], rat[:1], acc[:1])
-            f0 = np.broadcast_to(self._g * c1[0, 2, :], (n, 3))
-            earth_b = np.broadcast_to(self._earth_n @ c1[0], (n, 3))
+            # at rest during the whole chunk: one attitude, broadcast (identical values, less work); the
+            # attitude's gravity and Earth rate are kept while the table stays there (a hold is many blocks)
+            key = (ang[0].tobytes(), self._dphi.tobytes())
+            if self._rest_cache is None or self._rest_cache[0] != key:
+                c1, _, _ = self._kinematics(ang[:1], rat[:1], acc[:1])
+                self._rest_cache = (key, self._g * c1[0, 2, :], self._earth_n @ c1[0])
+            f0 = np.broadcast_to(self._rest_cache[1], (n, 3))
+            earth_b = np.broadcast_to(self._rest_cache[2], (n, 3))
             omega = alpha = np.zeros((n, 3))
         else:
             c_bn, omega, alpha = self._kinematics(ang, rat, acc)
