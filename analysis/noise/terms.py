@@ -321,11 +321,9 @@ def analyse_noise(
         What the records hold.
     fit_estimator : str
         Estimator for the NNLS and slope-line term reading, one of :data:`FIT_ESTIMATORS`.
-    noise_type : int or list of (τ_lo, τ_hi, α), optional
-        Noise type set by hand for the intervals and the fit (:func:`analysis.noise.stability.stability`).
-    edf_rules : {"tablebench", "stable32"}
-        EDF rules of the intervals (:func:`analysis.noise.stability.stability`; "stable32" reproduces Stable32's
-        printed bounds, with its noise types).
+    noise_type, edf_rules : int or list of (τ_lo, τ_hi, α), optional; {"tablebench", "stable32"}
+        Noise type set by hand for the intervals and the fit, and the EDF rules of the intervals
+        (:func:`analysis.noise.stability.stability`).
     remove_drift : {"linear", "quadratic"}, optional
         Frequency drift removed from each channel first (:func:`analysis.noise.drift_removal.remove_drift`);
         the removed polynomial is reported per channel under ``"drift_removed"``.
