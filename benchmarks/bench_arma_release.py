@@ -46,9 +46,11 @@ def main(argv: list[str] | None = None) -> int:
     med = {k: [statistics.median(v[i] for v in res[k]) for i in (0, 1)] for k in res}
     head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
                           text=True).stdout.strip()  # fmt: skip
+    changed = ["git", "diff", "--quiet", "HEAD", "--", ".", ":!benchmarks/RESULTS.md"]
+    tree = " + working tree" if subprocess.run(changed, cwd=ROOT).returncode else ""
     body = (
-        f"This code (`{head}` + working tree) against the earlier release `{args.base}`: bench_release's ARMA "
-        f"stage alone (ARMA(1,1) exact ML, n = 5000, mean fixed; 15 fits per process, median; one BLAS thread), "
+        f"This code (`{head}`{tree}) against the earlier release `{args.base}`: bench_release's ARMA stage alone "
+        f"(ARMA(1,1) exact ML, n = 5000, mean fixed; 15 fits per process, median; one BLAS thread), "
         f"{args.rounds} rounds alternating the two trees.\n\n"
         "| | base | now | **now / base** (median of per-round ratios; min–max) |\n|---|---:|---:|---:|\n"
         f"| CPU per fit | {med['base'][1] * 1e3:.2f} ms | {med['now'][1] * 1e3:.2f} ms | "
