@@ -596,10 +596,10 @@ class SimulatedWorld:
             f0 = np.broadcast_to(self._rest_cache[1], (n, 3))
             earth_b = np.broadcast_to(self._rest_cache[2], (n, 3))
             omega = alpha = np.zeros((n, 3))
-        else:
-            c_bn, omega, alpha = self._kinematics(ang, rat, acc)
-            f0 = self._g * c_bn[:, 2, :]
-            earth_b = self._earth_n @ c_bn
+            return self._model.frames(k, f0, omega, alpha, earth_b, rest_key=key)
+        c_bn, omega, alpha = self._kinematics(ang, rat, acc)
+        f0 = self._g * c_bn[:, 2, :]
+        earth_b = self._earth_n @ c_bn
         return self._model.frames(k, f0, omega, alpha, earth_b)
 
     def _kinematics(
