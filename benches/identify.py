@@ -309,7 +309,7 @@ class LiveIdentifier:
         config: BenchConfig,
         progress: ProgressDisplay | None = None,
         show: tuple[str, ...] = ("b_z", "S_z", "r_x"),
-        update_seconds: float = 2.0,
+        update_seconds: float = 10.0,
         with_gyro: bool = True,
     ) -> None:
         self.config = config

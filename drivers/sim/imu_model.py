@@ -53,6 +53,8 @@ from drivers.sim.config import CHANNELS, MISALIGNMENT_PAIRS, NoiseTruth, SimConf
 _INT32_MAX = float(np.iinfo(np.int32).max)
 NOISE_BLOCK = 8192
 """Samples of motion-independent noise generated ahead per block (aligned on absolute sample indices)."""
+LAB_TEMPERATURE_C = 23.0
+"""The unit's temperature, °C, on a bench with neither a warm-up model nor a chamber."""
 MAX_DECIMATION = 4096
 """Largest grid step (samples) of the decimated Gauss–Markov processes; divides NOISE_BLOCK."""
 N_FIXED_STREAMS = 8
@@ -208,6 +210,10 @@ class InertialModel:
         tm = config.temperature
         self._time_free = self.thermal is None and (tm is None or tm.warmup_rise_c == 0.0)
         self._rest_phys: tuple[tuple[object, int], NDArray[np.float64]] | None = None
+        sc = config.scale
+        self._lsb = np.array([sc.accel_lsb] * 3 + [sc.gyro_lsb] * 3)
+        # the temperature word of a unit at the fixed lab temperature (no warm-up model, no chamber)
+        self._temp_word = np.rint(np.full(1, LAB_TEMPERATURE_C) / sc.temperature_lsb).astype(np.int16)[0]
 
     # ---- temperature ---------------------------------------------------------------------------------
     def temperature_c(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -216,7 +222,7 @@ class InertialModel:
             return self.chamber.unit_temperature(t) - CELSIUS_ZERO
         tm = self.cfg.temperature
         if tm is None:
-            return np.full(t.shape, 23.0)
+            return np.full(t.shape, LAB_TEMPERATURE_C)
         return tm.ambient_c + tm.warmup_rise_c * (1.0 - np.exp(-t / tm.warmup_tau))
 
     # ---- the physics ---------------------------------------------------------------------------------
@@ -363,13 +369,16 @@ class InertialModel:
         st = self.streams(k0, n)
         y = phys + st[:, :6]
         sc = self.cfg.scale
-        lsb = np.array([sc.accel_lsb] * 3 + [sc.gyro_lsb] * 3)
-        counts = np.clip(np.rint(y / lsb), -_INT32_MAX, _INT32_MAX).astype(np.int32)
+        q = np.rint(y / self._lsb, out=y)
+        counts = np.clip(q, -_INT32_MAX, _INT32_MAX, out=q).astype(np.int32)
         ts_ns = k * (1e9 / self.fs)  # exact integers for rates dividing 1 GHz (e.g. 1 kHz → 1 000 000 ns)
         if self.cfg.timestamp_jitter > 0:
             ts_ns = ts_ns + st[:, 6] * 1e9
         ts_ns = np.rint(np.maximum(ts_ns, 0.0)).astype(np.uint64)
-        temp = np.rint(self.temperature_c(t) / sc.temperature_lsb).astype(np.int16)
+        if self.chamber is None and self.cfg.temperature is None:  # temperature_c is the lab's: its word
+            temp = np.full(n, self._temp_word, dtype=np.int16)
+        else:
+            temp = np.rint(self.temperature_c(t) / sc.temperature_lsb).astype(np.int16)
         keep_u = st[:, 7]
         frames = RawFrames(
             counter=(k % (1 << 32)).astype(np.uint32),
