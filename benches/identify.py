@@ -26,8 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from analysis.earth import earth_rate_enu
-from analysis.gimbal import body_rate, nav_to_body
+from analysis.gimbal import body_rate
 from analysis.identification.batch import batch_identify, information_rank, unobservable_parameters
 from analysis.identification.bias_drift import flicker_components, window_mean_covariance
 from analysis.identification.kalman import StreamingIdentifier, estimate_measurement_noise
@@ -56,7 +55,7 @@ from .calibration_result import (
 from .progress import ProgressDisplay
 from .recorded_run import RecordedRun, run_of
 from .recording import RecordingError, StepRecord, TableReadings, recording_file
-from .reference import reference_at, reference_for_samples
+from .reference import acquisition_span, earth_in_body, reference_at, reference_for_samples
 from .timebase import reference_rate_covariance, run_time_base, table_in_unit_time, time_base_sensitivity
 
 ACCEL_MODEL: ModelSpec = get_model("accelerometer")
@@ -147,33 +146,23 @@ def bias_stability(config: BenchConfig, model: ModelSpec | None = None) -> NDArr
     return np.concatenate([acc, np.asarray(config.unit.noise.gyro_bias_instability, dtype=float)])
 
 
-def earth_in_body(
-    angles: NDArray[np.float64], latitude: float, mounting: NDArray[np.float64] | None
-) -> NDArray[np.float64]:
-    """Earth rate in the body frame at gimbal angles (n, 3), rad/s: C_n^b Ω [0, cos φ, sin φ] (ENU).
-
-    The constant navigation-frame rate rotated into the body frame sample by sample
-    (:func:`analysis.gimbal.nav_to_body`), not through a (n, 3, 3) C_b^n per sample (issue 32)."""
-    return nav_to_body(angles, earth_rate_enu(latitude), mounting)
-
-
 def angle_over_time(
     t: NDArray[np.float64],
     table_time: NDArray[np.float64],
     table_angles: NDArray[np.float64],
     span: tuple[float, float],
 ) -> NDArray[np.float64] | None:
-    """Gimbal rates (3,) rad/s of a spin as the least-squares slope of the encoder angles over the span.
-
-    The scale reference of the gyro: the angle the encoder measured over the time the controller measured,
-    not a commanded or reported rate. None when the span holds fewer than 3 readings.
-    """
-    keep = (table_time >= span[0]) & (table_time <= span[1])
-    if np.count_nonzero(keep) < 3:
+    """Gimbal rates (3,) rad/s of a spin: the encoder angle between the span's first and last reading over
+    the time between them — the gyro's scale reference, not a commanded or reported rate; end to end, as the
+    gyro's mean sees the table's rate jitter (docs/methods/gyro-calibration.md). None: < 2 readings."""
+    keep = np.flatnonzero((table_time >= span[0]) & (table_time <= span[1]))
+    if keep.size < 2:
         return None
-    tt = table_time[keep] - float(np.mean(table_time[keep]))
-    ang = table_angles[keep]
-    return (tt @ (ang - ang.mean(axis=0))) / float(tt @ tt)
+    i, j = int(keep[np.argmin(table_time[keep])]), int(keep[np.argmax(table_time[keep])])
+    dt = float(table_time[j] - table_time[i])
+    if not dt > 0:
+        return None
+    return (table_angles[j] - table_angles[i]) / dt
 
 
 def window_reference(
@@ -272,19 +261,6 @@ def plan_for(compiled: CompiledProcedure, config: BenchConfig, model: ModelSpec 
         offset_covariance=offset_covariance([w for _, w in pairs], b),
         model=m,
     )
-
-
-def acquisition_span(t_first: float, t_last: float, latency: float, sample_rate: float) -> tuple[float, float]:
-    """Bench-time span (s) of the table readings that belong to an acquisition window's own motion state.
-
-    From 1.5 sample periods before the first sample's reference time (t_first − latency) to 1.5 sample
-    periods after the last sample: the reading the runner takes with each block is stamped at the next
-    sample, so it closes the window (the half period covers the unit's time-stamp jitter); a reading later
-    than that may already belong to the next motion and is never used
-    (:func:`benches.reference.interpolate_table` extrapolates with the reported rate instead).
-    """
-    dt = 1.5 / sample_rate
-    return (t_first - latency - dt, t_last + dt)
 
 
 # ---- live identification during the run ---------------------------------------------------------------------------
@@ -609,8 +585,9 @@ def _identification_data(
     truth = None
     if tr is not None and all(n_ in tr.parameters for n_ in ACCEL_MODEL.names):
         truth = {n_: float(v) for n_, v in tr.parameters.items()}  # the truth check uses the model's names
-    temp = rec.samples(fields=("temperature",), index=np.arange(0, n, max(1, n // 10000))).temperature
-    temp = temp if temp is not None else np.zeros(0)
+    every = max(1, n // 10000)  # rows 0, every, 2·every, … (a point selection of the file decodes each chunk)
+    temp = rec.samples(fields=("temperature",)).temperature  # the verified pass keeps the whole column
+    temp = temp[::every].copy() if temp is not None else np.zeros(0)
     if not windows:
         raise IdentificationError(
             f"{path}: no complete hold or spin step to identify from (procedure {rr.header.procedure_name!r}); "

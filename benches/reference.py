@@ -23,7 +23,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from analysis.gimbal import body_rate, gravity_in_body
+from analysis.earth import earth_rate_enu
+from analysis.gimbal import body_rate, gravity_in_body, nav_to_body
 
 
 def interpolate_table(
@@ -96,3 +97,26 @@ def reference_for_samples(
     ang, rat = interpolate_table(np.asarray(t, dtype=float) - latency, table_time, table_angles, table_rates, span)
     f_ref, omega = reference_at(ang, rat, g, mounting)
     return f_ref, omega, ang
+
+
+def earth_in_body(
+    angles: NDArray[np.float64], latitude: float, mounting: NDArray[np.float64] | None
+) -> NDArray[np.float64]:
+    """Earth rate in the body frame at gimbal angles (n, 3), rad/s: C_n^b Ω [0, cos φ, sin φ] (ENU).
+
+    The constant navigation-frame rate rotated into the body frame sample by sample
+    (:func:`analysis.gimbal.nav_to_body`), not through a (n, 3, 3) C_b^n per sample (issue 32)."""
+    return nav_to_body(angles, earth_rate_enu(latitude), mounting)
+
+
+def acquisition_span(t_first: float, t_last: float, latency: float, sample_rate: float) -> tuple[float, float]:
+    """Bench-time span (s) of the table readings that belong to an acquisition window's own motion state.
+
+    From 1.5 sample periods before the first sample's reference time (t_first − latency) to 1.5 sample
+    periods after the last sample: the reading the runner takes with each block is stamped at the next
+    sample, so it closes the window (the half period covers the unit's time-stamp jitter); a reading later
+    than that may already belong to the next motion and is never used
+    (:func:`benches.reference.interpolate_table` extrapolates with the reported rate instead).
+    """
+    dt = 1.5 / sample_rate
+    return (t_first - latency - dt, t_last + dt)

@@ -31,8 +31,7 @@ from analysis.identification.table_axes import orthogonality_input
 from analysis.timebase import TimeBase
 from analysis.units import ARCSEC
 from benches.calibration_result import CalibrationResult
-from benches.identify import acquisition_span, earth_in_body
-from benches.reference import interpolate_table, reference_for_samples
+from benches.reference import acquisition_span, earth_in_body, interpolate_table, reference_for_samples
 from benches.timebase import reference_rate_covariance, reference_rate_u, table_in_unit_time
 
 if TYPE_CHECKING:  # pragma: no cover

@@ -101,10 +101,12 @@ def plot_residuals(
             ax2.axhline(sig[0, a], color=_AXIS_COLOURS[a], lw=0.8, ls="--")
         ax1.axhline(0.0, color="black", lw=0.6)
         ax1.set_ylabel(f"mean residual, {label}")
-        ax1.set_title(f"{triad.capitalize()} residuals per step (body axes); error bars: ±2σ of the mean (noise model)")
+        ax1.set_title(
+            f"{triad.capitalize()} residuals per step (body axes); error bars: ±2σ of the mean (noise model)", y=1.0
+        )
         ax1.legend(ncol=3, loc="upper right")
         ax2.set_ylabel(f"RMS residual, {label}")
-        ax2.set_title("RMS per step; dashed: noise standard deviation used by the identification")
+        ax2.set_title("RMS per step; dashed: noise standard deviation used by the identification", y=1.0)
         ax2.set_xticks(k)
         ax2.set_xticklabels([str(r.get("name", i)) for i, r in enumerate(rows)], rotation=70, ha="right")
         return _render(fig)
@@ -166,7 +168,8 @@ def convergence_figure(
         frame = convergence_frame(v, s)
         if frame is not None:
             ax.set_ylim(*frame)
-        ax.set_title(f"{name} [{display_unit(kind)}]", pad=2)
+        ax.ticklabel_format(axis="y", useOffset=False)  # full values on the ticks: no offset text above the panel
+        ax.set_title(f"{name} [{display_unit(kind)}]", pad=2, y=1.0)
         if identified is not None and not identified[p]:
             ax.text(0.5, 0.9, "not identified (prior only)", ha="center", va="top", transform=ax.transAxes,
                     fontsize=6.5, color="#a03000")  # fmt: skip
@@ -275,7 +278,7 @@ def plot_coverage(geometry: Sequence[StepGeometry]) -> bytes:
         ax.plot([], [], "-", color="#b5332a", label="constant-rate spins")
         ax.legend(loc="lower right", bbox_to_anchor=(1.0, -0.12))
         ax.set_xticklabels([])
-        ax.set_title("Orientation coverage: direction of gravity (specific force) in the body frame", pad=10)
+        ax.set_title("Orientation coverage: direction of gravity (specific force) in the body frame", pad=10, y=1.0)
         return _render(fig)
 
 

@@ -17,7 +17,7 @@ import h5py
 import numpy as np
 from numpy.typing import NDArray
 
-from .layout import _IMU_DTYPES, _TABLE_DTYPES, IMU_FIELDS, TABLE_FIELDS
+from .layout import _IMU_DTYPES, _TABLE_DTYPES, IMU_FIELDS, NS_NAN, TABLE_FIELDS
 
 EXC_DTYPE = np.dtype([("row", np.int64), ("col", np.int8), ("value", np.float64)])
 
@@ -232,3 +232,29 @@ class _ChunkWriter:
             self.drain(True)
         finally:
             self.pool.shutdown(wait=True)
+
+
+def ns_delta_encode(values: NDArray[Any], last: int) -> tuple[NDArray[np.int64], int]:
+    """Clock readings (s, float; NaN: none) → int64 nanosecond deltas (RECORDING.md, "/timing"), and the new
+    ``last`` (ns of the last non-NaN value; the first row's delta is from ``last``, 0 for a new dataset)."""
+    v = np.asarray(values, dtype=np.float64).reshape(-1)
+    ok = np.isfinite(v)
+    ns = np.rint(v[ok] * 1e9).astype(np.int64)
+    out = np.full(v.shape, NS_NAN, dtype=np.int64)
+    out[ok] = np.diff(ns, prepend=np.int64(last))
+    return out, int(ns[-1]) if ns.size else int(last)
+
+
+def ns_delta_decode(deltas: NDArray[Any]) -> NDArray[np.float64]:
+    """int64 nanosecond deltas (from the dataset's first row) → clock readings, s (NaN where :data:`NS_NAN`)."""
+    d = np.asarray(deltas, dtype=np.int64).reshape(-1)
+    ok = d != NS_NAN
+    out = np.full(d.shape, np.nan)
+    out[ok] = np.cumsum(d[ok]) / 1e9
+    return out
+
+
+def ns_delta_last(deltas: NDArray[Any]) -> int:
+    """ns of the last non-NaN value of a stored ``ns-delta`` column (where appending continues)."""
+    d = np.asarray(deltas, dtype=np.int64).reshape(-1)
+    return int(np.sum(d[d != NS_NAN], dtype=np.int64))

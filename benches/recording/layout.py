@@ -43,6 +43,13 @@ TIMING_TABLE = {"table_sample_index": np.int64, "table_controller_time": np.floa
 """``/timing`` datasets with one row per table reading (RECORDING.md, time sources)."""
 TIMING_BLOCK = {"block_end_sample": np.int64, "block_host_time": np.float64}
 """``/timing`` datasets with one row per block of unit samples received."""
+TIMING_CLOCKS: tuple[str, ...] = ("table_controller_time", "table_host_request", "table_host_answer", "block_host_time")
+"""``/timing`` clock columns: read as float64 s; written as int64 nanosecond deltas (:data:`NS_DELTA`)."""
+NS_DELTA = "ns-delta"
+"""Value of a dataset's ``encoding`` attribute: row i holds round(t_i·10⁹) − round(t_j·10⁹), j the previous row
+that is not NaN (0 before the first); a NaN row holds :data:`NS_NAN` (RECORDING.md, "/timing")."""
+NS_NAN = int(np.iinfo(np.int64).min)
+"""The ``ns-delta`` encoding's NaN row (−2⁶³)."""
 
 IMU_CHUNK = 16384
 TABLE_CHUNK = 1024
@@ -267,6 +274,11 @@ def _text(v: Any) -> str:
     if isinstance(v, np.ndarray) and v.shape == ():
         return _text(v[()])
     return str(v)
+
+
+def _encoding_of(d: h5py.Dataset) -> str:
+    """A dataset's ``encoding`` attribute ("" when it has none: stored as its values)."""
+    return _text(d.attrs["encoding"]) if "encoding" in d.attrs else ""
 
 
 def _plain(v: Any) -> Any:

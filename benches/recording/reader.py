@@ -18,18 +18,20 @@ from numpy.typing import NDArray
 
 from core.provenance import text_sha256
 
-from .encoding import EXC_DTYPE, _dequantise, _StepHasher
+from .encoding import EXC_DTYPE, _dequantise, _StepHasher, ns_delta_decode
 from .layout import (
     _H5_ERRORS,
     _IMU_DTYPES,
     FORMAT,
     IMU_CHUNK,
     IMU_FIELDS,
+    NS_DELTA,
     QUANTISED_FIELDS,
     READ_CHUNK,
     READABLE_VERSIONS,
     TABLE_FIELDS,
     TIMING_BLOCK,
+    TIMING_CLOCKS,
     TIMING_TABLE,
     AuxReadings,
     Event,
@@ -41,6 +43,7 @@ from .layout import (
     TableReadings,
     TimeSources,
     Truth,
+    _encoding_of,
     _plain,
     _text,
     recording_file,
@@ -50,6 +53,11 @@ from .layout import (
 
 KEPT_FIELDS = ("time", "accel", "gyro", "status")
 """The sample fields :meth:`Recording.verify` keeps for the acquisition windows (what identification reads)."""
+KEPT_WHOLE = ("temperature",)
+"""The sample fields :meth:`Recording.verify` keeps for every row (the temperature summaries of identification and
+certificate; 8 bytes a row, and it compresses to almost nothing, so decoding it again costs more than keeping it),
+in recordings of at most :data:`KEPT_WHOLE_MAX_ROWS` rows (64 MiB; a longer one is decoded again when read)."""
+KEPT_WHOLE_MAX_ROWS = 1 << 23
 
 
 class Recording:
@@ -396,10 +404,18 @@ class Recording:
         done = [s for s in self.steps if s.status == "complete"] if v2 else []
         hashers = [_StepHasher() for _ in done]
         kept: list[tuple[int, int, dict[str, NDArray[Any]]]] = []
+        names: list[list[str]] = []  # the fields each kept range keeps
         if keep:
             fields = [n for n in KEPT_FIELDS if n in self.sample_fields]
-            kept = [(s.acq_start, min(s.acq_end, self.n_samples), {}) for s in self.complete_steps()]
-            kept = [(a, b, d) for a, b, d in kept if b > a and fields]
+            for s in self.complete_steps():
+                a, b = s.acq_start, min(s.acq_end, self.n_samples)
+                if b > a and fields:
+                    kept.append((a, b, {}))
+                    names.append(fields)
+            whole = [n for n in KEPT_WHOLE if n in self.sample_fields]
+            if whole and 0 < self.n_samples <= KEPT_WHOLE_MAX_ROWS:
+                kept.append((0, self.n_samples, {}))
+                names.append(whole)
         first = 0
         for chunk in self.iter_samples(fields=self.sample_fields):
             a, b = chunk.start, chunk.start + len(chunk)
@@ -412,10 +428,10 @@ class Recording:
                 for name in IMU_FIELDS:
                     hashers[k].update("imu", name, getattr(chunk, name)[lo:hi])
                 k += 1
-            for ka, kb, arrays in kept:
+            for (ka, kb, arrays), keeps in zip(kept, names, strict=True):
                 lo, hi = max(a, ka), min(b, kb)
                 if lo < hi:
-                    for name in fields:
+                    for name in keeps:
                         v = getattr(chunk, name)
                         if name not in arrays:
                             arrays[name] = np.empty((kb - ka, *v.shape[1:]), dtype=v.dtype)
@@ -614,7 +630,7 @@ class Recording:
             return None
         with self._guard("/timing"):
             g = self._f["timing"]
-            cols = {name: g[name][()] for name in (*TIMING_TABLE, *TIMING_BLOCK)}
+            cols = {name: self._timing_column(g[name], name) for name in (*TIMING_TABLE, *TIMING_BLOCK)}
         n = min(self.n_table, cols["table_sample_index"].shape[0])
         return TimeSources(
             **{k: v[:n] for k, v in cols.items() if k in TIMING_TABLE},
@@ -622,15 +638,25 @@ class Recording:
             block_host_time=cols["block_host_time"],
         )
 
+    def _timing_column(self, d: Any, name: str) -> NDArray[Any]:
+        """One ``/timing`` column as its values (the clock columns: s, decoded from ns deltas when so stored)."""
+        enc = _encoding_of(d)
+        if enc == NS_DELTA and name in TIMING_CLOCKS:
+            return ns_delta_decode(d[()])
+        if enc:
+            raise RecordingError(
+                f"{self.path}: /timing/{name} has encoding {enc!r}, which this version cannot read; read it with "
+                "the tablebench version that wrote it"
+            )
+        return d[()]
+
     def events(self) -> list[Event]:
         """The event log."""
         if "events" not in self._f:
             return []
         with self._guard("/events"):
             rows = self._f["events"][()]
-            return [
-                Event(float(r["time"]), _text(r["wall_utc"]), _text(r["level"]), _text(r["message"])) for r in rows
-            ]
+            return [Event(float(r["time"]), _text(r["wall_utc"]), _text(r["level"]), _text(r["message"])) for r in rows]
 
     def aux_names(self) -> list[str]:
         """The auxiliary devices recorded (``/aux/<name>``), in name order."""
@@ -676,8 +702,13 @@ class Recording:
     def temperature_stats(self) -> dict[str, float]:
         """Mean, min and max of the unit's temperature over the record (K), read in chunks; {} if empty."""
         tot, lo, hi, n = 0.0, math.inf, -math.inf, 0
-        for c in self.iter_samples(fields=("temperature",)):
-            x = c.temperature
+        whole = self._kept_rows("temperature", 0, self.n_samples) if self.n_samples else None
+        chunks = (
+            (whole[a : a + READ_CHUNK] for a in range(0, self.n_samples, READ_CHUNK))  # as verified: same chunks
+            if whole is not None
+            else (c.temperature for c in self.iter_samples(fields=("temperature",)))
+        )
+        for x in chunks:
             assert x is not None
             if x.size:
                 tot, lo, hi, n = tot + float(x.sum()), min(lo, float(x.min())), max(hi, float(x.max())), n + x.size

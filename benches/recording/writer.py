@@ -18,7 +18,17 @@ from numpy.typing import NDArray
 
 from drivers.protocols import ImuBlock, Reading, TableState
 
-from .encoding import _COUNT_DTYPE, EXC_DTYPE, _append_rows, _ChunkWriter, _quantise, _StepHasher, _stored_rows
+from .encoding import (
+    _COUNT_DTYPE,
+    EXC_DTYPE,
+    _append_rows,
+    _ChunkWriter,
+    _quantise,
+    _StepHasher,
+    _stored_rows,
+    ns_delta_encode,
+    ns_delta_last,
+)
 from .layout import (
     _GROUP_LEN,
     _H5_ERRORS,
@@ -35,16 +45,19 @@ from .layout import (
     FORMAT_VERSION,
     IMU_CHUNK,
     IMU_FIELDS,
+    NS_DELTA,
     QUANTISED_FIELDS,
     STATUS_VALUES,
     STEP_DTYPE,
     TABLE_CHUNK,
     TABLE_FIELDS,
     TIMING_BLOCK,
+    TIMING_CLOCKS,
     TIMING_TABLE,
     RecordingError,
     StepRecord,
     _clip_utf8,
+    _encoding_of,
     _fixed,
     _utc_now,
 )
@@ -148,6 +161,7 @@ class Hdf5Recorder:
         self._hasher = _StepHasher()
         self._quanta: dict[str, float] = {}
         self._deferred: dict[str, float] = {}
+        self._ns_last: dict[str, int] = {}  # /timing clock columns stored as ns deltas: ns of their last value
         try:
             if resume:
                 self._file = self._open_resume()
@@ -251,11 +265,28 @@ class Hdf5Recorder:
         return f
 
     def _timing_datasets(self, f: h5py.File) -> None:
-        """The raw time sources (``/timing``), created if missing (a recording made before they existed)."""
+        """The raw time sources (``/timing``), created if missing (a recording made before they existed). The clock
+        columns are int64 nanosecond deltas (``encoding = "ns-delta"``); a recording that has them as float64 (made
+        before that) keeps float64 when resumed."""
         g = f["timing"] if "timing" in f else _group(f, "timing")
         for name, dt in {**TIMING_TABLE, **TIMING_BLOCK}.items():
-            if name not in g:
+            if name in g:
+                continue
+            if name in TIMING_CLOCKS:
+                self._dataset(g, name, np.int64, None, TABLE_CHUNK)
+                _set_attr(g[name], "encoding", NS_DELTA)
+                _set_attr(g[name], "unit", "s")
+                self._ns_last[name] = 0
+            else:
                 self._dataset(g, name, dt, None, TABLE_CHUNK)
+
+    def _append_timing(self, d: h5py.Dataset, name: str, values: NDArray[np.float64]) -> None:
+        """Append rows to a ``/timing`` column in its stored encoding."""
+        if name in self._ns_last:
+            data, self._ns_last[name] = ns_delta_encode(values, self._ns_last[name])
+            _append_rows(d, data)
+        else:
+            _append_rows(d, values.astype({**TIMING_TABLE, **TIMING_BLOCK}[name]))
 
     def _open_resume(self) -> h5py.File:
         if not self.path.exists():
@@ -296,6 +327,9 @@ class Hdf5Recorder:
             n_keep = int(np.searchsorted(ends, cut, side="right"))
             for name in TIMING_BLOCK:
                 tg[name].resize(min(n_keep, tg[name].shape[0]), axis=0)
+            for name in TIMING_CLOCKS:
+                if _encoding_of(tg[name]) == NS_DELTA:
+                    self._ns_last[name] = ns_delta_last(tg[name][()])
             f["steps"].resize(len(complete), axis=0)
             _set_attr(f, "status", "running")
             f.flush()
@@ -416,19 +450,16 @@ class Hdf5Recorder:
             self._buf_table.clear()
             tim = np.array(self._buf_timing, dtype=np.float64).reshape(-1, 4)
             for j, name in enumerate(TIMING_TABLE):
-                _append_rows(f["timing"][name], tim[:, j].astype(TIMING_TABLE[name]))
+                self._append_timing(f["timing"][name], name, tim[:, j])
             self._buf_timing.clear()
         if self._buf_blocks:
             blk = np.array(self._buf_blocks, dtype=np.float64).reshape(-1, 2)
             for j, name in enumerate(TIMING_BLOCK):
-                _append_rows(f["timing"][name], blk[:, j].astype(TIMING_BLOCK[name]))
+                self._append_timing(f["timing"][name], name, blk[:, j])
             self._buf_blocks.clear()
         if self._buf_events:
             rows = np.array(
-                [
-                    (t, w.encode(), _clip_utf8(lv, 16), _clip_utf8(m, _MSG_LEN))
-                    for t, w, lv, m in self._buf_events
-                ],
+                [(t, w.encode(), _clip_utf8(lv, 16), _clip_utf8(m, _MSG_LEN)) for t, w, lv, m in self._buf_events],
                 dtype=EVENT_DTYPE,
             )
             _append_rows(f["events"], rows)

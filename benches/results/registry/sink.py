@@ -39,6 +39,10 @@ def add_run(
     """Record the run folder ``run`` (calibration, certificates, as found / as left); idempotent."""
     rec = run_record(run, operator=operator, configuration=configuration, recorded_utc=_utc_now())
     cal = rec["calibration"]
+    if reg.has_calibration(cal["digest"]):
+        # recorded before (``run``/``identify``, then ``certificate``): the insert keeps the stored row and its
+        # as found / as left, so they are not computed again (a read of every acquisition window, issue 32)
+        return reg.add(rec)
     prev = previous_of(reg, rec["unit"], cal["run_utc"], cal["digest"])
     x_found = None
     if prev is not None:  # the previous calibration's accelerometer block, by name

@@ -285,6 +285,12 @@ class Registry:
         conn.execute(update(S.calibrations).where(S.calibrations.c.id == cal_id).values(**values))
 
     # ---- reading -------------------------------------------------------------------------------------------
+    def has_calibration(self, digest: str) -> bool:
+        """True when a calibration with this digest is recorded."""
+        with self.connect() as conn:
+            q = select(S.calibrations.c.id).where(S.calibrations.c.digest == digest)
+            return conn.execute(q).first() is not None
+
     def count(self) -> int:
         """Number of calibrations."""
         with self.connect() as conn:
