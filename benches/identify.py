@@ -152,17 +152,17 @@ def angle_over_time(
     table_angles: NDArray[np.float64],
     span: tuple[float, float],
 ) -> NDArray[np.float64] | None:
-    """Gimbal rates (3,) rad/s of a spin as the least-squares slope of the encoder angles over the span.
-
-    The scale reference of the gyro: the angle the encoder measured over the time the controller measured,
-    not a commanded or reported rate. None when the span holds fewer than 3 readings.
-    """
-    keep = (table_time >= span[0]) & (table_time <= span[1])
-    if np.count_nonzero(keep) < 3:
+    """Gimbal rates (3,) rad/s of a spin: the encoder angle between the span's first and last reading over
+    the time between them — the gyro's scale reference, not a commanded or reported rate; end to end, as the
+    gyro's mean sees the table's rate jitter (docs/methods/gyro-calibration.md). None: < 2 readings."""
+    keep = np.flatnonzero((table_time >= span[0]) & (table_time <= span[1]))
+    if keep.size < 2:
         return None
-    tt = table_time[keep] - float(np.mean(table_time[keep]))
-    ang = table_angles[keep]
-    return (tt @ (ang - ang.mean(axis=0))) / float(tt @ tt)
+    i, j = int(keep[np.argmin(table_time[keep])]), int(keep[np.argmax(table_time[keep])])
+    dt = float(table_time[j] - table_time[i])
+    if not dt > 0:
+        return None
+    return (table_angles[j] - table_angles[i]) / dt
 
 
 def window_reference(
@@ -287,7 +287,7 @@ class LiveIdentifier:
         config: BenchConfig,
         progress: ProgressDisplay | None = None,
         show: tuple[str, ...] = ("b_z", "S_z", "r_x"),
-        update_seconds: float = 2.0,
+        update_seconds: float = 10.0,
         with_gyro: bool = True,
     ) -> None:
         self.config = config

@@ -25,8 +25,10 @@ Table behaviour (docs/methods/simulation.md): trapezoidal moves at ``slew_fracti
 absolute commanded angle (continuous axes report unwrapped angles), then a damped overshoot; IN_POSITION
 once the transient envelope is inside the tolerance for ``in_position_time``. Rate commands ramp at the
 acceleration limit; AT_RATE when reached. Physical rate jitter (first-order Gauss–Markov, only on axes
-spinning in rate mode) enters the unit's gyro/lever-arm physics but not the angles (its angle effect is
-σ·τ_c, far below an arcsecond). Reported angles carry white jitter and encoder quantisation. A realised
+spinning in rate mode) is real motion: it enters the unit's gyro/lever-arm physics and its integral the true
+(and so the reported) angle — a random walk of σ·√(2 τ_c T) over a spin of T seconds, which is what the mean
+rate of a spin (its angle over time) sees; the next position command's servo absorbs the angle it left (the
+move starts from the true angle). Reported angles carry white jitter and encoder quantisation. A realised
 table rate error ε_j (``BudgetInputs.rate_error_bound``) makes gimbal axis j turn at (1 + ε_j) × its commanded
 rate: the true angle advances at that rate, the encoder reports it, and the reported rate is the measured
 rate of that motion (not the command); AT_RATE still refers to the controller's own loop. Optional
@@ -147,6 +149,8 @@ class SimulatedWorld:
         self._reading_entropy = int(reading_ss.generate_state(1)[0])
         self._jit_a = math.exp(-1.0 / (self._fs * tb.rate_jitter_tau)) if tb.rate_jitter_tau > 0 else 0.0
         self._jit_state = np.zeros(3)
+        self._jit_angle = np.zeros(3)  # the rate jitter's integral (rad) per axis at the last produced sample
+        self._jit_fold: list[tuple[float, float] | None] = [None, None, None]  # (true time, angle) a move absorbs
         self._rest_cache: tuple[tuple[bytes, bytes], NDArray[np.float64], NDArray[np.float64]] | None = None
         self._enc_lsb = 2.0 * math.pi / float(2**tb.encoder_bits) if tb.encoder_bits > 0 else 0.0
         e1, e2 = np.asarray(tb.non_orthogonality, dtype=float) + self._axis_tilt
@@ -298,11 +302,24 @@ class SimulatedWorld:
         if self._fault != FaultCode.NONE:
             raise TableError(f"table fault {self._fault.name} is latched; clear_fault() before commanding motion")
 
+    def _jitter_angle_at(self, t: float) -> NDArray[np.float64]:
+        """The rate jitter's angle (rad, per axis) at true time ``t`` near the last produced sample."""
+        out = self._jit_angle.copy()
+        for i, fold in enumerate(self._jit_fold):
+            if fold is not None and t >= fold[0]:
+                out[i] -= fold[1]
+        return out
+
     def _plan_position(self, axis: int, target: float, t: float) -> None:
-        """Re-plan gimbal ``axis`` from its state at ``t`` (true time) to a position move to ``target`` (rad)."""
+        """Re-plan gimbal ``axis`` from its state at ``t`` (true time) to a position move to ``target`` (rad).
+
+        The move starts from the true angle: the plan's plus the angle the rate jitter left (then absorbed)."""
         tb = self.cfg.table
         t = max(t, self._switch[axis])
         p0, v0 = self._plans[axis].state(t)
+        if self._jit_fold[axis] is None and self._jit_angle[axis] != 0.0:
+            self._jit_fold[axis] = (t, float(self._jit_angle[axis]))
+            p0 += float(self._jit_angle[axis])
         plan = plan_position(
             t,
             p0,
@@ -428,6 +445,7 @@ class SimulatedWorld:
             self._apply_due_events(self._k)
             t = self._transaction()
             p, v = self._state_at(t)
+            p = p + self._jitter_angle_at(t)  # the true angle: the plan's plus the rate jitter's integral
             v = v + self._jit_state * self._spin_mask()  # the measured rate of the true (encoder) motion
             tb = self.cfg.table
             if tb.position_jitter > 0:
@@ -519,7 +537,10 @@ class SimulatedWorld:
                 k1 = min(k_end, self._next_event(k), k + CHUNK)
                 idx = np.arange(k, k1, dtype=np.int64)
                 t = self._tau(idx)
-                ang, rat, acc = self._evaluate(t)
+                if self._at_rest_from(float(t[0])):  # every row equals the first (see _at_rest_from)
+                    ang, rat, acc = (np.broadcast_to(x, (t.shape[0], 3)) for x in self._evaluate(t[:1]))
+                else:
+                    ang, rat, acc = self._evaluate(t)
                 hit = self._limit_hit(ang)
                 if hit is not None:
                     j, axis = hit
@@ -562,6 +583,17 @@ class SimulatedWorld:
         (p0, v0), (p1, v1), (p2, v2) = (plan.state(t) for plan in self._plans)
         return np.array([p0, p1, p2]), np.array([v0, v1, v2])
 
+    def _at_rest_from(self, t0: float) -> bool:
+        """Every axis is at rest from true time ``t0`` on: in its current plan's last segment with zero rate and
+        acceleration and past its settling transient. :meth:`_evaluate` then gives every later time the same
+        angle p + 0·dt + 0·dt² = p (dt ≥ 0), rate 0 and acceleration 0, so a hold's block is evaluated once."""
+        for plan, switch, hist in zip(self._plans, self._switch, self._history, strict=True):
+            if (hist and t0 < switch) or t0 < plan.t[-1] or plan.v[-1] != 0.0 or plan.a[-1] != 0.0:
+                return False
+            if plan.settle_t0 is not None and plan.settle_amp != 0.0 and t0 < plan.settle_end:
+                return False
+        return True
+
     def _spin_mask(self) -> NDArray[np.float64]:
         return np.array([1.0 if (pl.mode == AxisMode.RATE and pl.rate_cmd != 0.0) else 0.0 for pl in self._plans])
 
@@ -584,8 +616,19 @@ class SimulatedWorld:
             )
             self._jit_state = x[-1].copy()
             rat = rat + x * mask
+            # the jitter is real motion: its integral (rectangle rule at the sample period) turns the true angle
+            phi = self._jit_angle + np.cumsum(x * mask, axis=0) * float(self._tau(1))
         else:
             self._jit_state = np.zeros(3)
+            phi = np.broadcast_to(self._jit_angle, (n, 3)).copy()
+        for i, fold in enumerate(self._jit_fold):
+            if fold is not None and n and t[-1] >= fold[0]:
+                phi[t >= fold[0], i] -= fold[1]
+                self._jit_fold[i] = None
+        if n:
+            self._jit_angle = phi[-1].copy()
+            if np.any(phi):
+                ang = ang + phi
         if not np.any(rat) and not np.any(acc) and not np.any(ang[1:] != ang[0]):
             # at rest during the whole chunk: one attitude, broadcast (identical values, less work); the
             # attitude's gravity and Earth rate are kept while the table stays there (a hold is many blocks)
@@ -596,10 +639,10 @@ class SimulatedWorld:
             f0 = np.broadcast_to(self._rest_cache[1], (n, 3))
             earth_b = np.broadcast_to(self._rest_cache[2], (n, 3))
             omega = alpha = np.zeros((n, 3))
-        else:
-            c_bn, omega, alpha = self._kinematics(ang, rat, acc)
-            f0 = self._g * c_bn[:, 2, :]
-            earth_b = self._earth_n @ c_bn
+            return self._model.frames(k, f0, omega, alpha, earth_b, rest_key=key)
+        c_bn, omega, alpha = self._kinematics(ang, rat, acc)
+        f0 = self._g * c_bn[:, 2, :]
+        earth_b = self._earth_n @ c_bn
         return self._model.frames(k, f0, omega, alpha, earth_b)
 
     def _kinematics(

@@ -205,3 +205,33 @@ def test_table_turns_at_its_realised_rate_error_and_the_encoder_reports_that_mot
     assert data[:, 4].mean() == pytest.approx((1 + s_y) * slope + EARTH_RATE * math.cos(cfg.latitude), rel=1e-6)
     # and the host's at-rate decision sees the table off its command by ε (what its tolerance must admit)
     assert abs(s1.rates[2] - cmd) == pytest.approx(abs(eps) * cmd, rel=1e-6)
+
+
+def test_rate_jitter_is_real_motion_the_encoder_angle_integrates_it_and_a_move_absorbs_it() -> None:
+    """The table's physical rate jitter is motion: the gyro senses it and the true (encoder) angle is its
+    integral, so the angle over time of a spin is the gyro's mean rate to the encoder's resolution (a world whose
+    angles ignored the jitter's integral is off by its random walk, σ √(2 τ_c T), here ~1e-4 of the rate). The next
+    position command servoes the true angle: it ends on its target."""
+    jit = 0.05 * DEG  # a large jitter: its random walk over the spin is ~1e-4 of the rate
+    cfg = SimConfig(table=replace(TableModel(), rate_jitter=jit, position_jitter=0.0))
+    w = SimulatedWorld(cfg, seed=3)
+    table, unit = SimTurntable(w), SimInertialUnit(w)
+    cmd = 60.0 * DEG
+    table.spin(2, cmd)  # inner gimbal = body y at zero angles (identity mounting)
+    _read(unit, table, int(2 * cfg.sample_rate))
+    s0 = table.read_state()
+    n = int(round(2 * 2 * math.pi / cmd * cfg.sample_rate))  # two turns
+    data = _read(unit, table, n)
+    s1 = table.read_state()
+    slope = (s1.angles[2] - s0.angles[2]) / (s1.time - s0.time)
+    mean_rate = data[:, 4].mean() - EARTH_RATE * math.cos(cfg.latitude)  # the perfect gyro: table rate + Earth's y
+    jitter_mean = mean_rate - cmd
+    assert abs(jitter_mean) > 1e-5 * cmd  # the jitter's mean over the spin is well above the test's tolerance
+    assert slope == pytest.approx(mean_rate, rel=2e-7)  # the encoder's angle over time is the gyro's mean rate
+    # after the spin a position command ends on its target: the servo absorbs the angle the jitter left
+    table.stop()
+    _read(unit, table, int(3 * cfg.sample_rate))
+    target = [0.0, 0.0, 6 * math.pi]
+    _settle(w, target)
+    lsb = 2 * math.pi / 2**cfg.table.encoder_bits
+    np.testing.assert_allclose(table.read_state().angles, target, atol=lsb)
