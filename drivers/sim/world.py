@@ -537,7 +537,10 @@ class SimulatedWorld:
                 k1 = min(k_end, self._next_event(k), k + CHUNK)
                 idx = np.arange(k, k1, dtype=np.int64)
                 t = self._tau(idx)
-                ang, rat, acc = self._evaluate(t)
+                if self._at_rest_from(float(t[0])):  # every row equals the first (see _at_rest_from)
+                    ang, rat, acc = (np.broadcast_to(x, (t.shape[0], 3)) for x in self._evaluate(t[:1]))
+                else:
+                    ang, rat, acc = self._evaluate(t)
                 hit = self._limit_hit(ang)
                 if hit is not None:
                     j, axis = hit
@@ -579,6 +582,17 @@ class SimulatedWorld:
             return pa[0], va[0]
         (p0, v0), (p1, v1), (p2, v2) = (plan.state(t) for plan in self._plans)
         return np.array([p0, p1, p2]), np.array([v0, v1, v2])
+
+    def _at_rest_from(self, t0: float) -> bool:
+        """Every axis is at rest from true time ``t0`` on: in its current plan's last segment with zero rate and
+        acceleration and past its settling transient. :meth:`_evaluate` then gives every later time the same
+        angle p + 0·dt + 0·dt² = p (dt ≥ 0), rate 0 and acceleration 0, so a hold's block is evaluated once."""
+        for plan, switch, hist in zip(self._plans, self._switch, self._history, strict=True):
+            if (hist and t0 < switch) or t0 < plan.t[-1] or plan.v[-1] != 0.0 or plan.a[-1] != 0.0:
+                return False
+            if plan.settle_t0 is not None and plan.settle_amp != 0.0 and t0 < plan.settle_end:
+                return False
+        return True
 
     def _spin_mask(self) -> NDArray[np.float64]:
         return np.array([1.0 if (pl.mode == AxisMode.RATE and pl.rate_cmd != 0.0) else 0.0 for pl in self._plans])
@@ -625,10 +639,10 @@ class SimulatedWorld:
             f0 = np.broadcast_to(self._rest_cache[1], (n, 3))
             earth_b = np.broadcast_to(self._rest_cache[2], (n, 3))
             omega = alpha = np.zeros((n, 3))
-        else:
-            c_bn, omega, alpha = self._kinematics(ang, rat, acc)
-            f0 = self._g * c_bn[:, 2, :]
-            earth_b = self._earth_n @ c_bn
+            return self._model.frames(k, f0, omega, alpha, earth_b, rest_key=key)
+        c_bn, omega, alpha = self._kinematics(ang, rat, acc)
+        f0 = self._g * c_bn[:, 2, :]
+        earth_b = self._earth_n @ c_bn
         return self._model.frames(k, f0, omega, alpha, earth_b)
 
     def _kinematics(
