@@ -41,7 +41,6 @@ from core.yaml_source import ConfigError
 from drivers import connect
 from drivers.protocols import InertialUnit, Turntable
 from drivers.sim.inprocess import SimInertialUnit
-from drivers.sim.loopback import Loopback
 from drivers.sim.world import SimulatedWorld
 
 from . import devices
@@ -219,6 +218,8 @@ def _open_simulated(
             f"{config.name}: simulated bench, {what}{note}",
             [table.close, unit.close],
         )
+    from drivers.sim.loopback import Loopback  # lazy: pymodbus, the wire servers (--help time)
+
     closers: list[Callable[[], None]] = []
     raw, raw_name = _raw_sink(config, run_folder, closers)
     try:

@@ -175,8 +175,10 @@ def window_reference(
     span: tuple[float, float],
     spin: bool,
     clock_rate: float = 0.0,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """The reference of one acquisition window (body frame, SI): f_ref, table rate ω, angles, and ``earth``.
+    with_earth: bool = True,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64] | None]:
+    """The reference of one acquisition window (body frame, SI): f_ref, table rate ω, angles, and ``earth``
+    (None unless ``with_earth``: only the gyro reference uses it).
 
     ``earth`` is what the gyro reference adds to ω: the Earth rate C_n^b Ω^n at the site. During a spin ω is
     the table rate from the encoder angles' slope over the window (:func:`angle_over_time`) for both triads
@@ -191,7 +193,7 @@ def window_reference(
     fr, om, ang = reference_for_samples(
         t, table_time, table_angles, table_rates, g=config.site.g, mounting=mnt, latency=latency, span=span
     )
-    earth = earth_in_body(ang, config.site.latitude, mnt)
+    earth = earth_in_body(ang, config.site.latitude, mnt) if with_earth else None
     if spin:
         slope = angle_over_time(t, table_time, table_angles, span)
         if slope is not None:
@@ -285,7 +287,7 @@ class LiveIdentifier:
         config: BenchConfig,
         progress: ProgressDisplay | None = None,
         show: tuple[str, ...] = ("b_z", "S_z", "r_x"),
-        update_seconds: float = 2.0,
+        update_seconds: float = 10.0,
         with_gyro: bool = True,
     ) -> None:
         self.config = config
@@ -537,7 +539,7 @@ def _read_window(
             return None
     span = acquisition_span(float(t[0]), float(t[-1]), latency, float(config.unit.sample_rate))
     fr, om, ang, earth = window_reference(
-        t, table.time, table.angles, table.rates, config, latency, span, s.kind == Spin.kind, clock_rate
+        t, table.time, table.angles, table.rates, config, latency, span, s.kind == Spin.kind, clock_rate, with_gyro
     )
     return StepWindow(s.name, s.kind, t, fo, fr, om, ang, gy if with_gyro else None, earth)
 

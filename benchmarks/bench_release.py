@@ -12,7 +12,8 @@ Stages (each tree on its own recording of the same procedure and seed):
 - ``--help``: ``tablebench --help`` (and ``python -c pass`` as the floor);
 - the whole in-process ``tablebench run`` and its parts, timed from the lines it prints: start-up to the first
   step, the motion phase (simulation + recording + streaming identifier), identification, certificate;
-- offline ``identify RUN`` and ``certificate RUN`` on the recording;
+- offline ``identify RUN`` and ``certificate RUN`` on the recording, and ``identify RUN --accelerometer-only``
+  (this code) against the release's identify (which identified the accelerometer's 18 states): like for like;
 - an ARMA(1,1) exact-ML fit, n = 5000, mean fixed (one BLAS thread on both sides);
 - the recording's size.
 """
@@ -150,8 +151,14 @@ def timed_run(tree: Path, procedure: str, folder: Path, seed: int) -> dict[str, 
     }
 
 
-def one_round(tree: Path, procedure: str, seed: int) -> dict[str, tuple[float, float]]:
-    """Every stage once for ``tree``: (wall, CPU) seconds; the recording's size as (MB, MB)."""
+LIKE_FOR_LIKE = "identify RUN, accelerometer only (offline, 18 states)"
+"""The stage that compares like with like: the release identified the accelerometer's 18 states; this code
+identifies the whole unit (33) unless told ``--accelerometer-only`` (the base tree runs its plain identify)."""
+
+
+def one_round(tree: Path, procedure: str, seed: int, accel_flag: bool = False) -> dict[str, tuple[float, float]]:
+    """Every stage once for ``tree``: (wall, CPU) seconds; the recording's size as (MB, MB). ``accel_flag``: the
+    tree knows ``identify --accelerometer-only`` (:data:`LIKE_FOR_LIKE`)."""
     work = Path(tempfile.mkdtemp(prefix="tb-release-"))
     try:
         run = work / "run"
@@ -160,6 +167,8 @@ def one_round(tree: Path, procedure: str, seed: int) -> dict[str, tuple[float, f
         out.update(timed_run(tree, procedure, run, seed))
         out["identify RUN (offline)"] = timed([sys.executable, "-c", CLI, "identify", str(run), "--out",
                                                str(work / "cal.json")], tree)  # fmt: skip
+        out[LIKE_FOR_LIKE] = timed([sys.executable, "-c", CLI, "identify", str(run), "--out", str(work / "cal18.json")]
+                                   + (["--accelerometer-only"] if accel_flag else []), tree)  # fmt: skip
         out["certificate RUN (offline)"] = timed([sys.executable, "-c", CLI, "certificate", str(run), "--out",
                                                   str(work / "cert.pdf")], tree)  # fmt: skip
         arma = subprocess.run([sys.executable, "-c", ARMA], cwd=tree, env=env_for(tree), capture_output=True,
@@ -187,7 +196,7 @@ def results_from_log(log: Path) -> dict[str, list[dict[str, tuple[float, float]]
 
 def table(results: dict[str, list[dict[str, tuple[float, float]]]]) -> str:
     """The Markdown table: per stage, median wall and CPU of each tree and the medians of the per-round ratios."""
-    stages = list(results["now"][0])
+    stages = [s for s in results["now"][0] if all(s in r for k in ("base", "now") for r in results[k])]
     rows = ["| stage | base wall | now wall | **now / base (wall)** | base CPU | now CPU | **now / base (CPU)** |",
             "|---|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
     for s in stages:
@@ -237,7 +246,7 @@ def main(argv: list[str] | None = None) -> int:
     for r in range(0 if args.from_log else args.rounds):
         order = ("base", "now") if r % 2 == 0 else ("now", "base")
         for key in order:
-            results[key].append(one_round(trees[key], args.procedure, args.seed))
+            results[key].append(one_round(trees[key], args.procedure, args.seed, accel_flag=key == "now"))
             print(f"round {r + 1} {key}: " + ", ".join(f"{k} {w:.6g}/{c:.6g}" for k, (w, c) in
                                                        results[key][-1].items()), flush=True)  # fmt: skip
         out_json.write_text(json.dumps({"base": args.base, "now": args.now, "results": results}, indent=1))

@@ -17,7 +17,7 @@ from __future__ import annotations
 import io
 import re
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -208,22 +208,106 @@ def gravity_split(res: CoverageResult, rate: float = 100.0) -> GravitySplit:
     )
 
 
+def tilt_draws(seeds: list[int], rate: float = 100.0) -> tuple[np.ndarray, float]:
+    """The simulator's realised axis tilts (ε₁, ε₂) of these seeds, rad (n, 2), and their bound a (rad)."""
+    from benches.bench_config import load_bench
+    from drivers.sim.world import SimulatedWorld
+
+    cfg = load_bench(coverage_bench(Path(tempfile.mkdtemp(prefix="tb-coverage-")), rate))
+    eps = np.array([SimulatedWorld.from_bench(cfg, s).truth_arrays()["table_axis_tilt"] for s in seeds], dtype=float)
+    assert cfg.simulation is not None and cfg.simulation.budget_inputs is not None
+    return eps.reshape(len(seeds), 2), float(cfg.simulation.budget_inputs.axis_tilt_bound)
+
+
+@dataclass
+class TiltSplit:
+    """What a correct budget predicts for each class given the axis non-orthogonality's rectangular draws.
+
+    The two tilts are drawn once per run, uniform within ±a (the budget's u = a/√3). A parameter whose u² is
+    mostly theirs has a bounded, not a normal, error: a correct budget then puts fewer than 4.6 % of its
+    errors outside U = 2u (GUM G.6.5: its 95 % coverage factor is below 2). Per parameter the error is taken as
+    u_orth (w·ε)/(a/√3) + a normal rest of u_rest = √(u² − u_orth²), w the unit direction of the least-squares
+    regression of its errors on (ε₁, ε₂) (which tilt drives it: a structural fact of the geometry), u_orth the
+    budget's own component.
+    """
+
+    slope_ratio: dict[str, float]
+    """Per parameter with an orthogonality share: |regression slope| / the budget's sensitivity (1 expected)."""
+    expected_fraction: dict[str, float]
+    """Per class: the fraction outside U a correct budget gives over all draws (rectangular tilts)."""
+    expected_fraction_given_draws: dict[str, float]
+    """Per class: the same given the realised tilts of these seeds."""
+    expected_rms_given_draws: dict[str, float]
+    """Per class: RMS(error/u) a correct budget gives for these tilts."""
+    rest_rms: dict[str, float]
+    """Per class: RMS of (error − the tilts' predicted part) / u_rest (1 expected)."""
+
+
+def tilt_split(res: CoverageResult, rate: float = 100.0, grid: int = 81) -> TiltSplit:
+    """Score ``res`` against what a correct budget gives with the realised axis tilts (see :class:`TiltSplit`)."""
+    from scipy.stats import norm
+
+    eps, bound = tilt_draws(res.seeds, rate)
+    u_e = bound / np.sqrt(3.0)
+    var_o = res.component_var.get("axis_orthogonality", np.zeros_like(res.u))
+    g = np.linspace(-bound, bound, grid)
+    square = np.stack(np.meshgrid(g, g), -1).reshape(-1, 2)  # the tilts' uniform distribution, on a grid
+    x = np.column_stack([eps, np.ones(len(eps))])
+    ratio: dict[str, float] = {}
+    fr, fr_d, rms_d, rest = {}, {}, {}, {}
+    for cls, sl in res.classes.items():
+        idx = list(range(res.u.shape[1]))[sl] if isinstance(sl, slice) else list(sl)
+        p_all, p_draw, z2, r2 = [], [], [], []
+        for j in idx:
+            e, u, uo = res.errors[:, j], res.u[:, j], np.sqrt(var_o[:, j])
+            ur = np.sqrt(np.maximum(u**2 - uo**2, 1e-300))
+            coef = np.linalg.lstsq(x, e, rcond=None)[0][:2]
+            w = coef / max(float(np.hypot(*coef)), 1e-300)
+            if np.mean(uo**2) > 1e-6 * np.mean(u**2):
+                ratio[PARAM_NAMES[j] if len(PARAM_NAMES) > j else str(j)] = float(np.hypot(*coef) * u_e / np.mean(uo))
+            xo = uo * (eps @ w) / u_e  # the tilts' part of each run's error
+            p_draw.append(norm.sf((2 * u - xo) / ur) + norm.cdf((-2 * u - xo) / ur))
+            xs = np.outer(uo, square @ w / u_e)  # (runs, grid²): over every tilt
+            p_all.append(
+                np.mean(
+                    norm.sf((2 * u[:, None] - xs) / ur[:, None]) + norm.cdf((-2 * u[:, None] - xs) / ur[:, None]),
+                    axis=1,
+                )
+            )
+            z2.append((xo**2 + ur**2) / u**2)
+            r2.append(((e - xo) / ur) ** 2)
+        fr[cls], fr_d[cls] = float(np.mean(p_all)), float(np.mean(p_draw))
+        rms_d[cls], rest[cls] = float(np.sqrt(np.mean(z2))), float(np.sqrt(np.mean(r2)))
+    return TiltSplit(ratio, fr, fr_d, rms_d, rest)
+
+
 def expected_spread(
-    n_runs: int, n_params: int, common_share: float, trials: int = 20000, seed: int = 0
+    n_runs: int,
+    n_params: int,
+    common_share: float,
+    trials: int = 20000,
+    seed: int = 0,
+    rect_share: float | Sequence[float] = 0.0,
 ) -> tuple[float, float, float]:
     """Sampling spread of the two coverage statistics of one class for a *correct* budget.
 
-    The class's errors are drawn as z_i = √ρ c + √(1−ρ) e_i per run (c, e_i standard normal; ρ =
-    ``common_share``, the share of u² from an input the class's parameters share within a run, e.g. local g
-    for S). Returns (1σ of the fraction outside U = 2u, 1σ of RMS(error/u), probability both are in the issue's
-    bands 2–9 % and 0.8–1.25).
+    The class's errors are drawn as z_i = √ρ c + √ρ_r,i √3 v_i + √(1−ρ−ρ_r,i) e_i per run (c, e_i standard
+    normal; v_i uniform in ±1; ρ = ``common_share``, the share of u² from an input the class's parameters share
+    within a run, e.g. local g for S; ρ_r,i = ``rect_share``, per parameter, the share of a rectangular input
+    drawn once per run, e.g. the table's axis tilts, taken independent between the parameters). Returns (1σ
+    of the fraction outside U = 2u, 1σ of RMS(error/u), probability both are in the issue's bands 2–9 % and
+    0.8–1.25).
     """
     rng = np.random.default_rng(seed)
+    rect = np.broadcast_to(np.asarray(rect_share, dtype=float), (n_params,))
+    normal = np.sqrt(np.clip(1.0 - common_share - rect, 0.0, None))
     out_f, out_r = np.empty(trials), np.empty(trials)
     for k in range(0, trials, 1000):
         m = min(1000, trials - k)
         c = rng.standard_normal((m, n_runs, 1))
-        z = np.sqrt(common_share) * c + np.sqrt(1 - common_share) * rng.standard_normal((m, n_runs, n_params))
+        z = np.sqrt(common_share) * c + normal * rng.standard_normal((m, n_runs, n_params))
+        if np.any(rect > 0):
+            z = z + np.sqrt(3.0 * rect) * rng.uniform(-1.0, 1.0, (m, n_runs, n_params))
         out_f[k : k + m] = np.mean(np.abs(z) > 2, axis=(1, 2))
         out_r[k : k + m] = np.sqrt(np.mean(z**2, axis=(1, 2)))
     ok = (out_f >= 0.02) & (out_f <= 0.09) & (out_r >= 0.8) & (out_r <= 1.25)
@@ -247,10 +331,13 @@ __all__ = [
     "REALISED",
     "CoverageResult",
     "GravitySplit",
+    "TiltSplit",
     "coverage_bench",
     "expected_spread",
     "gravity_anomalies",
     "gravity_draw_line",
     "gravity_split",
     "run_coverage",
+    "tilt_draws",
+    "tilt_split",
 ]

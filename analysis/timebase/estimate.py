@@ -104,13 +104,23 @@ def _unit_times(sig: RunSignals, t0: float, eps: float, idx: NDArray[np.int64]) 
 
 
 def _solve(x: NDArray[np.float64], y: NDArray[np.float64], col: int) -> tuple[NDArray[np.float64], float, float]:
-    """Least squares y ≈ x·p; returns p, σ of p[col] (residual-scaled; robust to nuisance rank deficiency), RMS."""
-    p, *_ = np.linalg.lstsq(x, y, rcond=None)
+    """Least squares y ≈ x·p; returns p, σ of p[col] (residual-scaled; robust to nuisance rank deficiency), RMS.
+
+    One SVD gives the minimum-norm solution, the rank (numpy's tolerance: σ_max · max(n, k) · eps, as ``lstsq``
+    and ``matrix_rank``) and, at full rank, σ²(p[col]) = s² [(XᵀX)⁻¹]_col,col = s² Σ_j (V_col,j / σ_j)². Only a
+    rank-deficient design projects the nuisance columns out of the δ column explicitly."""
+    u, sv, vt = np.linalg.svd(x, full_matrices=False)
+    keep = sv > (sv[0] if sv.size else 0.0) * max(x.shape) * np.finfo(float).eps
+    p = vt[keep].T @ ((u[:, keep].T @ y) / sv[keep])
     r = y - x @ p
-    dof = x.shape[0] - np.linalg.matrix_rank(x)
+    rank = int(np.count_nonzero(keep))
+    dof = x.shape[0] - rank
     if dof < 2:
         return p, math.nan, math.nan
     s2 = float(r @ r) / dof
+    rms = math.sqrt(float(r @ r) / r.size)
+    if rank == x.shape[1]:
+        return p, math.sqrt(s2 * float(np.sum((vt[:, col] / sv) ** 2))), rms
     others = np.delete(x, col, axis=1)
     q, *_ = np.linalg.lstsq(others, x[:, col], rcond=None)
     xc = x[:, col] - others @ q  # the δ column with the nuisances projected out

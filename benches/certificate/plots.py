@@ -19,6 +19,7 @@ import matplotlib
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 from numpy.typing import NDArray
 
 from analysis.identification.budget import StepGeometry
@@ -169,6 +170,8 @@ def convergence_figure(
         if frame is not None:
             ax.set_ylim(*frame)
         ax.ticklabel_format(axis="y", useOffset=False)  # full values on the ticks: no offset text above the panel
+        ax.xaxis.set_major_locator(MaxNLocator(4))  # at most 4 intervals a small panel: fewer ticks to lay out and
+        ax.yaxis.set_major_locator(MaxNLocator(4))  # draw (a fifth of the grid's drawing time, issue 32)
         ax.set_title(f"{name} [{display_unit(kind)}]", pad=2, y=1.0)
         if identified is not None and not identified[p]:
             ax.text(0.5, 0.9, "not identified (prior only)", ha="center", va="top", transform=ax.transAxes,

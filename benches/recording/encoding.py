@@ -67,7 +67,8 @@ class _StepHasher:
 
     def update(self, group: str, name: str, data: NDArray[Any]) -> None:
         dt = (_IMU_DTYPES if group == "imu" else _TABLE_DTYPES)[name]
-        self.parts[(group, name)].update(np.ascontiguousarray(data, dtype=np.dtype(dt).newbyteorder("<")).tobytes())
+        # the array's own buffer (C order, little-endian), not a bytes copy of it: the same bytes hashed
+        self.parts[(group, name)].update(np.ascontiguousarray(data, dtype=np.dtype(dt).newbyteorder("<")).data)
 
     def hexdigest(self) -> str:
         h = hashlib.sha256()

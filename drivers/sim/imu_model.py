@@ -53,6 +53,8 @@ from drivers.sim.config import CHANNELS, MISALIGNMENT_PAIRS, NoiseTruth, SimConf
 _INT32_MAX = float(np.iinfo(np.int32).max)
 NOISE_BLOCK = 8192
 """Samples of motion-independent noise generated ahead per block (aligned on absolute sample indices)."""
+LAB_TEMPERATURE_C = 23.0
+"""The unit's temperature, °C, on a bench with neither a warm-up model nor a chamber."""
 MAX_DECIMATION = 4096
 """Largest grid step (samples) of the decimated Gauss–Markov processes; divides NOISE_BLOCK."""
 N_FIXED_STREAMS = 8
@@ -114,25 +116,33 @@ class _GaussMarkovBank:
         self.state = [rng.standard_normal(len(g[2])) * g[4] for g in self.groups]
 
     def draw(self, n: int) -> NDArray[np.float64]:
-        """(n, n_channels) summed Gauss–Markov output for the next n samples (n a multiple of NOISE_BLOCK)."""
-        out = np.zeros((n, self.n_channels))
+        """(n, n_channels) summed Gauss–Markov output for the next n samples (n a multiple of NOISE_BLOCK).
+
+        Summed channel by channel along time ((n_channels, n) in memory, returned transposed): the
+        interpolation's broadcasts then run over long contiguous rows instead of six values at a time. Each
+        sample gets the same additions in the same order (group by group: the previous grid value, then the
+        interpolated step), so the values are those of the sample-major sum bit for bit."""
+        out = np.zeros((self.n_channels, n))
         for gi, (d, a_d, chans, w_std, _) in enumerate(self.groups):
             m = n // d
             w = self.rng.standard_normal((m, len(chans))) * w_std
             p, _ = signal.lfilter([1.0], [1.0, -a_d], w, axis=0, zi=a_d * self.state[gi][None, :])
             full = len(chans) == self.n_channels  # every channel has this corner (the usual case)
-            tgt = out if full else np.zeros((n, len(chans)))
+            tgt = out if full else np.zeros((len(chans), n))
+            pt = np.ascontiguousarray(p.T)  # (channels, m)
             if d == 1:
-                tgt += p
+                tgt += pt
             else:
-                prev = np.vstack([self.state[gi][None, :], p[:-1]])
-                t3 = tgt.reshape(m, d, len(chans))
-                t3 += prev[:, None, :]
-                t3 += (p - prev)[:, None, :] * (np.arange(1, d + 1) / d)[None, :, None]
+                prev = np.empty_like(pt)
+                prev[:, 0] = self.state[gi]
+                prev[:, 1:] = pt[:, :-1]
+                t3 = tgt.reshape(len(chans), m, d)
+                t3 += prev[:, :, None]
+                t3 += (pt - prev)[:, :, None] * (np.arange(1, d + 1) / d)[None, None, :]
             self.state[gi] = p[-1].copy()
             if not full:
-                out[:, chans] += tgt  # one process per channel per corner: no repeated indices
-        return out
+                out[chans] += tgt  # one process per channel per corner: no repeated indices
+        return out.T
 
 
 class InertialModel:
@@ -196,6 +206,14 @@ class InertialModel:
         self._buf = np.empty((0, 8))
         self._buf_k0 = 0
         self._periodic = [(CHANNELS.index(p.channel), p.frequency_hz, p.amplitude, p.phase) for p in config.periodic]
+        # the error model's output depends on time only through temperature (warm-up, chamber, thermal truth)
+        tm = config.temperature
+        self._time_free = self.thermal is None and (tm is None or tm.warmup_rise_c == 0.0)
+        self._rest_phys: tuple[tuple[object, int], NDArray[np.float64]] | None = None
+        sc = config.scale
+        self._lsb = np.array([sc.accel_lsb] * 3 + [sc.gyro_lsb] * 3)
+        # the temperature word of a unit at the fixed lab temperature (no warm-up model, no chamber)
+        self._temp_word = np.rint(np.full(1, LAB_TEMPERATURE_C) / sc.temperature_lsb).astype(np.int16)[0]
 
     # ---- temperature ---------------------------------------------------------------------------------
     def temperature_c(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -204,7 +222,7 @@ class InertialModel:
             return self.chamber.unit_temperature(t) - CELSIUS_ZERO
         tm = self.cfg.temperature
         if tm is None:
-            return np.full(t.shape, 23.0)
+            return np.full(t.shape, LAB_TEMPERATURE_C)
         return tm.ambient_c + tm.warmup_rise_c * (1.0 - np.exp(-t / tm.warmup_tau))
 
     # ---- the physics ---------------------------------------------------------------------------------
@@ -274,8 +292,8 @@ class InertialModel:
         out = np.empty((n, 8))
         out[:, :6] = self._rng_white.standard_normal((n, 6)) * self._white
         out[:, :6] += self._gm.draw(n)
-        inc = self._rng_rw.standard_normal((n, 6)) * self._rw
-        if np.any(self._rw != 0):
+        if np.any(self._rw != 0):  # (its stream feeds nothing else: not drawn for a bench without random walk)
+            inc = self._rng_rw.standard_normal((n, 6)) * self._rw
             # sequential accumulation from the carried state (split-invariant rounding)
             rw = np.cumsum(np.vstack([self._rw_state[None, :], inc]), axis=0)[1:]
             self._rw_state = rw[-1].copy()
@@ -295,7 +313,8 @@ class InertialModel:
                 x = e
             out[:, ch] += x
         out[:, 6] = self._rng_ts.standard_normal(n) * self.cfg.timestamp_jitter
-        out[:, 7] = self._rng_drop.random(n)
+        # the drop stream feeds nothing else: not drawn when frames never drop (column 7 is read only then)
+        out[:, 7] = self._rng_drop.random(n) if self.cfg.drop_probability > 0 else 1.0
         return out
 
     def streams(self, k0: int, n: int) -> NDArray[np.float64]:
@@ -324,12 +343,24 @@ class InertialModel:
         omega: NDArray[np.float64],
         alpha: NDArray[np.float64],
         earth_b: NDArray[np.float64],
+        rest_key: object = None,
     ) -> RawFrames:
-        """Frames for samples k0 … k0+n−1 (n = len(f0)); see :meth:`physical` for the inputs."""
+        """Frames for samples k0 … k0+n−1 (n = len(f0)); see :meth:`physical` for the inputs.
+
+        ``rest_key``: the inputs are those of a table at rest at one attitude, which the key names (equal keys,
+        equal inputs). Where the error model does not depend on time (no temperature term) its output for the
+        same key and length is the same array, so it is computed once for a hold's blocks, not every block."""
         n = f0.shape[0]
         k = np.arange(k0, k0 + n, dtype=np.int64)
         t = k * self.dt
-        phys = self.physical(t, f0, omega, alpha, earth_b)
+        if rest_key is not None and self._time_free:
+            if self._rest_phys is None or self._rest_phys[0] != (rest_key, n):
+                phys = self.physical(t, f0, omega, alpha, earth_b)
+                phys.flags.writeable = False
+                self._rest_phys = ((rest_key, n), phys)
+            phys = self._rest_phys[1]
+        else:
+            phys = self.physical(t, f0, omega, alpha, earth_b)
         if self._aa is not None:
             bb, ab = self._aa
             if self._aa_zi is None:
@@ -338,13 +369,16 @@ class InertialModel:
         st = self.streams(k0, n)
         y = phys + st[:, :6]
         sc = self.cfg.scale
-        lsb = np.array([sc.accel_lsb] * 3 + [sc.gyro_lsb] * 3)
-        counts = np.clip(np.rint(y / lsb), -_INT32_MAX, _INT32_MAX).astype(np.int32)
+        q = np.rint(y / self._lsb, out=y)
+        counts = np.clip(q, -_INT32_MAX, _INT32_MAX, out=q).astype(np.int32)
         ts_ns = k * (1e9 / self.fs)  # exact integers for rates dividing 1 GHz (e.g. 1 kHz → 1 000 000 ns)
         if self.cfg.timestamp_jitter > 0:
             ts_ns = ts_ns + st[:, 6] * 1e9
         ts_ns = np.rint(np.maximum(ts_ns, 0.0)).astype(np.uint64)
-        temp = np.rint(self.temperature_c(t) / sc.temperature_lsb).astype(np.int16)
+        if self.chamber is None and self.cfg.temperature is None:  # temperature_c is the lab's: its word
+            temp = np.full(n, self._temp_word, dtype=np.int16)
+        else:
+            temp = np.rint(self.temperature_c(t) / sc.temperature_lsb).astype(np.int16)
         keep_u = st[:, 7]
         frames = RawFrames(
             counter=(k % (1 << 32)).astype(np.uint32),

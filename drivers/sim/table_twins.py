@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Literal, Protocol
+from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 from drivers import connect
 from drivers.acutrol import AclSettings, AclTurntable
@@ -20,13 +20,15 @@ from drivers.aerosmith import AerosmithSettings, AerosmithTable
 from drivers.modbus.register_map import ModbusMap
 from drivers.protocols import Turntable
 from drivers.sim.acl_controller import AclController
-from drivers.sim.acl_server import AclTableServer
 from drivers.sim.aerosmith_controller import AerosmithController
-from drivers.sim.aerosmith_server import AerosmithTableServer
 from drivers.sim.inprocess import SimTurntable
-from drivers.sim.modbus_controller import ModbusTableServer
 from drivers.sim.world import SimulatedWorld
 from drivers.transport import MessageTransport, VisaTransport, open_visa
+
+if TYPE_CHECKING:  # the servers are imported when one is started (an in-process bench starts none)
+    from drivers.sim.acl_server import AclTableServer
+    from drivers.sim.aerosmith_server import AerosmithTableServer
+    from drivers.sim.modbus_controller import ModbusTableServer
 
 Clock = Callable[[], float]
 
@@ -111,6 +113,8 @@ class AclTwin:
         return table, "simulated ACUTROL (ACL, in-memory)"
 
     def serve(self, world: SimulatedWorld) -> AclTableServer:
+        from drivers.sim.acl_server import AclTableServer
+
         return AclTableServer(world, self.acl)
 
     def connect(self, server: Any, timeout: float, clock: Clock | None, alone: bool = False) -> connect.Connection[Any]:
@@ -151,6 +155,8 @@ class ModbusTwin:
         return SimTurntable(world), "simulated table, in-process driver" if alone else "in-process drivers"
 
     def serve(self, world: SimulatedWorld) -> ModbusTableServer:
+        from drivers.sim.modbus_controller import ModbusTableServer  # lazy: asyncio, pymodbus's server
+
         return ModbusTableServer(
             world,
             word_order=self.word_order,
@@ -201,6 +207,8 @@ class AerosmithTwin:
         return self._driver(ctl.stream(timeout), world, ctl.settings, None), "simulated Ideal Aerosmith (in-memory)"
 
     def serve(self, world: SimulatedWorld) -> AerosmithTableServer:
+        from drivers.sim.aerosmith_server import AerosmithTableServer
+
         return AerosmithTableServer(world, self.settings)
 
     def connect(self, server: Any, timeout: float, clock: Clock | None, alone: bool = False) -> connect.Connection[Any]:

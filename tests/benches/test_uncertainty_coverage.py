@@ -127,3 +127,13 @@ def test_expected_spread_of_a_correlated_class():
     assert sd_r == pytest.approx(math.sqrt(1 / (2 * 360)), rel=0.1) and p_ok > 0.97
     sd_fc, sd_rc, p_okc = expected_spread(32, 3, 0.64, trials=4000)
     assert sd_fc > 1.5 * sd_f and p_okc < 0.9  # one shared draw per run: fewer effective samples
+
+
+def test_expected_spread_of_a_class_dominated_by_a_rectangular_input():
+    """A bounded input (the axis tilts, uniform within ±a, u = a/√3) never exceeds √3 u: a class made only of
+    it never puts an error outside U = 2u, so a correct budget fails the lower band (GUM G.6.5: k₉₅ = 1.65)."""
+    _sd_f, sd_r, p_ok = expected_spread(120, 3, 0.0, trials=2000, rect_share=1.0)
+    assert p_ok == 0.0 and sd_r < 0.05
+    _, _, p_mixed = expected_spread(120, 3, 0.0, trials=2000, rect_share=[0.69, 0.0, 0.64])
+    _, _, p_normal = expected_spread(120, 3, 0.0, trials=2000)
+    assert p_mixed < p_normal
