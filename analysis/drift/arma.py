@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 
-from analysis.drift.arma_likelihood import exact_residuals
+from analysis.drift.arma_likelihood import exact_residuals, lag_polynomial
 from analysis.drift.arma_optimiser import (
     Convergence,
     Jacobian,
@@ -44,6 +44,7 @@ from analysis.drift.arma_optimiser import (
     admissible,
     convergence,
     dot,
+    lagged_normal_equations,
     levenberg_marquardt,
     normal_equations,
     quasi_newton,
@@ -357,7 +358,7 @@ def hannan_rissanen(x: NDArray[np.float64], p: int, q: int, long_order: int | No
     s = m + max(p, q)
     if n - s <= 2 * (p + q):
         return np.zeros(p + q)
-    A, b = normal_equations([x[m - j : n - j] for j in range(1, m + 1)], x[m:])
+    A, b = lagged_normal_equations(x, m)
     try:
         a_long = np.linalg.solve(A, b)
     except np.linalg.LinAlgError:
@@ -382,8 +383,8 @@ def css_residuals(
     """
     p = phi.size
     s0 = p if start is None else max(int(start), p)
-    w = signal.lfilter(np.r_[1.0, -phi], [1.0], x)[s0:]
-    return signal.lfilter([1.0], np.r_[1.0, -theta], w) if theta.size else w
+    w = signal.lfilter(lag_polynomial(phi), [1.0], x)[s0:]
+    return signal.lfilter([1.0], lag_polynomial(theta), w) if theta.size else w
 
 
 def _jacobian(
@@ -396,7 +397,7 @@ def _jacobian(
     p, q = phi.size, theta.size
     m = e.size
     cols = []
-    den = np.r_[1.0, -theta]
+    den = lag_polynomial(theta)
     for j in range(1, p + 1):
         xs = x[start - j : start - j + m]
         cols.append(-signal.lfilter([1.0], den, xs))
@@ -478,6 +479,36 @@ def _check_point(problem: tuple[Residuals, Jacobian], best: Optimum) -> Converge
     return convergence(A, g, dot(e, e), e.size)
 
 
+BASIN_SE = 10.0
+"""Farthest start (in standard errors of the optimum, Mahalanobis) that :func:`_in_basin` may skip."""
+BASIN_TOL = 0.1
+"""Largest relative disagreement of a start's (and its midpoint's) cost excess with the optimum's quadratic model
+for :func:`_in_basin` to skip the start."""
+
+
+def _in_basin(residuals: Residuals, best: Optimum, start: NDArray[np.float64], cost: float, m: int, p: int) -> bool:
+    """True when Levenberg–Marquardt from ``start`` (cost ‖r‖² there: ``cost``; m residuals) would only return to
+    ``best``'s optimum: ``best`` met the convergence criteria, ``start`` lies within :data:`BASIN_SE` standard
+    errors of it, and the cost excess over the optimum at ``start`` and at the midpoint both agree with the
+    Gauss–Newton quadratic model dᵀ(JᵀJ)d within :data:`BASIN_TOL` — along the way the cost is the one convex
+    bowl whose minimum the damped steps descend to. Anything else (another mode, a ridge of nearly cancelling
+    roots, a stall) answers False."""
+    if not best.stopped_by_criteria or best.normal is None:
+        return False
+    d = start - best.params
+    quad = float(d @ best.normal @ d)
+    if not (0.0 < quad <= BASIN_SE**2 * best.cost / m):
+        return False
+    mid = best.params + 0.5 * d
+    if not admissible(mid[:p], mid[p:]):
+        return False
+    e_mid = residuals(mid)
+    for excess, model in ((cost - best.cost, quad), (dot(e_mid, e_mid) - best.cost, 0.25 * quad)):
+        if abs(excess - model) > BASIN_TOL * model + 1e-12 * best.cost:
+            return False
+    return True
+
+
 def _maximise(
     problem: tuple[Residuals, Jacobian], starts: list[NDArray[np.float64]], p: int
 ) -> tuple[NDArray[np.float64], Convergence, int, str]:
@@ -485,16 +516,28 @@ def _maximise(
     BFGS from three starts (the stalled point, the last given start, zero), each polished by LM, and the best of
     all kept.
 
-    Returns the parameters, the convergence measures there, the iterations used, the optimiser description.
+    The starts are ranked by their cost first; LM runs from the best one, and from each other start unless
+    :func:`_in_basin` shows it would return to the same optimum (then its run is skipped: the reported optimum is
+    the same, to the convergence tolerance).
+
+    Returns the parameters, the convergence measures there, the iterations used, the optimiser description, and
+    JᵀJ there when the optimiser computed it (else None).
     """
+    residuals = problem[0]
     starts = [s for s in starts if admissible(s[:p], s[p:])]
-    runs = [levenberg_marquardt(*problem, s, p) for s in starts]
+    e0 = [residuals(s) for s in starts]
+    costs = [dot(e, e) for e in e0]
+    order = sorted(range(len(starts)), key=lambda i: costs[i])
+    runs = [levenberg_marquardt(*problem, starts[order[0]], p, e0=e0[order[0]])]
+    for i in order[1:]:
+        if not _in_basin(residuals, runs[0], starts[i], costs[i], e0[i].size, p):
+            runs.append(levenberg_marquardt(*problem, starts[i], p, e0=e0[i]))
     best = min(runs, key=lambda r: r.cost)
     iterations = sum(r.iterations for r in runs)
     conv = _check_point(problem, best)
     optimiser = "levenberg-marquardt"
     if conv.converged:
-        return best.params, conv, iterations, optimiser
+        return best.params, conv, iterations, optimiser, best.normal
     # The stalled point, the last given start (the nested model or the short Hannan–Rissanen one) and white noise.
     fallback_starts = [best.params, starts[-1], np.zeros_like(best.params)]
     for s in fallback_starts:
@@ -504,7 +547,7 @@ def _maximise(
         runs.append(polished)
     best = min(runs, key=lambda r: r.cost)
     optimiser = f"levenberg-marquardt + bfgs from {len(fallback_starts)} starts (levenberg-marquardt stalled)"
-    return best.params, _check_point(problem, best), iterations, optimiser
+    return best.params, _check_point(problem, best), iterations, optimiser, best.normal
 
 
 def fit_arma(
@@ -576,16 +619,19 @@ def fit_arma(
         problem = _ml_problem(scaled, p, include_mean)
         starts = [css_fit.params, hannan_rissanen(scaled, p, q), hannan_rissanen(scaled, p, q, max(p, q))]
         starts += [_pad(nested, p, q)] if nested is not None else []
-        params, conv, iterations, optimiser = _maximise(problem, starts, p)
+        params, conv, iterations, optimiser, normal = _maximise(problem, starts, p)
         iterations += css_fit.iterations
     else:
-        params, conv, iterations, optimiser = _maximise(css, [x0], p)
+        params, conv, iterations, optimiser, normal = _maximise(css, [x0], p)
     phi, theta = params[:p], params[p:]
     if method == "ml":
-        mu, e, s2, s2_crit, ll, jac, m = _ml_statistics(ac, scale, params, p, include_mean)
+        # mean fixed: the optimiser's own JᵀJ at this point is the information (× scale²: it ran on x/scale)
+        known = None if include_mean or normal is None else normal * scale**2
+        mu, e, s2, s2_crit, ll, jac, m = _ml_statistics(ac, scale, params, p, include_mean, known is None)
     else:
+        known = None
         mu, e, s2, s2_crit, ll, jac, m = _css_statistics(ac, scale, params, p, s0, include_mean)
-    info, _ = normal_equations(jac, e)
+    info = known if known is not None else normal_equations(jac, e)[0]
     se = np.full(k - 1, np.nan)
     try:
         cov = s2 * np.linalg.inv(info)
@@ -620,14 +666,19 @@ def _white_noise_model(
     )  # fmt: skip
 
 
-def _ml_statistics(ac: NDArray[np.float64], scale: float, params: NDArray[np.float64], p: int, include_mean: bool):
+def _ml_statistics(
+    ac: NDArray[np.float64], scale: float, params: NDArray[np.float64], p: int, include_mean: bool,
+    jacobian: bool = True,
+):  # fmt: skip
     """Exact-likelihood residual statistics at ``params``: (μ, weighted prediction errors, σ², σ²_eff, ln L,
-    residual Jacobian columns in (φ, θ, μ), residuals used)."""
+    residual Jacobian columns in (φ, θ, μ) — None when ``jacobian`` is False —, residuals used)."""
     phi, theta = params[:p], params[p:]
     ex = exact_residuals(ac, phi, theta, include_mean)
     mu = ex.mean
     e = ex.weighted()
     ll = -0.5 * ex.minus_two_log_likelihood()
+    if not jacobian:
+        return mu, e, ex.sigma2, ex.sigma2_eff, ll, None, ex.n
     fixed = _ml_problem(ac / scale - mu / scale, p, False)  # Jacobian at fixed μ: full (φ, θ, μ) information
     jac = [c * scale for c in fixed[1](params, e / scale)]
     if include_mean:

@@ -99,6 +99,14 @@ class ExactResiduals:
         return np.concatenate((self.residuals, self.presample)) * self.weight
 
 
+def lag_polynomial(c: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Coefficients (1, −c₁, …, −c_k) of 1 − Σ c_j B^j (``np.r_[1.0, -c]`` without its indexing overhead)."""
+    out = np.empty(c.size + 1)
+    out[0] = 1.0
+    np.negative(c, out=out[1:])
+    return out
+
+
 def presample_covariance(phi: NDArray[np.float64], theta: NDArray[np.float64]) -> NDArray[np.float64]:
     """Stationary covariance / σ² of u = (x_{t−1}, …, x_{t−p}, e_{t−1}, …, e_{t−q}) for a stationary ARMA.
 
@@ -118,7 +126,8 @@ def presample_covariance(phi: NDArray[np.float64], theta: NDArray[np.float64]) -
         b[p] = 1.0
         A[np.arange(p + 1, r), np.arange(p, r - 1)] = 1.0
     # vec Σ = (I − A⊗A)⁻¹ vec(bbᵀ), r ≤ 20: plain numpy (scipy's wrappers cost more than the solve here).
-    cov = np.linalg.solve(np.eye(r * r) - np.kron(A, A), np.outer(b, b).ravel()).reshape(r, r)
+    kron = (A[:, None, :, None] * A[None, :, None, :]).reshape(r * r, r * r)  # A ⊗ A (np.kron costs more here)
+    cov = np.linalg.solve(np.eye(r * r) - kron, np.outer(b, b).ravel()).reshape(r, r)
     return 0.5 * (cov + cov.T)
 
 
@@ -170,8 +179,8 @@ def exact_residuals(
     theta = np.asarray(theta, dtype=float)
     p, q = phi.size, theta.size
     n = x.size
-    num = np.r_[1.0, -phi]
-    den = np.r_[1.0, -theta]
+    num = lag_polynomial(phi)
+    den = lag_polynomial(theta)
     r = p + q
     # Responses decay like ρᵗ (ρ the largest reciprocal MA root), so only their first `span` samples are non-zero
     # in double precision (e^{−40} ≈ 4e-18).

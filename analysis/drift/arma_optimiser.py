@@ -95,6 +95,27 @@ def normal_equations(cols: list[NDArray[np.float64]], e: NDArray[np.float64]) ->
     return A, g
 
 
+def lagged_normal_equations(x: NDArray[np.float64], m: int) -> tuple[np.ndarray, np.ndarray]:
+    """JᵀJ and Jᵀy of the autoregression of y = x[m:] on its m lags (columns x[m − j : n − j], j = 1..m), n ≥ 2m + 1.
+
+    Equal to :func:`normal_equations` of those columns (to rounding) without its m(m + 3)/2 passes over the
+    record: entry (i, j) (0 ≤ i ≤ j ≤ m, lag 0 being y) is Σ_{u=m−j}^{n−1−j} x_u x_{u+j−i}, the full lag-(j − i)
+    product sum (m + 1 dot products) less its first m − j and its last i terms (sums of at most m products).
+    """
+    n = x.size
+    full = np.array([dot(x[: n - k], x[k:]) for k in range(m + 1)])
+    win = np.lib.stride_tricks.sliding_window_view
+    xr = x[::-1]
+    # cum[s, k] = Σ_{u<s} x_u x_{u+k} (head) and Σ of the last s lag-k products (tail), s = 0..m
+    head = np.vstack((np.zeros(m + 1), np.cumsum(x[:m, None] * win(x[: 2 * m], m + 1), axis=0)))
+    tail = np.vstack((np.zeros(m + 1), np.cumsum(xr[:m, None] * win(xr[: 2 * m], m + 1), axis=0)))
+    i, k = np.nonzero(np.add.outer(np.arange(m + 1), np.arange(m + 1)) <= m)
+    G = np.empty((m + 1, m + 1))
+    G[i, i + k] = full[k] - head[m - i - k, k] - tail[i, k]
+    G[i + k, i] = G[i, i + k]
+    return G[1:, 1:], G[0, 1:]
+
+
 @dataclass
 class Convergence:
     """Convergence measures at a point (module docstring).
@@ -144,19 +165,26 @@ class Optimum:
     stopped_by_criteria: bool
     check: Convergence | None = None
     """The convergence measures at ``params`` when the optimiser computed them there (saves recomputing them)."""
+    normal: NDArray[np.float64] | None = None
+    """JᵀJ at ``params`` when the optimiser computed it there (the cost's Gauss–Newton curvature, ½ ∇²‖r‖²)."""
 
 
 def levenberg_marquardt(
-    residuals: Residuals, jacobian: Jacobian, params: NDArray[np.float64], p: int, max_iter: int = 200
+    residuals: Residuals,
+    jacobian: Jacobian,
+    params: NDArray[np.float64],
+    p: int,
+    max_iter: int = 200,
+    e0: NDArray[np.float64] | None = None,
 ) -> Optimum:
     """Minimise ‖r(params)‖² over params = (φ, θ) by Levenberg–Marquardt, staying stationary/invertible.
 
     Stops when the gradient and step criteria (:func:`convergence`) hold at the current point
     (``stopped_by_criteria`` True), or when no step decreases the cost, or when five accepted steps in a row
     gained less than 1e-14 of the cost, or after ``max_iter`` iterations (False: a stall, which the caller must
-    resolve or report).
+    resolve or report). ``e0``: r(params) when the caller has it already.
     """
-    e = residuals(params)
+    e = residuals(params) if e0 is None else e0
     cost = dot(e, e)
     m = e.size
     mu = 1e-3
@@ -165,7 +193,7 @@ def levenberg_marquardt(
         A, g = normal_equations(jacobian(params, e), e)
         conv = convergence(A, g, cost, m)
         if conv.converged:
-            return Optimum(params, cost, it - 1, True, conv)
+            return Optimum(params, cost, it - 1, True, conv, A)
         d = np.diag(A).copy()
         d[d <= 0.0] = 1.0
         accepted = False

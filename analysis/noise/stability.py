@@ -152,6 +152,8 @@ class StabilityResult:
     gap_runs: NDArray[np.int64]
     confidence: float = 0.683
     notes: list[str] = field(default_factory=list)
+    edf_rules: str = "tablebench"
+    """Rule set of the EDFs (:data:`analysis.noise.confidence.EDF_RULES`)."""
 
 
 # ----------------------------------------------------------------------------------------------- input
@@ -239,6 +241,7 @@ def stability(
     theoh_split: float = 0.2,
     confidence: float | None = 0.683,
     noise_type: int | list[tuple[float, float, int]] | None = None,
+    edf_rules: str = "tablebench",
 ) -> StabilityResult:
     """Frequency-stability deviations of every channel of a record.
 
@@ -266,11 +269,19 @@ def stability(
         flicker FM, −2 random-walk FM): one α for every τ, or α per closed τ range in seconds (the reported τ;
         the first range holding τ wins); τ outside every range keep the identified type. The EDF, intervals and
         the TOTDEV/HTOTDEV bias use it.
+    edf_rules : {"tablebench", "stable32"}
+        EDF rules of the intervals: tablebench's (default; where Stable32's intervals miss their confidence,
+        calibrated by Monte Carlo coverage) or Stable32's own (:func:`analysis.noise.confidence.edf_stable32`:
+        with ``noise_type`` set to the α Stable32 printed, its printed bounds are reproduced).
 
     Returns
     -------
     StabilityResult
     """
+    from analysis.noise.confidence import EDF_RULES
+
+    if edf_rules not in EDF_RULES:
+        raise ValueError(f"unknown EDF rules {edf_rules!r}; choose from {', '.join(EDF_RULES)}")
     bad = [e for e in estimators if e not in ESTIMATORS]
     if bad:
         raise ValueError(f"unknown estimator(s) {', '.join(bad)}; choose from {', '.join(ESTIMATORS)}")
@@ -331,6 +342,7 @@ def stability(
         if not 0.0 < confidence < 1.0:
             raise ValueError(f"confidence must be in (0, 1), got {confidence}")
         res.confidence = float(confidence)
+        res.edf_rules = edf_rules
         _attach_intervals(rec, res, _noise_type_ranges(noise_type))
     return res
 
@@ -436,7 +448,7 @@ def _attach_intervals(rec: Record, res: StabilityResult, ranges: list[tuple[floa
                 if a is None:
                     a = alpha_of(name, ch, m_id, dmax, n_b1, carry=kind == "theo1")
                 alpha[j, ch] = a
-                e[j, ch] = ci.edf(kind, a, m, n)
+                e[j, ch] = ci.edf(kind, a, m, n, res.edf_rules)
                 if kind == "theo1" and name != "theo1":  # TheoBR = kf·Theo1: add the scatter of kf
                     e[j, ch] = ci.edf_theobr(e[j, ch])
         est.alpha = alpha
@@ -445,7 +457,7 @@ def _attach_intervals(rec: Record, res: StabilityResult, ranges: list[tuple[floa
             t_rec = (n - 1) * rec.ts
             est.bias = ci.bias_factor(name, alpha, est.m, est.tau, t_rec)
         est.lo, est.hi = ci.chi2_interval(est.unbiased(), e, res.confidence)
-        if name == "totdev":  # white PM: the reflected end terms skew the law, three cumulants (exact B)
+        if name == "totdev" and res.edf_rules == "tablebench":  # white PM: the reflected end terms skew the law
             for j, ch in zip(*np.nonzero((alpha == 2) & np.isfinite(est.dev)), strict=True):
                 shape = ci.totvar_wpm_shape(n, int(est.m[j]))
                 if shape is not None and shape[0] > 0:

@@ -291,6 +291,7 @@ def analyse_noise(
     fit_estimator: str = "oadev",
     noise_type: int | list[tuple[float, float, int]] | None = None,
     remove_drift: str | None = None,
+    edf_rules: str = "tablebench",
 ) -> dict:
     """Stability deviations with intervals and fitted noise terms of named channels (the ``noise.json`` data).
 
@@ -320,8 +321,9 @@ def analyse_noise(
         What the records hold.
     fit_estimator : str
         Estimator for the NNLS and slope-line term reading, one of :data:`FIT_ESTIMATORS`.
-    noise_type : int or list of (τ_lo, τ_hi, α), optional
-        Noise type set by hand for the intervals and the fit (:func:`analysis.noise.stability.stability`).
+    noise_type, edf_rules : int or list of (τ_lo, τ_hi, α), optional; {"tablebench", "stable32"}
+        Noise type set by hand for the intervals and the fit, and the EDF rules of the intervals
+        (:func:`analysis.noise.stability.stability`).
     remove_drift : {"linear", "quadratic"}, optional
         Frequency drift removed from each channel first (:func:`analysis.noise.drift_removal.remove_drift`);
         the removed polynomial is reported per channel under ``"drift_removed"``.
@@ -354,7 +356,8 @@ def analyse_noise(
     data = _rows(arrays).T  # (N, C) view of a (C, N) array: stability reads its rows without a copy
     del arrays
     ests = tuple(dict.fromkeys((*estimators, fit_estimator)))
-    res = stability(data, rate, ests, taus, data_type, confidence=confidence, noise_type=noise_type)
+    res = stability(data, rate, ests, taus, data_type, confidence=confidence, noise_type=noise_type,
+                    edf_rules=edf_rules)  # fmt: skip
     itot = None
     if published_itotvar:
         if data_type != "freq" or np.isnan(data).any():
@@ -391,6 +394,7 @@ def analyse_noise(
         "confidence": confidence,
         "estimators": list(res.estimates),
         "noise_type": "identified" if noise_type is None else noise_type,
+        "edf_rules": edf_rules,
         "remove_drift": remove_drift,
         "channels": out_channels,
     }

@@ -152,6 +152,7 @@ class SimulatedWorld:
         self._jit_angle = np.zeros(3)  # the rate jitter's integral (rad) per axis at the last produced sample
         self._jit_fold: list[tuple[float, float] | None] = [None, None, None]  # (true time, angle) a move absorbs
         self._rest_cache: tuple[tuple[bytes, bytes], NDArray[np.float64], NDArray[np.float64]] | None = None
+        self._rest_views: tuple[int, NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None = None
         self._enc_lsb = 2.0 * math.pi / float(2**tb.encoder_bits) if tb.encoder_bits > 0 else 0.0
         e1, e2 = np.asarray(tb.non_orthogonality, dtype=float) + self._axis_tilt
         self._wobble = float(tb.wobble)
@@ -537,8 +538,11 @@ class SimulatedWorld:
                 k1 = min(k_end, self._next_event(k), k + CHUNK)
                 idx = np.arange(k, k1, dtype=np.int64)
                 t = self._tau(idx)
-                if self._at_rest_from(float(t[0])):  # every row equals the first (see _at_rest_from)
-                    ang, rat, acc = (np.broadcast_to(x, (t.shape[0], 3)) for x in self._evaluate(t[:1]))
+                static = self._at_rest_from(float(t[0]))  # (a static chunk: no history piece applies either)
+                if static:  # every row equals the first (see _at_rest_from), which AxisPlan.state gives bit for bit
+                    t0 = float(t[0])
+                    row = [(*plan.state(t0), float(plan.a[-1])) for plan in self._plans]
+                    ang, rat, acc = (np.broadcast_to(np.array(x), (t.shape[0], 3)) for x in zip(*row, strict=True))
                 else:
                     ang, rat, acc = self._evaluate(t)
                 hit = self._limit_hit(ang)
@@ -549,7 +553,7 @@ class SimulatedWorld:
                         continue
                     k1 = k + j
                     t, ang, rat, acc = t[:j], ang[:j], rat[:j], acc[:j]
-                parts.append(self._frames(k, t, ang, rat, acc))
+                parts.append(self._frames(k, t, ang, rat, acc, static))
                 self._k = k1
                 if hit is not None:
                     self._limit_fault(hit[1], k1)
@@ -604,12 +608,16 @@ class SimulatedWorld:
         ang: NDArray[np.float64],
         rat: NDArray[np.float64],
         acc: NDArray[np.float64],
+        static: bool = False,
     ) -> RawFrames:
+        """The unit's frames for the samples at true times ``t`` with the table's motion ``ang, rat, acc`` (n, 3);
+        ``static``: :meth:`_at_rest_from` holds for the chunk (its rows are equal, rates and accelerations 0)."""
         n = t.shape[0]
         tb = self.cfg.table
         w = self._rng_jitter.standard_normal((n, 3))
         mask = self._spin_mask()
-        if tb.rate_jitter > 0 and np.any(mask):
+        jittered = tb.rate_jitter > 0 and bool(np.any(mask))
+        if jittered:
             a = self._jit_a
             x, _ = signal.lfilter(
                 [1.0], [1.0, -a], w * (tb.rate_jitter * math.sqrt(1 - a * a)), axis=0, zi=a * self._jit_state[None, :]
@@ -625,21 +633,29 @@ class SimulatedWorld:
             if fold is not None and n and t[-1] >= fold[0]:
                 phi[t >= fold[0], i] -= fold[1]
                 self._jit_fold[i] = None
+        turned = False
         if n:
             self._jit_angle = phi[-1].copy()
             if np.any(phi):
                 ang = ang + phi
-        if not np.any(rat) and not np.any(acc) and not np.any(ang[1:] != ang[0]):
+                turned = True
+        if (static and not jittered and not turned) or (
+            not np.any(rat) and not np.any(acc) and not np.any(ang[1:] != ang[0])
+        ):
             # at rest during the whole chunk: one attitude, broadcast (identical values, less work); the
             # attitude's gravity and Earth rate are kept while the table stays there (a hold is many blocks)
             key = (ang[0].tobytes(), self._dphi.tobytes())
             if self._rest_cache is None or self._rest_cache[0] != key:
                 c1, _, _ = self._kinematics(ang[:1], rat[:1], acc[:1])
                 self._rest_cache = (key, self._g * c1[0, 2, :], self._earth_n @ c1[0])
-            f0 = np.broadcast_to(self._rest_cache[1], (n, 3))
-            earth_b = np.broadcast_to(self._rest_cache[2], (n, 3))
-            omega = alpha = np.zeros((n, 3))
-            return self._model.frames(k, f0, omega, alpha, earth_b, rest_key=key)
+                self._rest_views = None
+            if self._rest_views is None or self._rest_views[0] != n:
+                zeros = np.zeros((n, 3))
+                zeros.flags.writeable = False
+                rows = self._rest_cache
+                self._rest_views = (n, np.broadcast_to(rows[1], (n, 3)), np.broadcast_to(rows[2], (n, 3)), zeros)
+            _, f0, earth_b, omega = self._rest_views
+            return self._model.frames(k, f0, omega, omega, earth_b, rest_key=key)
         c_bn, omega, alpha = self._kinematics(ang, rat, acc)
         f0 = self._g * c_bn[:, 2, :]
         earth_b = self._earth_n @ c_bn

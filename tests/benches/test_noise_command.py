@@ -236,22 +236,24 @@ def test_psd_and_dynamic_outputs(tmp_path: Path) -> None:
 
 
 def test_noise_type_option_reproduces_stable32_bounds_from_the_command_line(tmp_path: Path) -> None:
-    """``tablebench noise PHASE.DAT --data-type phase --noise-type α@τ:τ,…`` with the α Stable32 printed: the
-    intervals in noise.json equal Stable32's printed bounds within 1 % on every row (allantools' PHASE.DAT runs,
-    tests/data/noise/allantools/README.md; all 530 rows of every file: tests/analysis/noise/
-    test_stability_allantools_stable32.py)."""
+    """``tablebench noise PHASE.DAT --data-type phase --noise-type α@τ:τ,… --edf stable32`` with the α Stable32
+    printed: the intervals in noise.json equal Stable32's printed bounds within 1 % on every row (allantools'
+    PHASE.DAT runs, tests/data/noise/allantools/README.md, HTOTDEV's flicker-PM rows included; all 530 rows of
+    every file: tests/analysis/noise/test_stability_allantools_stable32.py)."""
     ref_dir = Path(__file__).resolve().parents[1] / "data" / "noise" / "allantools" / "phasedat"
     np.save(tmp_path / "p.npy", np.loadtxt(ref_dir / "PHASE.DAT", comments="#"))
     for est, run in (("oadev", "phase_dat_oadev_octave.txt"), ("mdev", "phase_dat_mdev_octave.txt"),
-                     ("totdev", "phase_dat_totdev_octave.txt")):
+                     ("totdev", "phase_dat_totdev_octave.txt"), ("htotdev", "phase_dat_htotdev_octave.txt")):
         rows = np.array([[float(v) for v in line.lstrip("#").split()[:7]]
                          for line in (ref_dir / run).read_text(encoding="latin-1").splitlines()
                          if line.lstrip("#").split()[:1] and line.lstrip("#").split()[0].isdigit()])
         spec = ",".join(f"{int(a)}@{t:g}:{t:g}" for t, a in zip(rows[:, 1], rows[:, 3], strict=True))
         out = tmp_path / est
         assert main(["noise", str(tmp_path / "p.npy"), "--rate", "1", "--data-type", "phase", "--estimators", est,
-                     "--out", str(out), "--noise-type", spec]) == 0
-        d = json.loads((out / "noise.json").read_text())["channels"]["ch0"]["deviations"][est]
+                     "--out", str(out), "--noise-type", spec, "--edf", "stable32"]) == 0
+        data = json.loads((out / "noise.json").read_text())
+        assert data["edf_rules"] == "stable32"
+        d = data["channels"]["ch0"]["deviations"][est]
         j = np.searchsorted(np.array(d["tau"]), rows[:, 1])
         np.testing.assert_array_equal(np.array(d["alpha"])[j], rows[:, 3])
         np.testing.assert_allclose(np.array(d["lo"])[j], rows[:, 4], rtol=0.01)

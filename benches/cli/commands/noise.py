@@ -104,6 +104,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         "wpm (α=2), fpm (1), wfm (0), ffm (-1), rwfm (-2)",
     )
     p.add_argument(
+        "--edf",
+        default="tablebench",
+        choices=("tablebench", "stable32"),
+        help="EDF rules of the χ² intervals: tablebench (default: where Stable32's intervals miss their confidence, "
+        "EDFs calibrated by Monte Carlo coverage) or stable32 (Stable32's own rules: with --noise-type set as a "
+        "Stable32 run printed, its bounds are reproduced); written to noise.json 'edf_rules'",
+    )
+    p.add_argument(
         "--remove-drift",
         default=None,
         choices=("linear", "quadratic"),
@@ -288,6 +296,7 @@ def run(args: argparse.Namespace) -> int:
         fit_estimator=fit_estimator,
         noise_type=noise_type,
         remove_drift=args.remove_drift,
+        edf_rules=args.edf,
     )
     names = list(data.channels)
 

@@ -130,14 +130,16 @@ def test_theoh_reproduces_stable32() -> None:
         assert float(hi_r) == pytest.approx(hi / value[j], rel=0.02)
 
 
+@pytest.mark.parametrize("rules", ["tablebench", "stable32"])
 @pytest.mark.parametrize("name", WITH_CI)
-def test_noise_type_set_by_hand_reproduces_every_stable32_bound(name: str) -> None:
+def test_noise_type_set_by_hand_reproduces_every_stable32_bound(name: str, rules: str) -> None:
     """With the α Stable32 printed set by hand per τ (``noise_type`` as τ ranges), every row's bounds equal
-    Stable32's within 1 %, and TOTDEV/HTOTDEV values with Stable32's bias for that α to print precision."""
+    Stable32's within 1 % by either EDF rule set, and TOTDEV/HTOTDEV values with Stable32's bias for that α to
+    print precision."""
     x = np.loadtxt(DATA / "phase_data.txt", comments="#")
     ref = _table(name)
     ranges = [(tau, tau, int(alpha)) for tau, alpha in zip(ref[:, 1], ref[:, 3], strict=True)]
-    est = stability(x, 1.0 / TAU0, (name,), "decade", "phase", noise_type=ranges).estimates[name]
+    est = stability(x, 1.0 / TAU0, (name,), "decade", "phase", noise_type=ranges, edf_rules=rules).estimates[name]
     j = np.searchsorted(est.m, ref[:, 0].astype(int))
     np.testing.assert_array_equal(est.alpha[j, 0], ref[:, 3].astype(int))
     np.testing.assert_allclose(est.lo[j, 0], ref[:, 4], rtol=0.01)
