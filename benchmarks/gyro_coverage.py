@@ -16,7 +16,9 @@ realised and reports** (local g, azimuth, latitude, axis tilts: their sensitivit
 times the realised values); what remains is the identification's own error plus the per-step attitude error
 and the time base's residual.
 
-``python -m benchmarks.gyro_coverage --runs 30`` writes the section "gyro_coverage" of RESULTS.md.
+``python -m benchmarks.gyro_coverage --runs 30`` writes the section "gyro_coverage" of RESULTS.md; on two cores,
+``--runs 15 --first-seed 25000 --save a.npz`` and ``--runs 15 --first-seed 25015 --save b.npz`` side by side, then
+``--merge a.npz b.npz``.
 """
 
 from __future__ import annotations
@@ -258,18 +260,51 @@ def section(uc: UnitCoverage, rate: float) -> str:
     return body
 
 
+def save_scores(uc: UnitCoverage, out: Path) -> Path:
+    """Write a Monte Carlo's scores (errors, u, U, run-level effect, plan, seeds, names, u² components, wall) to npz."""
+    np.savez(out, errors=uc.result.errors, u=uc.result.u, U=uc.result.expanded, effect=uc.type_b_effect,
+             plan=uc.plan_sigma, seeds=np.array(uc.result.seeds), names=np.array(uc.names),
+             unidentified=np.array(uc.plan_unidentified, dtype=str), wall=np.array(uc.wall_s),
+             **{f"comp_{k}": v for k, v in uc.result.component_var.items()})  # fmt: skip
+    return out
+
+
+def load_scores(paths: list[Path]) -> UnitCoverage:
+    """One Monte Carlo from the scores of parts run in separate processes (:func:`save_scores`), in seed order;
+    the wall time is the longest part's (the parts ran at the same time)."""
+    parts = [np.load(p) for p in paths]
+    names = [str(n) for n in parts[0]["names"]]
+    if any([str(n) for n in q["names"]] != names for q in parts):
+        raise RuntimeError("the score files hold different states")
+    order = np.argsort(np.concatenate([q["seeds"] for q in parts]), kind="stable")
+    cat = {k: np.concatenate([q[k] for q in parts])[order] for k in ("errors", "u", "U", "effect", "seeds")}
+    keys = set.intersection(*({k for k in q.files if k.startswith("comp_")} for q in parts))
+    comp = {k[5:]: np.concatenate([q[k] for q in parts])[order] for k in sorted(keys)}
+    seeds = [int(x) for x in cat["seeds"]]
+    res = CoverageResult(cat["errors"], cat["u"], cat["U"], comp, seeds, _classes(names))
+    return UnitCoverage(res, names, parts[0]["plan"], tuple(str(x) for x in parts[0]["unidentified"]), cat["effect"],
+                        max(float(q["wall"]) for q in parts))  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the Monte Carlo and write its RESULTS.md section."""
+    """Run the Monte Carlo (or a part of it: ``--first-seed``, ``--save``) and write its RESULTS.md section; or
+    write the section from parts run in separate processes (``--merge a.npz b.npz``)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=COVERAGE_RUNS)
     ap.add_argument("--rate", type=float, default=100.0)
+    ap.add_argument("--first-seed", type=int, default=25000)
+    ap.add_argument("--save", type=Path, default=None, help="write the scores here and no RESULTS.md section")
+    ap.add_argument("--merge", type=Path, nargs="+", default=None, help="score files of parts: write the section")
     args = ap.parse_args(argv)
-    uc = run_unit_coverage(args.runs, rate=args.rate, log=print)
-    out = Path(tempfile.mkdtemp(prefix="tb-unit-coverage-scores-")) / "scores.npz"
-    np.savez(out, errors=uc.result.errors, u=uc.result.u, U=uc.result.expanded, effect=uc.type_b_effect,
-             plan=uc.plan_sigma, seeds=np.array(uc.result.seeds), names=np.array(uc.names),
-             **{f"comp_{k}": v for k, v in uc.result.component_var.items()})  # fmt: skip
-    print(section(uc, args.rate))
+    if args.merge:
+        uc = load_scores(args.merge)
+        print(section(uc, args.rate))
+        return 0
+    uc = run_unit_coverage(args.runs, rate=args.rate, first_seed=args.first_seed, log=print)
+    out = args.save or Path(tempfile.mkdtemp(prefix="tb-unit-coverage-scores-")) / "scores.npz"
+    save_scores(uc, out)
+    if args.save is None:
+        print(section(uc, args.rate))
     print(f"scores saved to {out}")
     return 0
 

@@ -208,15 +208,24 @@ def jarque_bera_test(x: ArrayLike, alpha: float = 0.05) -> TestResult:
     )
 
 
+ACF_DIRECT_LAGS = 8
+"""Up to this many lags :func:`acf` sums the lag products directly (a few passes over the record cost less than
+a zero-padded FFT of twice its length: the ARMA fit's moment start asks for p + q + 1 lags)."""
+
+
 def acf(x: ArrayLike, nlags: int) -> NDArray[np.float64]:
-    """Sample autocorrelation r_0..r_nlags (biased estimator, denominator n, mean removed), via FFT."""
+    """Sample autocorrelation r_0..r_nlags (biased estimator, denominator n, mean removed), via FFT (direct lag
+    sums for at most :data:`ACF_DIRECT_LAGS` lags)."""
     a = np.asarray(x, dtype=np.float64)
     n = a.size
     nlags = int(min(nlags, n - 1))
     d = a - a.mean()
-    nfft = 1 << int(math.ceil(math.log2(2 * n - 1)))
-    f = np.fft.rfft(d, nfft)
-    c = np.fft.irfft(f * np.conj(f), nfft)[: nlags + 1] / n
+    if nlags <= ACF_DIRECT_LAGS:
+        c = np.array([np.einsum("i,i->", d[: n - k], d[k:]) for k in range(nlags + 1)]) / n
+    else:
+        nfft = 1 << int(math.ceil(math.log2(2 * n - 1)))
+        f = np.fft.rfft(d, nfft)
+        c = np.fft.irfft(f * np.conj(f), nfft)[: nlags + 1] / n
     if c[0] <= 0:
         raise DriftInputError("autocorrelation of a constant series is undefined")
     return c / c[0]

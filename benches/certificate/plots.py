@@ -21,6 +21,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 from numpy.typing import NDArray
+from PIL import Image
 
 from analysis.identification.budget import StepGeometry
 from analysis.units import DEG_PER_HOUR, UG, display_unit, to_display
@@ -46,10 +47,19 @@ _AXIS_COLOURS = ("#1f4e9c", "#2f8f2f", "#b5332a")
 
 
 def _render(fig: Figure) -> bytes:
-    """PNG bytes of a figure, without timestamps or software metadata."""
-    FigureCanvasAgg(fig)
+    """PNG bytes of a figure (RGB, at ``savefig.dpi``), without timestamps or software metadata.
+
+    Drawn once on the Agg canvas and written as an opaque RGB PNG (the figures have an opaque background):
+    the PDF embeds it without splitting off an all-opaque alpha channel (issue 32); the pixels are those
+    ``savefig`` would write.
+    """
+    dpi = float(matplotlib.rcParams["savefig.dpi"])
+    canvas = FigureCanvasAgg(fig)
+    fig.set_dpi(dpi)
+    canvas.draw()
+    rgb = np.ascontiguousarray(np.asarray(canvas.buffer_rgba())[..., :3])
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", metadata={"Software": None})
+    Image.fromarray(rgb, mode="RGB").save(buf, format="png", dpi=(dpi, dpi))
     return buf.getvalue()
 
 
