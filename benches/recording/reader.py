@@ -58,6 +58,23 @@ KEPT_WHOLE = ("temperature",)
 certificate; 8 bytes a row, and it compresses to almost nothing, so decoding it again costs more than keeping it),
 in recordings of at most :data:`KEPT_WHOLE_MAX_ROWS` rows (64 MiB; a longer one is decoded again when read)."""
 KEPT_WHOLE_MAX_ROWS = 1 << 23
+KEPT_BETWEEN = ("time", "gyro")
+"""The sample fields :meth:`Recording.verify` also keeps for the rows between the acquisition windows (the moves:
+the time base's motion windows, benches.timebase, read them with the windows' edges; 32 bytes a row), in
+recordings with at most :data:`KEPT_BETWEEN_MAX_ROWS` such rows (64 MiB; more are decoded again when read)."""
+KEPT_BETWEEN_MAX_ROWS = 1 << 21
+
+
+def _gaps(ranges: list[tuple[int, int]], n: int) -> list[tuple[int, int]]:
+    """The row ranges of [0, n) outside ``ranges`` (in order)."""
+    out, pos = [], 0
+    for a, b in sorted(ranges):
+        if a > pos:
+            out.append((pos, min(a, n)))
+        pos = max(pos, b)
+    if pos < n:
+        out.append((pos, n))
+    return [(a, b) for a, b in out if b > a]
 
 
 class Recording:
@@ -393,7 +410,8 @@ class Recording:
         ``keep``, the decoded rows of every complete step's acquisition window (the fields in
         :data:`KEPT_FIELDS`: what identification reads) are kept as they pass, and :meth:`samples` serves them
         from memory once every checksum has passed: the identification reads the verified pass's rows
-        instead of decoding the file a second time. :meth:`close` releases them.
+        instead of decoding the file a second time; the rows between the windows are kept too for the fields in
+        :data:`KEPT_BETWEEN` (the time base's motion windows). :meth:`close` releases them.
 
         Raises
         ------
@@ -412,6 +430,11 @@ class Recording:
                 if b > a and fields:
                     kept.append((a, b, {}))
                     names.append(fields)
+            between = [n for n in KEPT_BETWEEN if n in self.sample_fields]
+            gaps = _gaps([(a, b) for a, b, _ in kept], self.n_samples)
+            if between and 0 < sum(b - a for a, b in gaps) <= KEPT_BETWEEN_MAX_ROWS:
+                kept.extend((a, b, {}) for a, b in gaps)
+                names.extend(between for _ in gaps)
             whole = [n for n in KEPT_WHOLE if n in self.sample_fields]
             if whole and 0 < self.n_samples <= KEPT_WHOLE_MAX_ROWS:
                 kept.append((0, self.n_samples, {}))
@@ -462,6 +485,19 @@ class Recording:
         for ka, kb, arrays in self._kept:
             if ka <= a and b <= kb and name in arrays:
                 return arrays[name][a - ka : b - ka]
+        # rows spanning several kept ranges (a motion window reaching into an acquisition window): put together
+        # from them (a copy) when they cover [a, b) without a hole
+        spans = [(ka, kb, arrays[name]) for ka, kb, arrays in self._kept if name in arrays and ka < b and kb > a]
+        spans.sort(key=lambda r: (r[0], -r[1]))
+        parts, pos = [], a
+        for ka, kb, v in spans:
+            if ka > pos:
+                return None
+            if kb > pos:
+                parts.append(v[pos - ka : min(kb, b) - ka])
+                pos = min(kb, b)
+            if pos >= b:
+                return np.concatenate(parts)
         return None
 
     def _kept_index(self, name: str, idx: NDArray[Any]) -> NDArray[Any] | None:
