@@ -20,8 +20,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 from benches.identify import identify_run
 from benches.recording import open_recording
 from benches.session import execute, prepare
@@ -67,27 +65,6 @@ def _load() -> str:
         return "unknown"
 
 
-def _float64_timing_bytes(rec_timing: object) -> int:
-    """Bytes the same /timing columns took in the earlier storage (clock columns float64 s), written with the
-    recorder's filters (chunks of 1024 rows, shuffle + gzip-1 + Fletcher-32) to a scratch file: the reference
-    the ns-delta encoding is compared with, in the same run."""
-    import io as _io
-
-    import h5py  # a scratch file of arrays, not the recording's layout (benches/recording/ reads that)
-
-    buf = _io.BytesIO()
-    total = 0
-    with h5py.File(buf, "w") as f:
-        for name, v in vars(rec_timing).items():
-            a = np.asarray(v)
-            if a.size == 0:
-                continue
-            d = f.create_dataset(name, data=a, chunks=(min(1024, a.size),), compression="gzip",
-                                 compression_opts=1, shuffle=True, fletcher32=True)  # fmt: skip
-            total += int(d.id.get_storage_size())
-    return total
-
-
 def measure(rate: float | None, procedure: str, repeat: int, seed: int = 24) -> dict[str, float]:
     """One run at ``rate`` Hz (None: the bench's 1 kHz), recorded once; the identification with / without the
     time base alternated ``repeat`` times (best of each), and the recording's sizes."""
@@ -104,7 +81,6 @@ def measure(rate: float | None, procedure: str, repeat: int, seed: int = 24) -> 
         with open_recording(folder / "recording.h5") as rec:
             total = rec.storage_bytes()
             timing = rec.storage_bytes("timing")
-            old = _float64_timing_bytes(rec.timing())
             n, n_table, fs = rec.n_samples, rec.n_table, float(rec.header.sample_rate_hz)
             truth = rec.truth().parameters
         (w_none, c_none), (w_est, c_est) = _alternated(
@@ -114,7 +90,7 @@ def measure(rate: float | None, procedure: str, repeat: int, seed: int = 24) -> 
         tb = identify_run(folder, time_base="estimate").time_base.estimate
     return {
         "fs": fs, "n": n, "n_table": n_table, "t_run": t_run, "c_none": c_none, "c_est": c_est, "w_none": w_none,
-        "w_est": w_est, "timing": timing, "rest": total - timing, "timing_float64": old,
+        "w_est": w_est, "timing": timing, "rest": total - timing,
         "d_off": tb.offset - truth["clock_offset"], "u_off": tb.u_offset, "d_rate": tb.rate - truth["clock_rate"],
         "u_rate": tb.u_rate, "events": len(tb.events), "birge": tb.misfit,
     }  # fmt: skip
@@ -130,9 +106,7 @@ def _table(rows: list[dict[str, float]]) -> str:
         ("the time base's CPU time per run", lambda r: f"{r['c_est'] - r['c_none']:.3f} s"),
         ("recording: bytes of `/timing` / everything else (target ≤ 5 %)",
          lambda r: f"**{100 * r['timing'] / r['rest']:.2f} %** ({r['timing']:.0f} / {r['rest']:.0f} B)"),
-        ("`/timing` per table reading: ns deltas / float64 (same values, same filters)",
-         lambda r: f"{r['timing'] / r['n_table']:.1f} / {r['timing_float64'] / r['n_table']:.1f} B "
-         f"(float64 would be {100 * r['timing_float64'] / r['rest']:.2f} %)"),
+        ("`/timing` per table reading", lambda r: f"{r['timing'] / r['n_table']:.1f} B"),
         ("estimated offset − realised", lambda r: f"{r['d_off'] * 1e6:+.2f} µs (u = {r['u_off'] * 1e6:.2f} µs)"),
         ("estimated rate − realised", lambda r: f"{r['d_rate'] * 1e9:+.2f} ppb (u = {r['u_rate'] * 1e9:.2f} ppb)"),
         ("motions used, Birge ratio", lambda r: f"{r['events']:.0f}, {r['birge']:.2f}"),
@@ -154,8 +128,7 @@ def main(argv: list[str] | None = None) -> None:
 Procedure `{args.procedure}` on `sim`, separate clocks (bench defaults), seed 24, at the unit rates below (100 Hz:
 the thermal and coverage benches). Per rate one run, recorded once; on that recording, in the same process, the
 two identifications (Kalman, the default) alternated, best of {args.repeat} each. Targets (issue 24): time ratio ≤ 1.10
-(the estimate + its budget sensitivities), size ≤ 5 %. The float64 column is the storage before the clock
-columns became nanosecond deltas (the same values written with the same filters to a scratch file, this run).
+(the estimate + its budget sensitivities), size ≤ 5 %.
 Load average at the start {load}.
 
 {_table(rows)}
