@@ -153,6 +153,7 @@ class SimulatedWorld:
         self._jit_fold: list[tuple[float, float] | None] = [None, None, None]  # (true time, angle) a move absorbs
         self._rest_cache: tuple[tuple[bytes, bytes], NDArray[np.float64], NDArray[np.float64]] | None = None
         self._rest_views: tuple[int, NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None = None
+        self._zeros: NDArray[np.float64] | None = None  # read-only (n, 3) zeros of static chunks
         self._enc_lsb = 2.0 * math.pi / float(2**tb.encoder_bits) if tb.encoder_bits > 0 else 0.0
         e1, e2 = np.asarray(tb.non_orthogonality, dtype=float) + self._axis_tilt
         self._wobble = float(tb.wobble)
@@ -540,9 +541,7 @@ class SimulatedWorld:
                 t = self._tau(idx)
                 static = self._at_rest_from(float(t[0]))  # (a static chunk: no history piece applies either)
                 if static:  # every row equals the first (see _at_rest_from), which AxisPlan.state gives bit for bit
-                    t0 = float(t[0])
-                    row = [(*plan.state(t0), float(plan.a[-1])) for plan in self._plans]
-                    ang, rat, acc = (np.broadcast_to(np.array(x), (t.shape[0], 3)) for x in zip(*row, strict=True))
+                    ang, rat, acc = self._static_rows(float(t[0]), t.shape[0])
                 else:
                     ang, rat, acc = self._evaluate(t)
                 hit = self._limit_hit(ang)
@@ -587,6 +586,24 @@ class SimulatedWorld:
         (p0, v0), (p1, v1), (p2, v2) = (plan.state(t) for plan in self._plans)
         return np.array([p0, p1, p2]), np.array([v0, v1, v2])
 
+    def _static_rows(self, t0: float, n: int) -> tuple[NDArray[np.float64], ...]:
+        """Angles, rates and accelerations (n, 3) of a static chunk starting at true time ``t0``: the first row
+        (:meth:`AxisPlan.state`, the same bits as :meth:`_evaluate`) broadcast; rates and accelerations, +0 at
+        rest, are one shared read-only zero array."""
+        (p0, v0), (p1, v1), (p2, v2) = (plan.state(t0) for plan in self._plans)
+        ang = np.broadcast_to(np.array([p0, p1, p2]), (n, 3))
+        rows = ([v0, v1, v2], [float(plan.a[-1]) for plan in self._plans])
+        if self._zeros is None or self._zeros.shape[0] != n:
+            self._zeros = np.zeros((n, 3))
+            self._zeros.flags.writeable = False
+        rat, acc = (
+            self._zeros
+            if all(x == 0.0 and math.copysign(1.0, x) > 0 for x in r)
+            else np.broadcast_to(np.array(r), (n, 3))
+            for r in rows
+        )
+        return ang, rat, acc
+
     def _at_rest_from(self, t0: float) -> bool:
         """Every axis is at rest from true time ``t0`` on: in its current plan's last segment with zero rate and
         acceleration and past its settling transient. :meth:`_evaluate` then gives every later time the same
@@ -628,13 +645,21 @@ class SimulatedWorld:
             phi = self._jit_angle + np.cumsum(x * mask, axis=0) * float(self._tau(1))
         else:
             self._jit_state = np.zeros(3)
-            phi = np.broadcast_to(self._jit_angle, (n, 3)).copy()
-        for i, fold in enumerate(self._jit_fold):
-            if fold is not None and n and t[-1] >= fold[0]:
-                phi[t >= fold[0], i] -= fold[1]
-                self._jit_fold[i] = None
+            phi = None  # every row is the angle the jitter has left (unless a move absorbs it in this chunk)
         turned = False
-        if n:
+        if not n:
+            pass
+        elif phi is None and all(fold is None or t[-1] < fold[0] for fold in self._jit_fold):
+            if np.any(self._jit_angle):
+                ang = ang + self._jit_angle
+                turned = True
+        else:
+            if phi is None:
+                phi = np.broadcast_to(self._jit_angle, (n, 3)).copy()
+            for i, fold in enumerate(self._jit_fold):
+                if fold is not None and t[-1] >= fold[0]:
+                    phi[t >= fold[0], i] -= fold[1]
+                    self._jit_fold[i] = None
             self._jit_angle = phi[-1].copy()
             if np.any(phi):
                 ang = ang + phi
