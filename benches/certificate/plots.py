@@ -59,7 +59,9 @@ def _render(fig: Figure) -> bytes:
     canvas.draw()
     rgb = np.ascontiguousarray(np.asarray(canvas.buffer_rgba())[..., :3])
     buf = io.BytesIO()
-    Image.fromarray(rgb, mode="RGB").save(buf, format="png", dpi=(dpi, dpi))
+    # compress_level 1: the PNG is an intermediate (the PDF decodes it and compresses the pixels itself, so the
+    # PDF is the same), and level 6 took as long as the PDF's own pass
+    Image.fromarray(rgb).save(buf, format="png", dpi=(dpi, dpi), compress_level=1)
     return buf.getvalue()
 
 
@@ -263,6 +265,8 @@ def plot_coverage(geometry: Sequence[StepGeometry]) -> bytes:
         fig = Figure(figsize=(7.2, 4.2))
         fig.subplots_adjust(left=0.04, right=0.96, top=0.9, bottom=0.1)
         ax = fig.add_subplot(1, 1, 1, projection="mollweide")
+        holds: list[tuple[float, float]] = []
+        traces: list[NDArray[np.float64]] = []  # (m, 2) lon/lat segments, one line broken by NaN rows
         for geo in geometry:
             f = np.asarray(geo.f, dtype=float)
             nrm = np.linalg.norm(f, axis=1)
@@ -275,9 +279,14 @@ def plot_coverage(geometry: Sequence[StepGeometry]) -> bytes:
             if geo.kind == "spin":
                 jumps = np.flatnonzero(np.abs(np.diff(lon)) > math.pi) + 1
                 for seg_lon, seg_lat in zip(np.split(lon, jumps), np.split(lat, jumps), strict=True):
-                    ax.plot(seg_lon, seg_lat, "-", color="#b5332a", lw=1.2)
+                    traces += [np.column_stack([seg_lon, seg_lat]), np.full((1, 2), np.nan)]
             else:
-                ax.plot(lon[:1], lat[:1], "o", color="#1f4e9c", ms=4)
+                holds.append((float(lon[0]), float(lat[0])))
+        if traces:  # every spin as one artist (a few hundred Line2D cost more than drawing them)
+            tr = np.concatenate(traces)
+            ax.plot(tr[:, 0], tr[:, 1], "-", color="#b5332a", lw=1.2)
+        if holds:  # the holds on top, one artist
+            ax.plot([h[0] for h in holds], [h[1] for h in holds], "o", color="#1f4e9c", ms=4)
         for lbl, lon, lat in (
             ("+x up", 0.0, 0.0),
             ("+y up", math.pi / 2, 0.0),
