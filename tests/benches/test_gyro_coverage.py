@@ -23,6 +23,7 @@ from benchmarks.gyro_coverage import (
     _classes,
     class_table,
     load_scores,
+    parameter_shares,
     plan_ratios,
     run_unit_coverage,
     save_scores,
@@ -83,6 +84,28 @@ def test_parts_run_side_by_side_merge_into_one_monte_carlo_in_seed_order(tmp_pat
     np.testing.assert_array_equal(uc.type_b_effect, np.vstack([b.type_b_effect, a.type_b_effect]))
     np.testing.assert_array_equal(uc.result.component_var["white_noise"], np.vstack([b.result.u, a.result.u]) ** 2)
     assert uc.plan_unidentified == ("gyro_G_xx",) and class_table(uc)[0][1] == 4 * 3
+
+
+def test_class_shares_weigh_each_parameter_alike_when_u_differs_within_a_class():
+    """gyro τ: u(τ_yx), u(τ_yz) are the table's inner-axis tilt (rectangular), ~100× the other four's (white
+    noise); the table's share must not read "axis orthogonality 100 %" for the class (RESULTS.md, issue 25)."""
+    from benchmarks.coverage import CoverageResult
+
+    names = [f"p{k}" for k in range(18)] + [n for v in GYRO_CLASSES.values() for n in v]
+    n, m = 4, len(names)
+    u = np.full((n, m), 6e-8)
+    tau = [names.index(f"gyro_tau_{p}") for p in ("yx", "yz")]
+    u[:, tau] = 5.6e-6
+    ortho, white = np.zeros((n, m)), u**2
+    ortho[:, tau], white[:, tau] = u[:, tau] ** 2, 0.0
+    res = CoverageResult(np.zeros((n, m)), u, 2 * u, {"axis_orthogonality": ortho, "white_noise": white},
+                         list(range(n)), _classes(names))  # fmt: skip
+    uc = UnitCoverage(res, names, np.ones(m), (), np.zeros((n, m)))
+    share = parameter_shares(uc, "gyro τ")
+    assert share["axis_orthogonality"] == pytest.approx(2 / 6) and share["white_noise"] == pytest.approx(4 / 6)
+    assert res.share("gyro τ")["axis_orthogonality"] > 0.99  # the variance-weighted share the table used to show
+    row = next(r for r in class_table(uc) if r[0] == "gyro τ")
+    assert row[5] == share
 
 
 @pytest.mark.slow
