@@ -187,7 +187,7 @@ def _gyro_event(
         a_i = np.interp(s, ts, ang)
         grad = np.interp(s, ts, gr)
         x[:, 1] = a_i
-        np.subtract(s, s.mean(), out=x[:, 2])
+        np.subtract(s, np.add.reduce(s) / s.size, out=x[:, 2])  # s.mean(), without its wrapper
         x[:, 3] = grad
         p, sd, rms = _solve(x, theta - a_i, 3)
         delta += float(p[3])
