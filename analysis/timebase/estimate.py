@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from analysis.gimbal import body_rate, gravity_in_body
-from analysis.timebase.events import MotionWindow, motion_windows
+from analysis.timebase.events import MotionWindow, motion_windows, single_axis_motions
 from analysis.timebase.model import TimeBase, TimingEvent
 
 MAX_SCALE_MISMATCH = 0.01
@@ -103,6 +103,9 @@ def _unit_times(sig: RunSignals, t0: float, eps: float, idx: NDArray[np.int64]) 
     return (sig.table_time[idx] - t0) / (1.0 + eps) + sig.latency
 
 
+_EPS = float(np.finfo(float).eps)
+
+
 def _solve(x: NDArray[np.float64], y: NDArray[np.float64], col: int) -> tuple[NDArray[np.float64], float, float]:
     """Least squares y ≈ x·p; returns p, σ of p[col] (residual-scaled; robust to nuisance rank deficiency), RMS.
 
@@ -110,15 +113,16 @@ def _solve(x: NDArray[np.float64], y: NDArray[np.float64], col: int) -> tuple[ND
     and ``matrix_rank``) and, at full rank, σ²(p[col]) = s² [(XᵀX)⁻¹]_col,col = s² Σ_j (V_col,j / σ_j)². Only a
     rank-deficient design projects the nuisance columns out of the δ column explicitly."""
     u, sv, vt = np.linalg.svd(x, full_matrices=False)
-    keep = sv > (sv[0] if sv.size else 0.0) * max(x.shape) * np.finfo(float).eps
-    p = vt[keep].T @ ((u[:, keep].T @ y) / sv[keep])
+    tol = (float(sv[0]) if sv.size else 0.0) * max(x.shape) * _EPS
+    keep = sv > tol
+    rank, p = int(np.count_nonzero(keep)), vt[keep].T @ ((u[:, keep].T @ y) / sv[keep])
     r = y - x @ p
-    rank = int(np.count_nonzero(keep))
     dof = x.shape[0] - rank
     if dof < 2:
         return p, math.nan, math.nan
-    s2 = float(r @ r) / dof
-    rms = math.sqrt(float(r @ r) / r.size)
+    rr = float(r @ r)
+    s2 = rr / dof
+    rms = math.sqrt(rr / r.size)
     if rank == x.shape[1]:
         return p, math.sqrt(s2 * float(np.sum((vt[:, col] / sv) ** 2))), rms
     others = np.delete(x, col, axis=1)
@@ -147,14 +151,21 @@ def excess_jitter(r: NDArray[np.float64], moving: NDArray[np.bool_], speed: floa
     return math.sqrt(vm - vr) / speed
 
 
-def _gyro_event(sig: RunSignals, w: MotionWindow, t0: float, eps: float) -> TimingEvent | None:
+def _gyro_event(
+    sig: RunSignals, w: MotionWindow, t0: float, eps: float, axes: dict[tuple[int, int], NDArray[np.float64]]
+) -> TimingEvent | None:
+    """Local offset from the gyro angle about the moving axis (module docstring); ``axes`` caches that axis in
+    the body frame per (gimbal axis, first reading) across the passes."""
     idx = w.readings
     if idx.size < 6:
         return None
-    e = np.zeros(3)
-    e[w.axis] = 1.0
-    u_b = body_rate(sig.angles[idx[0]], e, sig.mounting)
-    u_b = u_b / np.linalg.norm(u_b)
+    key = (w.axis, int(idx[0]))
+    if key not in axes:
+        e = np.zeros(3)
+        e[w.axis] = 1.0
+        u_b = body_rate(sig.angles[idx[0]], e, sig.mounting)
+        axes[key] = u_b / np.linalg.norm(u_b)
+    u_b = axes[key]
     s0 = _unit_times(sig, t0, eps, idx)
     lo = np.searchsorted(sig.t, s0[0] - 0.25)
     hi = np.searchsorted(sig.t, s0[-1] + 0.25)
@@ -166,23 +177,29 @@ def _gyro_event(sig: RunSignals, w: MotionWindow, t0: float, eps: float) -> Timi
     ang = np.concatenate([[0.0], np.cumsum(0.5 * (gr[1:] + gr[:-1]) * np.diff(ts))])
     theta = sig.angles[idx, w.axis]
     delta, sd, rms, grad = 0.0, math.nan, math.nan, np.zeros(idx.size)
+    x = np.empty((idx.size, 4))  # the design [1, A(s), s − s̄, ∂A/∂s], filled in place per iteration
+    x[:, 0] = 1.0
+    t_lo, t_hi = float(ts[0]), float(ts[-1])
     for _ in range(6):
         s = s0 + delta
-        if s[0] < ts[0] or s[-1] > ts[-1]:
+        if s[0] < t_lo or s[-1] > t_hi:
             return None
         a_i = np.interp(s, ts, ang)
         grad = np.interp(s, ts, gr)
-        x = np.column_stack([np.ones_like(s), a_i, s - s.mean(), grad])
+        x[:, 1] = a_i
+        np.subtract(s, np.add.reduce(s) / s.size, out=x[:, 2])  # s.mean(), without its wrapper
+        x[:, 3] = grad
         p, sd, rms = _solve(x, theta - a_i, 3)
         delta += float(p[3])
         if abs(p[3]) < 1e-9:
             break
     if not math.isfinite(sd) or abs(float(p[1])) > MAX_SCALE_MISMATCH:
         return None  # the gyros' angle disagrees with the table's: saturated, or a misconfigured output
-    speed = float(np.sqrt(np.mean(grad[w.moving] ** 2))) if np.any(w.moving) else 0.0
+    any_moving = bool(np.any(w.moving))
+    speed = float(np.sqrt(np.mean(grad[w.moving] ** 2))) if any_moving else 0.0
     resid = theta - a_i - x @ p
     return TimingEvent(
-        t_unit=float(np.mean(s0[w.moving] if np.any(w.moving) else s0)),
+        t_unit=float(np.mean(s0[w.moving] if any_moving else s0)),
         offset=t0 - (1.0 + eps) * delta,
         u=(1.0 + eps) * sd,
         axis=w.axis,
@@ -377,12 +394,14 @@ def estimate_time_base(
     cov = np.full((2, 2), math.nan)
     birge = math.nan
     resid = np.zeros(0)
+    motions = single_axis_motions(sig.angles, sig.rates)  # the readings' motions: the same in both passes
+    axes: dict[tuple[int, int], NDArray[np.float64]] = {}  # the gyro's sensitive axis per (axis, first reading)
     for _ in range(2):  # the second pass re-measures every motion on the corrected mapping
         tw = (sig.table_time - t0) / (1.0 + eps)  # windows found on the unit's time axis
-        wins, skipped = motion_windows(tw, sig.angles, sig.rates, window=window)
+        wins, skipped = motion_windows(tw, sig.angles, sig.rates, window=window, motions=motions)
         events = []
         for w in wins:
-            ev = _gyro_event(sig, w, t0, eps) if use_gyro else _accel_event(sig, w, t0, eps)
+            ev = _gyro_event(sig, w, t0, eps, axes) if use_gyro else _accel_event(sig, w, t0, eps)
             if ev is not None and math.isfinite(ev.u) and ev.u > 0:
                 events.append(ev)
         unused = len(wins) - len(events)

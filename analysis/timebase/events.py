@@ -44,6 +44,28 @@ def _runs(flag: NDArray[np.bool_]) -> list[tuple[int, int]]:
     return list(zip(starts.tolist(), ends.tolist(), strict=True))
 
 
+def single_axis_motions(
+    angles: NDArray[np.float64],
+    rates: NDArray[np.float64],
+    *,
+    rate_threshold: float = 2e-4,
+    angle_threshold: float = 1e-4,
+    moved_threshold: float = 1e-3,
+) -> tuple[NDArray[np.bool_], list[tuple[int, int, int]]]:
+    """The time-independent part of :func:`motion_windows`: the moving flag per reading and, per motion (a run of
+    moving readings), (first reading, last reading, the gimbal axis that moved, or −1 when not exactly one did)."""
+    mv = moving_readings(angles, rates, rate_threshold, angle_threshold)
+    m = angles.shape[0]
+    out: list[tuple[int, int, int]] = []
+    for a, b in _runs(mv):
+        lo_i, hi_i = max(0, a - 1), min(m - 1, b + 1)
+        span = np.ptp(angles[lo_i : hi_i + 1], axis=0)
+        spinning = np.any(np.abs(rates[a : b + 1]) > rate_threshold, axis=0)
+        moved = np.flatnonzero((span > moved_threshold) | spinning)
+        out.append((a, b, int(moved[0]) if moved.size == 1 else -1))
+    return mv, out
+
+
 def motion_windows(
     times: NDArray[np.float64],
     angles: NDArray[np.float64],
@@ -53,6 +75,7 @@ def motion_windows(
     rate_threshold: float = 2e-4,
     angle_threshold: float = 1e-4,
     moved_threshold: float = 1e-3,
+    motions: tuple[NDArray[np.bool_], list[tuple[int, int, int]]] | None = None,
 ) -> tuple[list[MotionWindow], int]:
     """Event windows around single-axis motions, and the number of multi-axis motions skipped.
 
@@ -62,18 +85,18 @@ def motion_windows(
     window : s, how far an event window reaches before a motion starts and after it ends.
     rate_threshold : rad/s; angle_threshold : rad — the moving test. moved_threshold : rad, an axis whose
         angle changes by more than this over the motion has moved (a spin always has).
+    motions : :func:`single_axis_motions` of the same readings and thresholds, when already found (they do not
+        depend on ``times``: a caller that maps the times anew reuses them).
     """
-    mv = moving_readings(angles, rates, rate_threshold, angle_threshold)
-    runs = _runs(mv)
+    mv, runs = motions if motions is not None else single_axis_motions(
+        angles, rates, rate_threshold=rate_threshold, angle_threshold=angle_threshold,
+        moved_threshold=moved_threshold,
+    )  # fmt: skip
     out: list[MotionWindow] = []
     skipped = 0
     m = times.shape[0]
-    for j, (a, b) in enumerate(runs):
-        lo_i, hi_i = max(0, a - 1), min(m - 1, b + 1)
-        span = np.ptp(angles[lo_i : hi_i + 1], axis=0)
-        spinning = np.any(np.abs(rates[a : b + 1]) > rate_threshold, axis=0)
-        moved = np.flatnonzero((span > moved_threshold) | spinning)
-        if moved.size != 1:
+    for j, (a, b, axis) in enumerate(runs):
+        if axis < 0:
             skipped += 1
             continue
         prev_end = runs[j - 1][1] if j > 0 else -1
@@ -85,5 +108,5 @@ def motion_windows(
             idx = np.arange(prev_end + 1, next_start)
             idx = idx[(times[idx] >= t_lo) & (times[idx] <= t_hi)]
             if idx.size:
-                out.append(MotionWindow(int(moved[0]), idx.astype(np.int64), mv[idx]))
+                out.append(MotionWindow(axis, idx.astype(np.int64), mv[idx]))
     return out, skipped
