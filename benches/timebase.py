@@ -68,15 +68,12 @@ def run_signals(
     g: float,
     mounting: NDArray[np.float64],
     latency: float,
+    timing: TimeSources | None,
     initial: tuple[float, float] = (0.0, 0.0),
-    timing: TimeSources | None | bool = True,
-) -> tuple[RunSignals, TimeSources | None]:
+) -> RunSignals:
     """The arrays :func:`analysis.timebase.estimate_time_base` needs, read from an open recording (the samples
     around the motions, found with the coarse mapping ``initial``: :func:`initial_mapping`). ``timing``: the
-    recording's time sources when already read (None: it has none), True to read them here."""
-    if timing is True:
-        timing = rec.timing()
-    assert timing is None or isinstance(timing, TimeSources)
+    recording's time sources (:meth:`Recording.timing`, read once by the caller; None when it has none)."""
     fs = float(rec.header.sample_rate_hz)
     ranges = _sample_ranges(rec, timing, table, fs, initial)
     parts = [rec.samples(a, b, ("time", "gyro")) for a, b in ranges]
@@ -99,7 +96,7 @@ def run_signals(
         mounting=np.asarray(mounting, float),
         latency=float(latency),
     )
-    return sig, timing
+    return sig
 
 
 def _unit_time_of(rec: Recording, index: NDArray[np.int64]) -> NDArray[np.float64]:
@@ -109,15 +106,10 @@ def _unit_time_of(rec: Recording, index: NDArray[np.int64]) -> NDArray[np.float6
     return t_first + np.asarray(index, dtype=float) / float(rec.header.sample_rate_hz)
 
 
-def initial_mapping(
-    rec: Recording, table: TableReadings, timing: TimeSources | None | bool = True
-) -> tuple[float, float]:
+def initial_mapping(rec: Recording, table: TableReadings, timing: TimeSources | None) -> tuple[float, float]:
     """The coarse (t₀, ε) from the reading times against the samples received before each reading
-    (:func:`analysis.timebase.coarse_mapping`); (0, 0) when the recording lacks its time sources. ``timing`` as
-    in :func:`run_signals`."""
-    if timing is True:
-        timing = rec.timing()
-    assert timing is None or isinstance(timing, TimeSources)
+    (:func:`analysis.timebase.coarse_mapping`); (0, 0) when the recording lacks its time sources (``timing`` as
+    in :func:`run_signals`)."""
     if timing is None or timing.table_sample_index.shape[0] != len(table) or not rec.n_samples or not len(table):
         return 0.0, 0.0
     tu = _unit_time_of(rec, np.clip(timing.table_sample_index - 1, 0, rec.n_samples - 1))
@@ -147,7 +139,7 @@ def run_time_base(
     """Estimate (and check) the time base of an open recording; see the module docstring."""
     timing = rec.timing()  # read once: the coarse mapping, the motions' samples and the clock check use it
     initial = initial_mapping(rec, table, timing)
-    sig, _ = run_signals(rec, table, g=g, mounting=mounting, latency=latency, initial=initial, timing=timing)
+    sig = run_signals(rec, table, g=g, mounting=mounting, latency=latency, timing=timing, initial=initial)
     tb = estimate_time_base(sig, window=WINDOW_S, initial=initial)
     check: dict[str, Any] = {}
     if timing is not None and timing.block_end_sample.size > 2 and rec.n_samples:
