@@ -153,7 +153,7 @@ class SimulatedWorld:
         self._jit_fold: list[tuple[float, float] | None] = [None, None, None]  # (true time, angle) a move absorbs
         self._rest_cache: tuple[tuple[bytes, bytes], NDArray[np.float64], NDArray[np.float64]] | None = None
         self._rest_views: tuple[int, NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None = None
-        self._zeros: NDArray[np.float64] | None = None  # read-only (n, 3) zeros of static chunks
+        self._zeros: NDArray[np.float64] | None = None  # read-only (n, 3) zeros of chunks at rest (_zero_rows)
         self._enc_lsb = 2.0 * math.pi / float(2**tb.encoder_bits) if tb.encoder_bits > 0 else 0.0
         e1, e2 = np.asarray(tb.non_orthogonality, dtype=float) + self._axis_tilt
         self._wobble = float(tb.wobble)
@@ -593,16 +593,20 @@ class SimulatedWorld:
         (p0, v0), (p1, v1), (p2, v2) = (plan.state(t0) for plan in self._plans)
         ang = np.broadcast_to(np.array([p0, p1, p2]), (n, 3))
         rows = ([v0, v1, v2], [float(plan.a[-1]) for plan in self._plans])
-        if self._zeros is None or self._zeros.shape[0] != n:
-            self._zeros = np.zeros((n, 3))
-            self._zeros.flags.writeable = False
         rat, acc = (
-            self._zeros
+            self._zero_rows(n)
             if all(x == 0.0 and math.copysign(1.0, x) > 0 for x in r)
             else np.broadcast_to(np.array(r), (n, 3))
             for r in rows
         )
         return ang, rat, acc
+
+    def _zero_rows(self, n: int) -> NDArray[np.float64]:
+        """One shared read-only (n, 3) array of +0 (the rates and accelerations of chunks at rest)."""
+        if self._zeros is None or self._zeros.shape[0] != n:
+            self._zeros = np.zeros((n, 3))
+            self._zeros.flags.writeable = False
+        return self._zeros
 
     def _at_rest_from(self, t0: float) -> bool:
         """Every axis is at rest from true time ``t0`` on: in its current plan's last segment with zero rate and
@@ -675,10 +679,13 @@ class SimulatedWorld:
                 self._rest_cache = (key, self._g * c1[0, 2, :], self._earth_n @ c1[0])
                 self._rest_views = None
             if self._rest_views is None or self._rest_views[0] != n:
-                zeros = np.zeros((n, 3))
-                zeros.flags.writeable = False
                 rows = self._rest_cache
-                self._rest_views = (n, np.broadcast_to(rows[1], (n, 3)), np.broadcast_to(rows[2], (n, 3)), zeros)
+                self._rest_views = (
+                    n,
+                    np.broadcast_to(rows[1], (n, 3)),
+                    np.broadcast_to(rows[2], (n, 3)),
+                    self._zero_rows(n),
+                )
             _, f0, earth_b, omega = self._rest_views
             return self._model.frames(k, f0, omega, omega, earth_b, rest_key=key)
         c_bn, omega, alpha = self._kinematics(ang, rat, acc)
