@@ -122,8 +122,41 @@ class _CertificatePdf(FPDF):
         self.set_font(_FONT, "", 8.5)
 
     def para(self, text: str, size: float = 8.5, style: str = "") -> None:
+        """A paragraph across the text width, left-aligned, line height 0.48 × ``size`` mm.
+
+        Broken into lines here, word by word from the font metrics, each line one ``cell``: fpdf's
+        ``multi_cell`` re-measured the whole line for every character added (quadratic in the line length; the
+        paragraphs were a third of the PDF's time, issue 32). A word wider than the line falls back to it.
+        """
         self.set_font(_FONT, style, size)
-        self.multi_cell(0, size * 0.48, text, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+        lines = self._wrap(text, self.epw - 2 * self.c_margin)
+        if lines is None:
+            self.multi_cell(0, size * 0.48, text, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+            return
+        for line in lines:
+            self.cell(0, size * 0.48, line, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+
+    def _wrap(self, text: str, width: float) -> list[str] | None:
+        """``text`` broken at spaces (and at its newlines) into lines of at most ``width`` mm in the current font;
+        None if a single word is wider than that."""
+        space = self.get_string_width(" ")
+        out: list[str] = []
+        for piece in text.split("\n"):
+            line: list[str] = []
+            used = 0.0
+            for word in piece.split(" "):
+                w = self.get_string_width(word) if word else 0.0
+                if w > width:
+                    return None
+                if line and used + space + w > width:
+                    out.append(" ".join(line).rstrip(" "))
+                    line, used = [], 0.0
+                    if not word:
+                        continue  # a space at a break is dropped, as multi_cell does
+                used = w if not line else used + space + w
+                line.append(word)
+            out.append(" ".join(line).rstrip(" "))
+        return out
 
     def key_values(self, rows: list[tuple[str, str]], key_w: float = 45.0) -> None:
         self.set_font(_FONT, "", 8.5)
@@ -145,25 +178,62 @@ class _CertificatePdf(FPDF):
     def grid(
         self, head: list[str], rows: list[list[str]], widths: tuple[float, ...], align: tuple[str, ...], size: float
     ) -> None:
-        self.set_font(_FONT, "", size)
-        self.set_fill_color(255, 255, 255)
+        """A table across the text width: a bold heading on grey (repeated on every page the table spans) with a
+        rule under it, then the rows; columns of ``widths`` (scaled to the text width), cells aligned LEFT,
+        RIGHT or CENTER, vertically centred, padding 0.6 mm × 1.0 mm, ``size`` pt, line height ``size`` / 2 mm.
+
+        Laid out here, cell by cell with ``cell`` (one pass, widths from the font metrics): fpdf's table API
+        line-broke every cell twice, character by character (most of the PDF's time, issue 32). A cell wider than
+        its column wraps as the table did (at spaces, by ``multi_cell``'s line breaking).
+        """
+        scale = self.epw / sum(widths)
+        cols = [w * scale for w in widths]
+        aligns = [a[0].upper() for a in align]
+        lh, pad_v, pad_h = size * 0.5, 0.6, 1.0
         self.set_draw_color(120, 120, 120)
-        with self.table(
-            col_widths=widths,
-            text_align=align,
-            line_height=size * 0.5,
-            headings_style=FontFace(emphasis="BOLD", fill_color=_GREY),
-            borders_layout="SINGLE_TOP_LINE",
-            padding=(0.6, 1.0),
-            width=self.epw,
-        ) as table:
-            r = table.row()
-            for h in head:
-                r.cell(h)
-            for row in rows:
-                r = table.row()
-                for c in row:
-                    r.cell(c)
+        heading = self._grid_lines(head, cols, "B", size, pad_h)
+        self._grid_row(heading, cols, aligns, "B", size, lh, pad_v, pad_h, heading=True)
+        for row in rows:
+            lines = self._grid_lines(row, cols, "", size, pad_h)
+            height = max(len(c) for c in lines) * lh + 2 * pad_v
+            if self.get_y() + height > self.page_break_trigger:
+                self.add_page()
+                self._grid_row(heading, cols, aligns, "B", size, lh, pad_v, pad_h, heading=True)
+            self._grid_row(lines, cols, aligns, "", size, lh, pad_v, pad_h)
+        self.set_font(_FONT, "", size)
+
+    def _grid_lines(self, cells: list[str], cols: list[float], style: str, size: float, pad: float) -> list[list[str]]:
+        """Each cell's text lines in its column (one line when it fits, else ``multi_cell``'s line breaks)."""
+        self.set_font(_FONT, style, size)
+        out = []
+        for text, w in zip(cells, cols, strict=True):
+            if "\n" not in text and self.get_string_width(text) <= w - 2 * pad:
+                out.append([text])
+            else:
+                out.append(self.multi_cell(w, size * 0.5, text, padding=(0, pad), dry_run=True, output="LINES"))
+        return out
+
+    def _grid_row(self, lines: list[list[str]], cols: list[float], aligns: list[str], style: str, size: float,
+                  lh: float, pad_v: float, pad_h: float, heading: bool = False) -> None:  # fmt: skip
+        """One row of :meth:`grid` at the current y (its lines vertically centred); y moves below it."""
+        y = self.get_y()
+        height = max(len(c) for c in lines) * lh + 2 * pad_v
+        if heading:
+            self.set_fill_color(*_GREY)
+            self.rect(self.l_margin, y, self.epw, height, style="F")
+        self.set_font(_FONT, style, size)
+        margin, self.c_margin = self.c_margin, pad_h
+        x = self.l_margin
+        for cell_lines, w, al in zip(lines, cols, aligns, strict=True):
+            top = y + (height - len(cell_lines) * lh) / 2
+            for j, text in enumerate(cell_lines):
+                self.set_xy(x, top + j * lh)
+                self.cell(w, lh, text, align=al)
+            x += w
+        self.c_margin = margin
+        if heading:
+            self.line(self.l_margin, y + height, self.l_margin + self.epw, y + height)
+        self.set_xy(self.l_margin, y + height)
 
     def figure(self, fig: Any, width: float | None = None) -> None:
         """A figure centred: PNG bytes scaled to ``width`` (mm), or a vector drawing
