@@ -14,7 +14,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from fpdf import FPDF, FontFace, XPos, YPos
+from fpdf import FPDF, XPos, YPos
 
 from analysis.identification.plan_legend import plan_legend_text
 
@@ -159,21 +159,19 @@ class _CertificatePdf(FPDF):
         return out
 
     def key_values(self, rows: list[tuple[str, str]], key_w: float = 45.0) -> None:
-        self.set_font(_FONT, "", 8.5)
-        self.set_fill_color(255, 255, 255)
+        """Two columns (the key bold) across the text width, rules between the rows; 8.5 pt, line height 4.4 mm,
+        padding 0.8 mm × 1.2 mm (laid out as :meth:`grid`)."""
         self.set_draw_color(150, 150, 150)
-        with self.table(
-            col_widths=(key_w, self.epw - key_w),
-            first_row_as_headings=False,
-            line_height=4.4,
-            borders_layout="HORIZONTAL_LINES",
-            text_align=("LEFT", "LEFT"),
-            padding=(0.8, 1.2),
-        ) as table:
-            for k, v in rows:
-                r = table.row()
-                r.cell(k, style=FontFace(emphasis="BOLD"))
-                r.cell(v)
+        cols = [key_w, self.epw - key_w]
+        for i, (k, v) in enumerate(rows):
+            lines = [self._cell_lines(k, cols[0], "B", 8.5, 1.2), self._cell_lines(v, cols[1], "", 8.5, 1.2)]
+            height = max(len(c) for c in lines) * 4.4 + 1.6
+            if self.get_y() + height > self.page_break_trigger:
+                self.add_page()
+            elif i:
+                self.line(self.l_margin, self.get_y(), self.l_margin + self.epw, self.get_y())
+            self._grid_row(lines, cols, ["L", "L"], ["B", ""], 8.5, 4.4, 0.8, 1.2)
+        self.set_font(_FONT, "", 8.5)
 
     def grid(
         self, head: list[str], rows: list[list[str]], widths: tuple[float, ...], align: tuple[str, ...], size: float
@@ -184,47 +182,47 @@ class _CertificatePdf(FPDF):
 
         Laid out here, cell by cell with ``cell`` (one pass, widths from the font metrics): fpdf's table API
         line-broke every cell twice, character by character (most of the PDF's time, issue 32). A cell wider than
-        its column wraps as the table did (at spaces, by ``multi_cell``'s line breaking).
+        its column wraps at spaces (:meth:`_wrap`).
         """
         scale = self.epw / sum(widths)
         cols = [w * scale for w in widths]
         aligns = [a[0].upper() for a in align]
         lh, pad_v, pad_h = size * 0.5, 0.6, 1.0
         self.set_draw_color(120, 120, 120)
-        heading = self._grid_lines(head, cols, "B", size, pad_h)
-        self._grid_row(heading, cols, aligns, "B", size, lh, pad_v, pad_h, heading=True)
+        heading = [self._cell_lines(c, w, "B", size, pad_h) for c, w in zip(head, cols, strict=True)]
+        self._grid_row(heading, cols, aligns, ["B"] * len(cols), size, lh, pad_v, pad_h, heading=True)
         for row in rows:
-            lines = self._grid_lines(row, cols, "", size, pad_h)
+            lines = [self._cell_lines(c, w, "", size, pad_h) for c, w in zip(row, cols, strict=True)]
             height = max(len(c) for c in lines) * lh + 2 * pad_v
             if self.get_y() + height > self.page_break_trigger:
                 self.add_page()
-                self._grid_row(heading, cols, aligns, "B", size, lh, pad_v, pad_h, heading=True)
-            self._grid_row(lines, cols, aligns, "", size, lh, pad_v, pad_h)
+                self._grid_row(heading, cols, aligns, ["B"] * len(cols), size, lh, pad_v, pad_h, heading=True)
+            self._grid_row(lines, cols, aligns, [""] * len(cols), size, lh, pad_v, pad_h)
         self.set_font(_FONT, "", size)
 
-    def _grid_lines(self, cells: list[str], cols: list[float], style: str, size: float, pad: float) -> list[list[str]]:
-        """Each cell's text lines in its column (one line when it fits, else ``multi_cell``'s line breaks)."""
+    def _cell_lines(self, text: str, width: float, style: str, size: float, pad: float) -> list[str]:
+        """The lines of a table cell's text in a column ``width`` mm wide with ``pad`` mm each side."""
         self.set_font(_FONT, style, size)
-        out = []
-        for text, w in zip(cells, cols, strict=True):
-            if "\n" not in text and self.get_string_width(text) <= w - 2 * pad:
-                out.append([text])
-            else:
-                out.append(self.multi_cell(w, size * 0.5, text, padding=(0, pad), dry_run=True, output="LINES"))
-        return out
+        if "\n" not in text and self.get_string_width(text) <= width - 2 * pad:
+            return [text]
+        lines = self._wrap(text, width - 2 * pad)
+        if lines is None:  # a word wider than the column: multi_cell breaks inside it
+            return self.multi_cell(width, size * 0.5, text, padding=(0, pad), dry_run=True, output="LINES")
+        return lines
 
-    def _grid_row(self, lines: list[list[str]], cols: list[float], aligns: list[str], style: str, size: float,
-                  lh: float, pad_v: float, pad_h: float, heading: bool = False) -> None:  # fmt: skip
-        """One row of :meth:`grid` at the current y (its lines vertically centred); y moves below it."""
+    def _grid_row(self, lines: list[list[str]], cols: list[float], aligns: list[str], styles: list[str],
+                  size: float, lh: float, pad_v: float, pad_h: float, heading: bool = False) -> None:  # fmt: skip
+        """One table row at the current y (each cell's lines vertically centred; a heading on grey with a rule
+        under it); y moves below it."""
         y = self.get_y()
         height = max(len(c) for c in lines) * lh + 2 * pad_v
         if heading:
             self.set_fill_color(*_GREY)
             self.rect(self.l_margin, y, self.epw, height, style="F")
-        self.set_font(_FONT, style, size)
         margin, self.c_margin = self.c_margin, pad_h
         x = self.l_margin
-        for cell_lines, w, al in zip(lines, cols, aligns, strict=True):
+        for cell_lines, w, al, st in zip(lines, cols, aligns, styles, strict=True):
+            self.set_font(_FONT, st, size)
             top = y + (height - len(cell_lines) * lh) / 2
             for j, text in enumerate(cell_lines):
                 self.set_xy(x, top + j * lh)

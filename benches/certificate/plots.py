@@ -343,17 +343,23 @@ def plot_coverage(geometry: Sequence[StepGeometry]) -> Drawing:
         return np.column_stack([cx + scale * p[:, 0], cy - scale * p[:, 1]])
 
     lat_all = np.linspace(-math.pi / 2, math.pi / 2, 91)
-    grid = [to_mm(np.full_like(lat_all, math.radians(m)), lat_all) for m in range(-150, 151, 30)]
-    for par in range(-75, 76, 15):
-        ends = to_mm(np.array([-math.pi, math.pi]), np.full(2, math.radians(par)))
-        grid.append(ends)
-        d.text(ends[0, 0] - 1.5, ends[0, 1], f"{par}°".replace("-", MINUS), _TICK, hex_colour("#404040"), "R", "M")
-    for g in grid:
+    meridians = np.radians(np.arange(-150, 151, 30, dtype=float))
+    grid = to_mm(np.repeat(meridians, lat_all.size), np.tile(lat_all, meridians.size))
+    for g in np.split(grid, meridians.size):
         d.polyline(g, GRID, 0.15)
+    parallels = np.radians(np.arange(-75, 76, 15, dtype=float))
+    ends = to_mm(np.tile([-math.pi, math.pi], parallels.size), np.repeat(parallels, 2)).reshape(-1, 4)
+    d.segments(ends, GRID, 0.15)
+    for par, (x, y, _, _) in zip(range(-75, 76, 15), ends, strict=True):
+        d.text(x - 1.5, y, f"{par}°".replace("-", MINUS), _TICK, hex_colour("#404040"), "R", "M")
     holds, traces = _coverage_data(geometry)
+    pieces = []  # every spin, decimated to at most ~360 points and its last, one projection (NaN rows break it)
     for tr in traces:
         stride = max(1, tr.shape[0] // 360)
-        pts = tr[::stride] if stride == 1 or (tr.shape[0] - 1) % stride == 0 else np.vstack([tr[::stride], tr[-1:]])
+        keep = tr[::stride] if (tr.shape[0] - 1) % stride == 0 else np.vstack([tr[::stride], tr[-1:]])
+        pieces += [keep, np.full((1, 2), np.nan)]
+    if pieces:
+        pts = np.concatenate(pieces)
         d.polyline(to_mm(pts[:, 0], pts[:, 1]), _RED, 0.42)
     if holds:
         h = np.array(holds)
