@@ -72,6 +72,7 @@ from .content import (
     format_with_uncertainty,
 )
 from .noise_report import build_noise_report, is_static_record
+from .plots import plot_convergence, plot_coverage, plot_residuals
 
 
 def _load_bench_config(text: str) -> BenchConfig:
@@ -629,8 +630,6 @@ def assemble(g: Gathered, d: Decision, issue_date: str, with_plots: bool = True)
         analysis_plots=g.analysis_plots,
     )
     if with_plots:
-        from .plots import plot_convergence, plot_coverage, plot_residuals  # lazy: matplotlib (--help time)
-
         cert.plots["residuals"] = plot_residuals(g.per_step, cal.noise_variance[:3])
         if cal.noise_variance.size == 6:
             cert.plots["gyro_residuals"] = plot_residuals(g.per_step, cal.noise_variance[3:], triad="gyro")
@@ -679,7 +678,7 @@ def build_certificate(
     bench : BenchInfo, optional
         Override the bench information read from the recording (tests, re-issues against other limits).
     with_plots : bool
-        Render the figures (PNG bytes in ``Certificate.plots``).
+        Draw the figures (vector drawings in ``Certificate.plots``).
     recorded : RecordedRun, optional
         The run's recording already opened (``tablebench run``); default: opened here.
 
