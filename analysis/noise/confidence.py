@@ -347,6 +347,7 @@ _PM_LAGS = 8
 flicker PM's fall as (m/k)⁴ — 3e-8 of the EDF at N = 10⁶."""
 
 
+@lru_cache(maxsize=4096)  # a pure function of integers, asked again for every channel of one record (issue 32)
 def edf_discrete_pm(alpha: int, d: int, m: int, n: int, overlapping: bool) -> float:
     """EDF of the (overlapping) Allan (d = 2) or Hadamard (d = 3) variance of discrete white (α = 2) or flicker
     (α = 1) PM on n phase points: K²R(0)² / Σ_{|k|<K} (K − |k|) R(k)², R the covariance of the d-th differences
