@@ -62,6 +62,11 @@ from drivers.sim.config import ACCEL_PARAM_NAMES, SimConfig, gyro_truth
 from drivers.sim.imu_model import InertialModel, misalignment_matrix
 from drivers.sim.motion import AxisPlan, plan_hold, plan_position, plan_rate, plan_stop
 
+_REMOTE, _MOVING, _IN_POSITION, _AT_RATE, _FAULT = (
+    int(TableStatus.REMOTE), int(TableStatus.MOVING), int(TableStatus.IN_POSITION), int(TableStatus.AT_RATE),
+    int(TableStatus.FAULT),
+)  # fmt: skip
+
 
 class SimulatedBench(Protocol):
     """A loaded bench file as the world needs it (``benches.bench_config.BenchConfig`` is one)."""
@@ -69,6 +74,7 @@ class SimulatedBench(Protocol):
     name: str
     path: object
     simulation: SimConfig | None
+
 
 CHUNK = 32768
 """Samples evaluated per vectorised pass (bounds memory for long produce() calls)."""
@@ -111,6 +117,7 @@ class SimulatedWorld:
             plan_hold(0.0, 0.0, AxisMode.POSITION, target=0.0),
         ]
         self._switch = [0.0, 0.0, 0.0]  # true time from which each axis's current plan applies
+        self._mask: NDArray[np.float64] | None = None  # _spin_mask of the current plans
         self._history: list[list[tuple[float, float, AxisPlan]]] = [[], [], []]  # (from, to, plan) replaced
         self._fault = FaultCode.NONE
         self._latched = TableStatus.NONE
@@ -128,6 +135,7 @@ class SimulatedWorld:
         self._rng_budget = np.random.default_rng(budget_ss)
         self._att_bound = float(bi.attitude_error_bound) if bi is not None else 0.0
         self._dphi = np.zeros(3)
+        self._rotations: tuple[bytes, NDArray[np.float64], NDArray[np.float64]] | None = None
         self._g_anomaly = float(self._rng_budget.normal(0.0, bi.gravity_anomaly_std)) if bi is not None else 0.0
         self._g = config.local_g + self._g_anomaly
         rb = float(bi.rate_error_bound) if bi is not None else 0.0
@@ -256,6 +264,7 @@ class SimulatedWorld:
         self._history[axis] = hist
         self._switch[axis] = t
         self._plans[axis] = plan
+        self._mask = None
 
     def _command_time(self) -> float:
         return self._transaction() if self._sep else self._k / self._fs
@@ -478,18 +487,19 @@ class SimulatedWorld:
             return acc[0].copy()
 
     def _status(self, t: float) -> TableStatus:
-        st = TableStatus.REMOTE | self._latched
+        # the bits as integers, one TableStatus at the end (an IntFlag's | runs Python code every time)
+        st = _REMOTE | int(self._latched)
         if any(t < pl.t_still for pl in self._plans):
-            st |= TableStatus.MOVING
+            st |= _MOVING
         pos = [pl for pl in self._plans if pl.mode == AxisMode.POSITION]
         if pos and all(t >= pl.t_done for pl in pos):
-            st |= TableStatus.IN_POSITION
+            st |= _IN_POSITION
         rate = [pl for pl in self._plans if pl.mode == AxisMode.RATE]
         if rate and all(t >= pl.t_done for pl in rate):
-            st |= TableStatus.AT_RATE
+            st |= _AT_RATE
         if self._fault != FaultCode.NONE:
-            st |= TableStatus.FAULT
-        return st
+            st |= _FAULT
+        return TableStatus(st)
 
     # ---- temperature chamber (docs/methods/thermal.md) --------------------------------------------------
     def _need_chamber(self) -> ChamberPhysics:
@@ -620,7 +630,12 @@ class SimulatedWorld:
         return True
 
     def _spin_mask(self) -> NDArray[np.float64]:
-        return np.array([1.0 if (pl.mode == AxisMode.RATE and pl.rate_cmd != 0.0) else 0.0 for pl in self._plans])
+        """1 for each axis spinning under a rate command, else 0 (read-only; kept until a plan changes)."""
+        if self._mask is None:
+            mask = np.array([1.0 if (pl.mode == AxisMode.RATE and pl.rate_cmd != 0.0) else 0.0 for pl in self._plans])
+            mask.flags.writeable = False
+            self._mask = mask
+        return self._mask
 
     def _frames(
         self,
@@ -740,15 +755,24 @@ class SimulatedWorld:
         c_bn = c_tn @ self._mount
         if self._azimuth_error != 0.0:
             # installation: the outer gimbal's zero is δψ off East (a rotation about the local vertical)
-            c_bn = gimbal._rz(np.full(1, self._azimuth_error))[0] @ c_bn
+            c_bn = self._fixed_rotations()[0] @ c_bn
         if np.any(self._dphi):
             # realised table attitude error: C_b^n,true = R(δφ) C_b^n,reported (navigation-frame rotation)
-            from scipy.spatial.transform import Rotation
-
-            c_bn = Rotation.from_rotvec(self._dphi).as_matrix() @ c_bn
+            c_bn = self._fixed_rotations()[1] @ c_bn
         omega_b = omega_t @ self._mount
         alpha_b = alpha_t @ self._mount
         return c_bn, omega_b, alpha_b
+
+    def _fixed_rotations(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """R_z(δψ) of the azimuth error and R(δφ) of the realised attitude error (3, 3), formed once per δφ (a
+        moving block asks for them every time; the same matrices, so the same products)."""
+        key = self._dphi.tobytes()
+        if self._rotations is None or self._rotations[0] != key:
+            rz = gimbal._rz(np.full(1, self._azimuth_error))[0]
+            from scipy.spatial.transform import Rotation
+
+            self._rotations = (key, rz, Rotation.from_rotvec(self._dphi).as_matrix())
+        return self._rotations[1], self._rotations[2]
 
     # ---- events --------------------------------------------------------------------------------------
     def _feed(self) -> None:
