@@ -13,6 +13,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, BinaryIO, Generic, TypeVar
 
+import serial
+from pymodbus.client import ModbusTcpClient
+
 from drivers.acutrol import AclSettings, AclTurntable
 from drivers.imu_unit.counts import CountScale
 from drivers.imu_unit.description import FrameFormat
@@ -62,8 +65,6 @@ def modbus_table(
     rate_tolerance: float | None = None,
 ) -> Connection[ModbusTurntable]:
     """A Modbus TCP turntable controller at ``host:port`` with its register map (:mod:`drivers.modbus.register_map`)."""
-    from pymodbus.client import ModbusTcpClient  # lazy: pymodbus only for a Modbus link (start-up time)
-
     client = ModbusTcpClient(host, port=port, timeout=timeout, retries=retries)
     if not client.connect():
         client.close()
@@ -81,8 +82,6 @@ def modbus_table(
 
 
 def _serial_port(what: str, url: str, **kw: Any) -> Any:
-    import serial  # lazy: pyserial only for a serial link (start-up time)
-
     try:
         return serial.serial_for_url(url, **kw)
     except (serial.SerialException, ValueError) as exc:

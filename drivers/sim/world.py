@@ -118,6 +118,9 @@ class SimulatedWorld:
         ]
         self._switch = [0.0, 0.0, 0.0]  # true time from which each axis's current plan applies
         self._mask: NDArray[np.float64] | None = None  # _spin_mask of the current plans
+        self._plans_version = 0
+        self._rest_from: tuple[int, float] | None = None  # (version, a time from which all axes are at rest)
+        self._rest_rows: dict[int | None, tuple[NDArray[np.float64], ...]] = {}  # of the version _rest_from names
         self._history: list[list[tuple[float, float, AxisPlan]]] = [[], [], []]  # (from, to, plan) replaced
         self._fault = FaultCode.NONE
         self._latched = TableStatus.NONE
@@ -265,6 +268,7 @@ class SimulatedWorld:
         self._switch[axis] = t
         self._plans[axis] = plan
         self._mask = None
+        self._plans_version += 1  # the caches of the plans' rest (_at_rest_from, _rest_rows) start again
 
     def _command_time(self) -> float:
         return self._transaction() if self._sep else self._k / self._fs
@@ -593,13 +597,25 @@ class SimulatedWorld:
         if any(t < sw and hist for sw, hist in zip(self._switch, self._history, strict=True)):
             pa, va, _ = self._evaluate(np.array([t]))
             return pa[0], va[0]
+        if self._at_rest_from(t):  # the same state at every later time (see _at_rest_from): formed once
+            rows = self._rest_rows.get(None)
+            if rows is None:
+                (p0, v0), (p1, v1), (p2, v2) = (plan.state(t) for plan in self._plans)
+                rows = self._rest_rows[None] = (np.array([p0, p1, p2]), np.array([v0, v1, v2]))
+                for a in rows:
+                    a.flags.writeable = False
+            return rows[0], rows[1]
         (p0, v0), (p1, v1), (p2, v2) = (plan.state(t) for plan in self._plans)
         return np.array([p0, p1, p2]), np.array([v0, v1, v2])
 
     def _static_rows(self, t0: float, n: int) -> tuple[NDArray[np.float64], ...]:
         """Angles, rates and accelerations (n, 3) of a static chunk starting at true time ``t0``: the first row
         (:meth:`AxisPlan.state`, the same bits as :meth:`_evaluate`) broadcast; rates and accelerations, +0 at
-        rest, are one shared read-only zero array."""
+        rest, are one shared read-only zero array. At rest they are the same at every later time (see
+        :meth:`_at_rest_from`): formed once per length until a plan changes."""
+        rows = self._rest_rows.get(n)
+        if rows is not None:
+            return rows
         (p0, v0), (p1, v1), (p2, v2) = (plan.state(t0) for plan in self._plans)
         ang = np.broadcast_to(np.array([p0, p1, p2]), (n, 3))
         rows = ([v0, v1, v2], [float(plan.a[-1]) for plan in self._plans])
@@ -609,6 +625,7 @@ class SimulatedWorld:
             else np.broadcast_to(np.array(r), (n, 3))
             for r in rows
         )
+        self._rest_rows[n] = (ang, rat, acc)
         return ang, rat, acc
 
     def _zero_rows(self, n: int) -> NDArray[np.float64]:
@@ -621,12 +638,19 @@ class SimulatedWorld:
     def _at_rest_from(self, t0: float) -> bool:
         """Every axis is at rest from true time ``t0`` on: in its current plan's last segment with zero rate and
         acceleration and past its settling transient. :meth:`_evaluate` then gives every later time the same
-        angle p + 0·dt + 0·dt² = p (dt ≥ 0), rate 0 and acceleration 0, so a hold's block is evaluated once."""
+        angle p + 0·dt + 0·dt² = p (dt ≥ 0), rate 0 and acceleration 0, so a hold's block is evaluated once.
+        Every condition is t0 < (a time) or does not depend on t0: once true, true later (kept per plans)."""
+        rf = self._rest_from
+        if rf is not None and rf[0] == self._plans_version and t0 >= rf[1]:
+            return True
         for plan, switch, hist in zip(self._plans, self._switch, self._history, strict=True):
             if (hist and t0 < switch) or t0 < plan.t[-1] or plan.v[-1] != 0.0 or plan.a[-1] != 0.0:
                 return False
             if plan.settle_t0 is not None and plan.settle_amp != 0.0 and t0 < plan.settle_end:
                 return False
+        if rf is None or rf[0] != self._plans_version:
+            self._rest_rows = {}
+        self._rest_from = (self._plans_version, t0)
         return True
 
     def _spin_mask(self) -> NDArray[np.float64]:
