@@ -19,7 +19,6 @@ first and then inserts nothing. See ``docs/registry.md``.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -49,10 +48,8 @@ from sqlalchemy.exc import ArgumentError, DBAPIError, NoSuchModuleError, SQLAlch
 from benches.results.sink import SinkError
 
 from . import schema as S
+from .url import DEFAULT_FILE, ENV, OFF, resolve_url
 
-ENV = "TABLEBENCH_REGISTRY"
-DEFAULT_FILE = "registry.sqlite"
-OFF = "off"
 _LOCK_KEY = 0x7462_7265_6731  # "tbreg1": the advisory lock of schema upgrades (PostgreSQL)
 MIGRATIONS = Path(__file__).with_name("migrations")
 _ALEMBIC_VERSION = Table(
@@ -66,25 +63,6 @@ _ALEMBIC_VERSION = Table(
 
 class RegistryError(SinkError):
     """The registry cannot be opened, read or written; the message names it and the fix."""
-
-
-def resolve_url(option: str | None, runs_folder: str | Path | None) -> str | None:
-    """The registry URL for a command (None: switched off).
-
-    ``option`` (``--registry``) wins, then :data:`ENV`, then ``<runs folder>/registry.sqlite``.
-    """
-    given = option if option not in (None, "") else os.environ.get(ENV, "")
-    if given and given.strip().lower() == OFF:
-        return None
-    if not given:
-        if runs_folder is None:
-            return None
-        return f"sqlite:///{Path(runs_folder).resolve() / DEFAULT_FILE}"
-    if "://" not in given:
-        return f"sqlite:///{Path(given).expanduser().resolve()}"
-    if given.startswith("postgresql://") or given.startswith("postgres://"):
-        return "postgresql+psycopg://" + given.split("://", 1)[1]
-    return given
 
 
 def display_url(url: str) -> str:
