@@ -18,6 +18,7 @@ from analysis.identification.model import PARAM_NAMES
 from benches.results.sink import AnalysisDocument, CalibrationDocument, CertificateDocument
 from core.errors import UserError
 
+from .record import as_found_as_left, canonical, run_record
 from .url import resolve_url
 
 if TYPE_CHECKING:
@@ -38,8 +39,7 @@ def add_run(
     reg: Registry, run: str | Path, *, operator: str | None = None, configuration: str | None = None
 ) -> AddOutcome:
     """Record the run folder ``run`` (calibration, certificates, as found / as left); idempotent."""
-    from .queries import previous_of  # lazy: sqlalchemy (a sink that records nothing never needs it)
-    from .record import as_found_as_left, canonical, run_record
+    from .queries import previous_of  # lazy: sqlalchemy, needed only when recording (--help time)
 
     rec = run_record(run, operator=operator, configuration=configuration, recorded_utc=_utc_now())
     cal = rec["calibration"]
@@ -73,14 +73,14 @@ class RegistrySink:
         self._reg: Registry | None = None
 
     def _registry(self) -> Registry:
-        from .store import Registry  # lazy: sqlalchemy (a sink that records nothing never needs it)
+        from .store import Registry  # lazy: sqlalchemy, needed only when recording (--help time)
 
         if self._reg is None:
             self._reg = Registry(self.url)
         return self._reg
 
     def _add(self, run: Path) -> None:
-        from .store import RegistryError, display_url  # lazy: sqlalchemy
+        from .store import RegistryError, display_url  # lazy: sqlalchemy, needed only when recording (--help time)
 
         try:
             add_run(self._registry(), run, operator=self.operator)
