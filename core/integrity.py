@@ -32,8 +32,12 @@ def with_integrity(content: Mapping[str, Any], bound_to: str, covers: str) -> di
     plain = json.loads(canonical(body))
     return {
         **body,
-        KEY: {"algorithm": ALGORITHM, "values_sha256": values_digest(plain), "recording_sha256": bound_to,
-              "covers": covers},  # fmt: skip
+        KEY: {
+            "algorithm": ALGORITHM,
+            "values_sha256": values_digest(plain),
+            "recording_sha256": bound_to,
+            "covers": covers,
+        },  # fmt: skip
     }
 
 

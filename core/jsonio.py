@@ -8,15 +8,12 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 
-from core.errors import OutputError
-from core.outputs import check_output
+from core.outputs import atomic_output
 
 NonFinite = Literal["error", "null"]
 
@@ -50,35 +47,14 @@ def dumps(obj: Any, nonfinite: NonFinite = "error", indent: int = 1) -> str:
 
 
 def write_text_atomic(path: str | Path, text: str | bytes, *, overwrite: bool = True) -> Path:
-    """Write ``text`` to ``path`` through a temporary file in the same folder and a rename, so a reader never
-    sees a half-written file. With ``overwrite=False`` an existing file raises ``FileExistsError``. A path
-    that cannot be created (a file where a folder is needed, no permission, a folder given), or that would
-    replace an input of the running command or a recording (:func:`core.outputs.check_output`), raises
-    :class:`core.errors.OutputError`, naming it."""
-    p = check_output(path, "output")
-    data = text.encode("utf-8") if isinstance(text, str) else text
-    try:
-        if p.is_dir():
-            raise IsADirectoryError(21, "is a folder; give a file name", str(p))
-        p.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
-    except OSError as exc:
-        raise OutputError(f"{p}: cannot be written ({exc.strerror or exc}); choose another output path") from None
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        if overwrite:
-            os.replace(tmp, p)
-        else:
-            os.link(tmp, p)  # fails if p exists: never overwrites
-            os.unlink(tmp)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return p
+    """Write ``text`` to ``path`` atomically through :func:`core.outputs.atomic_output`, so a reader never sees
+    a half-written file. With ``overwrite=False`` an existing file raises ``FileExistsError``. A path that
+    cannot be written (a file where a folder is needed, no permission, a folder given, the disk full), or
+    that would replace an input of the running command or a recording (:func:`core.outputs.check_output`),
+    raises :class:`core.errors.OutputError`, naming it."""
+    with atomic_output(path, "output", overwrite=overwrite) as fh:
+        fh.write(text.encode("utf-8") if isinstance(text, str) else text)
+    return Path(path)
 
 
 def write_json(path: str | Path, obj: Any, nonfinite: NonFinite = "error", indent: int = 1) -> Path:

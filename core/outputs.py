@@ -23,9 +23,10 @@ from __future__ import annotations
 import os
 import re
 import tempfile
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, BinaryIO
 
 from core.errors import OutputError
 
@@ -126,28 +127,60 @@ def check_output(path: str | Path, option: str = "--out", *, inputs: Iterable[st
     return p
 
 
-def save_npy(path: str | Path, array: np.ndarray, option: str = "--out") -> Path:
-    """``np.save`` to exactly ``path`` (no ``.npy`` appended), atomically, through :func:`check_output`."""
-    import numpy as np  # lazy: numpy (--help time: the CLI entry imports this module)
+@contextmanager
+def atomic_output(path: str | Path, option: str = "--out", *, overwrite: bool = True) -> Iterator[BinaryIO]:
+    """A binary file handle whose bytes appear at ``path`` only when the block ends without an error.
 
+    THE atomic write of every command output (:func:`core.jsonio.write_text_atomic`, :func:`save_npy`): the
+    path passes :func:`check_output`; the bytes go to a temporary file in the same folder, are flushed and
+    fsynced, and the file is renamed onto ``path`` (``overwrite=True``) or hard-linked to it, which fails with
+    ``FileExistsError`` if ``path`` exists (``overwrite=False``: never overwrites). A reader never sees a
+    half-written file; on any error the temporary file is removed and ``path`` is untouched. A path that
+    cannot be written (a folder given, no permission, the disk full) raises :class:`core.errors.OutputError`
+    naming ``option`` and the path.
+    """
     p = check_output(path, option)
+
+    def refuse(exc: OSError) -> OutputError:
+        return OutputError(f"{option} {p}: cannot be written ({exc.strerror or exc}); choose another path")
+
     try:
+        if p.is_dir():
+            raise IsADirectoryError(21, "is a folder; give a file name", str(p))
         p.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
     except OSError as exc:
-        raise OutputError(f"{option} {p}: cannot be written ({exc.strerror or exc}); choose another path") from None
+        raise refuse(exc) from None
     try:
         with os.fdopen(fd, "wb") as fh:
-            np.save(fh, array, allow_pickle=False)
+            yield fh
             fh.flush()
             os.fsync(fh.fileno())
-        os.replace(tmp, p)
-    except OSError as exc:
-        if os.path.exists(tmp):
+        if overwrite:
+            os.replace(tmp, p)
+        else:
+            os.link(tmp, p)
             os.unlink(tmp)
-        raise OutputError(f"{option} {p}: cannot be written ({exc.strerror or exc}); choose another path") from None
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    except FileExistsError:
+        _discard(tmp)
         raise
-    return p
+    except OSError as exc:
+        _discard(tmp)
+        raise refuse(exc) from None
+    except BaseException:
+        _discard(tmp)
+        raise
+
+
+def _discard(tmp: str) -> None:
+    if os.path.exists(tmp):
+        os.unlink(tmp)
+
+
+def save_npy(path: str | Path, array: np.ndarray, option: str = "--out") -> Path:
+    """``np.save`` to exactly ``path`` (no ``.npy`` appended), atomically (:func:`atomic_output`)."""
+    import numpy as np  # lazy: numpy (--help time: the CLI entry imports this module)
+
+    with atomic_output(path, option) as fh:
+        np.save(fh, array, allow_pickle=False)
+    return Path(path)

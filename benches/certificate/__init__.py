@@ -6,9 +6,9 @@
 * :mod:`.build` — run folder → :class:`Certificate` (decision rule, traceability), and issuing it;
 * :mod:`.noise_report` — the noise report a static record gets instead of a calibration certificate;
 * :mod:`.analyses` — the analyses' rows (noise, periodic, drift) in display units;
-* :mod:`.plots` — figures (PNG bytes); :mod:`.pdf` — the PDF rendering.
+* :mod:`.plots` — figures, drawn as vector graphics with :mod:`.drawing`; :mod:`.pdf` — the PDF rendering.
 
-Imports flow content ← budget ← build → plots, pdf → content; build → noise_report → analyses → content.
+Imports flow content ← budget ← build → plots → drawing, pdf → content; build → noise_report → analyses → content.
 """
 
 from __future__ import annotations

@@ -151,7 +151,9 @@ class Certificate:
     analyses: dict[str, list[dict[str, str]]]
     software_version: str
     creation_date: str
-    plots: dict[str, bytes] = field(default_factory=dict)
+    plots: dict[str, Any] = field(default_factory=dict)
+    """Figures by name: vector drawings (:class:`benches.certificate.drawing.Drawing`) or PNG bytes (the noise
+    report's Allan deviation); ``bytes(figure)`` is each one's identity (its SHA-256 in the JSON)."""
     analysis_plots: list[tuple[str, bytes]] = field(default_factory=list)
     supersedes: str = ""
     document: str = CALIBRATION_CERTIFICATE
@@ -229,7 +231,7 @@ class Certificate:
             "warnings": self.warnings,
             "analyses": self.analyses,
             "software_version": self.software_version,
-            "plots": {k: hashlib.sha256(v).hexdigest() for k, v in sorted(self.plots.items())},
+            "plots": {k: hashlib.sha256(bytes(v)).hexdigest() for k, v in sorted(self.plots.items())},
             "analysis_plots": {k: hashlib.sha256(v).hexdigest() for k, v in self.analysis_plots},
         }
         return d
@@ -255,7 +257,7 @@ class Certificate:
             "warnings": self.warnings,
             "analyses": self.analyses,
             "software_version": self.software_version,
-            "plots": {k: hashlib.sha256(v).hexdigest() for k, v in sorted(self.plots.items())},
+            "plots": {k: hashlib.sha256(bytes(v)).hexdigest() for k, v in sorted(self.plots.items())},
             "analysis_plots": {k: hashlib.sha256(v).hexdigest() for k, v in self.analysis_plots},
         }
 

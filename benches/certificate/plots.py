@@ -1,8 +1,13 @@
-"""Figures of the calibration certificate, as deterministic PNG bytes (matplotlib, Agg, no pyplot state).
+"""Figures of the calibration certificate, as vector drawings (:mod:`.drawing`), replayed onto the PDF page.
 
-Determinism: every figure is drawn on a bare :class:`matplotlib.figure.Figure` with the Agg canvas inside an
-``rc_context`` that starts from matplotlib's defaults plus fixed overrides (so a user's matplotlibrc cannot
-change the bytes), and saved without the "Software" metadata. The same inputs give the same bytes.
+Residuals per step, estimate convergence and orientation coverage are drawn directly as lines, markers and text
+in millimetres (no rasterising, no matplotlib: issue 32 — the Agg figures were most of the certificate's time):
+the same content and styling as the earlier matplotlib figures, sharp at any zoom, their labels extractable.
+Determinism: equal inputs give equal drawings (``bytes(drawing)``, whose SHA-256 certificate.json states).
+What the figures show: docs/certificate.md.
+
+The noise report's Allan deviation figure is still matplotlib's (:func:`analysis.noise.plot.plot_noise`),
+rendered to PNG by :func:`_render` inside :func:`_context` (matplotlib imported only then).
 
 Display units come from :mod:`analysis.units` (µg, ppm, arcsec, µg/g², mm).
 """
@@ -15,16 +20,14 @@ from collections.abc import Mapping, Sequence
 from contextlib import AbstractContextManager
 from typing import Any
 
-import matplotlib
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
-from matplotlib.ticker import MaxNLocator
 from numpy.typing import NDArray
 from PIL import Image
 
 from analysis.identification.budget import StepGeometry
 from analysis.units import DEG_PER_HOUR, UG, display_unit, to_display
+
+from .drawing import BLACK, GRID, MINUS, Drawing, Panel, blend, data_limits, hex_colour, nice_ticks
 
 _RC: dict[str, Any] = {
     "font.family": "DejaVu Sans",
@@ -43,39 +46,63 @@ _RC: dict[str, Any] = {
     "path.simplify": True,
     "figure.dpi": 100,
 }
-_AXIS_COLOURS = ("#1f4e9c", "#2f8f2f", "#b5332a")
+_AXIS_COLOURS = tuple(hex_colour(c) for c in ("#1f4e9c", "#2f8f2f", "#b5332a"))
+_BLUE, _RED = hex_colour("#1f4e9c"), hex_colour("#b5332a")
+_BAND = blend(hex_colour("#9db7e0"), 0.6)
+_TITLE, _LABEL, _TICK = 7.5, 7.0, 6.3
+"""Font sizes, pt: panel titles, axis labels, tick labels."""
 
 
-def _render(fig: Figure) -> bytes:
-    """PNG bytes of a figure (RGB, at ``savefig.dpi``), without timestamps or software metadata.
+def _render(fig: Any) -> bytes:
+    """PNG bytes of a matplotlib figure (RGB, at ``savefig.dpi``), without timestamps or software metadata (the
+    noise report's Allan deviation figure)."""
+    import matplotlib  # lazy: matplotlib (--help time)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # lazy: matplotlib (--help time)
 
-    Drawn once on the Agg canvas and written as an opaque RGB PNG (the figures have an opaque background):
-    the PDF embeds it without splitting off an all-opaque alpha channel (issue 32); the pixels are those
-    ``savefig`` would write.
-    """
     dpi = float(matplotlib.rcParams["savefig.dpi"])
     canvas = FigureCanvasAgg(fig)
     fig.set_dpi(dpi)
     canvas.draw()
     rgb = np.ascontiguousarray(np.asarray(canvas.buffer_rgba())[..., :3])
     buf = io.BytesIO()
-    # compress_level 1: the PNG is an intermediate (the PDF decodes it and compresses the pixels itself, so the
-    # PDF is the same), and level 6 took as long as the PDF's own pass
+    # compress_level 1: the PNG is an intermediate (the PDF decodes it and compresses the pixels itself)
     Image.fromarray(rgb).save(buf, format="png", dpi=(dpi, dpi), compress_level=1)
     return buf.getvalue()
 
 
 def _context() -> AbstractContextManager[None]:
     """The certificate's matplotlib settings (from the defaults, so a user's matplotlibrc cannot change a figure)."""
+    import matplotlib  # lazy: matplotlib (--help time)
+
     base = dict(matplotlib.rcParamsDefault)
     base.pop("backend", None)
     base.update(_RC)
     return matplotlib.rc_context(base)
 
 
+def _legend(d: Drawing, right: float, top: float, entries: Sequence[tuple[str, str, Any]], ncol: int = 1) -> None:
+    """A legend box with its top right corner at (right, top): entries (label, kind "o"/"s"/"-"/"e", colour)."""
+    size, row = 6.3, 3.6
+    col_w = 8.0 + max(len(e[0]) for e in entries) * size * 0.2  # marker, gap, about 0.57 em per character
+    rows = -(-len(entries) // ncol)
+    w, h = ncol * col_w + 1.5, rows * row + 1.6
+    x0, y0 = right - w, top
+    d.rect(x0, y0, w, h, hex_colour("#cccccc"), 0.15, fill=(255, 255, 255))
+    for i, (label, kind, colour) in enumerate(entries):
+        cx, cy = x0 + 1.5 + (i % ncol) * col_w, y0 + 0.8 + (i // ncol + 0.5) * row
+        if kind == "-":
+            d.line(cx, cy, cx + 5, cy, colour, 0.35)
+        else:
+            if kind == "e":
+                d.segments([[cx + 2.5, cy - 1.3, cx + 2.5, cy + 1.3], [cx + 2.0, cy - 1.3, cx + 3.0, cy - 1.3],
+                            [cx + 2.0, cy + 1.3, cx + 3.0, cy + 1.3]], colour, 0.2)  # fmt: skip
+            d.markers([[cx + 2.5, cy]], "s" if kind == "s" else "o", 1.1, colour)
+        d.text(cx + 6.5, cy, label, size, align="L", valign="M")
+
+
 def plot_residuals(
     per_step: Sequence[Mapping[str, Any]], noise_var: NDArray[np.float64], triad: str = "accelerometer"
-) -> bytes:
+) -> Drawing:
     """Per-step residual mean (±2σ of the mean from the noise) and RMS per body axis (µg, or °/h for the gyro).
 
     Parameters
@@ -89,40 +116,42 @@ def plot_residuals(
         Which triad's columns to plot.
     """
     off_c, unit, label = (3, DEG_PER_HOUR, "°/h") if triad == "gyro" else (0, UG, "µg")
-    with _context():
-        fig = Figure(figsize=(7.2, 4.6))
-        ax1, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw=_margins(7.2, 4.6, 2, 1, 0.75, 0.12, 0.3, 0.75, 0, 0.42))
-        rows = list(per_step)
-        k = np.arange(len(rows))
-        n = np.array([max(float(r.get("samples", 0)), 1.0) for r in rows])
-        mean = np.array([r["mean"] for r in rows], dtype=float).reshape(len(rows), -1)[:, off_c : off_c + 3] / unit
-        rms = np.array([r["rms"] for r in rows], dtype=float).reshape(len(rows), -1)[:, off_c : off_c + 3] / unit
-        sig = np.sqrt(np.asarray(noise_var, dtype=float))[None, :] / unit
-        for a, name in enumerate("xyz"):
-            off = (a - 1) * 0.22
-            ax1.errorbar(
-                k + off,
-                mean[:, a],
-                yerr=2 * sig[0, a] / np.sqrt(n),
-                fmt="o",
-                ms=3,
-                capsize=1.5,
-                color=_AXIS_COLOURS[a],
-                label=f"{name}",
-            )
-            ax2.plot(k + off, rms[:, a], "s", ms=3, color=_AXIS_COLOURS[a], label=f"{name}")
-            ax2.axhline(sig[0, a], color=_AXIS_COLOURS[a], lw=0.8, ls="--")
-        ax1.axhline(0.0, color="black", lw=0.6)
-        ax1.set_ylabel(f"mean residual, {label}")
-        ax1.set_title(
-            f"{triad.capitalize()} residuals per step (body axes); error bars: ±2σ of the mean (noise model)", y=1.0
-        )
-        ax1.legend(ncol=3, loc="upper right")
-        ax2.set_ylabel(f"RMS residual, {label}")
-        ax2.set_title("RMS per step; dashed: noise standard deviation used by the identification", y=1.0)
-        ax2.set_xticks(k)
-        ax2.set_xticklabels([str(r.get("name", i)) for i, r in enumerate(rows)], rotation=70, ha="right")
-        return _render(fig)
+    rows = list(per_step)
+    k = np.arange(len(rows), dtype=float)
+    n = np.array([max(float(r.get("samples", 0)), 1.0) for r in rows])
+    mean = np.array([r["mean"] for r in rows], dtype=float).reshape(len(rows), -1)[:, off_c : off_c + 3] / unit
+    rms = np.array([r["rms"] for r in rows], dtype=float).reshape(len(rows), -1)[:, off_c : off_c + 3] / unit
+    sig = np.sqrt(np.asarray(noise_var, dtype=float)) / unit
+    err = 2 * sig[None, :] / np.sqrt(n)[:, None]
+    d = Drawing(175.0, 112.0)
+    left, width, h = 17.0, 155.0, 36.0
+    xlim = (-0.6, max(len(rows) - 0.4, 0.6))
+    top = Panel(d, left, 8.0, width, h, xlim, data_limits(np.concatenate([(mean - err).ravel(), (mean + err).ravel(),
+                                                                           [0.0]])))  # fmt: skip
+    bottom = Panel(d, left, 54.0, width, h, xlim, data_limits(np.concatenate([rms.ravel(), sig])))
+    xt = (k, [str(r.get("name", i)) for i, r in enumerate(rows)])
+    top.decorate((k, [""] * len(rows)), nice_ticks(*top.ylim, 7), _TICK, xlabels=False)
+    bottom.decorate(xt, nice_ticks(*bottom.ylim, 5), _TICK, x_rotation=70.0)
+    top.hline(0.0, BLACK, 0.2)
+    for a in range(3):
+        xs = top.px(k + (a - 1) * 0.22)
+        lo, hi = top.py(mean[:, a] - err[:, a]), top.py(mean[:, a] + err[:, a])
+        cap = 0.45
+        d.segments(np.concatenate([np.column_stack([xs, lo, xs, hi]), np.column_stack([xs - cap, lo, xs + cap, lo]),
+                                   np.column_stack([xs - cap, hi, xs + cap, hi])]), _AXIS_COLOURS[a], 0.2)  # fmt: skip
+        d.markers(np.column_stack([xs, top.py(mean[:, a])]), "o", 1.2, _AXIS_COLOURS[a])
+        bottom.hline(float(sig[a]), _AXIS_COLOURS[a], 0.25, (1.2, 0.8))
+        d.markers(np.column_stack([bottom.px(k + (a - 1) * 0.22), bottom.py(rms[:, a])]), "s", 1.1, _AXIS_COLOURS[a])
+    top.frame()
+    bottom.frame()
+    _legend(d, left + width - 1.0, 9.0, [(c, "e", _AXIS_COLOURS[i]) for i, c in enumerate("xyz")], ncol=3)
+    d.text(left + width / 2, 5.5, f"{triad.capitalize()} residuals per step (body axes); error bars: ±2σ of the mean "
+           "(noise model)", _TITLE, align="C")  # fmt: skip
+    d.text(left + width / 2, 51.5, "RMS per step; dashed: noise standard deviation used by the identification",
+           _TITLE, align="C")  # fmt: skip
+    d.text(4.0, 8.0 + h / 2, f"mean residual, {label}", _LABEL, align="C", valign="T", angle=90.0)
+    d.text(4.0, 54.0 + h / 2, f"RMS residual, {label}", _LABEL, align="C", valign="T", angle=90.0)
+    return d
 
 
 CONVERGENCE_FRAME_U = 4.0
@@ -151,81 +180,88 @@ def convergence_frame(values: NDArray[np.float64], sigmas: NDArray[np.float64]) 
     return centre - span, centre + span
 
 
+def _steps(t: NDArray[np.float64], v: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """A "post" step trace through (t, v): each value held until the next time (as matplotlib's step)."""
+    if t.size < 2:
+        return t, v
+    ts = np.repeat(t, 2)[1:]
+    vs = np.repeat(v, 2)[:-1]
+    return ts, vs
+
+
+def _conv_limits(tm: NDArray[np.float64], v: NDArray[np.float64], s: NDArray[np.float64],
+                 span_t: tuple[float, float] | None) -> tuple[tuple[float, float], tuple[float, float]]:  # fmt: skip
+    """One convergence panel's x and y limits (time span; :func:`convergence_frame`, else the data's range)."""
+    xlim = span_t if span_t is not None else data_limits(tm, 0.0) if tm.size > 1 else (-1.0, 1.0)
+    frame = convergence_frame(v, s)
+    ylim = frame if frame is not None else data_limits(np.concatenate([v - 2 * s, v + 2 * s])) if v.size else (-1, 1)
+    return xlim, (float(ylim[0]), float(ylim[1]))
+
+
+def _conv_panel(d: Drawing, ax: Panel, tm: NDArray[np.float64], v: NDArray[np.float64], s: NDArray[np.float64],
+                final: float | None, bottom: bool, identified: bool) -> None:  # fmt: skip
+    """One panel of the convergence figure: the ±2u band, the grid, the estimate, the final value, labels."""
+    ok = np.isfinite(v) & np.isfinite(s)
+    t_ok, v_ok, s_ok = tm[ok], v[ok], s[ok]
+    if v.size:
+        ts, hi = _steps(t_ok, v_ok + 2 * s_ok)
+        _, lo = _steps(t_ok, v_ok - 2 * s_ok)
+        d.clip(ax.x, ax.y, ax.w, ax.h)
+        d.polygon(np.concatenate([ax.xy(ts, hi, clamp=True), ax.xy(ts, lo, clamp=True)[::-1]]), _BAND)
+        d.unclip()
+    ax.decorate(nice_ticks(*ax.xlim, 4), nice_ticks(*ax.ylim, 4), _TICK, xlabels=bottom)
+    d.clip(ax.x, ax.y, ax.w, ax.h)
+    if v.size:
+        ts, vs = _steps(t_ok, v_ok)
+        d.polyline(ax.xy(ts, vs, clamp=True), _BLUE, 0.3)
+    if final is not None and math.isfinite(final):
+        ax.hline(final, BLACK, 0.2, (0.35, 0.6))
+    d.unclip()
+    if not v.size:
+        d.text(ax.x + ax.w / 2, ax.y + ax.h / 2, "no filter history", 6.5, align="C", valign="M")
+    if not identified:
+        d.text(ax.x + ax.w / 2, ax.y + 0.1 * ax.h, "not identified (prior only)", 6.0, hex_colour("#a03000"),
+               align="C", valign="T")  # fmt: skip
+    d.text(ax.x + ax.w / 2, ax.y - 1.2, ax.title, _TITLE, align="C")
+    ax.frame()
+
+
 def convergence_figure(
     history: Mapping[str, Any],
     names: Sequence[str],
     kinds: Sequence[str],
     final: NDArray[np.float64] | None = None,
     identified: Sequence[bool] | None = None,
-) -> Figure:
-    """The convergence figure of :func:`plot_convergence` (one panel per parameter, in ``names`` order)."""
+) -> Drawing:
+    """The convergence figure of :func:`plot_convergence` (one panel per parameter, in ``names`` order; its
+    ``panels`` carry each parameter's title "name [unit]" and limits)."""
     t = np.asarray(history.get("time", []), dtype=float)
     est = np.asarray(history.get("estimate", []), dtype=float).reshape(-1, len(names))
     sig = np.asarray(history.get("sigma", []), dtype=float).reshape(-1, len(names))
-    tm = t / 60.0 if t.size == est.shape[0] and t.size else np.arange(est.shape[0], dtype=float)
+    timed = t.size == est.shape[0] and t.size > 0
+    tm = t / 60.0 if timed else np.arange(est.shape[0], dtype=float)
     rows = max(1, -(-len(names) // 3))
-    fig = Figure(figsize=(7.2, 1.5 * rows))
-    axes = np.atleast_2d(fig.subplots(rows, 3, gridspec_kw=_grid_margins(7.2, 1.5 * rows, rows, 3)))
+    width, row_h = 165.0, 34.4
+    left, top, bottom, gap_w, gap_h = 14.2, 11.5, 9.6, 14.2, 8.2
+    d = Drawing(width, row_h * rows)
+    pw = (width - left - 2.8 - 2 * gap_w) / 3
+    ph = (d.height - top - bottom - (rows - 1) * gap_h) / rows
     span_t = (float(tm[0]), float(tm[-1])) if tm.size > 1 and tm[-1] > tm[0] else None
     for p, (name, kind) in enumerate(zip(names, kinds, strict=True)):
-        ax = axes[p // 3][p % 3]
         v = to_display(kind, est[:, p]) if est.size else np.zeros(0)
         s = to_display(kind, sig[:, p]) if sig.size else np.zeros(0)
-        if v.size:
-            ax.fill_between(tm, v - 2 * s, v + 2 * s, step="post", color="#9db7e0", alpha=0.6, lw=0)
-            ax.step(tm, v, where="post", color="#1f4e9c")
-        elif not ax.has_data():
-            ax.text(0.5, 0.5, "no filter history", ha="center", va="center", transform=ax.transAxes, fontsize=7)
-        if final is not None and np.isfinite(final[p]):
-            ax.axhline(to_display(kind, float(final[p])), color="black", lw=0.6, ls=":")
-        frame = convergence_frame(v, s)
-        if frame is not None:
-            ax.set_ylim(*frame)
-        ax.ticklabel_format(axis="y", useOffset=False)  # full values on the ticks: no offset text above the panel
-        ax.xaxis.set_major_locator(MaxNLocator(4))  # at most 4 intervals a small panel: fewer ticks to lay out and
-        ax.yaxis.set_major_locator(MaxNLocator(4))  # draw (a fifth of the grid's drawing time, issue 32)
-        ax.set_title(f"{name} [{display_unit(kind)}]", pad=2, y=1.0)
-        if identified is not None and not identified[p]:
-            ax.text(0.5, 0.9, "not identified (prior only)", ha="center", va="top", transform=ax.transAxes,
-                    fontsize=6.5, color="#a03000")  # fmt: skip
-        if span_t is not None:
-            ax.set_xlim(*span_t)  # one time axis for every panel (set, not shared: sharing costs a tick pass)
-        if p + 3 < len(names):
-            ax.tick_params(labelbottom=False)  # the time labels under the lowest panel of each column only
-    for ax in axes.flat[len(names) :]:
-        ax.set_visible(False)
-    for ax in axes[-1]:
-        ax.set_xlabel("bench time, min" if t.size == est.shape[0] and t.size else "update")
-    fig.suptitle(
-        f"Estimate after each step (band: ±2u of the filter; frame: final ± max({CONVERGENCE_FRAME_U:g}u, late "
-        "spread))",
-        fontsize=9,
-    )
-    return fig
-
-
-def _grid_margins(width: float, height: float, rows: int, cols: int) -> dict[str, float]:
-    """The convergence grid's margins (:func:`_margins`): small panels with titles and tick labels."""
-    return _margins(width, height, rows, cols, 0.62, 0.12, 0.5, 0.42, 0.62, 0.36)
-
-
-def _margins(
-    width: float, height: float, rows: int, cols: int, left: float, right: float, top: float, bottom: float,
-    gap_w: float, gap_h: float,
-) -> dict[str, float]:  # fmt: skip
-    """Fixed subplot margins, given in inches, as figure fractions (``gridspec_kw``): what ``tight_layout``
-    finds for these figures, without its text-measuring pass over every axes (half of the certificate's
-    plotting time, issue 32)."""
-    ax_w = (width - left - right - (cols - 1) * gap_w) / cols
-    ax_h = (height - top - bottom - (rows - 1) * gap_h) / rows
-    return {
-        "left": left / width,
-        "right": 1.0 - right / width,
-        "top": 1.0 - top / height,
-        "bottom": bottom / height,
-        "wspace": gap_w / ax_w,
-        "hspace": gap_h / ax_h,
-    }
+        xlim, ylim = _conv_limits(tm, v, s, span_t)
+        ax = Panel(d, left + (p % 3) * (pw + gap_w), top + (p // 3) * (ph + gap_h), pw, ph, xlim, ylim,
+                   title=f"{name} [{display_unit(kind)}]")  # fmt: skip
+        fin = None if final is None else float(to_display(kind, float(final[p])))
+        last = p + 3 >= len(names)
+        _conv_panel(d, ax, tm, np.asarray(v, dtype=float), np.asarray(s, dtype=float), fin, last,
+                    identified is None or bool(identified[p]))  # fmt: skip
+        if last:
+            d.text(ax.x + pw / 2, ax.y + ph + 8.3, "bench time, min" if timed else "update", _LABEL, align="C")
+    d.text(width / 2, 4.5, f"Estimate after each step (band: ±2u of the filter; frame: final ± "
+           f"max({CONVERGENCE_FRAME_U:g}u, late spread))", 8.0, align="C")  # fmt: skip
+    return d
 
 
 def plot_convergence(
@@ -234,8 +270,8 @@ def plot_convergence(
     kinds: Sequence[str],
     final: NDArray[np.float64] | None = None,
     identified: Sequence[bool] | None = None,
-) -> bytes:
-    """Estimate of every parameter after each update, with ±2u bands, in display units (one panel each), PNG.
+) -> Drawing:
+    """Estimate of every parameter after each update, with ±2u bands, in display units (one panel each).
 
     Each panel is framed by :func:`convergence_frame` (final ± a few u), so the converged value reads against
     its own uncertainty rather than as a flat line.
@@ -251,57 +287,96 @@ def plot_convergence(
     identified : sequence of bool, optional
         Per parameter; a not-identified one is labelled so in its panel (its trace is the prior's).
     """
-    with _context():
-        return _render(convergence_figure(history, names, kinds, final, identified))
+    return convergence_figure(history, names, kinds, final, identified)
 
 
-def plot_coverage(geometry: Sequence[StepGeometry]) -> bytes:
+def mollweide(lon: NDArray[np.float64], lat: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Mollweide projection of longitude, latitude (rad) to (x, y) with x ∈ [−2√2, 2√2], y ∈ [−√2, √2]
+    (y up): 2θ + sin 2θ = π sin φ solved by Newton's method, x = 2√2/π λ cos θ, y = √2 sin θ."""
+    lon, lat = np.asarray(lon, dtype=float), np.asarray(lat, dtype=float)
+    target = math.pi * np.sin(lat)
+    th = np.clip(lat, -math.pi / 2, math.pi / 2).copy()
+    for _ in range(30):
+        f = 2 * th + np.sin(2 * th) - target
+        df = 2 + 2 * np.cos(2 * th)
+        step = np.divide(f, df, out=np.zeros_like(f), where=df > 1e-12)
+        th -= step
+        if np.all(np.abs(step) < 1e-10):
+            break
+    th = np.clip(th, -math.pi / 2, math.pi / 2)
+    return np.column_stack([2 * math.sqrt(2) / math.pi * lon * np.cos(th), math.sqrt(2) * np.sin(th)])
+
+
+def _coverage_data(geometry: Sequence[StepGeometry]) -> tuple[list[tuple[float, float]], list[NDArray[np.float64]]]:
+    """The holds' directions (lon, lat) and the spins' traces ((m, 2) lon/lat pieces, split where the longitude
+    wraps), from each step's reference specific force in the body frame."""
+    holds: list[tuple[float, float]] = []
+    traces: list[NDArray[np.float64]] = []
+    for geo in geometry:
+        f = np.asarray(geo.f, dtype=float)
+        nrm = np.linalg.norm(f, axis=1)
+        ok = nrm > 0
+        if not np.any(ok):
+            continue
+        u = f[ok] / nrm[ok, None]
+        lon = np.arctan2(u[:, 1], u[:, 0])
+        lat = np.arcsin(np.clip(u[:, 2], -1, 1))
+        if geo.kind == "spin":
+            jumps = np.flatnonzero(np.abs(np.diff(lon)) > math.pi) + 1
+            traces += [np.column_stack([a, b]) for a, b in zip(np.split(lon, jumps), np.split(lat, jumps), strict=True)]
+        else:
+            holds.append((float(lon[0]), float(lat[0])))
+    return holds, traces
+
+
+def plot_coverage(geometry: Sequence[StepGeometry]) -> Drawing:
     """Direction of the reference specific force in the body frame for every step (orientation coverage).
 
     Static holds are points, spins are traces; the axis markers show where ±x, ±y, ±z point up.
-    Mollweide projection: longitude atan2(f_y, f_x), latitude asin(f_z/|f|), body frame.
+    Mollweide projection: longitude atan2(f_y, f_x), latitude asin(f_z/|f|), body frame; graticule every 30° of
+    longitude and 15° of latitude.
     """
-    with _context():
-        fig = Figure(figsize=(7.2, 4.2))
-        fig.subplots_adjust(left=0.04, right=0.96, top=0.9, bottom=0.1)
-        ax = fig.add_subplot(1, 1, 1, projection="mollweide")
-        holds: list[tuple[float, float]] = []
-        traces: list[NDArray[np.float64]] = []  # (m, 2) lon/lat segments, one line broken by NaN rows
-        for geo in geometry:
-            f = np.asarray(geo.f, dtype=float)
-            nrm = np.linalg.norm(f, axis=1)
-            ok = nrm > 0
-            if not np.any(ok):
-                continue
-            u = f[ok] / nrm[ok, None]
-            lon = np.arctan2(u[:, 1], u[:, 0])
-            lat = np.arcsin(np.clip(u[:, 2], -1, 1))
-            if geo.kind == "spin":
-                jumps = np.flatnonzero(np.abs(np.diff(lon)) > math.pi) + 1
-                for seg_lon, seg_lat in zip(np.split(lon, jumps), np.split(lat, jumps), strict=True):
-                    traces += [np.column_stack([seg_lon, seg_lat]), np.full((1, 2), np.nan)]
-            else:
-                holds.append((float(lon[0]), float(lat[0])))
-        if traces:  # every spin as one artist (a few hundred Line2D cost more than drawing them)
-            tr = np.concatenate(traces)
-            ax.plot(tr[:, 0], tr[:, 1], "-", color="#b5332a", lw=1.2)
-        if holds:  # the holds on top, one artist
-            ax.plot([h[0] for h in holds], [h[1] for h in holds], "o", color="#1f4e9c", ms=4)
-        for lbl, lon, lat in (
-            ("+x up", 0.0, 0.0),
-            ("+y up", math.pi / 2, 0.0),
-            ("−x up", math.pi - 0.25, 0.0),
-            ("−y up", -math.pi / 2, 0.0),
-            ("+z up", 0.0, math.pi / 2 - 0.02),
-            ("−z up", 0.0, -math.pi / 2 + 0.02),
-        ):
-            ax.annotate(lbl, (lon, lat), xytext=(4, 4), textcoords="offset points", fontsize=7, color="0.25")
-        ax.plot([], [], "o", color="#1f4e9c", ms=4, label="static holds")
-        ax.plot([], [], "-", color="#b5332a", label="constant-rate spins")
-        ax.legend(loc="lower right", bbox_to_anchor=(1.0, -0.12))
-        ax.set_xticklabels([])
-        ax.set_title("Orientation coverage: direction of gravity (specific force) in the body frame", pad=10, y=1.0)
-        return _render(fig)
+    d = Drawing(165.0, 96.0)
+    scale, cx, cy = 150.0 / (4 * math.sqrt(2)), 82.5, 49.0
+
+    def to_mm(lon: NDArray[np.float64], lat: NDArray[np.float64]) -> NDArray[np.float64]:
+        p = mollweide(lon, lat)
+        return np.column_stack([cx + scale * p[:, 0], cy - scale * p[:, 1]])
+
+    lat_all = np.linspace(-math.pi / 2, math.pi / 2, 91)
+    meridians = np.radians(np.arange(-150, 151, 30, dtype=float))
+    grid = to_mm(np.repeat(meridians, lat_all.size), np.tile(lat_all, meridians.size))
+    for g in np.split(grid, meridians.size):
+        d.polyline(g, GRID, 0.15)
+    parallels = np.radians(np.arange(-75, 76, 15, dtype=float))
+    ends = to_mm(np.tile([-math.pi, math.pi], parallels.size), np.repeat(parallels, 2)).reshape(-1, 4)
+    d.segments(ends, GRID, 0.15)
+    for par, (x, y, _, _) in zip(range(-75, 76, 15), ends, strict=True):
+        d.text(x - 1.5, y, f"{par}°".replace("-", MINUS), _TICK, hex_colour("#404040"), "R", "M")
+    holds, traces = _coverage_data(geometry)
+    pieces = []  # every spin, decimated to at most ~360 points and its last, one projection (NaN rows break it)
+    for tr in traces:
+        stride = max(1, tr.shape[0] // 360)
+        keep = tr[::stride] if (tr.shape[0] - 1) % stride == 0 else np.vstack([tr[::stride], tr[-1:]])
+        pieces += [keep, np.full((1, 2), np.nan)]
+    if pieces:
+        pts = np.concatenate(pieces)
+        d.polyline(to_mm(pts[:, 0], pts[:, 1]), _RED, 0.42)
+    if holds:
+        h = np.array(holds)
+        d.markers(to_mm(h[:, 0], h[:, 1]), "o", 1.4, _BLUE)
+    for lbl, lon, lat in (("+x up", 0.0, 0.0), ("+y up", math.pi / 2, 0.0), (f"{MINUS}x up", math.pi - 0.25, 0.0),
+                          (f"{MINUS}y up", -math.pi / 2, 0.0), ("+z up", 0.0, math.pi / 2 - 0.02),
+                          (f"{MINUS}z up", 0.0, -math.pi / 2 + 0.02)):  # fmt: skip
+        p = to_mm(np.array([lon]), np.array([lat]))[0]
+        d.text(p[0] + 1.4, p[1] - 1.4, lbl, 6.5, hex_colour("#404040"))
+    edge = np.concatenate([to_mm(np.full_like(lat_all, math.pi), lat_all),
+                           to_mm(np.full_like(lat_all, -math.pi), lat_all)[::-1]])  # fmt: skip
+    d.polyline(np.vstack([edge, edge[:1]]), BLACK, 0.25)
+    _legend(d, 164.0, 86.0, [("static holds", "o", _BLUE), ("constant-rate spins", "-", _RED)])
+    d.text(cx, 5.0, "Orientation coverage: direction of gravity (specific force) in the body frame", _TITLE, align="C")
+    return d
 
 
-__all__ = ["convergence_figure", "convergence_frame", "plot_convergence", "plot_coverage", "plot_residuals"]
+__all__ = ["convergence_figure", "convergence_frame", "mollweide", "plot_convergence", "plot_coverage",
+           "plot_residuals"]

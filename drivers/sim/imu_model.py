@@ -210,6 +210,12 @@ class InertialModel:
         tm = config.temperature
         self._time_free = self.thermal is None and (tm is None or tm.warmup_rise_c == 0.0)
         self._rest_phys: tuple[tuple[object, int], NDArray[np.float64]] | None = None
+        # a hold's blocks repeat the same filter step and the same output stage (see frames): their results,
+        # kept while the inputs are the same objects/bits
+        self._aa_rest: tuple[NDArray[np.float64], bytes, NDArray[np.float64], NDArray[np.float64], int] | None = None
+        self._stage: tuple[NDArray[np.float64], NDArray[np.uint64], NDArray[np.uint32]] | None = None
+        self._rest_counts: tuple[NDArray[np.float64], bytes, NDArray[np.int32]] | None = None
+        self._const: dict[tuple[int, str], NDArray[np.generic]] = {}
         sc = config.scale
         self._lsb = np.array([sc.accel_lsb] * 3 + [sc.gyro_lsb] * 3)
         # the temperature word of a unit at the fixed lab temperature (no warm-up model, no chamber)
@@ -349,11 +355,15 @@ class InertialModel:
 
         ``rest_key``: the inputs are those of a table at rest at one attitude, which the key names (equal keys,
         equal inputs). Where the error model does not depend on time (no temperature term) its output for the
-        same key and length is the same array, so it is computed once for a hold's blocks, not every block."""
+        same key and length is the same array, so it is computed once for a hold's blocks, not every block; so
+        is its anti-aliasing once the filter has settled (the same input and state give the same output, bit
+        for bit: a constant, or a last-bit cycle of a few samples), and then the counts of a whole noise block
+        at once (element-wise, the same values)."""
         n = f0.shape[0]
         k = np.arange(k0, k0 + n, dtype=np.int64)
         t = k * self.dt
-        if rest_key is not None and self._time_free:
+        rest = rest_key is not None and self._time_free
+        if rest:
             if self._rest_phys is None or self._rest_phys[0] != (rest_key, n):
                 phys = self.physical(t, f0, omega, alpha, earth_b)
                 phys.flags.writeable = False
@@ -361,34 +371,31 @@ class InertialModel:
             phys = self._rest_phys[1]
         else:
             phys = self.physical(t, f0, omega, alpha, earth_b)
+        period = 0  # the filtered physical signal repeats every ``period`` rows (a settled hold; 0: it does not)
         if self._aa is not None:
-            bb, ab = self._aa
-            if self._aa_zi is None:
-                self._aa_zi = signal.lfilter_zi(bb, ab)[:, None] * phys[0][None, :]
-            phys, self._aa_zi = signal.lfilter(bb, ab, phys, axis=0, zi=self._aa_zi)
+            phys, period = self._anti_alias(phys, rest)
         st = self.streams(k0, n)
-        y = phys + st[:, :6]
-        sc = self.cfg.scale
-        q = np.rint(y / self._lsb, out=y)
-        counts = np.clip(q, -_INT32_MAX, _INT32_MAX, out=q).astype(np.int32)
-        ts_ns = k * (1e9 / self.fs)  # exact integers for rates dividing 1 GHz (e.g. 1 kHz → 1 000 000 ns)
-        if self.cfg.timestamp_jitter > 0:
-            ts_ns = ts_ns + st[:, 6] * 1e9
-        ts_ns = np.rint(np.maximum(ts_ns, 0.0)).astype(np.uint64)
-        if self.chamber is None and self.cfg.temperature is None:  # temperature_c is the lab's: its word
-            temp = np.full(n, self._temp_word, dtype=np.int16)
+        i = k0 - self._buf_k0
+        if period:
+            counts = self._settled_counts(phys[:period], k0, i, n)
         else:
-            temp = np.rint(self.temperature_c(t) / sc.temperature_lsb).astype(np.int16)
-        keep_u = st[:, 7]
+            y = phys + st[:, :6]
+            q = np.rint(y / self._lsb, out=y)
+            counts = np.clip(q, -_INT32_MAX, _INT32_MAX, out=q).astype(np.int32)
+        ts_ns, counter = self._output_stage()
+        if self.chamber is None and self.cfg.temperature is None:  # temperature_c is the lab's: its word
+            temp = self._constant(n, "temperature")
+        else:
+            temp = np.rint(self.temperature_c(t) / self.cfg.scale.temperature_lsb).astype(np.int16)
         frames = RawFrames(
-            counter=(k % (1 << 32)).astype(np.uint32),
-            timestamp_ns=ts_ns,
+            counter=counter[i : i + n],
+            timestamp_ns=ts_ns[i : i + n],
             counts=counts,
             temperature=temp,
-            status=np.zeros(n, dtype=np.uint16),
+            status=self._constant(n, "status"),
         )
         if self.cfg.drop_probability > 0:
-            keep = keep_u >= self.cfg.drop_probability
+            keep = st[:, 7] >= self.cfg.drop_probability
             frames = RawFrames(
                 counter=frames.counter[keep],
                 timestamp_ns=frames.timestamp_ns[keep],
@@ -397,3 +404,70 @@ class InertialModel:
                 status=frames.status[keep],
             )
         return frames
+
+    def _anti_alias(self, phys: NDArray[np.float64], rest: bool) -> tuple[NDArray[np.float64], int]:
+        """The anti-alias filter over ``phys`` (state carried); and for a hold's block (``rest``: the same
+        read-only input array) the period P ≤ 8 dividing n with which its rows repeat bit for bit (0: none). A
+        hold's block that meets the state the previous one left is filtered once: the same input and state give
+        the same output and final state."""
+        assert self._aa is not None
+        bb, ab = self._aa
+        if self._aa_zi is None:
+            self._aa_zi = signal.lfilter_zi(bb, ab)[:, None] * phys[0][None, :]
+        cache = self._aa_rest
+        if rest and cache is not None and cache[0] is phys and cache[1] == self._aa_zi.tobytes():
+            self._aa_zi = cache[3]
+            return cache[2], cache[4]
+        zi = self._aa_zi
+        out, self._aa_zi = signal.lfilter(bb, ab, phys, axis=0, zi=zi)
+        if not rest:
+            return out, 0
+        out.flags.writeable = False
+        bits = out.view(np.uint64)
+        n = out.shape[0]
+        period = next((p for p in (1, 2, 4, 8) if n % p == 0 and np.array_equal(bits[p:], bits[:-p])), 0)
+        self._aa_rest = (phys, zi.tobytes(), out, self._aa_zi, period)
+        return out, period
+
+    def _settled_counts(self, pattern: NDArray[np.float64], k0: int, i: int, n: int) -> NDArray[np.int32]:
+        """Counts of rows i … i+n−1 of the noise buffer (samples k0 …) added to the filtered physical signal
+        of a settled hold, whose row for sample k is ``pattern[(k − k0) mod P]``: computed for the whole buffer
+        once per buffer and pattern (element-wise: the values of each block's own sum)."""
+        period = pattern.shape[0]
+        key = pattern.tobytes() + (k0 % period).to_bytes(1, "little")
+        c = self._rest_counts
+        if c is None or c[0] is not self._buf or c[1] != key:
+            ks = np.arange(self._buf_k0, self._buf_k0 + self._buf.shape[0], dtype=np.int64)
+            y = pattern[(ks - k0) % period] + self._buf[:, :6]
+            q = np.rint(y / self._lsb, out=y)
+            counts = np.clip(q, -_INT32_MAX, _INT32_MAX, out=q).astype(np.int32)
+            counts.flags.writeable = False
+            self._rest_counts = c = (self._buf, key, counts)
+        return c[2][i : i + n]
+
+    def _output_stage(self) -> tuple[NDArray[np.uint64], NDArray[np.uint32]]:
+        """Time stamps (ns) and frame counters of every sample of the noise buffer (computed once per buffer;
+        read-only): the unit clock's k / f_s plus the time-stamp jitter, and k mod 2³²."""
+        s = self._stage
+        if s is None or s[0] is not self._buf:
+            k = np.arange(self._buf_k0, self._buf_k0 + self._buf.shape[0], dtype=np.int64)
+            ts_ns = k * (1e9 / self.fs)  # exact integers for rates dividing 1 GHz (e.g. 1 kHz → 1 000 000 ns)
+            if self.cfg.timestamp_jitter > 0:
+                ts_ns = ts_ns + self._buf[:, 6] * 1e9
+            ts = np.rint(np.maximum(ts_ns, 0.0)).astype(np.uint64)
+            counter = (k % (1 << 32)).astype(np.uint32)
+            ts.flags.writeable = False
+            counter.flags.writeable = False
+            self._stage = s = (self._buf, ts, counter)
+        return s[1], s[2]
+
+    def _constant(self, n: int, what: str) -> NDArray[np.generic]:
+        """A read-only (n,) array of the lab temperature word (``"temperature"``) or of status 0 (``"status"``)."""
+        a = self._const.get((n, what))
+        if a is None:
+            a = np.full(n, self._temp_word, dtype=np.int16) if what == "temperature" else np.zeros(n, np.uint16)
+            a.flags.writeable = False
+            if len(self._const) > 64:
+                self._const.clear()
+            self._const[(n, what)] = a
+        return a

@@ -122,8 +122,8 @@ def test_convergence_panels_are_framed_about_the_final_value_within_a_few_u():
     hist = {"time": t.tolist(), "estimate": np.tile(est[:, None], (1, 3)).tolist(),
             "sigma": np.tile(u[:, None], (1, 3)).tolist()}  # fmt: skip
     fig = convergence_figure(hist, names, ["size_effect"] * 3, np.full(3, est[-1]), [True, False, True])
-    ax = [a for a in fig.axes if a.get_title().startswith("r_y")][0]
-    lo, hi = ax.get_ylim()
+    ax = [a for a in fig.panels if a.title.startswith("r_y")][0]
+    lo, hi = ax.ylim
     final, u_mm = est[-1] / MM, 2.0
     assert lo < final - 2 * u_mm and hi > final + 2 * u_mm  # the ±2u band is inside the frame
     assert hi - lo <= 2 * 5 * u_mm  # final ± at most 5u: the band fills at least 40 % of the panel
