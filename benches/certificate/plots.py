@@ -4,6 +4,7 @@ Residuals per step, estimate convergence and orientation coverage are drawn dire
 in millimetres (no rasterising, no matplotlib: issue 32 — the Agg figures were most of the certificate's time):
 the same content and styling as the earlier matplotlib figures, sharp at any zoom, their labels extractable.
 Determinism: equal inputs give equal drawings (``bytes(drawing)``, whose SHA-256 certificate.json states).
+What the figures show: docs/certificate.md.
 
 The noise report's Allan deviation figure is still matplotlib's (:func:`analysis.noise.plot.plot_noise`),
 rendered to PNG by :func:`_render` inside :func:`_context` (matplotlib imported only then).
@@ -129,7 +130,7 @@ def plot_residuals(
                                                                            [0.0]])))  # fmt: skip
     bottom = Panel(d, left, 54.0, width, h, xlim, data_limits(np.concatenate([rms.ravel(), sig])))
     xt = (k, [str(r.get("name", i)) for i, r in enumerate(rows)])
-    top.decorate((k, [""] * len(rows)), nice_ticks(*top.ylim, 6), _TICK, xlabels=False)
+    top.decorate((k, [""] * len(rows)), nice_ticks(*top.ylim, 7), _TICK, xlabels=False)
     bottom.decorate(xt, nice_ticks(*bottom.ylim, 5), _TICK, x_rotation=70.0)
     top.hline(0.0, BLACK, 0.2)
     for a in range(3):
