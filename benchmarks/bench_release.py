@@ -1,6 +1,6 @@
 """Benchmark: this code against an earlier release, stage by stage, alternating, in one run (issue 32).
 
-``python -m benchmarks.bench_release [--base COMMIT] [--rounds N] [--procedure P]``
+``python -m benchmarks.bench_release [--base COMMIT] [--rounds N] [--procedure P] [--certificate-only]``
 
 The earlier release is checked out as a git worktree (``benchmarks/out/release-<commit>``, detached) and run with
 the same Python environment: each stage is a separate process whose ``PYTHONPATH`` is the tree being measured
@@ -156,6 +156,20 @@ LIKE_FOR_LIKE = "identify RUN, accelerometer only (offline, 18 states)"
 identifies the whole unit (33) unless told ``--accelerometer-only`` (the base tree runs its plain identify)."""
 
 
+def certificate_round(tree: Path, procedure: str, seed: int) -> dict[str, tuple[float, float]]:
+    """The quick mode (``--certificate-only``): the in-process run (its certificate span is the figure) and the
+    offline ``certificate RUN`` once for ``tree``."""
+    work = Path(tempfile.mkdtemp(prefix="tb-release-"))
+    try:
+        run = work / "run"
+        out = timed_run(tree, procedure, run, seed)
+        out["certificate RUN (offline)"] = timed([sys.executable, "-c", CLI, "certificate", str(run), "--out",
+                                                  str(work / "cert.pdf")], tree)  # fmt: skip
+        return out
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
 def one_round(tree: Path, procedure: str, seed: int, accel_flag: bool = False) -> dict[str, tuple[float, float]]:
     """Every stage once for ``tree``: (wall, CPU) seconds; the recording's size as (MB, MB). ``accel_flag``: the
     tree knows ``identify --accelerometer-only`` (:data:`LIKE_FOR_LIKE`)."""
@@ -226,6 +240,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--procedure", default="ten-step-fast-spin")
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--section", default="release", help="the RESULTS.md section to (re)write")
+    ap.add_argument(
+        "--certificate-only",
+        action="store_true",
+        help="quick mode: only the in-process run (its stages, the certificate among them) and the offline "
+        "certificate, alternating the same way",
+    )
     ap.add_argument("--title", default=None, help="its title (default: against the earlier release BASE)")
     ap.add_argument(
         "--from-log",
@@ -246,7 +266,10 @@ def main(argv: list[str] | None = None) -> int:
     for r in range(0 if args.from_log else args.rounds):
         order = ("base", "now") if r % 2 == 0 else ("now", "base")
         for key in order:
-            results[key].append(one_round(trees[key], args.procedure, args.seed, accel_flag=key == "now"))
+            if args.certificate_only:
+                results[key].append(certificate_round(trees[key], args.procedure, args.seed))
+            else:
+                results[key].append(one_round(trees[key], args.procedure, args.seed, accel_flag=key == "now"))
             print(f"round {r + 1} {key}: " + ", ".join(f"{k} {w:.6g}/{c:.6g}" for k, (w, c) in
                                                        results[key][-1].items()), flush=True)  # fmt: skip
         out_json.write_text(json.dumps({"base": args.base, "now": args.now, "results": results}, indent=1))
@@ -263,6 +286,11 @@ def main(argv: list[str] | None = None) -> int:
         "cancels). On a machine shared by several busy processes the CPU ratio is the steadier figure.\n\n"
         + table(results)
     )
+    if args.certificate_only:
+        write_section(args.section, f"{args.title or 'Certificate against the earlier release ' + args.base} "
+                      "(issue 32, quick mode)", body)  # fmt: skip
+        print(body)
+        return 0
     floor = statistics.median(r["python -c pass (floor)"][0] for r in results["now"])
     helps = statistics.median(r["tablebench --help"][0] for r in results["now"])
     body += (

@@ -217,10 +217,27 @@ def class_table(uc: UnitCoverage) -> list[tuple[str, int, float, float, bool, di
 
 
 def plan_ratios(uc: UnitCoverage) -> dict[str, np.ndarray]:
-    """Per gyro class: MC RMS of (error − realised run-level type-B effect) / the plan's σ, per parameter."""
+    """Per gyro class: MC RMS of (error − realised run-level type-B effect) / the plan's σ, per parameter
+    (information: over 30 runs one parameter's ratio scatters by ±13 % even for a correct plan)."""
     e = uc.result.errors - uc.type_b_effect
     rms = np.sqrt(np.mean(e**2, axis=0))
     return {cls: rms[uc.index(v)] / uc.plan_sigma[uc.index(v)] for cls, v in GYRO_CLASSES.items()}
+
+
+def plan_class_ratios(uc: UnitCoverage) -> dict[str, float]:
+    """The issue's plan check, read per class (gyro b, S, τ, G): the RMS over the class's parameters and the runs of
+    (error − realised run-level type-B effect) / the plan's σ_total; target within ×1.2 either way.
+
+    Parameters the plan flags as not identified are left out of their class (the plan prints no σ for them).
+    With 30 runs the class figure scatters by ±7 % (3 parameters) or ±5 % (6) for a correct plan, so the ×1.2
+    band is a ≥ 2.5σ test of the plan; the per-parameter ratios (:func:`plan_ratios`, ±13 %) are information.
+    """
+    z = (uc.result.errors - uc.type_b_effect) / uc.plan_sigma[None, :]
+    out = {}
+    for cls, names in GYRO_CLASSES.items():
+        idx = uc.index([n for n in names if n not in uc.plan_unidentified])
+        out[cls] = float(np.sqrt(np.mean(z[:, idx] ** 2))) if idx else float("nan")
+    return out
 
 
 def section(uc: UnitCoverage, rate: float) -> str:
@@ -257,15 +274,23 @@ def section(uc: UnitCoverage, rate: float) -> str:
         )
     lines += ["", "Plan (before motion) against the Monte Carlo, gyro parameters: RMS over the runs of the error "
               "less the realised run-level type-B effect (local g, azimuth, latitude, axis tilts; first order, same "
-              "estimator), divided by the plan's σ_total (target within ×1.2 either way):", "",
-              "| class | parameters | ratio per parameter | within ×1.2 |", "|---|---|---|---|"]  # fmt: skip
+              "estimator), divided by the plan's σ_total. The check is read per class (the issue's \"per class (gyro "
+              "bias, scale, misalignment, g-sensitivity)\"): the RMS over the class's parameters and runs, target "
+              "within ×1.2 either way; the per-parameter ratios are information:", "",
+              "| class | class ratio | within ×1.2 | 1σ sampling spread | parameters | ratio per parameter "
+              "(information) |",
+              "|---|---:|---|---:|---|---|"]  # fmt: skip
+    per_class = plan_class_ratios(uc)
     for cls, r in plan_ratios(uc).items():
         names = GYRO_CLASSES[cls]
-        ok = bool(np.all((r <= PLAN_RATIO) & (r >= 1 / PLAN_RATIO)))
+        c = per_class[cls]
+        ok = 1 / PLAN_RATIO <= c <= PLAN_RATIO
         flag = [n for n in names if n in uc.plan_unidentified]
         lines.append(
-            f"| {cls} | {', '.join(names)} | {', '.join(f'{v:.2f}' for v in r)} | {'yes' if ok else 'NO'}"
-            + (f" (plan flags {', '.join(flag)})" if flag else "") + " |"
+            f"| {cls} | {c:.2f} | {'yes' if ok else 'NO'} | ±{1 / np.sqrt(2 * n * (len(names) - len(flag))):.2f} | "
+            f"{', '.join(names)} | {', '.join(f'{v:.2f}' for v in r)}"
+            + (f" (plan flags {', '.join(flag)})" if flag else "")
+            + " |"
         )
     lines += [
         "",
@@ -276,6 +301,69 @@ def section(uc: UnitCoverage, rate: float) -> str:
     body = "\n".join(lines)
     write_section("gyro_coverage", "Coverage of the whole unit's certificate, gyros included (issue 25)", body)
     return body
+
+
+@dataclass
+class NoiseCheck:
+    """The gyro parameters' errors from the simulated gyro noise alone, through the estimator (:func:`noise_check`)."""
+
+    names: list[str]
+    effect: np.ndarray
+    """(seeds, gyro states): δx̂ = A⁻¹ Σ_k H_kᵀ R⁻¹ v_k for each seed's noise v, SI."""
+    sigma: np.ndarray
+    """The run's identification σ (white noise ⊕ bias instability: the budget's first two lines), SI."""
+    seeds: list[int]
+    run_error: np.ndarray
+    """The recorded run's own error (estimate − truth) of the gyro states, SI."""
+    run_effect: np.ndarray
+    """The recorded run's own realised gyro noise through the same gain, SI."""
+
+    def class_rms(self) -> dict[str, float]:
+        """RMS of effect/σ per gyro class (over seeds and the class's parameters); 1 for a correct budget."""
+        z = self.effect / self.sigma
+        idx = {c: [self.names.index(n) for n in v] for c, v in GYRO_CLASSES.items()}
+        return {c: float(np.sqrt(np.mean(z[:, i] ** 2))) for c, i in idx.items()}
+
+
+def noise_check(folder: Path, seeds: list[int]) -> NoiseCheck:
+    """Many realisations of the only noise that matters for the gyro states, through the actual estimator.
+
+    For each seed the simulated world's own gyro noise streams (white ARW + the bias-instability flicker bank; they
+    depend on the seed and the sample index only, drivers.sim.imu_model) at the sample indices of one recorded run's
+    acquisition windows, times the identification's linear gain on that run's data, K_k = A⁻¹ H_kᵀ R⁻¹ (the batch
+    estimate is linear in the output; KF ≡ batch): δx̂ = Σ_k K_k v_k. Compared with the run's identification
+    covariance, white noise ⊕ bias instability (calibration.json's, the budget's first two lines), this tests the
+    budget's and the plan's propagation of the gyro noise without the other inputs and without running the motion.
+    """
+    from benches.identify import combined_uncertainty, estimate, load_run
+    from drivers.sim.world import SimulatedWorld
+
+    data = load_run(folder)
+    model = data.model
+    est = estimate(data, "batch")
+    unc = combined_uncertainty(data, est)
+    gi = [k for k, n in enumerate(model.names) if n.startswith("gyro_")]
+    fs, r = float(data.config.unit.sample_rate), est.noise_variance
+    gains, index = [], []
+    for w in data.windows:
+        h = model.design_matrix(w.f_ref, w.omega, w.earth)[:, 3:, :]  # the gyro rows of H
+        gains.append(np.einsum("pq,maq->mpa", est.covariance_white[gi], h) / r[None, None, 3:])
+        index.append(np.rint(w.t * fs).astype(np.int64))  # unit time stamps k/f_s (+ µs jitter) → sample k
+    k_all, idx = np.concatenate(gains), np.concatenate(index)
+
+    def effect(seed: int) -> np.ndarray:
+        world = SimulatedWorld.from_bench(data.config, seed)  # type: ignore[arg-type]
+        noise = world._model.streams(0, int(idx.max()) + 1)[idx, 3:6]  # the gyro's output-referred noise
+        return np.einsum("mpa,ma->p", k_all, noise)
+
+    p_time = unc.time_covariance if unc.time_covariance is not None else 0.0
+    sigma = np.sqrt(np.diag(unc.covariance - p_time))[gi]
+    names = [model.names[k] for k in gi]
+    assert data.truth is not None
+    truth = np.array([data.truth[n] for n in names])
+    run_seed = int(data.run.header.seed)
+    return NoiseCheck(names, np.array([effect(s) for s in seeds]), sigma, list(seeds), est.x[gi] - truth,
+                      effect(run_seed))  # fmt: skip
 
 
 def save_scores(uc: UnitCoverage, out: Path) -> Path:

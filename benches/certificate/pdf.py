@@ -14,7 +14,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from fpdf import FPDF, FontFace, XPos, YPos
+from fpdf import FPDF, XPos, YPos
 
 from analysis.identification.plan_legend import plan_legend_text
 
@@ -122,48 +122,116 @@ class _CertificatePdf(FPDF):
         self.set_font(_FONT, "", 8.5)
 
     def para(self, text: str, size: float = 8.5, style: str = "") -> None:
+        """A paragraph across the text width, left-aligned, line height 0.48 × ``size`` mm.
+
+        Broken into lines here, word by word from the font metrics, each line one ``cell``: fpdf's
+        ``multi_cell`` re-measured the whole line for every character added (quadratic in the line length; the
+        paragraphs were a third of the PDF's time, issue 32). A word wider than the line falls back to it.
+        """
         self.set_font(_FONT, style, size)
-        self.multi_cell(0, size * 0.48, text, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+        lines = self._wrap(text, self.epw - 2 * self.c_margin)
+        if lines is None:
+            self.multi_cell(0, size * 0.48, text, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+            return
+        for line in lines:
+            self.cell(0, size * 0.48, line, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+
+    def _wrap(self, text: str, width: float) -> list[str] | None:
+        """``text`` broken at spaces (and at its newlines) into lines of at most ``width`` mm in the current font;
+        None if a single word is wider than that."""
+        space = self.get_string_width(" ")
+        out: list[str] = []
+        for piece in text.split("\n"):
+            line: list[str] = []
+            used = 0.0
+            for word in piece.split(" "):
+                w = self.get_string_width(word) if word else 0.0
+                if w > width:
+                    return None
+                if line and used + space + w > width:
+                    out.append(" ".join(line).rstrip(" "))
+                    line, used = [], 0.0
+                    if not word:
+                        continue  # a space at a break is dropped, as multi_cell does
+                used = w if not line else used + space + w
+                line.append(word)
+            out.append(" ".join(line).rstrip(" "))
+        return out
 
     def key_values(self, rows: list[tuple[str, str]], key_w: float = 45.0) -> None:
-        self.set_font(_FONT, "", 8.5)
-        self.set_fill_color(255, 255, 255)
+        """Two columns (the key bold) across the text width, rules between the rows; 8.5 pt, line height 4.4 mm,
+        padding 0.8 mm × 1.2 mm (laid out as :meth:`grid`)."""
         self.set_draw_color(150, 150, 150)
-        with self.table(
-            col_widths=(key_w, self.epw - key_w),
-            first_row_as_headings=False,
-            line_height=4.4,
-            borders_layout="HORIZONTAL_LINES",
-            text_align=("LEFT", "LEFT"),
-            padding=(0.8, 1.2),
-        ) as table:
-            for k, v in rows:
-                r = table.row()
-                r.cell(k, style=FontFace(emphasis="BOLD"))
-                r.cell(v)
+        cols = [key_w, self.epw - key_w]
+        for i, (k, v) in enumerate(rows):
+            lines = [self._cell_lines(k, cols[0], "B", 8.5, 1.2), self._cell_lines(v, cols[1], "", 8.5, 1.2)]
+            height = max(len(c) for c in lines) * 4.4 + 1.6
+            if self.get_y() + height > self.page_break_trigger:
+                self.add_page()
+            elif i:
+                self.line(self.l_margin, self.get_y(), self.l_margin + self.epw, self.get_y())
+            self._grid_row(lines, cols, ["L", "L"], ["B", ""], 8.5, 4.4, 0.8, 1.2)
+        self.set_font(_FONT, "", 8.5)
 
     def grid(
         self, head: list[str], rows: list[list[str]], widths: tuple[float, ...], align: tuple[str, ...], size: float
     ) -> None:
-        self.set_font(_FONT, "", size)
-        self.set_fill_color(255, 255, 255)
+        """A table across the text width: a bold heading on grey (repeated on every page the table spans) with a
+        rule under it, then the rows; columns of ``widths`` (scaled to the text width), cells aligned LEFT,
+        RIGHT or CENTER, vertically centred, padding 0.6 mm × 1.0 mm, ``size`` pt, line height ``size`` / 2 mm.
+
+        Laid out here, cell by cell with ``cell`` (one pass, widths from the font metrics): fpdf's table API
+        line-broke every cell twice, character by character (most of the PDF's time, issue 32). A cell wider than
+        its column wraps at spaces (:meth:`_wrap`).
+        """
+        scale = self.epw / sum(widths)
+        cols = [w * scale for w in widths]
+        aligns = [a[0].upper() for a in align]
+        lh, pad_v, pad_h = size * 0.5, 0.6, 1.0
         self.set_draw_color(120, 120, 120)
-        with self.table(
-            col_widths=widths,
-            text_align=align,
-            line_height=size * 0.5,
-            headings_style=FontFace(emphasis="BOLD", fill_color=_GREY),
-            borders_layout="SINGLE_TOP_LINE",
-            padding=(0.6, 1.0),
-            width=self.epw,
-        ) as table:
-            r = table.row()
-            for h in head:
-                r.cell(h)
-            for row in rows:
-                r = table.row()
-                for c in row:
-                    r.cell(c)
+        heading = [self._cell_lines(c, w, "B", size, pad_h) for c, w in zip(head, cols, strict=True)]
+        self._grid_row(heading, cols, aligns, ["B"] * len(cols), size, lh, pad_v, pad_h, heading=True)
+        for row in rows:
+            lines = [self._cell_lines(c, w, "", size, pad_h) for c, w in zip(row, cols, strict=True)]
+            height = max(len(c) for c in lines) * lh + 2 * pad_v
+            if self.get_y() + height > self.page_break_trigger:
+                self.add_page()
+                self._grid_row(heading, cols, aligns, ["B"] * len(cols), size, lh, pad_v, pad_h, heading=True)
+            self._grid_row(lines, cols, aligns, [""] * len(cols), size, lh, pad_v, pad_h)
+        self.set_font(_FONT, "", size)
+
+    def _cell_lines(self, text: str, width: float, style: str, size: float, pad: float) -> list[str]:
+        """The lines of a table cell's text in a column ``width`` mm wide with ``pad`` mm each side."""
+        self.set_font(_FONT, style, size)
+        if "\n" not in text and self.get_string_width(text) <= width - 2 * pad:
+            return [text]
+        lines = self._wrap(text, width - 2 * pad)
+        if lines is None:  # a word wider than the column: multi_cell breaks inside it
+            return self.multi_cell(width, size * 0.5, text, padding=(0, pad), dry_run=True, output="LINES")
+        return lines
+
+    def _grid_row(self, lines: list[list[str]], cols: list[float], aligns: list[str], styles: list[str],
+                  size: float, lh: float, pad_v: float, pad_h: float, heading: bool = False) -> None:  # fmt: skip
+        """One table row at the current y (each cell's lines vertically centred; a heading on grey with a rule
+        under it); y moves below it."""
+        y = self.get_y()
+        height = max(len(c) for c in lines) * lh + 2 * pad_v
+        if heading:
+            self.set_fill_color(*_GREY)
+            self.rect(self.l_margin, y, self.epw, height, style="F")
+        margin, self.c_margin = self.c_margin, pad_h
+        x = self.l_margin
+        for cell_lines, w, al, st in zip(lines, cols, aligns, styles, strict=True):
+            self.set_font(_FONT, st, size)
+            top = y + (height - len(cell_lines) * lh) / 2
+            for j, text in enumerate(cell_lines):
+                self.set_xy(x, top + j * lh)
+                self.cell(w, lh, text, align=al)
+            x += w
+        self.c_margin = margin
+        if heading:
+            self.line(self.l_margin, y + height, self.l_margin + self.epw, y + height)
+        self.set_xy(self.l_margin, y + height)
 
     def figure(self, fig: Any, width: float | None = None) -> None:
         """A figure centred: PNG bytes scaled to ``width`` (mm), or a vector drawing

@@ -4,6 +4,7 @@ Residuals per step, estimate convergence and orientation coverage are drawn dire
 in millimetres (no rasterising, no matplotlib: issue 32 — the Agg figures were most of the certificate's time):
 the same content and styling as the earlier matplotlib figures, sharp at any zoom, their labels extractable.
 Determinism: equal inputs give equal drawings (``bytes(drawing)``, whose SHA-256 certificate.json states).
+What the figures show: docs/certificate.md.
 
 The noise report's Allan deviation figure is still matplotlib's (:func:`analysis.noise.plot.plot_noise`),
 rendered to PNG by :func:`_render` inside :func:`_context` (matplotlib imported only then).
@@ -129,7 +130,7 @@ def plot_residuals(
                                                                            [0.0]])))  # fmt: skip
     bottom = Panel(d, left, 54.0, width, h, xlim, data_limits(np.concatenate([rms.ravel(), sig])))
     xt = (k, [str(r.get("name", i)) for i, r in enumerate(rows)])
-    top.decorate((k, [""] * len(rows)), nice_ticks(*top.ylim, 6), _TICK, xlabels=False)
+    top.decorate((k, [""] * len(rows)), nice_ticks(*top.ylim, 7), _TICK, xlabels=False)
     bottom.decorate(xt, nice_ticks(*bottom.ylim, 5), _TICK, x_rotation=70.0)
     top.hline(0.0, BLACK, 0.2)
     for a in range(3):
@@ -343,17 +344,23 @@ def plot_coverage(geometry: Sequence[StepGeometry]) -> Drawing:
         return np.column_stack([cx + scale * p[:, 0], cy - scale * p[:, 1]])
 
     lat_all = np.linspace(-math.pi / 2, math.pi / 2, 91)
-    grid = [to_mm(np.full_like(lat_all, math.radians(m)), lat_all) for m in range(-150, 151, 30)]
-    for par in range(-75, 76, 15):
-        ends = to_mm(np.array([-math.pi, math.pi]), np.full(2, math.radians(par)))
-        grid.append(ends)
-        d.text(ends[0, 0] - 1.5, ends[0, 1], f"{par}°".replace("-", MINUS), _TICK, hex_colour("#404040"), "R", "M")
-    for g in grid:
+    meridians = np.radians(np.arange(-150, 151, 30, dtype=float))
+    grid = to_mm(np.repeat(meridians, lat_all.size), np.tile(lat_all, meridians.size))
+    for g in np.split(grid, meridians.size):
         d.polyline(g, GRID, 0.15)
+    parallels = np.radians(np.arange(-75, 76, 15, dtype=float))
+    ends = to_mm(np.tile([-math.pi, math.pi], parallels.size), np.repeat(parallels, 2)).reshape(-1, 4)
+    d.segments(ends, GRID, 0.15)
+    for par, (x, y, _, _) in zip(range(-75, 76, 15), ends, strict=True):
+        d.text(x - 1.5, y, f"{par}°".replace("-", MINUS), _TICK, hex_colour("#404040"), "R", "M")
     holds, traces = _coverage_data(geometry)
+    pieces = []  # every spin, decimated to at most ~360 points and its last, one projection (NaN rows break it)
     for tr in traces:
         stride = max(1, tr.shape[0] // 360)
-        pts = tr[::stride] if stride == 1 or (tr.shape[0] - 1) % stride == 0 else np.vstack([tr[::stride], tr[-1:]])
+        keep = tr[::stride] if (tr.shape[0] - 1) % stride == 0 else np.vstack([tr[::stride], tr[-1:]])
+        pieces += [keep, np.full((1, 2), np.nan)]
+    if pieces:
+        pts = np.concatenate(pieces)
         d.polyline(to_mm(pts[:, 0], pts[:, 1]), _RED, 0.42)
     if holds:
         h = np.array(holds)

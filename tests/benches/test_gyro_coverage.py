@@ -23,7 +23,9 @@ from benchmarks.gyro_coverage import (
     _classes,
     class_table,
     load_scores,
+    noise_check,
     parameter_shares,
+    plan_class_ratios,
     plan_ratios,
     run_unit_coverage,
     save_scores,
@@ -109,18 +111,47 @@ def test_class_shares_weigh_each_parameter_alike_when_u_differs_within_a_class()
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=False,
-    reason="open (issue 25, measured 2026-11-28, benchmarks/RESULTS.md 'gyro_coverage'): on seeds 25000-25029 all "
-    "nine classes are in band (gyro S 3.3 %, RMS 0.98 since the table's rate jitter is in the encoder angle), but the "
-    "per-parameter plan check fails on gyro_b_z (0.82) and gyro_tau_yx (1.203); a per-parameter RMS of 30 runs "
-    "scatters by ±13 %, an independent 30 seeds fail it on gyro_G_xx/G_zz instead",
-)
 def test_unit_certificate_covers_the_truth_per_class_and_the_plan_predicts_the_scatter():
+    """Issue 25's Monte Carlo, 30 runs, seeds 25000–25029 (fixed before any result was seen; not to be changed).
+
+    Per class (gyro b, S, τ, G and the accelerometer's b, S, τ, d, r): fraction of |error| > U in 2–9 % and
+    RMS(error/u) in 0.8–1.25. The plan check — "per class (gyro bias, scale, misalignment, g-sensitivity) … the
+    planned σ is within ×1.2 of the Monte Carlo RMS" — is read per class, as the sentence says: the RMS over the
+    class's parameters and the runs of (error − realised run-level type-B effect)/planned σ within [1/1.2, 1.2]
+    (:func:`benchmarks.gyro_coverage.plan_class_ratios`; decided before the re-run of 2026-11-28 03:20 UTC). Per
+    parameter, 30 runs scatter by ±13 % (1σ) and a correct plan passes all 15 gyro ratios with probability ≈ 0.07,
+    so the per-parameter ratios are reported in RESULTS.md as information, not tested; the class figure scatters
+    by ±7 % (three parameters) or ±5 % (six), so ×1.2 still fails a plan that is wrong by 20 %.
+    """
     uc = run_unit_coverage(COVERAGE_RUNS)
     rows = {cls: (frac, rms) for cls, _m, frac, rms, _ok, _s in class_table(uc)}
     for cls, (frac, rms) in rows.items():  # gyro b, S, τ, G and the accelerometer's b, S, τ, d, r
         assert TARGET_OUTSIDE[0] <= frac <= TARGET_OUTSIDE[1], (cls, frac, rows)
         assert TARGET_RMS[0] <= rms <= TARGET_RMS[1], (cls, rms, rows)
-    for cls, r in plan_ratios(uc).items():
-        assert np.all((r <= PLAN_RATIO) & (r >= 1 / PLAN_RATIO)), (cls, r)
+    ratios = plan_class_ratios(uc)
+    for cls, r in ratios.items():
+        assert 1 / PLAN_RATIO <= r <= PLAN_RATIO, (cls, r, ratios, plan_ratios(uc))
+
+
+@pytest.mark.slow
+def test_budget_and_plan_propagate_the_simulated_gyro_noise_through_the_estimator(tmp_path):
+    """The gyro noise alone (white ARW + bias-instability flicker, the simulated world's own streams of 200 seeds,
+    26000–26199) through the identification's linear gain on one run of the coverage bench (seed 25000) scatters
+    the gyro states as the identification's covariance (white ⊕ bias instability: the budget's first two lines
+    and the plan's σ) says: RMS(δx/σ) per class within 0.9–1.1 (600 or 1200 values: 1σ ±0.03 / ±0.02). And the
+    run's own error of the noise-dominated states (b, G) is its own realised noise through that gain, within 0.3 σ
+    (the rest: rate jitter, attitude, azimuth, ≲ 0.15 σ)."""
+    import io
+
+    from benches.session import execute, prepare
+
+    prep = prepare(unit_coverage_bench(tmp_path), "ten-step-fast-spin")
+    folder = tmp_path / "run"
+    folder.mkdir()
+    assert execute(prep, folder, seed=25000, transport=None, live=False, stream=io.StringIO()).status == "complete"
+    nc = noise_check(folder, list(range(26000, 26200)))
+    rms = nc.class_rms()
+    for cls, v in rms.items():
+        assert 0.9 <= v <= 1.1, (cls, rms)
+    idx = [nc.names.index(n) for n in GYRO_CLASSES["gyro b"] + GYRO_CLASSES["gyro G"]]
+    np.testing.assert_array_less(np.abs((nc.run_error - nc.run_effect) / nc.sigma)[idx], 0.3)
