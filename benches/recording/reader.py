@@ -411,10 +411,7 @@ class Recording:
         :data:`KEPT_FIELDS`: what identification reads) are kept as they pass, and :meth:`samples` serves them
         from memory once every checksum has passed: the identification reads the verified pass's rows
         instead of decoding the file a second time; the rows between the windows are kept too for the fields in
-        :data:`KEPT_BETWEEN` (the time base's motion windows). They are kept as the pieces each read block
-        contributes: the block's own decoded arrays (views, no copy) where a piece is at least half the block,
-        copies of the few rows otherwise (so a short window does not hold a whole block); a read within one
-        piece is a view, one across pieces is put together (:meth:`_kept_rows`). :meth:`close` releases them.
+        :data:`KEPT_BETWEEN` (the time base's motion windows). :meth:`close` releases them.
 
         Raises
         ------
@@ -424,25 +421,24 @@ class Recording:
         v2 = self.header.format_version >= 2
         done = [s for s in self.steps if s.status == "complete"] if v2 else []
         hashers = [_StepHasher() for _ in done]
-        ranges: list[tuple[int, int]] = []  # the row ranges to keep ...
-        names: list[list[str]] = []  # ... and the fields each keeps
+        kept: list[tuple[int, int, dict[str, NDArray[Any]]]] = []
+        names: list[list[str]] = []  # the fields each kept range keeps
         if keep:
             fields = [n for n in KEPT_FIELDS if n in self.sample_fields]
             for s in self.complete_steps():
                 a, b = s.acq_start, min(s.acq_end, self.n_samples)
                 if b > a and fields:
-                    ranges.append((a, b))
+                    kept.append((a, b, {}))
                     names.append(fields)
             between = [n for n in KEPT_BETWEEN if n in self.sample_fields]
-            gaps = _gaps(list(ranges), self.n_samples)
+            gaps = _gaps([(a, b) for a, b, _ in kept], self.n_samples)
             if between and 0 < sum(b - a for a, b in gaps) <= KEPT_BETWEEN_MAX_ROWS:
-                ranges.extend(gaps)
+                kept.extend((a, b, {}) for a, b in gaps)
                 names.extend(between for _ in gaps)
             whole = [n for n in KEPT_WHOLE if n in self.sample_fields]
             if whole and 0 < self.n_samples <= KEPT_WHOLE_MAX_ROWS:
-                ranges.append((0, self.n_samples))
+                kept.append((0, self.n_samples, {}))
                 names.append(whole)
-        kept: list[tuple[int, int, dict[str, NDArray[Any]]]] = []  # pieces of the ranges, one per chunk read
         first = 0
         for chunk in self.iter_samples(fields=self.sample_fields):
             a, b = chunk.start, chunk.start + len(chunk)
@@ -455,12 +451,14 @@ class Recording:
                 for name in IMU_FIELDS:
                     hashers[k].update("imu", name, getattr(chunk, name)[lo:hi])
                 k += 1
-            for (ka, kb), keeps in zip(ranges, names, strict=True):
+            for (ka, kb, arrays), keeps in zip(kept, names, strict=True):
                 lo, hi = max(a, ka), min(b, kb)
-                if lo < hi:  # the decoded chunk's own rows (no copy) when they are most of it, else a copy
-                    view = 2 * (hi - lo) >= b - a
-                    rows = {n: getattr(chunk, n)[lo - a : hi - a] for n in keeps}
-                    kept.append((lo, hi, rows if view else {n: v.copy() for n, v in rows.items()}))
+                if lo < hi:
+                    for name in keeps:
+                        v = getattr(chunk, name)
+                        if name not in arrays:
+                            arrays[name] = np.empty((kb - ka, *v.shape[1:]), dtype=v.dtype)
+                        arrays[name][lo - ka : hi - ka] = v[lo - a : hi - a]
         table = self.table()
         for s, h in zip(done, hashers, strict=True):
             for name in TABLE_FIELDS:

@@ -371,16 +371,17 @@ class InertialModel:
         for bit: a constant, or a last-bit cycle of a few samples), and then the counts of a whole noise block
         at once (element-wise, the same values)."""
         n = f0.shape[0]
-        k = np.arange(k0, k0 + n, dtype=np.int64)
-        t = k * self.dt
+        t = None  # the samples' times, formed where they are used (a settled hold's block needs none)
         rest = rest_key is not None and self._time_free
         if rest:
             if self._rest_phys is None or self._rest_phys[0] != (rest_key, n):
+                t = np.arange(k0, k0 + n, dtype=np.int64) * self.dt
                 phys = self.physical(t, f0, omega, alpha, earth_b)
                 phys.flags.writeable = False
                 self._rest_phys = ((rest_key, n), phys)
             phys = self._rest_phys[1]
         else:
+            t = np.arange(k0, k0 + n, dtype=np.int64) * self.dt
             phys = self.physical(t, f0, omega, alpha, earth_b)
         period = 0  # the filtered physical signal repeats every ``period`` rows (a settled hold; 0: it does not)
         if self._aa is not None:
@@ -397,6 +398,8 @@ class InertialModel:
         if self.chamber is None and self.cfg.temperature is None:  # temperature_c is the lab's: its word
             temp = self._constant(n, "temperature")
         else:
+            if t is None:
+                t = np.arange(k0, k0 + n, dtype=np.int64) * self.dt
             temp = np.rint(self.temperature_c(t) / self.cfg.scale.temperature_lsb).astype(np.int16)
         frames = RawFrames(
             counter=counter[i : i + n],

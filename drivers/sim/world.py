@@ -676,7 +676,7 @@ class SimulatedWorld:
         tb = self.cfg.table
         w = self._rng_jitter.standard_normal((n, 3))
         mask = self._spin_mask()
-        jittered = tb.rate_jitter > 0 and bool(np.any(mask))
+        jittered = tb.rate_jitter > 0 and bool(mask.any())
         if jittered:
             a = self._jit_a
             x, _ = signal.lfilter(
@@ -693,7 +693,7 @@ class SimulatedWorld:
         if not n:
             pass
         elif phi is None and all(fold is None or t[-1] < fold[0] for fold in self._jit_fold):
-            if np.any(self._jit_angle):
+            if self._jit_angle.any():
                 ang = ang + self._jit_angle
                 turned = True
         else:
