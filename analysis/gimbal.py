@@ -66,6 +66,18 @@ def _ry(a: NDArray[np.float64]) -> NDArray[np.float64]:
     return _rotation(a, 1)
 
 
+Trig = tuple[NDArray[np.float64], ...]
+"""cos ψ, sin ψ, cos θ, sin θ, cos γ, sin γ of gimbal angles (..., 3): :func:`angle_trig`."""
+
+
+def angle_trig(angles: ArrayLike) -> Trig:
+    """The gimbal angles' cosines and sines (cos ψ, sin ψ, cos θ, sin θ, cos γ, sin γ), each of shape (...,),
+    for the ``trig`` argument of :func:`nav_to_body`, :func:`table_rate`, :func:`body_rate` and
+    :func:`gravity_in_body` (one reference computes them once instead of in each; the same values bit for bit)."""
+    a = np.asarray(angles, dtype=float)
+    return tuple(f(a[..., k]) for k in range(3) for f in (np.cos, np.sin))
+
+
 def table_to_nav(angles: ArrayLike) -> NDArray[np.float64]:
     """C_t^n for gimbal angles (..., 3) = (ψ, θ, γ), rad; returns (..., 3, 3)."""
     a = np.asarray(angles, dtype=float)
@@ -78,20 +90,21 @@ def body_to_nav(angles: ArrayLike, mounting: ArrayLike | None = None) -> NDArray
     return c if mounting is None else c @ np.asarray(mounting, dtype=float)
 
 
-def nav_to_body(angles: ArrayLike, v: ArrayLike, mounting: ArrayLike | None = None) -> NDArray[np.float64]:
+def nav_to_body(
+    angles: ArrayLike, v: ArrayLike, mounting: ArrayLike | None = None, *, trig: Trig | None = None
+) -> NDArray[np.float64]:
     """A navigation-frame (ENU) vector ``v`` (3,) in the body frame b at gimbal angles (..., 3), rad: C_n^b v.
 
     C_n^b v = C_t^b R_y(γ)ᵀ R_x(θ)ᵀ R_z(ψ)ᵀ v, the three rotations applied to the vector one after the other
     (elementwise over samples: a third of the time of forming C_b^n (n, 3, 3) by :func:`body_to_nav` and
-    multiplying; the same vector to rounding, ≤ 1e-15 relative). Returns shape (..., 3).
+    multiplying; the same vector to rounding, ≤ 1e-15 relative). Returns shape (..., 3). ``trig``: the angles'
+    :func:`angle_trig`, when the caller has them.
     """
     a = np.asarray(angles, dtype=float)
     vx, vy, vz = (float(c) for c in np.asarray(v, dtype=float).reshape(3))
-    cp, sp = np.cos(a[..., 0]), np.sin(a[..., 0])
+    cp, sp, ct, st, cg, sg = angle_trig(a) if trig is None else trig
     x, y = cp * vx + sp * vy, cp * vy - sp * vx  # R_z(ψ)ᵀ
-    ct, st = np.cos(a[..., 1]), np.sin(a[..., 1])
     y, z = ct * y + st * vz, ct * vz - st * y  # R_x(θ)ᵀ
-    cg, sg = np.cos(a[..., 2]), np.sin(a[..., 2])
     out = np.empty(a.shape)
     out[..., 0] = cg * x - sg * z  # R_y(γ)ᵀ
     out[..., 1] = y
@@ -101,20 +114,22 @@ def nav_to_body(angles: ArrayLike, v: ArrayLike, mounting: ArrayLike | None = No
     return out @ np.asarray(mounting, dtype=float)  # (C_b^t)ᵀ v^t, row-vector form
 
 
-def table_rate(angles: ArrayLike, rates: ArrayLike) -> NDArray[np.float64]:
+def table_rate(angles: ArrayLike, rates: ArrayLike, *, trig: Trig | None = None) -> NDArray[np.float64]:
     """Angular rate of the inner gimbal relative to the ground, in the inner-gimbal frame t, rad/s.
 
     ω^t = R_y(γ)ᵀ [R_x(θ)ᵀ (ψ̇ e_z) + θ̇ e_x] + γ̇ e_y, for angles and gimbal rates of shape (..., 3).
-    (Earth rotation is not included: add C_n^t Ω^n for what a gyro senses.)
+    (Earth rotation is not included: add C_n^t Ω^n for what a gyro senses.) ``trig``: the angles'
+    :func:`angle_trig`, when the caller has them.
     """
     a = np.asarray(angles, dtype=float)
     r = np.asarray(rates, dtype=float)
     th, ga = a[..., 1], a[..., 2]
     psid, thd, gad = r[..., 0], r[..., 1], r[..., 2]
     # R_x(θ)ᵀ ψ̇ e_z = ψ̇ [0, sin θ, cos θ]
-    v1x, v1y, v1z = thd, psid * np.sin(th), psid * np.cos(th)
+    sin_th, cos_th = (np.sin(th), np.cos(th)) if trig is None else (trig[3], trig[2])
+    v1x, v1y, v1z = thd, psid * sin_th, psid * cos_th
     # R_y(γ)ᵀ v = [c v_x − s v_z, v_y, s v_x + c v_z]
-    c, s = np.cos(ga), np.sin(ga)
+    c, s = (np.cos(ga), np.sin(ga)) if trig is None else (trig[4], trig[5])
     out = np.empty(np.broadcast_shapes(a.shape, r.shape))
     out[..., 0] = c * v1x - s * v1z
     out[..., 1] = v1y + gad
@@ -122,26 +137,36 @@ def table_rate(angles: ArrayLike, rates: ArrayLike) -> NDArray[np.float64]:
     return out
 
 
-def body_rate(angles: ArrayLike, rates: ArrayLike, mounting: ArrayLike | None = None) -> NDArray[np.float64]:
-    """Angular rate of the unit relative to the ground in its body frame b, rad/s: ω^b = C_t^b ω^t."""
-    w = table_rate(angles, rates)
+def body_rate(
+    angles: ArrayLike, rates: ArrayLike, mounting: ArrayLike | None = None, *, trig: Trig | None = None
+) -> NDArray[np.float64]:
+    """Angular rate of the unit relative to the ground in its body frame b, rad/s: ω^b = C_t^b ω^t
+    (``trig``: the angles' :func:`angle_trig`, when the caller has them)."""
+    w = table_rate(angles, rates, trig=trig)
     if mounting is None:
         return w
     return w @ np.asarray(mounting, dtype=float)  # (C_b^t)ᵀ ω^t, row-vector form
 
 
-def gravity_in_body(angles: ArrayLike, g: float, mounting: ArrayLike | None = None) -> NDArray[np.float64]:
+def gravity_in_body(
+    angles: ArrayLike, g: float, mounting: ArrayLike | None = None, *, trig: Trig | None = None
+) -> NDArray[np.float64]:
     """Specific force of gravity at rest in the body frame, m/s²: C_n^b [0, 0, g]ᵀ, shape (..., 3).
 
     Only the third row of C_b^n is needed: e_zᵀ R_z(ψ) R_x(θ) R_y(γ) = [−cos θ sin γ, sin θ, cos θ cos γ]
-    (heading does not move the vertical), then times the mounting C_b^t.
+    (heading does not move the vertical), then times the mounting C_b^t. ``trig``: the angles'
+    :func:`angle_trig`, when the caller has them.
     """
     a = np.asarray(angles, dtype=float)
     th, ga = a[..., 1], a[..., 2]
+    if trig is None:
+        cos_th, sin_th, cos_ga, sin_ga = np.cos(th), np.sin(th), np.cos(ga), np.sin(ga)
+    else:
+        cos_th, sin_th, cos_ga, sin_ga = trig[2], trig[3], trig[4], trig[5]
     row = np.empty(a.shape)
-    row[..., 0] = -np.cos(th) * np.sin(ga)
-    row[..., 1] = np.sin(th)
-    row[..., 2] = np.cos(th) * np.cos(ga)
+    row[..., 0] = -cos_th * sin_ga
+    row[..., 1] = sin_th
+    row[..., 2] = cos_th * cos_ga
     if mounting is not None:
         row = row @ np.asarray(mounting, dtype=float)
     return g * row

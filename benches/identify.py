@@ -55,7 +55,7 @@ from .calibration_result import (
 from .progress import ProgressDisplay
 from .recorded_run import RecordedRun, run_of
 from .recording import RecordingError, StepRecord, TableReadings, recording_file
-from .reference import acquisition_span, earth_in_body, reference_at, reference_for_samples
+from .reference import acquisition_span, earth_in_body, reference_at, reference_for_window
 from .timebase import reference_rate_covariance, run_time_base, table_in_unit_time, time_base_sensitivity
 
 ACCEL_MODEL: ModelSpec = get_model("accelerometer")
@@ -190,15 +190,15 @@ def window_reference(
     bench's reference clock, not of the unit's or the controller's.
     """
     mnt = config.unit.mounting
-    fr, om, ang = reference_for_samples(
+    fr, om, ang, trig = reference_for_window(  # each angle's sine and cosine once for the window's rotations
         t, table_time, table_angles, table_rates, g=config.site.g, mounting=mnt, latency=latency, span=span
     )
-    earth = earth_in_body(ang, config.site.latitude, mnt) if with_earth else None
+    earth = earth_in_body(ang, config.site.latitude, mnt, trig=trig) if with_earth else None
     if spin:
         slope = angle_over_time(t, table_time, table_angles, span)
         if slope is not None:
             slope = slope * (1.0 + clock_rate)
-            om = body_rate(ang, np.broadcast_to(slope, ang.shape), mnt)
+            om = body_rate(ang, np.broadcast_to(slope, ang.shape), mnt, trig=trig)
     return fr, om, ang, earth
 
 

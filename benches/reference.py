@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from analysis.earth import earth_rate_enu
-from analysis.gimbal import body_rate, gravity_in_body, nav_to_body
+from analysis.gimbal import Trig, angle_trig, body_rate, gravity_in_body, nav_to_body
 
 
 def interpolate_table(
@@ -66,10 +66,16 @@ def interpolate_table(
 
 
 def reference_at(
-    angles: NDArray[np.float64], rates: NDArray[np.float64], g: float, mounting: NDArray[np.float64] | None
+    angles: NDArray[np.float64],
+    rates: NDArray[np.float64],
+    g: float,
+    mounting: NDArray[np.float64] | None,
+    *,
+    trig: Trig | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Reference specific force (m/s², body) and body rate (rad/s, body) for gimbal angles/rates (n, 3)."""
-    return gravity_in_body(angles, g, mounting), body_rate(angles, rates, mounting)
+    """Reference specific force (m/s², body) and body rate (rad/s, body) for gimbal angles/rates (n, 3)
+    (``trig``: their :func:`analysis.gimbal.angle_trig`, when the caller has them)."""
+    return gravity_in_body(angles, g, mounting, trig=trig), body_rate(angles, rates, mounting, trig=trig)
 
 
 def reference_for_samples(
@@ -94,19 +100,41 @@ def reference_for_samples(
     angles : (n, 3)
         Gimbal angles used (ψ, θ, γ), rad (for attitude sensitivities and plots).
     """
-    ang, rat = interpolate_table(np.asarray(t, dtype=float) - latency, table_time, table_angles, table_rates, span)
-    f_ref, omega = reference_at(ang, rat, g, mounting)
+    f_ref, omega, ang, _ = reference_for_window(
+        t, table_time, table_angles, table_rates, g=g, mounting=mounting, latency=latency, span=span
+    )
     return f_ref, omega, ang
 
 
+def reference_for_window(
+    t: NDArray[np.float64],
+    table_time: NDArray[np.float64],
+    table_angles: NDArray[np.float64],
+    table_rates: NDArray[np.float64],
+    *,
+    g: float,
+    mounting: NDArray[np.float64] | None,
+    latency: float = 0.0,
+    span: tuple[float, float] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], Trig]:
+    """:func:`reference_for_samples` and the angles' cosines and sines (:func:`analysis.gimbal.angle_trig`),
+    for the caller's further rotations of the same samples (:func:`earth_in_body`, a spin's body rate): each
+    sine and cosine computed once per window instead of once per rotation (the same values bit for bit)."""
+    ang, rat = interpolate_table(np.asarray(t, dtype=float) - latency, table_time, table_angles, table_rates, span)
+    trig = angle_trig(ang)
+    f_ref, omega = reference_at(ang, rat, g, mounting, trig=trig)
+    return f_ref, omega, ang, trig
+
+
 def earth_in_body(
-    angles: NDArray[np.float64], latitude: float, mounting: NDArray[np.float64] | None
+    angles: NDArray[np.float64], latitude: float, mounting: NDArray[np.float64] | None, *, trig: Trig | None = None
 ) -> NDArray[np.float64]:
     """Earth rate in the body frame at gimbal angles (n, 3), rad/s: C_n^b Ω [0, cos φ, sin φ] (ENU).
 
     The constant navigation-frame rate rotated into the body frame sample by sample
-    (:func:`analysis.gimbal.nav_to_body`), not through a (n, 3, 3) C_b^n per sample (issue 32)."""
-    return nav_to_body(angles, earth_rate_enu(latitude), mounting)
+    (:func:`analysis.gimbal.nav_to_body`), not through a (n, 3, 3) C_b^n per sample (issue 32); ``trig``: the
+    angles' :func:`analysis.gimbal.angle_trig`, when the caller has them."""
+    return nav_to_body(angles, earth_rate_enu(latitude), mounting, trig=trig)
 
 
 def acquisition_span(t_first: float, t_last: float, latency: float, sample_rate: float) -> tuple[float, float]:

@@ -34,9 +34,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from filterpy.kalman import KalmanFilter
 from numpy.typing import ArrayLike, NDArray
 
+from analysis.identification._filterpy import kalman_filter_class
 from analysis.identification.batch import information_rank
 from analysis.identification.specification import ModelSpec, resolve
 
@@ -132,7 +132,7 @@ class StreamingIdentifier:
         if sample_rate is not None and not (np.isfinite(sample_rate) and sample_rate > 0):
             raise ValueError(f"sample_rate must be > 0 Hz, got {sample_rate}")
         self.sample_rate = sample_rate
-        kf = KalmanFilter(dim_x=n_p, dim_z=n_p)
+        kf = kalman_filter_class()(dim_x=n_p, dim_z=n_p)  # filterpy's, without filterpy.stats
         kf.x = (xm / self._scale).reshape(n_p, 1)
         kf.P = 0.5 * (p_s + p_s.T)
         kf.F = np.eye(n_p)

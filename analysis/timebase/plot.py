@@ -12,10 +12,19 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter
 
 from analysis.timebase.model import TimeBase
 
 AXIS_NAMES = ("outer", "middle", "inner")
+
+
+def _minor_label(v: float, _pos: int | None = None) -> str:
+    """A log axis' minor tick label: 2 and 5 times a power of ten, plain ("0.2", "5"); the others unlabelled."""
+    if not v > 0:
+        return ""
+    mantissa = v / 10.0 ** np.floor(np.log10(v) + 1e-9)
+    return f"{v:g}" if any(abs(mantissa - m) < 1e-6 for m in (2.0, 5.0)) else ""
 
 
 def plot_timing_residuals(tb: TimeBase) -> Figure:
@@ -44,6 +53,9 @@ def plot_timing_residuals(tb: TimeBase) -> Figure:
         f"ε = {tb.rate * 1e6:+.3f} ± {tb.u_rate * 1e6:.3g} ppm (u, k = 1), Birge ratio {tb.misfit:.2f}",
         fontsize=9,
     )
+    if tb.events:  # plain labels (0.2, 0.5, 1, 2, 5, 10): the default 10^k labels go through mathtext, half the draw
+        ax2.yaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
+        ax2.yaxis.set_minor_formatter(FuncFormatter(_minor_label))
     ax2.set_ylabel("in-motion residual as time, µs")
     ax2.set_xlabel("unit time, s")
     FigureCanvasAgg(fig)

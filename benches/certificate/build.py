@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import datetime as _dt
+import gc
 import hashlib
 import json
 import math
@@ -767,9 +768,29 @@ def issue_certificate(
     (pdf_path, json_path, verdict)
         verdict: "PASS", "FAIL", "INCONCLUSIVE", "INCOMPLETE" or "NO LIMITS".
     """
-    cert = build_certificate(run_dir, issue_date=issue_date, allow_incomplete=allow_incomplete, recorded=recorded)
-    pdf, js = publish_certificate(cert, run_dir, out_pdf, out_json, sinks)
+    with _heap_frozen():
+        cert = build_certificate(run_dir, issue_date=issue_date, allow_incomplete=allow_incomplete, recorded=recorded)
+        pdf, js = publish_certificate(cert, run_dir, out_pdf, out_json, sinks)
     return pdf, js, cert.verdict
+
+
+@contextlib.contextmanager
+def _heap_frozen() -> Any:
+    """The objects alive on entry kept out of the garbage collector's scans until exit (``gc.freeze``).
+
+    Rendering parses three TrueType fonts (hundreds of thousands of small objects): the collections that
+    triggers scanned everything a ``tablebench run`` process holds by then (recording, identification, live
+    view), 0.1–0.3 s of a run's certificate (issue 32). Nothing is lost: ``gc.unfreeze`` hands the objects back
+    to the oldest generation, and what the certificate allocates is collected as usual.
+    """
+    if gc.get_freeze_count():  # inside another freeze (issue → publish, or the caller's own): leave it to that one
+        yield
+        return
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
 
 
 def publish_certificate(
@@ -785,14 +806,15 @@ def publish_certificate(
     given = Path(run_dir)
     run = given.parent if given.is_file() else given
     sinks = sinks if sinks is not None else sinks_for_run(run)
-    doc = sinks.certificate(
-        CertificateDocument(
-            run=run,
-            certificate=cert,
-            out_pdf=None if out_pdf is None else Path(out_pdf),
-            out_json=None if out_json is None else Path(out_json),
+    with _heap_frozen():
+        doc = sinks.certificate(
+            CertificateDocument(
+                run=run,
+                certificate=cert,
+                out_pdf=None if out_pdf is None else Path(out_pdf),
+                out_json=None if out_json is None else Path(out_json),
+            )
         )
-    )
     assert doc.pdf is not None and doc.json is not None  # the run folder sink always writes both
     return doc.pdf, doc.json
 

@@ -31,6 +31,7 @@ from benches.recording import StepRecord
 
 from .analyses import noise_rows
 from .content import NOISE_REPORT, BenchInfo, Certificate, ambient_text
+from .plots import plot_noise_report
 
 STATIC_KINDS = frozenset({"warmup", "hold", "note"})
 """Step kinds of a static record (a soak or a ramp is a thermal procedure: not a noise record)."""
@@ -145,14 +146,9 @@ def build_noise_report(
         "misalignment need several attitudes, the size effect needs spins; for a calibration run "
         "'tablebench run --procedure ten-step' (or ten-step-fast-spin)"
     )
-    plots: dict[str, bytes] = {}
+    plots: dict[str, Any] = {}
     if with_plots and noise["channels"]:
-        from analysis.noise.plot import plot_noise  # lazy: matplotlib (--help time)
-
-        from .plots import _context, _render  # lazy: matplotlib (--help time)
-
-        with _context():
-            plots["noise"] = _render(plot_noise(noise, title=f"Overlapping Allan deviation, step {step.name!r}"))
+        plots["noise"] = plot_noise_report(noise, title=f"Overlapping Allan deviation, step {step.name!r}")
     ambient = dict(binfo.ambient or {})
     return Certificate(
         number=f"TB-{str(recording_block.get('sha256', ''))[:10].upper()}",

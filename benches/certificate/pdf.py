@@ -134,8 +134,24 @@ class _CertificatePdf(FPDF):
         if lines is None:
             self.multi_cell(0, size * 0.48, text, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
             return
+        h = size * 0.48
         for line in lines:
-            self.cell(0, size * 0.48, line, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+            if self.get_y() + h > self.page_break_trigger:
+                self.add_page()
+            y = self.get_y()
+            self._line_text(self.l_margin, y, self.epw, h, line, "L")
+            self.set_xy(self.l_margin, y + h)
+
+    def _line_text(self, x: float, y: float, w: float, h: float, text: str, align: str) -> None:
+        """One line of text in the box (x, y, w, h), placed as ``cell`` places it (``c_margin`` inside the box,
+        the baseline 0.3 font sizes below its middle) but written directly with ``text``: a tenth of ``cell``'s
+        cost, which went through fpdf's fragment and line machinery for every table cell (issue 32)."""
+        if align == "L":
+            tx = x + self.c_margin
+        else:
+            tw = self.get_string_width(text)
+            tx = x + w - self.c_margin - tw if align == "R" else x + (w - tw) / 2
+        self.text(tx, y + 0.5 * h + 0.3 * self.font_size, text)
 
     def _wrap(self, text: str, width: float) -> list[str] | None:
         """``text`` broken at spaces (and at its newlines) into lines of at most ``width`` mm in the current font;
@@ -226,8 +242,7 @@ class _CertificatePdf(FPDF):
             self.set_font(_FONT, st, size)
             top = y + (height - len(cell_lines) * lh) / 2
             for j, text in enumerate(cell_lines):
-                self.set_xy(x, top + j * lh)
-                self.cell(w, lh, text, align=al)
+                self._line_text(x, top + j * lh, w, lh, text, al)
             x += w
         self.c_margin = margin
         if heading:

@@ -6,46 +6,26 @@ the same content and styling as the earlier matplotlib figures, sharp at any zoo
 Determinism: equal inputs give equal drawings (``bytes(drawing)``, whose SHA-256 certificate.json states).
 What the figures show: docs/certificate.md.
 
-The noise report's Allan deviation figure is still matplotlib's (:func:`analysis.noise.plot.plot_noise`),
-rendered to PNG by :func:`_render` inside :func:`_context` (matplotlib imported only then).
+The noise report's Allan deviation figure (:func:`plot_noise_report`) is drawn the same way (``tablebench
+noise`` keeps its matplotlib figure, :func:`analysis.noise.plot.plot_noise`).
 
 Display units come from :mod:`analysis.units` (µg, ppm, arcsec, µg/g², mm).
 """
 
 from __future__ import annotations
 
-import io
 import math
 from collections.abc import Mapping, Sequence
-from contextlib import AbstractContextManager
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from PIL import Image
 
 from analysis.identification.budget import StepGeometry
-from analysis.units import DEG_PER_HOUR, UG, display_unit, to_display
+from analysis.units import DEG_PER_HOUR, DISPLAY_UNITS, UG, display_unit, to_display
 
 from .drawing import BLACK, GRID, MINUS, Drawing, Panel, blend, data_limits, hex_colour, nice_ticks
 
-_RC: dict[str, Any] = {
-    "font.family": "DejaVu Sans",
-    "font.size": 8.0,
-    "axes.titlesize": 8.5,
-    "axes.labelsize": 8.0,
-    "xtick.labelsize": 7.0,
-    "ytick.labelsize": 7.0,
-    "legend.fontsize": 7.0,
-    "axes.grid": True,
-    "grid.alpha": 0.35,
-    "grid.linewidth": 0.5,
-    "lines.linewidth": 1.0,
-    "savefig.dpi": 150,
-    "svg.hashsalt": "tablebench",
-    "path.simplify": True,
-    "figure.dpi": 100,
-}
 _AXIS_COLOURS = tuple(hex_colour(c) for c in ("#1f4e9c", "#2f8f2f", "#b5332a"))
 _BLUE, _RED = hex_colour("#1f4e9c"), hex_colour("#b5332a")
 _BAND = blend(hex_colour("#9db7e0"), 0.6)
@@ -53,36 +33,11 @@ _TITLE, _LABEL, _TICK = 7.5, 7.0, 6.3
 """Font sizes, pt: panel titles, axis labels, tick labels."""
 
 
-def _render(fig: Any) -> bytes:
-    """PNG bytes of a matplotlib figure (RGB, at ``savefig.dpi``), without timestamps or software metadata (the
-    noise report's Allan deviation figure)."""
-    import matplotlib  # lazy: matplotlib (--help time)
-    from matplotlib.backends.backend_agg import FigureCanvasAgg  # lazy: matplotlib (--help time)
-
-    dpi = float(matplotlib.rcParams["savefig.dpi"])
-    canvas = FigureCanvasAgg(fig)
-    fig.set_dpi(dpi)
-    canvas.draw()
-    rgb = np.ascontiguousarray(np.asarray(canvas.buffer_rgba())[..., :3])
-    buf = io.BytesIO()
-    # compress_level 1: the PNG is an intermediate (the PDF decodes it and compresses the pixels itself)
-    Image.fromarray(rgb).save(buf, format="png", dpi=(dpi, dpi), compress_level=1)
-    return buf.getvalue()
-
-
-def _context() -> AbstractContextManager[None]:
-    """The certificate's matplotlib settings (from the defaults, so a user's matplotlibrc cannot change a figure)."""
-    import matplotlib  # lazy: matplotlib (--help time)
-
-    base = dict(matplotlib.rcParamsDefault)
-    base.pop("backend", None)
-    base.update(_RC)
-    return matplotlib.rc_context(base)
-
-
-def _legend(d: Drawing, right: float, top: float, entries: Sequence[tuple[str, str, Any]], ncol: int = 1) -> None:
+def _legend(d: Drawing, right: float, top: float, entries: Sequence[tuple[str, str, Any]], ncol: int = 1,
+            size: float = 6.3, row: float = 3.6) -> None:  # fmt: skip
     """A legend box with its top right corner at (right, top): entries (label, kind "o"/"s"/"-"/"e", colour)."""
-    size, row = 6.3, 3.6
+    if not entries:
+        return
     col_w = 8.0 + max(len(e[0]) for e in entries) * size * 0.2  # marker, gap, about 0.57 em per character
     rows = -(-len(entries) // ncol)
     w, h = ncol * col_w + 1.5, rows * row + 1.6
@@ -94,8 +49,9 @@ def _legend(d: Drawing, right: float, top: float, entries: Sequence[tuple[str, s
             d.line(cx, cy, cx + 5, cy, colour, 0.35)
         else:
             if kind == "e":
-                d.segments([[cx + 2.5, cy - 1.3, cx + 2.5, cy + 1.3], [cx + 2.0, cy - 1.3, cx + 3.0, cy - 1.3],
-                            [cx + 2.0, cy + 1.3, cx + 3.0, cy + 1.3]], colour, 0.2)  # fmt: skip
+                hb = min(1.3, 0.36 * row)
+                d.segments([[cx + 2.5, cy - hb, cx + 2.5, cy + hb], [cx + 2.0, cy - hb, cx + 3.0, cy - hb],
+                            [cx + 2.0, cy + hb, cx + 3.0, cy + hb]], colour, 0.2)  # fmt: skip
             d.markers([[cx + 2.5, cy]], "s" if kind == "s" else "o", 1.1, colour)
         d.text(cx + 6.5, cy, label, size, align="L", valign="M")
 
@@ -378,5 +334,125 @@ def plot_coverage(geometry: Sequence[StepGeometry]) -> Drawing:
     return d
 
 
+_TERM_COLOURS = {t: hex_colour(c) for t, c in (("Q", "#9467bd"), ("N", "#1f77b4"), ("B", "#2ca02c"),
+                                                 ("K", "#ff7f0e"), ("R", "#d62728"))}  # fmt: skip
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+def _decades(ax: Panel, size: float, xlabels: bool = True) -> None:
+    """Log-log panel furniture: a grid at every 1–9 × 10ⁿ (decades darker), ticks and 10ⁿ labels at decades
+    (the panel's limits are log10 of the data)."""
+    d = ax.d
+    minor, major = [], []
+    for lo, hi, horizontal in ((*ax.xlim, False), (*ax.ylim, True)):
+        for e in range(math.floor(lo), math.ceil(hi) + 1):
+            for k in range(1, 10):
+                v = e + math.log10(k)
+                if lo <= v <= hi:
+                    (major if k == 1 else minor).append((v, horizontal))
+    for lines, colour, width in ((minor, blend(GRID, 0.5), 0.1), (major, GRID, 0.18)):
+        segs = [[ax.x, float(ax.py(v)), ax.x + ax.w, float(ax.py(v))] if h else
+                [float(ax.px(v)), ax.y, float(ax.px(v)), ax.y + ax.h] for v, h in lines]  # fmt: skip
+        d.segments(segs, colour, width)
+    for v, horizontal in major:
+        label = "10" + str(round(v)).translate(_SUPERSCRIPT)
+        if horizontal:
+            y = float(ax.py(v))
+            d.line(ax.x - 1.0, y, ax.x, y)
+            d.text(ax.x - 1.6, y, label, size, align="R", valign="M")
+        else:
+            x = float(ax.px(v))
+            d.line(x, ax.y + ax.h, x, ax.y + ax.h + 1.0)
+            if xlabels:
+                d.text(x, ax.y + ax.h + 1.8, label, size, align="C", valign="T")
+
+
+def _noise_panel(d: Drawing, ax: Panel, ch: Mapping[str, Any], scale: float, conf: float) -> None:
+    """One channel of :func:`plot_noise_report`: OADEV with its χ² interval, the fitted model and its terms."""
+    from analysis.noise.terms import TERMS, noise_model, term_contributions  # lazy: scipy (--help time)
+
+    _decades(ax, 5.6)
+    legend: list[tuple[str, str, Any]] = []
+    d.clip(ax.x, ax.y, ax.w, ax.h)
+    for est, dev in ch.get("deviations", {}).items():
+        tau = np.array([np.nan if v is None else v for v in dev["tau"]], dtype=float)
+        val = np.array([np.nan if v is None else v for v in dev.get("value_unbiased", dev["value"])], dtype=float)
+        ok = np.isfinite(tau) & (tau > 0) & np.isfinite(val) & (val > 0)
+        x, y = np.log10(tau[ok]), np.log10(val[ok] * scale)
+        if "lo" in dev and "hi" in dev:
+            lo = np.array([np.nan if v is None else v for v in dev["lo"]], dtype=float)[ok] * scale
+            hi = np.array([np.nan if v is None else v for v in dev["hi"]], dtype=float)[ok] * scale
+            good = np.isfinite(lo) & np.isfinite(hi) & (lo > 0)
+            xs, y0, y1 = ax.px(x[good]), ax.py(np.log10(lo[good]), True), ax.py(np.log10(hi[good]), True)
+            d.segments(np.concatenate([np.column_stack([xs, y0, xs, y1]), np.column_stack([xs - 0.5, y0, xs + 0.5, y0]),
+                                       np.column_stack([xs - 0.5, y1, xs + 0.5, y1])]), _BLUE, 0.18)  # fmt: skip
+        d.polyline(ax.xy(x, y), _BLUE, 0.25)
+        d.markers(ax.xy(x, y), "o", 0.9, _BLUE)
+        legend.append((est.upper(), "e", _BLUE))
+    fit = ch.get("fit")
+    tau_fit = np.array([np.nan if v is None else v for v in np.ravel(ch.get("tau", []))], dtype=float)
+    if fit and tau_fit.size:
+        coef = np.asarray(fit["coefficients"], dtype=float)
+        tt = np.geomspace(np.nanmin(tau_fit), np.nanmax(tau_fit), 200)
+        model = np.sqrt(noise_model(tt, coef)) * scale
+        d.polyline(ax.xy(np.log10(tt), np.log10(model), True), _RED, 0.4)
+        legend.append((f"fit ({fit.get('estimator', '')})", "-", _RED))
+        contrib, terms = term_contributions(tt, coef), ch.get("terms_display") or ch.get("terms", {})
+        for t in TERMS:
+            if coef[TERMS.index(t)] > 0:
+                with np.errstate(divide="ignore"):
+                    d.polyline(ax.xy(np.log10(tt), np.log10(contrib[t] * scale), True), _TERM_COLOURS[t], 0.25,
+                               (0.4, 0.6))  # fmt: skip
+                v = terms.get(t, {}).get("value")
+                legend.append((f"{t} = {v:.3g} {terms[t]['unit']}" if v is not None else t, "-", _TERM_COLOURS[t]))
+    d.unclip()
+    ax.frame()
+    _legend(d, ax.x + ax.w - 0.8, ax.y + 0.8, legend, size=5.0, row=2.6)
+
+
+def plot_noise_report(noise: Mapping[str, Any], title: str = "") -> Drawing:
+    """The noise report's figure: per channel (three a row), the overlapping Allan deviation with its χ²
+    intervals, the fitted noise model and each fitted term's line, log-log, in display units (µg, deg/h).
+
+    Parameters
+    ----------
+    noise : mapping
+        The :func:`analysis.noise.terms.analyse_noise` result (``noise.json`` format) of the record's channels.
+    title : str
+        Shown above the panels.
+    """
+    chans = noise.get("channels", {})
+    names = list(chans)
+    rows = max(1, -(-len(names) // 3))
+    d = Drawing(175.0, 8.0 + 66.0 * rows)
+    pw, ph = 42.0, 48.0
+    conf = float(noise.get("confidence", 0.683))
+    for k, name in enumerate(names):
+        ch = chans[name]
+        kind, label = {"rad/s": ("gyro_bias", "gyro"), "m/s^2": ("acceleration", "accelerometer")}.get(
+            ch.get("unit", ""), (None, None))  # fmt: skip
+        scale = 1.0 / DISPLAY_UNITS[kind][1] if kind else 1.0
+        unit = display_unit(kind) if kind else ch.get("unit", "SI")
+        vals = [np.asarray([np.nan if v is None else v for v in dev.get("value_unbiased", dev["value"])], dtype=float)
+                for dev in ch.get("deviations", {}).values()]  # fmt: skip
+        allv = np.concatenate(vals) * scale if vals else np.zeros(0)
+        allv = allv[np.isfinite(allv) & (allv > 0)]
+        taus = np.concatenate([np.array([np.nan if v is None else v for v in np.ravel(dev["tau"])], dtype=float)
+                               for dev in ch.get("deviations", {}).values()] or [np.ones(1)])  # fmt: skip
+        taus = taus[np.isfinite(taus) & (taus > 0)]
+        xlim = (math.log10(taus.min()) - 0.1, math.log10(taus.max()) + 0.1) if taus.size else (-1.0, 1.0)
+        ylim = (math.log10(allv.min() / 4.0), math.log10(allv.max() * 3.0)) if allv.size else (-1.0, 1.0)
+        x0, y0 = 14.0 + (k % 3) * (pw + 16.0), 14.0 + (k // 3) * 66.0
+        ax = Panel(d, x0, y0, pw, ph, xlim, ylim, title=f"{name} ({label})" if label else name)
+        _noise_panel(d, ax, ch, scale, conf)
+        d.text(x0 + pw / 2, y0 - 1.5, ax.title, _TITLE, align="C")
+        d.text(x0 + pw / 2, y0 + ph + 8.0, "τ (s)", 6.5, align="C")
+        d.text(x0 - 11.0, y0 + ph / 2, f"deviation ({unit}); bars: {conf:.1%} CI", 6.0, align="C", valign="T",
+               angle=90.0)  # fmt: skip
+    if title:
+        d.text(87.5, 5.0, title, 8.0, align="C")
+    return d
+
+
 __all__ = ["convergence_figure", "convergence_frame", "mollweide", "plot_convergence", "plot_coverage",
-           "plot_residuals"]
+           "plot_noise_report", "plot_residuals"]

@@ -162,6 +162,7 @@ class Hdf5Recorder:
         self._quanta: dict[str, float] = {}
         self._deferred: dict[str, float] = {}
         self._ns_last: dict[str, int] = {}  # /timing clock columns stored as ns deltas: ns of their last value
+        self._handles: dict[str, h5py.Dataset] = {}  # datasets appended to at every step, opened once
         try:
             if resume:
                 self._file = self._open_resume()
@@ -279,6 +280,13 @@ class Hdf5Recorder:
                 self._ns_last[name] = 0
             else:
                 self._dataset(g, name, dt, None, TABLE_CHUNK)
+
+    def _dataset_at(self, path: str) -> h5py.Dataset:
+        """The open file's dataset at ``path``, looked up once (an h5py lookup costs more than the append)."""
+        d = self._handles.get(path)
+        if d is None:
+            d = self._handles[path] = self._file[path]
+        return d
 
     def _append_timing(self, d: h5py.Dataset, name: str, values: NDArray[np.float64]) -> None:
         """Append rows to a ``/timing`` column in its stored encoding."""
@@ -445,24 +453,24 @@ class Hdf5Recorder:
             }
             for name, data in tcols.items():
                 self._hasher.update("table", name, data)
-                _append_rows(f["table"][name], data)
+                _append_rows(self._dataset_at(f"table/{name}"), data)
             self._table_written += len(b)
             self._buf_table.clear()
             tim = np.array(self._buf_timing, dtype=np.float64).reshape(-1, 4)
             for j, name in enumerate(TIMING_TABLE):
-                self._append_timing(f["timing"][name], name, tim[:, j])
+                self._append_timing(self._dataset_at(f"timing/{name}"), name, tim[:, j])
             self._buf_timing.clear()
         if self._buf_blocks:
             blk = np.array(self._buf_blocks, dtype=np.float64).reshape(-1, 2)
             for j, name in enumerate(TIMING_BLOCK):
-                self._append_timing(f["timing"][name], name, blk[:, j])
+                self._append_timing(self._dataset_at(f"timing/{name}"), name, blk[:, j])
             self._buf_blocks.clear()
         if self._buf_events:
             rows = np.array(
                 [(t, w.encode(), _clip_utf8(lv, 16), _clip_utf8(m, _MSG_LEN)) for t, w, lv, m in self._buf_events],
                 dtype=EVENT_DTYPE,
             )
-            _append_rows(f["events"], rows)
+            _append_rows(self._dataset_at("events"), rows)
             self._buf_events.clear()
         if self._buf_aux:
             _write_aux(f, self._buf_aux)
@@ -502,7 +510,7 @@ class Hdf5Recorder:
                 ],
                 dtype=STEP_DTYPE,
             )
-            _append_rows(self._file["steps"], row)
+            _append_rows(self._dataset_at("steps"), row)
             self._file.flush()
 
         with self._writing():
@@ -536,6 +544,7 @@ class Hdf5Recorder:
                     with self._writing():
                         self._chunks.close()
             finally:
+                self._handles.clear()
                 self._file.close()
                 self._closed = True
 

@@ -11,6 +11,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
+from .registry.sink import sink_factory
 from .run_folder import RunFolderSink
 from .sink import ResultSink, ResultSinks, SinkError, _say_stderr
 
@@ -57,8 +58,6 @@ def sinks_for_run(
 
 def _registry(runs_folder: Path, options: Mapping[str, Any]) -> ResultSink | None:
     """The calibration registry (:mod:`benches.results.registry`), on unless ``options["registry"]`` is "off"."""
-    from benches.results.registry.sink import sink_factory  # lazy: sqlalchemy (--help time)
-
     return sink_factory(runs_folder, options)
 
 

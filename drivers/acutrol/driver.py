@@ -100,6 +100,10 @@ _OTHER_WORDS = {"synthesis", "track", "abort", "home"}
 MAX_QUEUE = 32
 """Most error-queue entries read after one message (a controller that keeps reporting is named as such)."""
 _NUMBER = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+_REMOTE, _IN_POSITION, _AT_RATE, _MOVING, _FAULT, _INTERLOCK_OPEN = (
+    int(TableStatus.REMOTE), int(TableStatus.IN_POSITION), int(TableStatus.AT_RATE), int(TableStatus.MOVING),
+    int(TableStatus.FAULT), int(TableStatus.INTERLOCK_OPEN),
+)  # fmt: skip
 
 
 def format_number(x: float) -> str:
@@ -575,7 +579,7 @@ class AclTurntable:
     def _status(
         self, t: float, angles: NDArray[np.float64], rates: NDArray[np.float64], modes: tuple[AxisMode, ...], stb: int
     ) -> tuple[TableStatus, FaultCode]:
-        status = TableStatus.REMOTE
+        status = _REMOTE  # the bits as integers, one TableStatus at the end (an IntFlag's | runs Python code)
         fault = FaultCode.NONE
         steady = []
         for i in range(3):
@@ -597,14 +601,14 @@ class AclTurntable:
         pos = [i for i in range(3) if modes[i] == AxisMode.POSITION]
         rat = [i for i in range(3) if modes[i] == AxisMode.RATE]
         if pos and all(steady[i] for i in pos):
-            status |= TableStatus.IN_POSITION
+            status |= _IN_POSITION
         if rat and all(steady[i] for i in rat):
-            status |= TableStatus.AT_RATE
+            status |= _AT_RATE
         spinning = any(abs(float(rates[i])) > self.rate_tol for i in rat)
         if not all(steady) or spinning:
-            status |= TableStatus.MOVING
+            status |= _MOVING
         if stb & STB_SI:
-            status |= TableStatus.FAULT | TableStatus.INTERLOCK_OPEN
+            status |= _FAULT | _INTERLOCK_OPEN
             fault = FaultCode.INTERLOCK
             if not self.fault_report:
                 try:
@@ -618,8 +622,8 @@ class AclTurntable:
                 if self._interlocks is None:
                     self._interlocks = self._interlock_fields()
                 if not all(f.strip().lower().startswith("clos") for f in self._interlocks):
-                    status |= TableStatus.INTERLOCK_OPEN
-        return status, fault
+                    status |= _INTERLOCK_OPEN
+        return TableStatus(status), fault
 
     def heartbeat(self) -> None:
         """Nothing to send: ACL has no host heartbeat or watchdog; the host stops the axes on every exit path."""

@@ -202,8 +202,9 @@ def counter_gaps(previous: int | None, counter: NDArray[np.uint32]) -> int:
         return 0
     first = int(counter[0])
     if (previous is None or first == (int(previous) + 1) % (1 << 32)) and int(counter[-1]) - first == counter.size - 1:
-        # the usual block: the counter goes on from ``previous`` by +1 at every frame (no wrap): no gap
-        if counter.size == 1 or bool(np.all(np.diff(counter.astype(np.int64)) == 1)):
+        # the usual block: the counter goes on from ``previous`` by +1 at every frame (no wrap): no gap. Steps
+        # of +1 modulo the dtype's range (uint32: 2³²) with the ends n − 1 apart are +1 steps without a wrap
+        if counter.size == 1 or bool(np.all(counter[1:] - counter[:-1] == 1)):
             return 0
     t = CounterTracker(1 << 32, 1)
     if previous is not None:

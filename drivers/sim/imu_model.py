@@ -114,6 +114,8 @@ class _GaussMarkovBank:
             self.groups.append((d, a_d, chans, sig * math.sqrt(1.0 - a_d * a_d), sig))
         # stationary start: value of each process at the sample before the first block
         self.state = [rng.standard_normal(len(g[2])) * g[4] for g in self.groups]
+        self._ramps: dict[int, NDArray[np.float64]] = {}  # (1 … D) / D of each grid step D
+        self._scratch: NDArray[np.float64] | None = None
 
     def draw(self, n: int) -> NDArray[np.float64]:
         """(n, n_channels) summed Gauss–Markov output for the next n samples (n a multiple of NOISE_BLOCK).
@@ -123,6 +125,8 @@ class _GaussMarkovBank:
         sample gets the same additions in the same order (group by group: the previous grid value, then the
         interpolated step), so the values are those of the sample-major sum bit for bit."""
         out = np.zeros((self.n_channels, n))
+        if self._scratch is None or self._scratch.size < out.size:
+            self._scratch = np.empty(out.size)  # the interpolation's products, reused (no fresh pages per group)
         for gi, (d, a_d, chans, w_std, _) in enumerate(self.groups):
             m = n // d
             w = self.rng.standard_normal((m, len(chans))) * w_std
@@ -138,7 +142,12 @@ class _GaussMarkovBank:
                 prev[:, 1:] = pt[:, :-1]
                 t3 = tgt.reshape(len(chans), m, d)
                 t3 += prev[:, :, None]
-                t3 += (pt - prev)[:, :, None] * (np.arange(1, d + 1) / d)[None, None, :]
+                ramp = self._ramps.get(d)
+                if ramp is None:
+                    ramp = self._ramps[d] = (np.arange(1, d + 1) / d)[None, None, :]
+                prod = self._scratch[: t3.size].reshape(t3.shape)
+                np.multiply((pt - prev)[:, :, None], ramp, out=prod)
+                t3 += prod
             self.state[gi] = p[-1].copy()
             if not full:
                 out[chans] += tgt  # one process per channel per corner: no repeated indices
@@ -214,7 +223,7 @@ class InertialModel:
         # kept while the inputs are the same objects/bits
         self._aa_rest: tuple[NDArray[np.float64], bytes, NDArray[np.float64], NDArray[np.float64], int] | None = None
         self._stage: tuple[NDArray[np.float64], NDArray[np.uint64], NDArray[np.uint32]] | None = None
-        self._rest_counts: tuple[NDArray[np.float64], bytes, NDArray[np.int32]] | None = None
+        self._rest_counts: tuple[NDArray[np.float64], NDArray[np.float64], int, NDArray[np.int32]] | None = None
         self._const: dict[tuple[int, str], NDArray[np.generic]] = {}
         sc = config.scale
         self._lsb = np.array([sc.accel_lsb] * 3 + [sc.gyro_lsb] * 3)
@@ -296,7 +305,9 @@ class InertialModel:
         """Motion-independent streams for samples k0…k0+n−1: (n, 8) = 6 output-referred noise channels
         (white, flicker, random walk, periodic, ARMA; SI), time-stamp jitter (s), drop uniform."""
         out = np.empty((n, 8))
-        out[:, :6] = self._rng_white.standard_normal((n, 6)) * self._white
+        white = self._rng_white.standard_normal((n, 6))
+        white *= self._white
+        out[:, :6] = white
         out[:, :6] += self._gm.draw(n)
         if np.any(self._rw != 0):  # (its stream feeds nothing else: not drawn for a bench without random walk)
             inc = self._rng_rw.standard_normal((n, 6)) * self._rw
@@ -360,16 +371,17 @@ class InertialModel:
         for bit: a constant, or a last-bit cycle of a few samples), and then the counts of a whole noise block
         at once (element-wise, the same values)."""
         n = f0.shape[0]
-        k = np.arange(k0, k0 + n, dtype=np.int64)
-        t = k * self.dt
+        t = None  # the samples' times, formed where they are used (a settled hold's block needs none)
         rest = rest_key is not None and self._time_free
         if rest:
             if self._rest_phys is None or self._rest_phys[0] != (rest_key, n):
+                t = np.arange(k0, k0 + n, dtype=np.int64) * self.dt
                 phys = self.physical(t, f0, omega, alpha, earth_b)
                 phys.flags.writeable = False
                 self._rest_phys = ((rest_key, n), phys)
             phys = self._rest_phys[1]
         else:
+            t = np.arange(k0, k0 + n, dtype=np.int64) * self.dt
             phys = self.physical(t, f0, omega, alpha, earth_b)
         period = 0  # the filtered physical signal repeats every ``period`` rows (a settled hold; 0: it does not)
         if self._aa is not None:
@@ -377,7 +389,7 @@ class InertialModel:
         st = self.streams(k0, n)
         i = k0 - self._buf_k0
         if period:
-            counts = self._settled_counts(phys[:period], k0, i, n)
+            counts = self._settled_counts(phys, period, k0, i, n)
         else:
             y = phys + st[:, :6]
             q = np.rint(y / self._lsb, out=y)
@@ -386,6 +398,8 @@ class InertialModel:
         if self.chamber is None and self.cfg.temperature is None:  # temperature_c is the lab's: its word
             temp = self._constant(n, "temperature")
         else:
+            if t is None:
+                t = np.arange(k0, k0 + n, dtype=np.int64) * self.dt
             temp = np.rint(self.temperature_c(t) / self.cfg.scale.temperature_lsb).astype(np.int16)
         frames = RawFrames(
             counter=counter[i : i + n],
@@ -429,21 +443,21 @@ class InertialModel:
         self._aa_rest = (phys, zi.tobytes(), out, self._aa_zi, period)
         return out, period
 
-    def _settled_counts(self, pattern: NDArray[np.float64], k0: int, i: int, n: int) -> NDArray[np.int32]:
+    def _settled_counts(self, phys: NDArray[np.float64], period: int, k0: int, i: int, n: int) -> NDArray[np.int32]:
         """Counts of rows i … i+n−1 of the noise buffer (samples k0 …) added to the filtered physical signal
-        of a settled hold, whose row for sample k is ``pattern[(k − k0) mod P]``: computed for the whole buffer
-        once per buffer and pattern (element-wise: the values of each block's own sum)."""
-        period = pattern.shape[0]
-        key = pattern.tobytes() + (k0 % period).to_bytes(1, "little")
+        ``phys`` of a settled hold (read-only, kept by :meth:`_anti_alias`), whose row for sample k is
+        ``phys[(k − k0) mod period]``: computed for the whole buffer once per buffer and filtered block
+        (element-wise: the values of each block's own sum)."""
+        phase = k0 % period
         c = self._rest_counts
-        if c is None or c[0] is not self._buf or c[1] != key:
+        if c is None or c[0] is not self._buf or c[1] is not phys or c[2] != phase:
             ks = np.arange(self._buf_k0, self._buf_k0 + self._buf.shape[0], dtype=np.int64)
-            y = pattern[(ks - k0) % period] + self._buf[:, :6]
+            y = phys[:period][(ks - k0) % period] + self._buf[:, :6]
             q = np.rint(y / self._lsb, out=y)
             counts = np.clip(q, -_INT32_MAX, _INT32_MAX, out=q).astype(np.int32)
             counts.flags.writeable = False
-            self._rest_counts = c = (self._buf, key, counts)
-        return c[2][i : i + n]
+            self._rest_counts = c = (self._buf, phys, phase, counts)
+        return c[3][i : i + n]
 
     def _output_stage(self) -> tuple[NDArray[np.uint64], NDArray[np.uint32]]:
         """Time stamps (ns) and frame counters of every sample of the noise buffer (computed once per buffer;

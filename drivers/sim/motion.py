@@ -14,6 +14,7 @@ analytic state and the result does not depend on how sample generation is split.
 from __future__ import annotations
 
 import bisect
+import functools
 import math
 from dataclasses import dataclass
 
@@ -53,7 +54,7 @@ class AxisPlan:
     t_still: float = 0.0
     t_done: float = 0.0
 
-    @property
+    @functools.cached_property  # (asked for at every block: computed once per plan; the plan is immutable)
     def settle_end(self) -> float:
         """Time after which the settling transient is cut (envelope below 1e-13 rad: exactly at rest)."""
         if self.settle_t0 is None or abs(self.settle_amp) <= 1e-13:

@@ -62,6 +62,11 @@ from drivers.sim.config import ACCEL_PARAM_NAMES, SimConfig, gyro_truth
 from drivers.sim.imu_model import InertialModel, misalignment_matrix
 from drivers.sim.motion import AxisPlan, plan_hold, plan_position, plan_rate, plan_stop
 
+_REMOTE, _MOVING, _IN_POSITION, _AT_RATE, _FAULT = (
+    int(TableStatus.REMOTE), int(TableStatus.MOVING), int(TableStatus.IN_POSITION), int(TableStatus.AT_RATE),
+    int(TableStatus.FAULT),
+)  # fmt: skip
+
 
 class SimulatedBench(Protocol):
     """A loaded bench file as the world needs it (``benches.bench_config.BenchConfig`` is one)."""
@@ -69,6 +74,7 @@ class SimulatedBench(Protocol):
     name: str
     path: object
     simulation: SimConfig | None
+
 
 CHUNK = 32768
 """Samples evaluated per vectorised pass (bounds memory for long produce() calls)."""
@@ -111,6 +117,10 @@ class SimulatedWorld:
             plan_hold(0.0, 0.0, AxisMode.POSITION, target=0.0),
         ]
         self._switch = [0.0, 0.0, 0.0]  # true time from which each axis's current plan applies
+        self._mask: NDArray[np.float64] | None = None  # _spin_mask of the current plans
+        self._plans_version = 0
+        self._rest_from: tuple[int, float] | None = None  # (version, a time from which all axes are at rest)
+        self._rest_rows: dict[int | None, tuple[NDArray[np.float64], ...]] = {}  # of the version _rest_from names
         self._history: list[list[tuple[float, float, AxisPlan]]] = [[], [], []]  # (from, to, plan) replaced
         self._fault = FaultCode.NONE
         self._latched = TableStatus.NONE
@@ -128,6 +138,7 @@ class SimulatedWorld:
         self._rng_budget = np.random.default_rng(budget_ss)
         self._att_bound = float(bi.attitude_error_bound) if bi is not None else 0.0
         self._dphi = np.zeros(3)
+        self._rotations: tuple[bytes, NDArray[np.float64], NDArray[np.float64]] | None = None
         self._g_anomaly = float(self._rng_budget.normal(0.0, bi.gravity_anomaly_std)) if bi is not None else 0.0
         self._g = config.local_g + self._g_anomaly
         rb = float(bi.rate_error_bound) if bi is not None else 0.0
@@ -256,6 +267,8 @@ class SimulatedWorld:
         self._history[axis] = hist
         self._switch[axis] = t
         self._plans[axis] = plan
+        self._mask = None
+        self._plans_version += 1  # the caches of the plans' rest (_at_rest_from, _rest_rows) start again
 
     def _command_time(self) -> float:
         return self._transaction() if self._sep else self._k / self._fs
@@ -478,18 +491,19 @@ class SimulatedWorld:
             return acc[0].copy()
 
     def _status(self, t: float) -> TableStatus:
-        st = TableStatus.REMOTE | self._latched
+        # the bits as integers, one TableStatus at the end (an IntFlag's | runs Python code every time)
+        st = _REMOTE | int(self._latched)
         if any(t < pl.t_still for pl in self._plans):
-            st |= TableStatus.MOVING
+            st |= _MOVING
         pos = [pl for pl in self._plans if pl.mode == AxisMode.POSITION]
         if pos and all(t >= pl.t_done for pl in pos):
-            st |= TableStatus.IN_POSITION
+            st |= _IN_POSITION
         rate = [pl for pl in self._plans if pl.mode == AxisMode.RATE]
         if rate and all(t >= pl.t_done for pl in rate):
-            st |= TableStatus.AT_RATE
+            st |= _AT_RATE
         if self._fault != FaultCode.NONE:
-            st |= TableStatus.FAULT
-        return st
+            st |= _FAULT
+        return TableStatus(st)
 
     # ---- temperature chamber (docs/methods/thermal.md) --------------------------------------------------
     def _need_chamber(self) -> ChamberPhysics:
@@ -583,13 +597,25 @@ class SimulatedWorld:
         if any(t < sw and hist for sw, hist in zip(self._switch, self._history, strict=True)):
             pa, va, _ = self._evaluate(np.array([t]))
             return pa[0], va[0]
+        if self._at_rest_from(t):  # the same state at every later time (see _at_rest_from): formed once
+            rows = self._rest_rows.get(None)
+            if rows is None:
+                (p0, v0), (p1, v1), (p2, v2) = (plan.state(t) for plan in self._plans)
+                rows = self._rest_rows[None] = (np.array([p0, p1, p2]), np.array([v0, v1, v2]))
+                for a in rows:
+                    a.flags.writeable = False
+            return rows[0], rows[1]
         (p0, v0), (p1, v1), (p2, v2) = (plan.state(t) for plan in self._plans)
         return np.array([p0, p1, p2]), np.array([v0, v1, v2])
 
     def _static_rows(self, t0: float, n: int) -> tuple[NDArray[np.float64], ...]:
         """Angles, rates and accelerations (n, 3) of a static chunk starting at true time ``t0``: the first row
         (:meth:`AxisPlan.state`, the same bits as :meth:`_evaluate`) broadcast; rates and accelerations, +0 at
-        rest, are one shared read-only zero array."""
+        rest, are one shared read-only zero array. At rest they are the same at every later time (see
+        :meth:`_at_rest_from`): formed once per length until a plan changes."""
+        rows = self._rest_rows.get(n)
+        if rows is not None:
+            return rows
         (p0, v0), (p1, v1), (p2, v2) = (plan.state(t0) for plan in self._plans)
         ang = np.broadcast_to(np.array([p0, p1, p2]), (n, 3))
         rows = ([v0, v1, v2], [float(plan.a[-1]) for plan in self._plans])
@@ -599,6 +625,7 @@ class SimulatedWorld:
             else np.broadcast_to(np.array(r), (n, 3))
             for r in rows
         )
+        self._rest_rows[n] = (ang, rat, acc)
         return ang, rat, acc
 
     def _zero_rows(self, n: int) -> NDArray[np.float64]:
@@ -611,16 +638,28 @@ class SimulatedWorld:
     def _at_rest_from(self, t0: float) -> bool:
         """Every axis is at rest from true time ``t0`` on: in its current plan's last segment with zero rate and
         acceleration and past its settling transient. :meth:`_evaluate` then gives every later time the same
-        angle p + 0·dt + 0·dt² = p (dt ≥ 0), rate 0 and acceleration 0, so a hold's block is evaluated once."""
+        angle p + 0·dt + 0·dt² = p (dt ≥ 0), rate 0 and acceleration 0, so a hold's block is evaluated once.
+        Every condition is t0 < (a time) or does not depend on t0: once true, true later (kept per plans)."""
+        rf = self._rest_from
+        if rf is not None and rf[0] == self._plans_version and t0 >= rf[1]:
+            return True
         for plan, switch, hist in zip(self._plans, self._switch, self._history, strict=True):
             if (hist and t0 < switch) or t0 < plan.t[-1] or plan.v[-1] != 0.0 or plan.a[-1] != 0.0:
                 return False
             if plan.settle_t0 is not None and plan.settle_amp != 0.0 and t0 < plan.settle_end:
                 return False
+        if rf is None or rf[0] != self._plans_version:
+            self._rest_rows = {}
+        self._rest_from = (self._plans_version, t0)
         return True
 
     def _spin_mask(self) -> NDArray[np.float64]:
-        return np.array([1.0 if (pl.mode == AxisMode.RATE and pl.rate_cmd != 0.0) else 0.0 for pl in self._plans])
+        """1 for each axis spinning under a rate command, else 0 (read-only; kept until a plan changes)."""
+        if self._mask is None:
+            mask = np.array([1.0 if (pl.mode == AxisMode.RATE and pl.rate_cmd != 0.0) else 0.0 for pl in self._plans])
+            mask.flags.writeable = False
+            self._mask = mask
+        return self._mask
 
     def _frames(
         self,
@@ -637,7 +676,7 @@ class SimulatedWorld:
         tb = self.cfg.table
         w = self._rng_jitter.standard_normal((n, 3))
         mask = self._spin_mask()
-        jittered = tb.rate_jitter > 0 and bool(np.any(mask))
+        jittered = tb.rate_jitter > 0 and bool(mask.any())
         if jittered:
             a = self._jit_a
             x, _ = signal.lfilter(
@@ -654,7 +693,7 @@ class SimulatedWorld:
         if not n:
             pass
         elif phi is None and all(fold is None or t[-1] < fold[0] for fold in self._jit_fold):
-            if np.any(self._jit_angle):
+            if self._jit_angle.any():
                 ang = ang + self._jit_angle
                 turned = True
         else:
@@ -740,15 +779,24 @@ class SimulatedWorld:
         c_bn = c_tn @ self._mount
         if self._azimuth_error != 0.0:
             # installation: the outer gimbal's zero is δψ off East (a rotation about the local vertical)
-            c_bn = gimbal._rz(np.full(1, self._azimuth_error))[0] @ c_bn
+            c_bn = self._fixed_rotations()[0] @ c_bn
         if np.any(self._dphi):
             # realised table attitude error: C_b^n,true = R(δφ) C_b^n,reported (navigation-frame rotation)
-            from scipy.spatial.transform import Rotation
-
-            c_bn = Rotation.from_rotvec(self._dphi).as_matrix() @ c_bn
+            c_bn = self._fixed_rotations()[1] @ c_bn
         omega_b = omega_t @ self._mount
         alpha_b = alpha_t @ self._mount
         return c_bn, omega_b, alpha_b
+
+    def _fixed_rotations(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """R_z(δψ) of the azimuth error and R(δφ) of the realised attitude error (3, 3), formed once per δφ (a
+        moving block asks for them every time; the same matrices, so the same products)."""
+        key = self._dphi.tobytes()
+        if self._rotations is None or self._rotations[0] != key:
+            rz = gimbal._rz(np.full(1, self._azimuth_error))[0]
+            from scipy.spatial.transform import Rotation
+
+            self._rotations = (key, rz, Rotation.from_rotvec(self._dphi).as_matrix())
+        return self._rotations[1], self._rotations[2]
 
     # ---- events --------------------------------------------------------------------------------------
     def _feed(self) -> None:

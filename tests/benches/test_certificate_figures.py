@@ -10,9 +10,11 @@ import numpy as np
 import pypdfium2
 import pytest
 
+from analysis.noise.terms import analyse_noise
+from analysis.units import UG
 from benches.certificate import issue_certificate
 from benches.certificate.drawing import nice_ticks
-from benches.certificate.plots import mollweide, plot_residuals
+from benches.certificate.plots import mollweide, plot_noise_report, plot_residuals
 from tests.certificate_fixtures import make_run_folder
 
 
@@ -80,3 +82,17 @@ def test_figure_labels_are_text_on_their_pages(pages):
     assert "bench time, min" in conv and "b_x [µg]" in conv and "r_z [mm]" in conv
     cov = next(p for p in pages if "Orientation coverage:" in p)
     assert all(s in cov for s in ("+x up", "\u2212z up", "static holds", "45°"))
+
+
+def test_noise_report_figure_panels_frame_the_deviation_in_display_units():
+    """One log-log panel per channel framed about the OADEV in µg (the record is m/s²); same bytes twice."""
+    x = np.random.default_rng(2).normal(0.0, 500 * UG, 20_000)
+    res = analyse_noise({"accel_x": x}, 100.0, {"accel_x": "m/s^2"}, taus="octave", estimators=("oadev",),
+                        fit_estimator="oadev")  # fmt: skip
+    fig = plot_noise_report(res, title="t")
+    (panel,) = fig.panels
+    dev = np.asarray(res["channels"]["accel_x"]["deviations"]["oadev"]["value"], dtype=float) / UG
+    lo, hi = panel.ylim
+    assert lo < np.log10(np.nanmin(dev)) and np.log10(np.nanmax(dev)) < hi
+    assert panel.title == "accel_x (accelerometer)"
+    assert bytes(fig) == bytes(plot_noise_report(res, title="t"))

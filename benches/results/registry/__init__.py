@@ -14,11 +14,19 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from .store import ENV, AddOutcome, Registry, RegistryError, resolve_url
-
-_LAZY = {"RegistrySink": "sink", "add_run": "sink", "sink_factory": "sink"}
+_LAZY = {
+    "ENV": "url",
+    "resolve_url": "url",
+    "AddOutcome": "store",
+    "Registry": "store",
+    "RegistryError": "store",
+    "RegistrySink": "sink",
+    "add_run": "sink",
+    "sink_factory": "sink",
+}
 """Names imported on first use: the sink reads recordings (h5py, the identification), which the reading
-commands (``registry list/show/trend``) never need — a technician's wait is mostly imports."""
+commands (``registry list/show/trend``) never need, and the store imports SQLAlchemy, which a command that
+records nothing (``identify RUN --out elsewhere.json``) never needs — a technician's wait is mostly imports."""
 
 
 def __getattr__(name: str) -> Any:

@@ -16,7 +16,9 @@ from core.errors import OutputError
 from core.jsonio import write_text_atomic
 
 from . import queries
+from .record import RunRecordError, bench_settings
 from .report import compare_table, due_report, export_text, history_table, plot_trend
+from .sink import add_run
 from .store import Registry, RegistryError, resolve_url
 
 
@@ -44,9 +46,6 @@ def _history(reg: Registry, serial: str) -> list[queries.CalibrationRow]:
 
 
 def do_add(args: argparse.Namespace) -> str:
-    from .record import RunRecordError  # lazy: h5py, scipy (--help time)
-    from .sink import add_run  # lazy: h5py, scipy (--help time)
-
     reg = open_from_args(args)
     lines = []
     for run in args.run:
@@ -109,8 +108,6 @@ def do_due(args: argparse.Namespace) -> str:
         for r in rows:
             by_cfg.setdefault(r.configuration, []).append(r)
         for cfg, hist in sorted(by_cfg.items()):
-            from .record import bench_settings  # lazy: h5py (--help time)
-
             s = bench_settings(hist[-1].run_folder)[1]
             d = due_report(hist, s, now)
             m2 = "—" if d["method2_control_chart_days"] is None else f"{d['method2_control_chart_days']:.0f} d"

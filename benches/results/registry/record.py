@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from analysis.identification.model import PARAM_NAMES, predict
+from analysis.identification.model import PARAM_NAMES, centripetal, error_matrices
 from benches.calibration_integrity import load_verified, read_raw
 from benches.calibration_result import CalibrationResult
 from benches.certificate_register import CertificateRegister, RegisterError
@@ -212,25 +212,43 @@ def run_record(
     }
 
 
-_WINDOWS: dict[str, Any] = {}
-"""Recording SHA-256 → its acquisition windows (one read per recording and process: ``registry add`` of many
-runs of one recording, and the as found and as left of one run, read it once)."""
+_MOMENTS: dict[str, Any] = {}
+"""Recording SHA-256 → the sample means of its acquisition windows (:func:`_window_moments`; one read per
+recording and process: ``registry add`` of many runs of one recording, and the as found and as left of one run,
+read it once)."""
 
 
-def _windows(run: Path, recording_sha256: str) -> Any:
+def _window_moments(run: Path, recording_sha256: str) -> list[tuple[str, np.ndarray]] | None:
+    """Per acquisition window, its name and the (4, 3) sample means of f_out − f_ref, f_ref, f_ref∘f_ref and
+    c(ω) (body frame; :func:`analysis.identification.model.centripetal`); None when the recording cannot be
+    read. (The first is the mean of the small differences, not of f_out: no rounding of g-sized sums in it.)"""
     from benches.identify import IdentificationError, load_run  # lazy: filterpy, scipy (--help time)
 
-    if recording_sha256 and recording_sha256 in _WINDOWS:
-        return _WINDOWS[recording_sha256]
+    if recording_sha256 and recording_sha256 in _MOMENTS:
+        return _MOMENTS[recording_sha256]
     try:
         windows = load_run(run).windows
     except (IdentificationError, UserError, OSError):
         return None
+    moments = [
+        (
+            w.name,
+            np.array(
+                [
+                    np.mean(w.f_out - w.f_ref, axis=0),
+                    w.f_ref.mean(axis=0),
+                    np.mean(w.f_ref * w.f_ref, axis=0),
+                    centripetal(w.omega).mean(axis=0),
+                ]
+            ),
+        )  # fmt: skip
+        for w in windows
+    ]
     if recording_sha256:
-        if len(_WINDOWS) >= 8:
-            _WINDOWS.pop(next(iter(_WINDOWS)))
-        _WINDOWS[recording_sha256] = windows
-    return windows
+        if len(_MOMENTS) >= 64:
+            _MOMENTS.pop(next(iter(_MOMENTS)))
+        _MOMENTS[recording_sha256] = moments
+    return moments
 
 
 def as_found_as_left(
@@ -239,15 +257,22 @@ def as_found_as_left(
     """Residuals of this run's data against its reference under the previous (as found) and this (as left)
     calibration; None when the recording cannot be read (the registry then stores no as found).
 
+    Each step's mean residual is mean(f_out − h(x; f_ref, ω)) = mean(f_out − f_ref) − [(S+T) mean(f_ref) + b +
+    D mean(f_ref∘f_ref) + diag(r) mean(c(ω))]: the model (:func:`analysis.identification.model.predict`) is
+    affine in f_ref, f_ref∘f_ref and c(ω), so the window means are formed once per recording (equal to the mean
+    of the per-sample residuals up to rounding).
+
     Returns two mappings ``{"rms": [3], "max_abs_step_mean": [3], "steps": {name: [3]}}`` in m/s², body frame
     (``as_found`` is None when there is no previous calibration).
     """
-    windows = _windows(Path(run), recording_sha256)
-    if windows is None:
+    moments = _window_moments(Path(run), recording_sha256)
+    if moments is None:
         return None
 
     def residuals(x: np.ndarray) -> dict[str, Any]:
-        steps = {w.name: np.mean(w.f_out - predict(x, w.f_ref, w.omega), axis=0) for w in windows}
+        m3, b, d, r = error_matrices(x)
+        st = m3 - np.eye(3)  # S + T
+        steps = {name: mo[0] - (st @ mo[1] + b + d * mo[2] + r * mo[3]) for name, mo in moments}
         m = np.array(list(steps.values())) if steps else np.zeros((0, 3))
         return {
             "rms": np.sqrt(np.mean(m**2, axis=0)).tolist() if len(m) else [0.0] * 3,

@@ -10,7 +10,7 @@ from __future__ import annotations
 import datetime as _dt
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -18,9 +18,11 @@ from analysis.identification.model import PARAM_NAMES
 from benches.results.sink import AnalysisDocument, CalibrationDocument, CertificateDocument
 from core.errors import UserError
 
-from .queries import previous_of
 from .record import as_found_as_left, canonical, run_record
-from .store import AddOutcome, Registry, RegistryError, display_url, resolve_url
+from .url import resolve_url
+
+if TYPE_CHECKING:
+    from .store import AddOutcome, Registry
 
 
 def _utc_now() -> str:
@@ -37,6 +39,8 @@ def add_run(
     reg: Registry, run: str | Path, *, operator: str | None = None, configuration: str | None = None
 ) -> AddOutcome:
     """Record the run folder ``run`` (calibration, certificates, as found / as left); idempotent."""
+    from .queries import previous_of  # lazy: sqlalchemy, needed only when recording (--help time)
+
     rec = run_record(run, operator=operator, configuration=configuration, recorded_utc=_utc_now())
     cal = rec["calibration"]
     if reg.has_calibration(cal["digest"]):
@@ -69,11 +73,15 @@ class RegistrySink:
         self._reg: Registry | None = None
 
     def _registry(self) -> Registry:
+        from .store import Registry  # lazy: sqlalchemy, needed only when recording (--help time)
+
         if self._reg is None:
             self._reg = Registry(self.url)
         return self._reg
 
     def _add(self, run: Path) -> None:
+        from .store import RegistryError, display_url  # lazy: sqlalchemy, needed only when recording (--help time)
+
         try:
             add_run(self._registry(), run, operator=self.operator)
         except UserError as exc:

@@ -7,7 +7,9 @@ a bare path is an SQLite file. ``off`` switches the registry off for that comman
 
 Opening upgrades the schema to the newest Alembic revision (:mod:`.migrations`), serialised between
 processes (PostgreSQL: a transaction-level advisory lock; SQLite: ``BEGIN IMMEDIATE``), so two benches that
-open a new database at the same moment create it once.
+open a new database at the same moment create it once. A new, empty database is created directly at the newest
+schema (:mod:`.schema`) and stamped with its revision in Alembic's own table, as ``alembic stamp`` does, without
+importing Alembic or running every migration (a test checks that the migrations give exactly that schema).
 
 Adding is idempotent and safe under concurrency: every row is inserted with ``ON CONFLICT DO NOTHING`` on its
 natural key (unit: serial, model, configuration; bench: name, table model and serial; calibration: the values
@@ -17,14 +19,28 @@ first and then inserts nothing. See ``docs/registry.md``.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import Connection, Engine, create_engine, event, func, inspect, select, text, update
+from sqlalchemy import (
+    Column,
+    Connection,
+    Engine,
+    MetaData,
+    PrimaryKeyConstraint,
+    String,
+    Table,
+    create_engine,
+    event,
+    func,
+    inspect,
+    select,
+    text,
+    update,
+)
 from sqlalchemy.dialects.sqlite import insert as sqlite_insert
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import ArgumentError, DBAPIError, NoSuchModuleError, SQLAlchemyError
@@ -32,35 +48,21 @@ from sqlalchemy.exc import ArgumentError, DBAPIError, NoSuchModuleError, SQLAlch
 from benches.results.sink import SinkError
 
 from . import schema as S
+from .url import DEFAULT_FILE, ENV, OFF, resolve_url
 
-ENV = "TABLEBENCH_REGISTRY"
-DEFAULT_FILE = "registry.sqlite"
-OFF = "off"
 _LOCK_KEY = 0x7462_7265_6731  # "tbreg1": the advisory lock of schema upgrades (PostgreSQL)
 MIGRATIONS = Path(__file__).with_name("migrations")
+_ALEMBIC_VERSION = Table(
+    "alembic_version",
+    MetaData(),
+    Column("version_num", String(32), nullable=False),
+    PrimaryKeyConstraint("version_num", name="alembic_version_pkc"),
+)
+"""Alembic's version table, as Alembic itself creates it (``alembic.runtime.migration``)."""
 
 
 class RegistryError(SinkError):
     """The registry cannot be opened, read or written; the message names it and the fix."""
-
-
-def resolve_url(option: str | None, runs_folder: str | Path | None) -> str | None:
-    """The registry URL for a command (None: switched off).
-
-    ``option`` (``--registry``) wins, then :data:`ENV`, then ``<runs folder>/registry.sqlite``.
-    """
-    given = option if option not in (None, "") else os.environ.get(ENV, "")
-    if given and given.strip().lower() == OFF:
-        return None
-    if not given:
-        if runs_folder is None:
-            return None
-        return f"sqlite:///{Path(runs_folder).resolve() / DEFAULT_FILE}"
-    if "://" not in given:
-        return f"sqlite:///{Path(given).expanduser().resolve()}"
-    if given.startswith("postgresql://") or given.startswith("postgres://"):
-        return "postgresql+psycopg://" + given.split("://", 1)[1]
-    return given
 
 
 def display_url(url: str) -> str:
@@ -195,7 +197,7 @@ class Registry:
 
     def upgrade(self, target: str = "head") -> None:
         """Bring the schema to ``target`` (default the newest), once, whoever else is opening it."""
-        if target == "head" and self._is_current():
+        if target == "head" and (self._is_current() or self._create_if_empty()):
             return
         from alembic import command  # lazy: alembic (--help time)
         from alembic.config import Config  # lazy: alembic (--help time)
@@ -219,6 +221,25 @@ class Registry:
             finally:
                 if raw is not None:
                     raw.execute("PRAGMA foreign_keys = ON")
+
+    def _create_if_empty(self) -> bool:
+        """A database without any table: create the newest schema (:data:`.schema.metadata`) and stamp its
+        revision, in one transaction under the upgrade's lock; True when the database is then at the newest
+        revision (created here, or by another process meanwhile), False when it has tables of an older schema
+        (the migrations bring those up)."""
+        with self._guard("create its schema"), self.engine.begin() as conn:  # SQLite: BEGIN IMMEDIATE
+            if conn.dialect.name == "postgresql":
+                conn.exec_driver_sql(f"SELECT pg_advisory_xact_lock({_LOCK_KEY})")
+            tables = inspect(conn).get_table_names()
+            if tables:
+                if "alembic_version" not in tables:
+                    return False
+                rows = conn.execute(text("SELECT version_num FROM alembic_version")).all()
+                return [r[0] for r in rows] == [S.SCHEMA_VERSION]
+            S.metadata.create_all(conn)
+            _ALEMBIC_VERSION.create(conn)
+            conn.execute(_ALEMBIC_VERSION.insert().values(version_num=S.SCHEMA_VERSION))
+        return True
 
     # ---- writing -------------------------------------------------------------------------------------------
     def add(self, rec: Mapping[str, Any]) -> AddOutcome:

@@ -161,6 +161,51 @@ def test_a_populated_database_of_the_previous_schema_is_upgraded_keeping_every_r
     assert [(c.number, c.calibration_id, c.verdict) for c in certs] == [("TB-000002", 2, "PASS")]
 
 
+def _schema(engine: sa.Engine) -> dict:
+    """Every table's columns (name, type, nullability, default), primary key, unique constraints, indexes and
+    foreign keys (with their ON DELETE), as the database itself reports them."""
+    i = sa.inspect(engine)
+    return {
+        t: {
+            "columns": sorted(
+                (c["name"], str(c["type"]), c["nullable"], str(c.get("default"))) for c in i.get_columns(t)
+            ),
+            "pk": i.get_pk_constraint(t),
+            "unique": sorted((u["name"], tuple(u["column_names"])) for u in i.get_unique_constraints(t)),
+            "indexes": sorted((x["name"], tuple(x["column_names"]), bool(x["unique"])) for x in i.get_indexes(t)),
+            "foreign": sorted(
+                (
+                    f["name"] or "",
+                    f["referred_table"],
+                    tuple(f["constrained_columns"]),
+                    tuple(f["referred_columns"]),
+                    str(f.get("options")),
+                )
+                for f in i.get_foreign_keys(t)
+            ),
+        }  # fmt: skip
+        for t in sorted(i.get_table_names())
+    }
+
+
+def test_a_new_database_created_directly_has_exactly_the_schema_the_migrations_give(registry_url, tmp_path, request):
+    """Opening an empty database creates the newest schema from schema.py and stamps its revision (no Alembic
+    run); running every migration on another empty database of the same engine gives the same tables, columns,
+    keys, indexes and Alembic version table, and Alembic reads the stamped revision as the newest."""
+    direct = Registry(registry_url)
+    other = (f"sqlite:///{tmp_path / 'migrated.sqlite'}" if registry_url.startswith("sqlite")
+             else request.getfixturevalue("pg_server").new_database())  # fmt: skip
+    migrated = Registry(other, upgrade=False)
+    migrated.upgrade(S.SCHEMA_VERSION)  # an explicit revision: always through Alembic's migrations
+    assert migrated.revision() == direct.revision() == S.SCHEMA_VERSION
+    got, want = _schema(direct.engine), _schema(migrated.engine)
+    assert set(got) == set(want) == {"alembic_version", *S.metadata.tables}
+    for table in want:
+        assert got[table] == want[table], table
+    Registry(registry_url)  # opening again changes nothing
+    assert _schema(direct.engine) == got
+
+
 def _cli(*args, cwd, env=None):
     return subprocess.run([*CLI, *args], cwd=cwd, capture_output=True, text=True, timeout=300, env=env)
 
