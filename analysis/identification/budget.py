@@ -93,6 +93,9 @@ class StepGeometry:
     angles, rates : (m, 3) arrays or None
         Reported gimbal angles (ψ, θ, γ), rad, and gimbal rates, rad/s, per point (the table-axis inputs,
         :mod:`analysis.identification.table_axes`; None: those inputs are not evaluated).
+    held_angle_u : (3,) array or None
+        Spins only: standard uncertainty of the mean angle reading of each gimbal held in position during the
+        spin (its readings' scatter over √count), rad; 0 for the spinning gimbal; None: not evaluated.
     """
 
     name: str
@@ -106,6 +109,7 @@ class StepGeometry:
     earth: NDArray[np.float64] | None = None
     angles: NDArray[np.float64] | None = None
     rates: NDArray[np.float64] | None = None
+    held_angle_u: NDArray[np.float64] | None = None
 
     @property
     def samples(self) -> int:

@@ -21,6 +21,12 @@ The error shapes are the exact first-order derivatives (central differences of t
 components, each ε uniform within ± the bound (rectangular, u = a/√3, GUM 4.3.7). The centripetal size
 effect's change with the tilted rate (r ω² ε, < 1e-7 m/s² at 60 °/s) is neglected. Frames: n = ENU,
 b = body, t = inner gimbal.
+
+A second input of the same chain (:func:`held_angle_input`, type A, per spin): the gimbals held in position
+during a spin are referenced by their readings, whose mean over the spin is off by δ_j (u_j = the readings'
+scatter over √count). The shape is the exact first-order derivative of the same references with respect to
+the gimbal angle j; for the inner gimbal during a middle-axis spin it turns the spin axis in the body frame
+(|ω| δ in the cross axes, T_g), which the per-step attitude input (a rotation of the whole table) does not.
 """
 
 from __future__ import annotations
@@ -59,13 +65,14 @@ def tilted_chain(
 
 
 def _references(
-    geo: StepGeometry, e1: float, e2: float, g: float
+    geo: StepGeometry, e1: float, e2: float, g: float, angles: NDArray[np.float64] | None = None
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(f, ω_ib) in the body frame for the step's reference points on a table with tilts e1, e2."""
+    """(f, ω_ib) in the body frame for the step's reference points on a table with tilts e1, e2 (and, when
+    given, gimbal ``angles`` (m, 3) instead of the reported ones)."""
     assert geo.angles is not None and geo.rates is not None and geo.c_bn is not None
     c_tn0, _ = tilted_chain(geo.angles, geo.rates, 0.0, 0.0)
     mount = np.transpose(c_tn0, (0, 2, 1)) @ np.asarray(geo.c_bn, dtype=float)  # C_b^t (the same at every point)
-    c_tn, omega_t = tilted_chain(geo.angles, geo.rates, e1, e2)
+    c_tn, omega_t = tilted_chain(geo.angles if angles is None else angles, geo.rates, e1, e2)
     c_bn = c_tn @ mount
     f = g * c_bn[:, 2, :]
     omega = np.einsum("ni,nij->nj", omega_t, mount)
@@ -106,4 +113,43 @@ def orthogonality_input(model: ModelSpec, bound: float, g: float, source: str) -
     ]  # fmt: skip
 
 
-__all__ = ["orthogonality_input", "orthogonality_shape", "tilted_chain"]
+def _both_triads(model: ModelSpec, df: NDArray[np.float64], dw: NDArray[np.float64]) -> NDArray[np.float64]:
+    rows = [df if p.output == "accel" else dw if p.output == "gyro" else np.zeros_like(df) for p in model.parts]
+    return np.concatenate(rows, axis=1)
+
+
+def held_angle_shape(geo: StepGeometry, model: ModelSpec, g: float) -> NDArray[np.float64] | None:
+    """e_k per unit input (m, n_axes, 3) of the held gimbals' mean angle-reading errors during a spin: column j is
+    the reference's derivative with respect to gimbal angle j times u_j (``geo.held_angle_u``); None for a hold or
+    without gimbal angles."""
+    if geo.held_angle_u is None or geo.angles is None or geo.rates is None or geo.c_bn is None:
+        return None
+    u = np.asarray(geo.held_angle_u, dtype=float)
+    cols = []
+    for j in range(3):
+        if not u[j] > 0:
+            cols.append(np.zeros((geo.angles.shape[0], model.n_axes)))
+            continue
+        d = np.zeros(3)
+        d[j] = _STEP
+        fp, wp = _references(geo, 0.0, 0.0, g, geo.angles + d)
+        fm, wm = _references(geo, 0.0, 0.0, g, geo.angles - d)
+        cols.append(_both_triads(model, (fp - fm) / (2 * _STEP), (wp - wm) / (2 * _STEP)) * u[j])
+    return np.stack(cols, axis=2)
+
+
+def held_angle_input(model: ModelSpec, g: float) -> list[BudgetInput]:
+    """The held gimbals' angle readings during spins (type A, per step): each spin's reference takes the held
+    axes' angles from their readings, whose noise averages to u_j = s_j/√N over the N readings of the spin (s_j
+    their scatter, ``StepGeometry.held_angle_u``); an error δ_j of that mean turns the spin axis in the body frame
+    by δ_j, so the cross axes' gyro reference is off by |ω| δ_j (T_g) and gravity turns (both triads)."""
+    return [
+        BudgetInput(
+            "held_angles", "Table angle readings of the held axes during spins",
+            "the held gimbals' reading scatter during each spin over √(number of readings), per spin and axis",
+            np.eye(3), lambda geo: held_angle_shape(geo, model, g), per_step=True, type="A",
+        )
+    ]  # fmt: skip
+
+
+__all__ = ["held_angle_input", "held_angle_shape", "orthogonality_input", "orthogonality_shape", "tilted_chain"]

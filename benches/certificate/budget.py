@@ -27,7 +27,7 @@ from analysis.identification.budget import (
     default_g_uncertainty,
 )
 from analysis.identification.gyro_budget import earth_rate_inputs, time_base_inputs
-from analysis.identification.table_axes import orthogonality_input
+from analysis.identification.table_axes import held_angle_input, orthogonality_input
 from analysis.timebase import TimeBase
 from analysis.units import ARCSEC
 from benches.calibration_result import CalibrationResult
@@ -108,19 +108,31 @@ def step_geometry(
         span = acquisition_span(t_first, t_last, latency, rate)
         fr, om, ang = reference_for_samples(t, tt, ta, tr, g=g, mounting=mounting, latency=latency, span=span)
         _ang, gimbal_rates = interpolate_table(np.asarray(t, dtype=float) - latency, tt, ta, tr, span)
-        spin_axis = None
+        spin_axis, held_u = None, None
         if s.kind == "spin":
             sel = (tt >= t_first) & (tt <= t_last)
             rates = tr[sel] if np.any(sel) else tr
             spin_axis = int(np.argmax(np.abs(np.mean(rates, axis=0))))
+            held_u = _held_angle_u(ta[sel], spin_axis)
         out.append(
             StepGeometry(
                 s.name, s.kind, fr, om, np.diff(edges).astype(float), body_to_nav(ang, mounting), spin_axis,
                 (t_first, t_last), None if latitude is None else earth_in_body(ang, latitude, mounting),
-                ang, gimbal_rates,
+                ang, gimbal_rates, held_u,
             )
         )  # fmt: skip
     return out
+
+
+def _held_angle_u(angles: NDArray[np.float64], spin_axis: int) -> NDArray[np.float64] | None:
+    """(3,) u of the mean reading of each gimbal held during a spin: the readings' scatter over √count, rad (type
+    A; the readings' noise taken as independent between readings); 0 for the spinning gimbal. None: < 3 readings."""
+    n = angles.shape[0]
+    if n < 3:
+        return None
+    u = np.std(angles, axis=0, ddof=1) / np.sqrt(n)
+    u[spin_axis] = 0.0
+    return u
 
 
 def flicker_step_variance(
@@ -183,6 +195,7 @@ def budget_for_run(
         extra = _gyro_inputs(cal, latitude, azimuth_uncertainty, attitude_accuracy, notes, covered)
     # the table's axis non-orthogonality, bounded by its stated attitude accuracy: both triads (table_axes)
     extra += orthogonality_input(model, attitude_accuracy, g, "bounded by the table's attitude accuracy")
+    extra += held_angle_input(model, g)  # the held gimbals' angle readings during spins (table_axes)
     budget = build_budget(
         p_id - p_tb,
         p_w,

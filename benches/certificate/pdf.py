@@ -39,6 +39,7 @@ _COMPONENT_SHORT = {
     "azimuth": "Azim.",
     "latitude": "Lat.",
     "axis_orthogonality": "Orth.",
+    "held_angles": "Held",
     "time_base": "Time",
 }
 """Column heads of the budget table (each named in full under "Input quantities", with its key)."""

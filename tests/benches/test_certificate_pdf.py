@@ -90,7 +90,9 @@ def test_budget_starts_from_the_identification_covariance(issued):
     _, js, _ = issued
     cert = json.loads(js.read_text(encoding="utf-8"))
     keys = [c["key"] for c in cert["uncertainty_budget"]["components"]]
-    assert keys == ["white_noise", "bias_instability", "attitude", "local_g", "axis_orthogonality", "model_mismatch"]
+    assert keys == [
+        "white_noise", "bias_instability", "attitude", "local_g", "axis_orthogonality", "held_angles", "model_mismatch"
+    ]  # fmt: skip
     cal = json.loads((js.parent / "calibration.json").read_text(encoding="utf-8"))
     for name, p in cert["parameters"].items():
         b = p["budget"]
