@@ -16,8 +16,8 @@ realised and reports** (local g, azimuth, latitude, axis tilts: their sensitivit
 times the realised values); what remains is the identification's own error plus the per-step attitude error
 and the time base's residual.
 
-``python -m benchmarks.gyro_coverage --runs 30`` writes the section "gyro_coverage" of RESULTS.md; on two cores,
-``--runs 15 --first-seed 25000 --save a.npz`` and ``--runs 15 --first-seed 25015 --save b.npz`` side by side, then
+``python -m benchmarks.gyro_coverage`` (120 runs) writes the section "gyro_coverage" of RESULTS.md; on two cores,
+``--runs 60 --first-seed 25000 --save a.npz`` and ``--runs 60 --first-seed 25060 --save b.npz`` side by side, then
 ``--merge a.npz b.npz``.
 """
 
@@ -45,8 +45,12 @@ GYRO_CLASSES: dict[str, list[str]] = {
 }
 """The gyro classes the issue scores, by parameter name."""
 
-COVERAGE_RUNS = 30
-"""Runs of the slow test and the benchmark (the issue's minimum)."""
+COVERAGE_RUNS = 120
+"""Runs of the slow test and the benchmark (seeds 25000–25119; the issue asks for at least 30). With 30 runs a
+correct budget passes all nine classes' fraction bands with probability ≈ 0.44 (binomial: 90 or 180 values per
+class, p = 4.55 %), with 120 runs ≈ 0.95, as the accelerometer's 120-run coverage test
+(benchmarks.bench_calibration). Decided on 2026-11-28 04:28 UTC, after seeds 25000–25059 and before any run of
+25060–25119 (benchmarks/RESULTS.md, "gyro_coverage")."""
 
 TARGET_OUTSIDE = (0.02, 0.09)
 TARGET_RMS = (0.8, 1.25)
@@ -218,7 +222,7 @@ def class_table(uc: UnitCoverage) -> list[tuple[str, int, float, float, bool, di
 
 def plan_ratios(uc: UnitCoverage) -> dict[str, np.ndarray]:
     """Per gyro class: MC RMS of (error − realised run-level type-B effect) / the plan's σ, per parameter
-    (information: over 30 runs one parameter's ratio scatters by ±13 % even for a correct plan)."""
+    (one parameter's ratio scatters by ±1/√(2·runs): ±13 % over 30 runs, ±6.5 % over 120, for a correct plan)."""
     e = uc.result.errors - uc.type_b_effect
     rms = np.sqrt(np.mean(e**2, axis=0))
     return {cls: rms[uc.index(v)] / uc.plan_sigma[uc.index(v)] for cls, v in GYRO_CLASSES.items()}
@@ -229,8 +233,9 @@ def plan_class_ratios(uc: UnitCoverage) -> dict[str, float]:
     (error − realised run-level type-B effect) / the plan's σ_total; target within ×1.2 either way.
 
     Parameters the plan flags as not identified are left out of their class (the plan prints no σ for them).
-    With 30 runs the class figure scatters by ±7 % (3 parameters) or ±5 % (6) for a correct plan, so the ×1.2
-    band is a ≥ 2.5σ test of the plan; the per-parameter ratios (:func:`plan_ratios`, ±13 %) are information.
+    With 120 runs the class figure scatters by ±3.7 % (3 parameters) or ±2.6 % (6) for a correct plan (±7 % / ±5 %
+    with 30), so the ×1.2 band is a ≥ 5σ test of the plan; the slow test checks the per-parameter ratios
+    (:func:`plan_ratios`, ±6.5 %) against ×1.2 as well.
     """
     z = (uc.result.errors - uc.type_b_effect) / uc.plan_sigma[None, :]
     out = {}
@@ -276,9 +281,9 @@ def section(uc: UnitCoverage, rate: float) -> str:
               "less the realised run-level type-B effect (local g, azimuth, latitude, axis tilts; first order, same "
               "estimator), divided by the plan's σ_total. The check is read per class (the issue's \"per class (gyro "
               "bias, scale, misalignment, g-sensitivity)\"): the RMS over the class's parameters and runs, target "
-              "within ×1.2 either way; the per-parameter ratios are information:", "",
-              "| class | class ratio | within ×1.2 | 1σ sampling spread | parameters | ratio per parameter "
-              "(information) |",
+              "within ×1.2 either way; with 120 runs the per-parameter ratios are held to ×1.2 too (the slow "
+              "test):", "",
+              "| class | class ratio | within ×1.2 | 1σ sampling spread | parameters | ratio per parameter |",
               "|---|---:|---|---:|---|---|"]  # fmt: skip
     per_class = plan_class_ratios(uc)
     for cls, r in plan_ratios(uc).items():
