@@ -1,6 +1,6 @@
 """THE reference specific force and body rate for recorded samples, from the table's own readings.
 
-One function, :func:`reference_for_samples`, serves the identification (offline and live), the uncertainty
+One function, :func:`reference_for_window`, serves the identification (offline and live), the uncertainty
 budget and the certificate's plots, so they cannot diverge.
 
 What a real bench knows: the table's reported gimbal angles and rates (time-stamped by the controller), the
@@ -78,34 +78,6 @@ def reference_at(
     return gravity_in_body(angles, g, mounting, trig=trig), body_rate(angles, rates, mounting, trig=trig)
 
 
-def reference_for_samples(
-    t: NDArray[np.float64],
-    table_time: NDArray[np.float64],
-    table_angles: NDArray[np.float64],
-    table_rates: NDArray[np.float64],
-    *,
-    g: float,
-    mounting: NDArray[np.float64] | None,
-    latency: float = 0.0,
-    span: tuple[float, float] | None = None,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Reference for unit samples stamped ``t`` (s): the table at t − latency, within one step's ``span``.
-
-    Returns
-    -------
-    f_ref : (n, 3)
-        Reference specific force, body frame, m/s².
-    omega : (n, 3)
-        Body angular rate, body frame, rad/s.
-    angles : (n, 3)
-        Gimbal angles used (ψ, θ, γ), rad (for attitude sensitivities and plots).
-    """
-    f_ref, omega, ang, _ = reference_for_window(
-        t, table_time, table_angles, table_rates, g=g, mounting=mounting, latency=latency, span=span
-    )
-    return f_ref, omega, ang
-
-
 def reference_for_window(
     t: NDArray[np.float64],
     table_time: NDArray[np.float64],
@@ -117,9 +89,21 @@ def reference_for_window(
     latency: float = 0.0,
     span: tuple[float, float] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], Trig]:
-    """:func:`reference_for_samples` and the angles' cosines and sines (:func:`analysis.gimbal.angle_trig`),
-    for the caller's further rotations of the same samples (:func:`earth_in_body`, a spin's body rate): each
-    sine and cosine computed once per window instead of once per rotation (the same values bit for bit)."""
+    """Reference for unit samples stamped ``t`` (s): the table at t − latency, within one step's ``span``.
+
+    Returns
+    -------
+    f_ref : (n, 3)
+        Reference specific force, body frame, m/s².
+    omega : (n, 3)
+        Body angular rate, body frame, rad/s.
+    angles : (n, 3)
+        Gimbal angles used (ψ, θ, γ), rad (for attitude sensitivities and plots).
+    trig : Trig
+        The angles' cosines and sines (:func:`analysis.gimbal.angle_trig`), for the caller's further rotations
+        of the same samples (:func:`earth_in_body`, a spin's body rate): each computed once per window instead
+        of once per rotation (the same values bit for bit).
+    """
     ang, rat = interpolate_table(np.asarray(t, dtype=float) - latency, table_time, table_angles, table_rates, span)
     trig = angle_trig(ang)
     f_ref, omega = reference_at(ang, rat, g, mounting, trig=trig)

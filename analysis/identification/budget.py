@@ -77,7 +77,7 @@ class StepGeometry:
     name, kind : str
         Step name and kind (hold | spin).
     f : (m, 3) array
-        Reference specific force, body frame, m/s² (from :func:`benches.reference.reference_for_samples`).
+        Reference specific force, body frame, m/s² (from :func:`benches.reference.reference_for_window`).
     omega : (m, 3) array
         Body angular rate, body frame, rad/s.
     weight : (m,) array
