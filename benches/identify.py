@@ -380,7 +380,10 @@ class LiveIdentifier:
 
     def estimates_text(self) -> str:
         """The progress line's live estimates: ``show``'s parameters ± the filter's white-noise 1σ, or "not
-        identified yet" where the motion so far does not see one."""
+        identified yet" where the motion so far does not see one. A preview: the live filter takes the unit's and
+        the table's clocks as one (the run's time base is estimated after the motions), so on a two-clock bench
+        its scale factors and misalignments can differ from calibration.json's by far more than the ± shown
+        (benches/CALIBRATION_FORMAT.md, ``live_vs_offline_max_u``)."""
         x, s = self.filter.estimate, self.filter.sigma
         unseen = self.unseen()
         parts = []
@@ -391,7 +394,7 @@ class LiveIdentifier:
                 parts.append(f"{name} not identified yet")
                 continue
             parts.append(f"{name} {x[k] / one:.4g}±{s[k] / one:.2g} {unit}")
-        return ", ".join(parts) + " (± = filter white-noise 1σ, k = 1)"
+        return ", ".join(parts) + " (preview, clocks taken as one until the time base; ± = white-noise 1σ, k = 1)"
 
 
 # ---- offline: recording → arrays -------------------------------------------------------------------------------------
