@@ -206,6 +206,28 @@ def predict(x: ArrayLike, f: ArrayLike, omega: ArrayLike) -> NDArray[np.float64]
     return ff @ m.T + b + d * ff * ff + r * c
 
 
+def mean_model_error(x: ArrayLike, f_mean: ArrayLike, ff_mean: ArrayLike, c_mean: ArrayLike) -> NDArray[np.float64]:
+    """mean(predict(x, f, ω) − f) over samples, from their means alone: (S+T) mean(f) + b + D mean(f∘f) +
+    diag(r) mean(c(ω)) (body frame, m/s²). :func:`predict` is affine in f, f∘f and c(ω), so the window means
+    of those three give the window's mean modelled error for any x without the samples (equal to the mean of
+    the per-sample values up to rounding).
+
+    Parameters
+    ----------
+    x : array_like (18,)
+        Error parameters, SI, :data:`PARAM_NAMES` order.
+    f_mean, ff_mean, c_mean : array_like (3,)
+        Sample means of the true specific force f, of f∘f (m²/s⁴) and of :func:`centripetal` (ω), body frame.
+    """
+    m, b, d, r = error_matrices(x)
+    return (
+        (m - np.eye(3)) @ np.asarray(f_mean, dtype=float)
+        + b
+        + d * np.asarray(ff_mean, dtype=float)
+        + r * (np.asarray(c_mean, dtype=float))
+    )
+
+
 def correct(
     x: ArrayLike, f_out: ArrayLike, omega: ArrayLike, *, max_iter: int = 20, chunk: int = 1 << 18
 ) -> NDArray[np.float64]:

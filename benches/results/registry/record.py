@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from analysis.identification.model import PARAM_NAMES, centripetal, error_matrices
+from analysis.identification.model import PARAM_NAMES, centripetal, mean_model_error
 from benches.calibration_integrity import load_verified, read_raw
 from benches.calibration_result import CalibrationResult
 from benches.certificate_register import CertificateRegister, RegisterError
@@ -259,8 +259,8 @@ def as_found_as_left(
 
     Each step's mean residual is mean(f_out − h(x; f_ref, ω)) = mean(f_out − f_ref) − [(S+T) mean(f_ref) + b +
     D mean(f_ref∘f_ref) + diag(r) mean(c(ω))]: the model (:func:`analysis.identification.model.predict`) is
-    affine in f_ref, f_ref∘f_ref and c(ω), so the window means are formed once per recording (equal to the mean
-    of the per-sample residuals up to rounding).
+    affine in f_ref, f_ref∘f_ref and c(ω), so the window means are formed once per recording and the model is
+    applied to them (:func:`analysis.identification.model.mean_model_error`).
 
     Returns two mappings ``{"rms": [3], "max_abs_step_mean": [3], "steps": {name: [3]}}`` in m/s², body frame
     (``as_found`` is None when there is no previous calibration).
@@ -270,9 +270,7 @@ def as_found_as_left(
         return None
 
     def residuals(x: np.ndarray) -> dict[str, Any]:
-        m3, b, d, r = error_matrices(x)
-        st = m3 - np.eye(3)  # S + T
-        steps = {name: mo[0] - (st @ mo[1] + b + d * mo[2] + r * mo[3]) for name, mo in moments}
+        steps = {name: mo[0] - mean_model_error(x, mo[1], mo[2], mo[3]) for name, mo in moments}
         m = np.array(list(steps.values())) if steps else np.zeros((0, 3))
         return {
             "rms": np.sqrt(np.mean(m**2, axis=0)).tolist() if len(m) else [0.0] * 3,

@@ -126,3 +126,16 @@ def test_bad_shapes_are_reported() -> None:
     with pytest.raises(ValueError, match="variance"):
         am.as_noise_variance([1.0, 0.0, 1.0])
     assert MM == 1e-3 and PPM == 1e-6
+
+
+def test_mean_model_error_from_window_means_equals_the_mean_of_predict():
+    """The registry's as found / as left use the window means only: the model is affine in f, f∘f and c(ω)."""
+    from analysis.identification.model import centripetal, mean_model_error, predict
+
+    rng = np.random.default_rng(11)
+    x = rng.normal(size=18) * np.r_[[1e-3] * 3, [2e-4] * 3, [1e-4] * 6, [1e-5] * 3, [0.03] * 3]
+    f = rng.normal(size=(500, 3)) * 9.8
+    omega = rng.normal(size=(500, 3)) * 0.5
+    expected = np.mean(predict(x, f, omega) - f, axis=0)
+    got = mean_model_error(x, f.mean(axis=0), np.mean(f * f, axis=0), centripetal(omega).mean(axis=0))
+    np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-15)
