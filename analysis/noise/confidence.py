@@ -390,7 +390,7 @@ def _lagged(dj: NDArray[np.float64], k: NDArray[np.int64], offset: int, step: in
         return dj[offset : offset + top + 1]
     if -offset <= top:
         return np.concatenate([dj[-offset:0:-1], dj[0 : top + offset + 1]])
-    return dj[-offset : -offset - top - 1 : -1] if -offset - top - 1 >= 0 else dj[np.abs(k + offset)]
+    return dj[-offset : -offset - top - 1 : -1]  # -offset > top here: the stop index is ≥ 0
 
 
 def edf_avar_simple(n: int, m: int, alpha: int) -> float:

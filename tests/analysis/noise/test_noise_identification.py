@@ -84,3 +84,19 @@ def test_totvar_white_pm_shape_matches_simulated_cumulants() -> None:
     assert np.mean(y) == pytest.approx(a + b * nu, rel=0.05)
     assert np.var(y) == pytest.approx(2 * b * b * nu, rel=0.08)
     assert np.mean((y - y.mean()) ** 3) == pytest.approx(8 * b**3 * nu, rel=0.25)
+
+
+def test_lagged_slices_equal_the_gather_they_replace():
+    """edf_discrete_pm reads dj[|k + offset|] for consecutive k as slices (issue 32): the same values as the gather."""
+    import numpy as np
+
+    from analysis.noise.confidence import _lagged
+
+    rng = np.random.default_rng(1)
+    for _ in range(500):
+        n = int(rng.integers(5, 60))
+        dj = rng.normal(size=n)
+        top = int(rng.integers(0, n // 2))
+        offset = int(rng.integers(-(n - top - 1), n - top))
+        k = np.arange(top + 1)
+        np.testing.assert_array_equal(_lagged(dj, k, offset, 1), dj[np.abs(k + offset)])
