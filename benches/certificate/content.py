@@ -9,11 +9,14 @@ from __future__ import annotations
 import hashlib
 import math
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from analysis.units import kelvin_to_celsius
 from core.errors import UserError
 from core.jsonio import dumps
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .drawing import Drawing
 
 FORMAT = "tablebench-certificate"
 FORMAT_VERSION = 1
@@ -151,9 +154,9 @@ class Certificate:
     analyses: dict[str, list[dict[str, str]]]
     software_version: str
     creation_date: str
-    plots: dict[str, Any] = field(default_factory=dict)
-    """Figures by name: vector drawings (:class:`benches.certificate.drawing.Drawing`) or PNG bytes (the noise
-    report's Allan deviation); ``bytes(figure)`` is each one's identity (its SHA-256 in the JSON)."""
+    plots: dict[str, Drawing] = field(default_factory=dict)
+    """Figures by name, vector drawings (the certificate's and the noise report's); ``bytes(figure)`` is each
+    one's identity (its SHA-256 in the JSON). The analyses' own figures stay PNG files (``analysis_plots``)."""
     analysis_plots: list[tuple[str, bytes]] = field(default_factory=list)
     supersedes: str = ""
     document: str = CALIBRATION_CERTIFICATE
