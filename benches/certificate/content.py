@@ -9,14 +9,11 @@ from __future__ import annotations
 import hashlib
 import math
 from dataclasses import asdict, dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from analysis.units import kelvin_to_celsius
 from core.errors import UserError
 from core.jsonio import dumps
-
-if TYPE_CHECKING:  # pragma: no cover
-    from .drawing import Drawing
 
 FORMAT = "tablebench-certificate"
 FORMAT_VERSION = 1
@@ -154,8 +151,9 @@ class Certificate:
     analyses: dict[str, list[dict[str, str]]]
     software_version: str
     creation_date: str
-    plots: dict[str, Drawing] = field(default_factory=dict)
-    """Figures by name, vector drawings (the certificate's and the noise report's); ``bytes(figure)`` is each
+    plots: dict[str, Any] = field(default_factory=dict)
+    """Figures by name, vector drawings (:class:`benches.certificate.drawing.Drawing`: the certificate's and the
+    noise report's; content imports no other module of the package); ``bytes(figure)`` is each
     one's identity (its SHA-256 in the JSON). The analyses' own figures stay PNG files (``analysis_plots``)."""
     analysis_plots: list[tuple[str, bytes]] = field(default_factory=list)
     supersedes: str = ""
