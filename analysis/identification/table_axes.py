@@ -31,6 +31,8 @@ the gimbal angle j; for the inner gimbal during a middle-axis spin it turns the 
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -52,14 +54,24 @@ def _rotations(angles: NDArray[np.float64]) -> Rotations:
     return gimbal._rz(a[:, 0]), gimbal._rx(a[:, 1]), gimbal._ry(a[:, 2])
 
 
+@functools.lru_cache(maxsize=64)
+def _tilt(axis: int, angle_hex: str) -> NDArray[np.float64]:
+    """The elementary rotation (3, 3) about ``axis`` (1 y, 2 z) by the angle whose ``float.hex`` is ``angle_hex``
+    (cached on that exact value, −0.0 apart from 0.0; read-only): the chain's tilt matrices E1, E2, of which one
+    budget uses five values."""
+    m = (gimbal._ry if axis == 1 else gimbal._rz)(np.array(float.fromhex(angle_hex)))
+    m.flags.writeable = False
+    return m
+
+
 def _chain(
     rot: Rotations, rates: NDArray[np.float64], e1: float, e2: float
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """:func:`tilted_chain` from the gimbals' elementary rotations (the same products in the same order)."""
     rz, rx, ry = rot
     r = np.asarray(rates, dtype=float)
-    e_1 = gimbal._ry(np.array(float(e1)))
-    e_2 = gimbal._rz(np.array(float(e2)))
+    e_1 = _tilt(1, float(e1).hex())
+    e_2 = _tilt(2, float(e2).hex())
     inner = e_2 @ ry  # C_t^m
     mid = e_1 @ rx @ inner  # C_t^o
     c_tn = rz @ mid
