@@ -15,10 +15,14 @@ frame) from the gimbal rates (Earth rate is negligible for the centripetal term,
 Motion boundaries: the readings used for a step are only those the controller took during that step
 (``span``). A sample time after the step's last reading (or before its first) is **extrapolated from that
 boundary reading with its own reported rate** — never interpolated towards a reading of the next motion
-(which a controller reporting on its own clock may take after the next move has started).
+(which a controller reporting on its own clock may take after the next move has started). That rule is written
+once, in :func:`interpolate_windows` (many windows in one pass: the time base's sensitivities); one window is
+:func:`interpolate_table`.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,34 +38,81 @@ def interpolate_table(
     table_rates: NDArray[np.float64],
     span: tuple[float, float] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Gimbal angles and rates (rad, rad/s) at times ``t`` (s) from the table's readings.
+    """Gimbal angles and rates (rad, rad/s) at times ``t`` (s) from the table's readings: one window of
+    :func:`interpolate_windows` (THE rule: linear between the readings inside ``span`` = (t_start, t_end) of one
+    step, all readings if None; outside them the boundary reading extrapolated with its reported rate)."""
+    return interpolate_windows([t], [span], table_time, table_angles, table_rates)
 
-    Linear interpolation between readings inside ``span`` = (t_start, t_end) of one step (all readings if
-    None). Angles are unwrapped readings, so interpolation across a spin is exact for a constant rate.
-    Outside the readings the boundary reading is extrapolated with its reported rate (a hold: held).
+
+def interpolate_windows(
+    times: Sequence[NDArray[np.float64]],
+    spans: Sequence[tuple[float, float] | None],
+    table_time: NDArray[np.float64],
+    table_angles: NDArray[np.float64],
+    table_rates: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Gimbal angles and rates (rad, rad/s; (n, 3), the windows' rows one after the other) at every window's
+    sample times ``times[i]`` (s, table clock) from the table's readings within the window's ``spans[i]``.
+
+    THE interpolation rule of the reference (the one place it is written; :func:`interpolate_table` is its
+    one-window form):
+
+    - a window's readings are those taken inside its span (t_start ≤ time ≤ t_end), all if the span is None;
+      with no reading inside the span, the last one at or before its start (same motion state), the table's
+      first if none is;
+    - between two of them: linear interpolation (angles are unwrapped readings, so across a spin it is exact
+      for a constant rate);
+    - before the first of them or after the last: that boundary reading extrapolated with its own reported
+      rate (a hold: held) — never interpolated towards a reading of the next motion;
+    - exactly at a reading's time: that reading;
+    - readings are taken in time order (stable for equal times); a reading with a NaN time is no reading; a NaN
+      sample time gives NaN angles and rates.
+
+    All windows are interpolated in one pass per column over the readings any of them uses (between two
+    readings of a span an interpolation uses only those two, whichever other readings lie around them), then
+    each window's rows outside its span's readings are replaced by the extrapolation.
     """
-    tt_all = np.asarray(table_time, dtype=float)
-    if tt_all.size == 0:
-        raise ValueError("the recording has no table readings; the reference attitude is unknown")
+    tt = np.asarray(table_time, dtype=float)
     ta = np.asarray(table_angles, dtype=float)
     tr = np.asarray(table_rates, dtype=float)
-    if span is not None:
-        keep = (tt_all >= span[0]) & (tt_all <= span[1])
-        if not np.any(keep):  # no reading inside the step: the nearest one before it (same motion state)
-            before = np.flatnonzero(tt_all <= span[0])
-            keep = np.zeros(tt_all.size, bool)
-            keep[before[-1] if before.size else 0] = True
-        tt_all, ta, tr = tt_all[keep], ta[keep], tr[keep]
-    order = np.argsort(tt_all, kind="stable")
-    tt, ta, tr = tt_all[order], ta[order], tr[order]
-    tq = np.asarray(t, dtype=float)
-    ang = np.column_stack([np.interp(tq, tt, ta[:, k]) for k in range(3)])
-    rat = np.column_stack([np.interp(tq, tt, tr[:, k]) for k in range(3)])
-    lo, hi = tq < tt[0], tq > tt[-1]
-    if np.any(lo):
-        ang[lo] += (tq[lo] - tt[0])[:, None] * tr[0]
-    if np.any(hi):
-        ang[hi] += (tq[hi] - tt[-1])[:, None] * tr[-1]
+    if not np.all(tt[1:] >= tt[:-1]):  # out of order, or NaN times: ordered, NaN-timed readings dropped
+        known = np.flatnonzero(~np.isnan(tt))
+        order = known[np.argsort(tt[known], kind="stable")]
+        tt, ta, tr = tt[order], ta[order], tr[order]
+    if tt.size == 0 or np.isnan(tt[0]):
+        raise ValueError("the recording has no table readings; the reference attitude is unknown")
+    tq = [np.asarray(t, dtype=float).reshape(-1) for t in times]
+    q = np.concatenate(tq) if len(tq) > 1 else tq[0] if tq else np.empty(0)
+    starts = [s[0] if s is not None else -np.inf for s in spans]
+    lo = np.searchsorted(tt, starts, side="left")  # each window's readings: [lo, hi)
+    hi = np.searchsorted(tt, [s[1] if s is not None else np.inf for s in spans], side="right")
+    alone = lo >= hi  # no reading inside the span: the last one at or before its start (the table's first if none)
+    if np.any(alone):
+        last = np.maximum(np.searchsorted(tt, starts, side="right") - 1, 0)
+        lo, hi = np.where(alone, last, lo), np.where(alone, last + 1, hi)
+    # one interpolation per column over the readings any window uses (between two readings of a span it uses
+    # only those two, whichever other readings lie between the windows)
+    used = slice(int(lo.min()), int(hi.max())) if lo.size else slice(0, 1)
+    ang = np.column_stack([np.interp(q, tt[used], ta[used, k]) for k in range(3)])
+    rat = np.column_stack([np.interp(q, tt[used], tr[used, k]) for k in range(3)])
+    start = 0
+    for t, a, b, one in zip(tq, lo.tolist(), hi.tolist(), alone.tolist(), strict=True):
+        rows0 = start
+        start += t.size
+        if one:  # at its time: that reading, not another one of the same time
+            at = np.flatnonzero(t == tt[a]) + rows0
+            ang[at] = ta[a]
+            rat[at] = tr[a]
+        for j, side in ((a, t < tt[a]), (b - 1, t > tt[b - 1])):
+            if np.any(side):  # outside the span's readings: the boundary reading, extrapolated with its rate
+                rows = np.flatnonzero(side) + rows0
+                rat[rows] = tr[j]
+                ang[rows] = ta[j]
+                ang[rows] += (t[side] - tt[j])[:, None] * tr[j]
+    if q.size and np.isnan(q.min()):  # a NaN time: NaN (np.interp gives a finite value with a single reading)
+        nan = np.isnan(q)
+        ang[nan] = np.nan
+        rat[nan] = np.nan
     return ang, rat
 
 

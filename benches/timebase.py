@@ -25,7 +25,7 @@ from analysis.timebase.events import moving_readings
 
 from .recording import Recording, TableReadings, TimeSources
 from .recording.layout import IMU_CHUNK
-from .reference import interpolate_table, reference_at
+from .reference import interpolate_windows, reference_at
 
 WINDOW_S = 1.5
 """Event window before and after each motion, s (analysis.timebase.events)."""
@@ -166,41 +166,6 @@ def run_time_base(
     return replace(tb, check=check, notes=notes)
 
 
-def _interpolate_windows(
-    tq: list[NDArray[np.float64]],
-    spans: list[tuple[float, float]],
-    tt: NDArray[np.float64],
-    angles: NDArray[np.float64],
-    rates: NDArray[np.float64],
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """:func:`benches.reference.interpolate_table` of every window's times ``tq`` within its ``spans``, for readings
-    in time order (``tt`` sorted), all windows in one interpolation per column: the same numbers to the last bit.
-
-    Between two readings of a window's span an interpolation only uses those two, whichever other readings the
-    table holds, so the whole table gives the same values there; outside them (before the first reading of
-    the span, after its last) the span's boundary reading is extrapolated with its rate, as there.
-    """
-    q = np.concatenate(tq)
-    ang = np.column_stack([np.interp(q, tt, angles[:, k]) for k in range(3)])
-    rat = np.column_stack([np.interp(q, tt, rates[:, k]) for k in range(3)])
-    lo_i = np.searchsorted(tt, [s[0] for s in spans], side="left")  # the span's readings: [lo_i, hi_i)
-    hi_i = np.searchsorted(tt, [s[1] for s in spans], side="right")
-    start = 0
-    for t, a, b, s in zip(tq, lo_i.tolist(), hi_i.tolist(), spans, strict=True):
-        if a >= b:  # no reading inside the span: the last one before it (the first of the table if none)
-            a = int(np.searchsorted(tt, s[0], side="right")) - 1
-            a, b = (a, a + 1) if a >= 0 else (0, 1)
-        seg = slice(start, start + t.size)
-        start += t.size
-        for j, side in ((a, t < tt[a]), (b - 1, t > tt[b - 1])):
-            if np.any(side):  # outside the span's readings: the boundary reading, extrapolated with its rate
-                rows = np.flatnonzero(side) + seg.start
-                rat[rows] = rates[j]
-                ang[rows] = angles[j]
-                ang[rows] += (t[side] - tt[j])[:, None] * rates[j]
-    return ang, rat
-
-
 def time_base_sensitivity(
     windows: list[tuple[NDArray[np.float64], NDArray[np.float64], tuple[float, float]]],
     table: TableReadings,
@@ -231,33 +196,15 @@ def time_base_sensitivity(
         wt.append(w)
         spans.append(span)
     f_out, weights = np.concatenate(fo), np.concatenate(wt)
-    # each window's readings: a slice around its span wide enough for every shift below (the reference function
-    # picks the same readings from it as from the whole table: those inside the shifted span, else the last one
-    # before it); the whole table if its times are not in order
-    tt = np.asarray(table.time, dtype=float)
-    ordered = bool(np.all(np.diff(tt) >= 0))
-    margin = 1.0 + abs(steps[0]) + abs(steps[1]) * float(max((np.max(np.abs(t)) for t in ts), default=0.0))
-    cuts = [
-        slice(max(int(np.searchsorted(tt, sp[0] - margin)) - 1, 0), int(np.searchsorted(tt, sp[1] + margin)) + 1)
-        if ordered else slice(None)
-        for sp in spans
-    ]  # fmt: skip
 
     def solve(d_off: float, d_rate: float) -> NDArray[np.float64]:
-        # THE reference (benches.reference): the table interpolated per window within its span, then turned
-        # into f_ref and ω for all windows at once (one vectorised call instead of one per window)
+        # THE reference (benches.reference): the table interpolated per window within its span (the rule's
+        # many-windows form, benches.reference.interpolate_windows), then turned into f_ref and ω for all windows
+        # at once (one vectorised call instead of one per window)
         shifts = [d_off + d_rate * t for t in ts]  # the table seen d_off + d_rate·t later on the unit's clock
         tq = [t + shift - latency for t, shift in zip(ts, shifts, strict=True)]
         sp = [(span[0] + float(sh[0]), span[1] + float(sh[-1])) for span, sh in zip(spans, shifts, strict=True)]
-        if ordered and tt.size:
-            ang_all, rat_all = _interpolate_windows(tq, sp, tt, table.angles, table.rates)
-        else:
-            ang, rat = [], []
-            for q, c, s in zip(tq, cuts, sp, strict=True):
-                a, r = interpolate_table(q, tt[c], table.angles[c], table.rates[c], s)
-                ang.append(a)
-                rat.append(r)
-            ang_all, rat_all = np.concatenate(ang), np.concatenate(rat)
+        ang_all, rat_all = interpolate_windows(tq, sp, table.time, table.angles, table.rates)
         f_ref, om = reference_at(ang_all, rat_all, g, mounting)
         return batch_identify(f_out, f_ref, om, r_var, None, p0, weights=weights).x
 

@@ -202,6 +202,93 @@ def _ht_rinv(
     return np.transpose(h, (0, 2, 1)) * r_inv[None, None, :] * geo.weight[:, None, None], h
 
 
+Shape = Callable[[StepGeometry], NDArray[np.float64] | None]
+"""An input's error shape per step (:attr:`BudgetInput.shape`)."""
+
+
+class StepTerms:
+    """The per-step terms of ONE budget evaluation, each computed once and reused (a memo, not a cache across runs).
+
+    One object belongs to one (A⁻¹, geometry, noise variance, model): :func:`build_budget` makes a fresh one per
+    call and hands it to every component and to the mismatch test, so the same step's design matrix, its Hᵀ R⁻¹
+    and an input's shapes and sensitivity are formed once instead of up to four times. What is kept, and on what
+    key:
+
+    * H and Hᵀ R⁻¹ of step k: keyed by k, the step's position in this object's geometry;
+    * an input's shapes e_k (one per step) and its per-step sensitivities: keyed by the shape callable itself
+      (held here, so its identity cannot be reused by another function while this object lives).
+
+    Nothing is keyed by the step's values: another geometry, noise or A⁻¹ means another object. The arithmetic
+    is the uncached one's, operation for operation (the same numbers bit for bit).
+    """
+
+    def __init__(
+        self,
+        a_inv: NDArray[np.float64],
+        geometry: Sequence[StepGeometry],
+        noise_var: NDArray[np.float64],
+        model: ModelSpec | None = None,
+    ) -> None:
+        self.a_inv = np.asarray(a_inv, dtype=float)
+        self.geometry = tuple(geometry)
+        self.noise_var = noise_var
+        self.r_inv = 1.0 / np.asarray(noise_var, dtype=float)
+        self.model = resolve(model)
+        self._ht: list[tuple[NDArray[np.float64], NDArray[np.float64]] | None] = [None] * len(self.geometry)
+        self._shapes: dict[Shape, list[NDArray[np.float64] | None]] = {}
+        self._sens: dict[Shape, list[NDArray[np.float64] | None]] = {}
+
+    def matches(
+        self,
+        a_inv: NDArray[np.float64],
+        geometry: Sequence[StepGeometry],
+        noise_var: NDArray[np.float64],
+        model: ModelSpec | None,
+    ) -> bool:
+        """Whether this memo was made for exactly these arguments (the same objects)."""
+        same_geo = len(geometry) == len(self.geometry) and all(
+            a is b for a, b in zip(geometry, self.geometry, strict=True)
+        )
+        return same_geo and a_inv is self.a_inv and noise_var is self.noise_var and resolve(model) is self.model
+
+    def ht_rinv(self, k: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(Hᵀ R⁻¹ weighted (m, n, n_axes), H (m, n_axes, n)) of step k (:func:`_ht_rinv`)."""
+        got = self._ht[k]
+        if got is None:
+            got = self._ht[k] = _ht_rinv(self.geometry[k], self.r_inv, self.model)
+        return got
+
+    def shapes(self, shape: Shape) -> list[NDArray[np.float64] | None]:
+        """``shape(geo)`` for every step (None where the step does not see the input)."""
+        got = self._shapes.get(shape)
+        if got is None:
+            got = self._shapes[shape] = [shape(geo) for geo in self.geometry]
+        return got
+
+    def sensitivity(self, shape: Shape) -> list[NDArray[np.float64] | None]:
+        """Per step, A⁻¹ Σ_k Hᵀ R⁻¹ e_k (n, k) of the input of error shape ``shape`` (None where unseen)."""
+        got = self._sens.get(shape)
+        if got is None:
+            got = self._sens[shape] = [
+                None if e is None else self.a_inv @ np.einsum("kpa,kab->pb", self.ht_rinv(k)[0], e)
+                for k, e in enumerate(self.shapes(shape))
+            ]
+        return got
+
+
+def _terms(
+    terms: StepTerms | None,
+    a_inv: NDArray[np.float64],
+    geometry: Sequence[StepGeometry],
+    noise_var: NDArray[np.float64],
+    model: ModelSpec | None,
+) -> StepTerms:
+    """``terms`` when it was made for these arguments, else a fresh memo (the uncached computation)."""
+    if terms is not None and terms.matches(a_inv, geometry, noise_var, model):
+        return terms
+    return StepTerms(a_inv, geometry, noise_var, model)
+
+
 def data_information(
     geometry: Sequence[StepGeometry], noise_var: NDArray[np.float64], model: ModelSpec | None = None
 ) -> NDArray[np.float64]:
@@ -221,14 +308,13 @@ def input_sensitivity(
     noise_var: NDArray[np.float64],
     shape: Callable[[StepGeometry], NDArray[np.float64] | None],
     model: ModelSpec | None = None,
+    *,
+    terms: StepTerms | None = None,
 ) -> list[NDArray[np.float64] | None]:
-    """Per step, ∂x̂/∂u = A⁻¹ Σ_k Hᵀ R⁻¹ e_k, (n, k), for an input of error shape e_k = ``shape(geo)``."""
-    r_inv = 1.0 / np.asarray(noise_var, dtype=float)
-    out: list[NDArray[np.float64] | None] = []
-    for geo in geometry:
-        e = shape(geo)
-        out.append(None if e is None else a_inv @ np.einsum("kpa,kab->pb", _ht_rinv(geo, r_inv, model)[0], e))
-    return out
+    """Per step, ∂x̂/∂u = A⁻¹ Σ_k Hᵀ R⁻¹ e_k, (n, k), for an input of error shape e_k = ``shape(geo)``.
+
+    ``terms``: the evaluation's memo (:class:`StepTerms`), used only when made for these same arguments."""
+    return list(_terms(terms, a_inv, geometry, noise_var, model).sensitivity(shape))
 
 
 def attitude_shape(geo: StepGeometry, model: ModelSpec | None = None) -> NDArray[np.float64]:
@@ -275,10 +361,12 @@ def step_offset_sensitivity(
     geometry: Sequence[StepGeometry],
     noise_var: NDArray[np.float64],
     model: ModelSpec | None = None,
+    *,
+    terms: StepTerms | None = None,
 ) -> list[NDArray[np.float64]]:
     """∂x̂/∂β_s for a constant error β_s of z per step and axis: A⁻¹ Σ_k Hᵀ R⁻¹, (n, n_axes) each."""
-    r_inv = 1.0 / np.asarray(noise_var, dtype=float)
-    return [a_inv @ _ht_rinv(geo, r_inv, model)[0].sum(axis=0) for geo in geometry]
+    t = _terms(terms, a_inv, geometry, noise_var, model)
+    return [t.a_inv @ t.ht_rinv(k)[0].sum(axis=0) for k in range(len(t.geometry))]
 
 
 def _step_mean(geo: StepGeometry, e: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -297,6 +385,8 @@ def input_step_variance(
     geometry: Sequence[StepGeometry],
     noise_var: NDArray[np.float64],
     model: ModelSpec | None = None,
+    *,
+    terms: StepTerms | None = None,
 ) -> tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]]:
     """What one type-B input adds to the step-mean residuals, per step name, (n_axes,) each, SI².
 
@@ -304,25 +394,27 @@ def input_step_variance(
     diag(ē_s Cov ē_sᵀ) of its step-mean error ē_s; the fit removes its share of it like that of any independent
     per-step error. A run-common input (one draw for the run) gives the post-fit variance diag(r̄_s Cov r̄_sᵀ) of
     the step-mean residual it leaves, r̄_s = mean_s(e_k − H_k C), C = A⁻¹ Σ_k Hᵀ R⁻¹ e_k its sensitivity over
-    the whole run (the identification's estimate moves by C u and the residual keeps the rest).
+    the whole run (the identification's estimate moves by C u and the residual keeps the rest). ``terms``: the
+    evaluation's memo (:class:`StepTerms`; its shapes, sensitivities and H are reused).
     """
-    m = resolve(model)
+    t = _terms(terms, a_inv, geometry, noise_var, model)
+    m = t.model
     pre: dict[str, NDArray[np.float64]] = {}
     post: dict[str, NDArray[np.float64]] = {}
     cov = np.asarray(inp.covariance, dtype=float)
-    shapes = [inp.shape(geo) for geo in geometry]
+    shapes = t.shapes(inp.shape)
     if inp.per_step:
-        for geo, e in zip(geometry, shapes, strict=True):
+        for geo, e in zip(t.geometry, shapes, strict=True):
             if e is not None:
                 mean = _step_mean(geo, e)
                 pre[geo.name] = np.einsum("ab,bc,ac->a", mean, cov, mean)
         return pre, post
-    sens = input_sensitivity(a_inv, geometry, noise_var, inp.shape, m)
+    sens = t.sensitivity(inp.shape)
     if all(c is None for c in sens):
         return pre, post
     c_run = sum((c for c in sens if c is not None), np.zeros((m.n_params, cov.shape[0])))
-    for geo, e in zip(geometry, shapes, strict=True):
-        h = m.design_matrix(geo.f, geo.omega, geo.earth)
+    for k, (geo, e) in enumerate(zip(t.geometry, shapes, strict=True)):
+        h = t.ht_rinv(k)[1]
         res = -np.einsum("kan,nb->kab", h, c_run)
         if e is not None:
             res = res + e
@@ -407,9 +499,13 @@ def input_component(
     geometry: Sequence[StepGeometry],
     noise_var: NDArray[np.float64],
     model: ModelSpec | None = None,
+    *,
+    terms: StepTerms | None = None,
 ) -> BudgetComponent:
-    """The covariance contribution of one type-B input (module docstring: C Cov(u) Cᵀ)."""
-    sens = [c for c in input_sensitivity(a_inv, geometry, noise_var, inp.shape, model) if c is not None]
+    """The covariance contribution of one type-B input (module docstring: C Cov(u) Cᵀ); ``terms``: the
+    evaluation's memo (:class:`StepTerms`)."""
+    t = _terms(terms, a_inv, geometry, noise_var, model)
+    sens = [c for c in t.sensitivity(inp.shape) if c is not None]
     n = a_inv.shape[0]
     if inp.per_step:
         cov = sum((c @ inp.covariance @ c.T for c in sens), np.zeros((n, n)))
@@ -485,37 +581,37 @@ def build_budget(
         attitude_accuracy=attitude_accuracy,
     )  # fmt: skip
     inputs = [*inputs, *extra_inputs]
-    comps += [input_component(i, a_inv, geometry, nv, m) for i in inputs]
+    terms = StepTerms(a_inv, geometry, nv, m)  # this evaluation's memo: every step term formed once
+    comps += [input_component(i, a_inv, geometry, nv, m, terms=terms) for i in inputs]
     notes: list[str] = []
-    comps.append(_mismatch_component(m, a_inv, geometry, nv, inputs, flicker_step_variance, residuals_per_step))
+    comps.append(_mismatch_component(terms, inputs, flicker_step_variance, residuals_per_step))
     if not residuals_per_step:
         notes.append("no per-step residual statistics: the model-mismatch component is zero (not evaluated)")
     return UncertaintyBudget(comps, coverage_factor, notes)
 
 
 def _mismatch_component(
-    m: ModelSpec,
-    a_inv: NDArray[np.float64],
-    geometry: Sequence[StepGeometry],
-    nv: NDArray[np.float64],
+    terms: StepTerms,
     inputs: Sequence[BudgetInput],
     flicker_step_variance: Mapping[str, NDArray[np.float64]] | None,
     residuals_per_step: Sequence[Mapping[str, object]],
 ) -> BudgetComponent:
     """Model mismatch: per-step residual scatter beyond noise, flicker and the claimed type-B inputs (the
-    per-step ones before the fit, the run-common ones after it), as a constant per step."""
+    per-step ones before the fit, the run-common ones after it), as a constant per step (``terms``: the
+    evaluation's memo)."""
+    m, a_inv, geometry, nv = terms.model, terms.a_inv, terms.geometry, terms.noise_var
     fl = dict(flicker_step_variance or {})
     zero = np.zeros(m.n_axes)
     expected = {geo.name: fl.get(geo.name, zero) for geo in geometry}
     fitted = {geo.name: zero for geo in geometry}
     if residuals_per_step:
         for inp in inputs:
-            pre, post = input_step_variance(inp, a_inv, geometry, nv, m)
+            pre, post = input_step_variance(inp, a_inv, geometry, nv, m, terms=terms)
             expected = {k: v + pre.get(k, zero) for k, v in expected.items()}
             fitted = {k: v + post.get(k, zero) for k, v in fitted.items()}
     npa = [len(ax) for ax in m.axis_params]
     obs, excess = mismatch_variance(geometry, residuals_per_step, nv, expected, npa, fitted)
-    b_s = step_offset_sensitivity(a_inv, geometry, nv, m)
+    b_s = step_offset_sensitivity(a_inv, geometry, nv, m, terms=terms)
     cov_mm = sum((b @ np.diag(excess) @ b.T for b in b_s), np.zeros((m.n_params, m.n_params)))
     scale = [DISPLAY_UNITS[m.kinds[ax[0]]] for ax in m.axis_params]  # the axis's bias kind
     fmt = ", ".join(f"{math.sqrt(v) / one:.2f} {u}" for v, (u, one) in zip(obs, scale, strict=True))
@@ -532,6 +628,7 @@ __all__ = [
     "BudgetComponent",
     "BudgetInput",
     "StepGeometry",
+    "StepTerms",
     "UncertaintyBudget",
     "attitude_sensitivity",
     "build_budget",

@@ -31,6 +31,8 @@ the gimbal angle j; for the inner gimbal during a middle-axis spin it turns the 
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -43,19 +45,36 @@ _STEP = 1e-6
 """Half step of the central difference, rad."""
 
 
-def tilted_chain(
-    angles: NDArray[np.float64], rates: NDArray[np.float64], e1: float, e2: float
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """C_t^n (m, 3, 3) and ω^t (m, 3) (rad/s, inner-gimbal frame, relative to the ground) of a table whose
-    middle axis is tilted by ``e1`` (about the outer frame's y) and inner axis by ``e2`` (about the middle
-    frame's z), rad, at gimbal angles and rates (m, 3)."""
+Rotations = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
+"""R_z(ψ), R_x(θ), R_y(γ) of gimbal angles (m, 3), each (m, 3, 3)."""
+
+
+def _rotations(angles: NDArray[np.float64]) -> Rotations:
     a = np.asarray(angles, dtype=float)
+    return gimbal._rz(a[:, 0]), gimbal._rx(a[:, 1]), gimbal._ry(a[:, 2])
+
+
+@functools.lru_cache(maxsize=64)
+def _tilt(axis: int, angle_hex: str) -> NDArray[np.float64]:
+    """The elementary rotation (3, 3) about ``axis`` (1 y, 2 z) by the angle whose ``float.hex`` is ``angle_hex``
+    (cached on that exact value, −0.0 apart from 0.0; read-only): the chain's tilt matrices E1, E2, of which one
+    budget uses five values."""
+    m = (gimbal._ry if axis == 1 else gimbal._rz)(np.array(float.fromhex(angle_hex)))
+    m.flags.writeable = False
+    return m
+
+
+def _chain(
+    rot: Rotations, rates: NDArray[np.float64], e1: float, e2: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`tilted_chain` from the gimbals' elementary rotations (the same products in the same order)."""
+    rz, rx, ry = rot
     r = np.asarray(rates, dtype=float)
-    e_1 = gimbal._ry(np.array(float(e1)))
-    e_2 = gimbal._rz(np.array(float(e2)))
-    inner = e_2 @ gimbal._ry(a[:, 2])  # C_t^m
-    mid = e_1 @ gimbal._rx(a[:, 1]) @ inner  # C_t^o
-    c_tn = gimbal._rz(a[:, 0]) @ mid
+    e_1 = _tilt(1, float(e1).hex())
+    e_2 = _tilt(2, float(e2).hex())
+    inner = e_2 @ ry  # C_t^m
+    mid = e_1 @ rx @ inner  # C_t^o
+    c_tn = rz @ mid
     omega_t = (
         r[:, 0:1] * mid[:, 2, :]  # ψ̇ (C_t^o)ᵀ e_z
         + r[:, 1:2] * inner[:, 0, :]  # θ̇ (C_t^m)ᵀ e_x
@@ -64,34 +83,67 @@ def tilted_chain(
     return c_tn, omega_t
 
 
-def _references(
-    geo: StepGeometry, e1: float, e2: float, g: float, angles: NDArray[np.float64] | None = None
+def tilted_chain(
+    angles: NDArray[np.float64], rates: NDArray[np.float64], e1: float, e2: float
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(f, ω_ib) in the body frame for the step's reference points on a table with tilts e1, e2 (and, when
-    given, gimbal ``angles`` (m, 3) instead of the reported ones)."""
-    assert geo.angles is not None and geo.rates is not None and geo.c_bn is not None
-    c_tn0, _ = tilted_chain(geo.angles, geo.rates, 0.0, 0.0)
-    mount = np.transpose(c_tn0, (0, 2, 1)) @ np.asarray(geo.c_bn, dtype=float)  # C_b^t (the same at every point)
-    c_tn, omega_t = tilted_chain(geo.angles if angles is None else angles, geo.rates, e1, e2)
-    c_bn = c_tn @ mount
-    f = g * c_bn[:, 2, :]
-    omega = np.einsum("ni,nij->nj", omega_t, mount)
-    if geo.earth is not None:
-        earth_n = np.einsum("nij,nj->ni", np.asarray(geo.c_bn, dtype=float), geo.earth)  # C_b^n Ω^b
-        omega = omega + np.einsum("ni,nij->nj", earth_n, c_bn)
-    return f, omega
+    """C_t^n (m, 3, 3) and ω^t (m, 3) (rad/s, inner-gimbal frame, relative to the ground) of a table whose
+    middle axis is tilted by ``e1`` (about the outer frame's y) and inner axis by ``e2`` (about the middle
+    frame's z), rad, at gimbal angles and rates (m, 3)."""
+    return _chain(_rotations(angles), rates, e1, e2)
+
+
+class _StepChain:
+    """What every reference of one step shares, formed once per shape evaluation of that step: the reported
+    angles' elementary rotations, the mounting C_b^t (from the untilted chain and the reported C_b^n) and the
+    Earth rate in n. Kept only for the duration of one :func:`orthogonality_shape` / :func:`held_angle_shape`
+    call (nothing outlives it, so nothing can be reused for another step or mounting)."""
+
+    def __init__(self, geo: StepGeometry) -> None:
+        assert geo.angles is not None and geo.rates is not None and geo.c_bn is not None
+        self.angles = np.asarray(geo.angles, dtype=float)
+        self.rates = geo.rates
+        self.rot = _rotations(self.angles)
+        c_tn0, _ = _chain(self.rot, geo.rates, 0.0, 0.0)
+        c_bn = np.asarray(geo.c_bn, dtype=float)
+        self.mount = np.transpose(c_tn0, (0, 2, 1)) @ c_bn  # C_b^t (the same at every point)
+        self.earth_n = None if geo.earth is None else np.einsum("nij,nj->ni", c_bn, geo.earth)  # C_b^n Ω^b
+
+    def rotations_at(self, angles: NDArray[np.float64]) -> Rotations:
+        """Elementary rotations of other angles (m, 3), reusing each gimbal's whose angles are the same bits."""
+        a = np.asarray(angles, dtype=float)
+        out = []
+        for j, (base, fn) in enumerate(zip(self.rot, (gimbal._rz, gimbal._rx, gimbal._ry), strict=True)):
+            same = a[:, j].tobytes() == self.angles[:, j].tobytes()
+            out.append(base if same else fn(a[:, j]))
+        return out[0], out[1], out[2]
+
+    def references(
+        self, e1: float, e2: float, g: float, rot: Rotations | None = None
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(f, ω_ib) in the body frame on a table with tilts e1, e2 (and, when given, the rotations ``rot`` of
+        other gimbal angles instead of the reported ones)."""
+        c_tn, omega_t = _chain(self.rot if rot is None else rot, self.rates, e1, e2)
+        c_bn = c_tn @ self.mount
+        f = g * c_bn[:, 2, :]
+        omega = np.einsum("ni,nij->nj", omega_t, self.mount)
+        if self.earth_n is not None:
+            omega = omega + np.einsum("ni,nij->nj", self.earth_n, c_bn)
+        return f, omega
 
 
 def orthogonality_shape(geo: StepGeometry, model: ModelSpec, g: float) -> NDArray[np.float64] | None:
-    """e_k per unit (ε₁, ε₂) for the model's measurement axes, (m, n_axes, 2); None without gimbal angles."""
+    """e_k per unit (ε₁, ε₂) for the model's measurement axes, (m, n_axes, 2); None without gimbal angles.
+
+    The step's untilted chain (rotations, mounting) is formed once for the four differences (:class:`_StepChain`)."""
     if geo.angles is None or geo.rates is None or geo.c_bn is None:
         return None
+    ch = _StepChain(geo)
     cols = []
     for k in range(2):
         d = np.zeros(2)
         d[k] = _STEP
-        fp, wp = _references(geo, d[0], d[1], g)
-        fm, wm = _references(geo, -d[0], -d[1], g)
+        fp, wp = ch.references(d[0], d[1], g)
+        fm, wm = ch.references(-d[0], -d[1], g)
         df, dw = (fp - fm) / (2 * _STEP), (wp - wm) / (2 * _STEP)
         rows = [df if p.output == "accel" else dw if p.output == "gyro" else np.zeros_like(df) for p in model.parts]
         cols.append(np.concatenate(rows, axis=1))
@@ -125,6 +177,7 @@ def held_angle_shape(geo: StepGeometry, model: ModelSpec, g: float) -> NDArray[n
     if geo.held_angle_u is None or geo.angles is None or geo.rates is None or geo.c_bn is None:
         return None
     u = np.asarray(geo.held_angle_u, dtype=float)
+    ch = _StepChain(geo)
     cols = []
     for j in range(3):
         if not u[j] > 0:
@@ -132,8 +185,8 @@ def held_angle_shape(geo: StepGeometry, model: ModelSpec, g: float) -> NDArray[n
             continue
         d = np.zeros(3)
         d[j] = _STEP
-        fp, wp = _references(geo, 0.0, 0.0, g, geo.angles + d)
-        fm, wm = _references(geo, 0.0, 0.0, g, geo.angles - d)
+        fp, wp = ch.references(0.0, 0.0, g, ch.rotations_at(geo.angles + d))
+        fm, wm = ch.references(0.0, 0.0, g, ch.rotations_at(geo.angles - d))
         cols.append(_both_triads(model, (fp - fm) / (2 * _STEP), (wp - wm) / (2 * _STEP)) * u[j])
     return np.stack(cols, axis=2)
 
