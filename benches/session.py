@@ -358,6 +358,7 @@ def identify_and_certify(
             config=None if prep is None else prep.config,
             compiled=None if prep is None else prep.compiled,
             overrides=None if prep is None else prep.overrides,
+            written=prep is not None,  # this process wrote it: the recorder's verification (benches.recording.written)
         )
     except RecordingError:
         recorded = None  # identification and certificate name the problem themselves
