@@ -146,11 +146,15 @@ def main(argv: list[str] | None = None) -> None:
     mb, mn = statistics.median(times["base"]), statistics.median(times["now"])
     stage = stage_rows(args.base, args.stage) if args.stage > 0 else ""
     n_states, n_steps = cal.error_model.n_params, len(geo)
+    head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+    dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT, capture_output=True,
+                           text=True).stdout.strip()  # fmt: skip
     body = (
         f"`budget_for_run` of a `ten-step-fast-spin` run (seed 7 unless `--run` names another; {n_states} states, "
         f"{n_steps} steps, {len(pairs)} components), same process, same step geometry, {args.rounds} rounds "
         f"alternating the order, median CPU (one BLAS thread as run by `run_all`):\n\n"
-        f"| | base `{args.base}` | this tree | this / base |\n|---|---|---|---|\n"
+        f"| | base `{args.base}` | this tree (`{head}`{' + changes' if dirty else ''}) | this / base |\n"
+        "|---|---|---|---|\n"
         f"| GUM budget, CPU | {mb * 1e3:.1f} ms | {mn * 1e3:.1f} ms | **{mn / mb:.2f}** |\n{stage}\n"
         "Every component's covariance, its source text and the notes are the same bits on both sides (checked "
         "before timing). `run` forms the budget once (its NEES line and its certificate share it); the offline "
