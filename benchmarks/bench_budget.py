@@ -146,7 +146,9 @@ def main(argv: list[str] | None = None) -> None:
     mb, mn = statistics.median(times["base"]), statistics.median(times["now"])
     stage = stage_rows(args.base, args.stage) if args.stage > 0 else ""
     n_states, n_steps = cal.error_model.n_params, len(geo)
-    head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+    head = subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
+    ).stdout.strip()
     dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT, capture_output=True,
                            text=True).stdout.strip()  # fmt: skip
     body = (
