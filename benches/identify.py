@@ -482,6 +482,14 @@ the registry's as found / as left (:func:`load_run` of the same run folder right
 identified it) takes the windows from here instead of reading and referencing the recording again."""
 
 
+def recent_data(run: str | Path) -> IdentificationData | None:
+    """The identification data of the last :func:`identify_run` of this process when it was of ``run`` (a run
+    folder or recording; the same, unchanged file) with the defaults, else None — nothing is read. What the
+    registry's record of the run just identified reuses (its bench text) instead of opening the recording again."""
+    key = _data_key(run, "estimate", None)
+    return _RECENT["data"] if key is not None and _RECENT.get("key") == key else None
+
+
 def _data_key(run: str | Path | RecordedRun, time_base: str, with_gyro: bool | None) -> tuple | None:
     """(recording file, its identity: device, inode, size, modification and change times in ns, the options);
     None when it cannot be stated (then nothing is remembered or taken)."""

@@ -57,7 +57,7 @@ def interpolate_windows(
     THE interpolation rule of the reference (the one place it is written; :func:`interpolate_table` is its
     one-window form):
 
-    - a window's readings are those taken inside its span (t_start, t_end), all readings if the span is None;
+    - a window's readings are those taken inside its span (t_start ≤ time ≤ t_end), all if the span is None;
       with no reading inside the span, the last one at or before its start (same motion state), the table's
       first if none is;
     - between two of them: linear interpolation (angles are unwrapped readings, so across a spin it is exact
@@ -68,9 +68,9 @@ def interpolate_windows(
     - readings are taken in time order (stable for equal times); a reading with a NaN time is no reading; a NaN
       sample time gives NaN angles and rates.
 
-    All windows are interpolated in one pass per column over the whole table (between two readings of a span
-    an interpolation uses only those two, whichever other readings the table holds), then each window's rows
-    outside its span's readings are replaced by the extrapolation.
+    All windows are interpolated in one pass per column over the readings any of them uses (between two
+    readings of a span an interpolation uses only those two, whichever other readings lie around them), then
+    each window's rows outside its span's readings are replaced by the extrapolation.
     """
     tt = np.asarray(table_time, dtype=float)
     ta = np.asarray(table_angles, dtype=float)

@@ -348,7 +348,8 @@ def identify_and_certify(
         (:class:`benches.recorded_run.RecordedRun`) and its bench and procedure are not parsed again.
     sinks : benches.results.ResultSinks, optional
         Where the calibration and the certificate go (default: the run folder, then the registry;
-        :func:`benches.results.sinks_for_run`).
+        :func:`benches.results.sinks_for_run`). The calibration's line is said as soon as the run folder has
+        it, then each further sink's own line (``registry: …``) when it has recorded it (its ``tell``).
     """
     done = [] if done is None else done
     try:
@@ -357,11 +358,12 @@ def identify_and_certify(
             config=None if prep is None else prep.config,
             compiled=None if prep is None else prep.compiled,
             overrides=None if prep is None else prep.overrides,
+            written=prep is not None,  # this process wrote it: the recorder's verification (benches.recording.written)
         )
     except RecordingError:
         recorded = None  # identification and certificate name the problem themselves
     try:
-        sinks = sinks if sinks is not None else sinks_for_run(folder, say=say)
+        sinks = sinks if sinks is not None else sinks_for_run(folder, say=say, tell=lambda line: say(line, err=False))
         return _identify_and_certify(folder, todo, recorded, live, say, done, sinks)
     finally:
         if recorded is not None:
@@ -392,10 +394,11 @@ def _identify_and_certify(
             # the live filter saw the same samples and readings (except replayed ones on resume)
             u_white = np.array([p.u_white for p in result.parameters.values()])
             result.live_vs_offline_max_u = float(np.max(np.abs(live.filter.estimate - result.x) / u_white))
-        path = sinks.calibration(CalibrationDocument(run=folder, result=result)).path
+        kept = sinks.keep("calibration", CalibrationDocument(run=folder, result=result))  # the run folder
         done.append("identification")
         say(result.summary(combined_covariance_or_none(result, source)))
-        say(f"calibration: {path}", err=False)
+        say(sinks.report("calibration", kept) or f"calibration: {kept.path}", err=False)
+        sinks.copy("calibration", kept)  # the registry: its own line when recorded, one line when it cannot
     if "certificate" in todo:
         from benches.certificate import (  # lazy: fpdf, matplotlib, filterpy (--help time)
             NOISE_REPORT,

@@ -11,7 +11,10 @@ medians over rounds, and the ratio now / base is what RESULTS.md reports next to
 Stages (each tree on its own recording of the same procedure and seed):
 - ``--help``: ``tablebench --help`` (and ``python -c pass`` as the floor);
 - the whole in-process ``tablebench run`` and its parts, timed from the lines it prints: start-up to the first
-  step, the motion phase (simulation + recording + streaming identifier), identification, certificate;
+  step, the motion phase (simulation + recording + streaming identifier), identification (to the
+  ``calibration:`` line, said as soon as the run folder has calibration.json), the registry record (from that
+  line to the ``registry:`` line; a tree without a registry, such as the release, has no such row and its
+  certificate span starts at its ``calibration:`` line), certificate;
 - offline ``identify RUN`` and ``certificate RUN`` on the recording, and ``identify RUN --accelerometer-only``
   (this code) against the release's identify (which identified the accelerometer's 18 states): like for like;
 - an ARMA(1,1) exact-ML fit, n = 5000, mean fixed (one BLAS thread on both sides);
@@ -130,25 +133,46 @@ def timed_run(tree: Path, procedure: str, folder: Path, seed: int) -> dict[str, 
     assert proc.stdout is not None
     for line in proc.stdout:
         now = time.perf_counter() - t0
-        for key, prefix in (("first_step", "step "), ("motion_end", "run complete"), ("calibration", "calibration:"),
-                            ("certificate", "certificate:")):  # fmt: skip
-            if line.startswith(prefix) and key not in marks:
+        for key, pattern in MARKS:
+            if key not in marks and re.match(pattern, line):
                 marks[key] = (now, _cpu_s(proc.pid))
     code, cpu = _wait_cpu(proc)
     if code != 0:
         raise RuntimeError(f"run failed in {tree}")
-    total = (time.perf_counter() - t0, cpu)
+    return run_stages(marks, (time.perf_counter() - t0, cpu))
+
+
+MARKS = (("first_step", r"step "), ("motion_end", r"run complete"), ("calibration", r"calibration:"),
+         ("registry", r"registry: (?!certificate )"), ("certificate", r"certificate:"))  # fmt: skip
+"""The lines of ``tablebench run`` whose arrival ends a stage: (mark, how the line starts, a regular expression);
+the first of each. The registry's line for the calibration, not the one for the certificate
+(``registry: certificate …``, said while the certificate is issued)."""
+REGISTRY = "— registry record"
+
+
+def run_stages(
+    marks: dict[str, tuple[float, float]], total: tuple[float, float]
+) -> dict[str, tuple[float, float]]:
+    """The run's stages (wall, CPU) from the marks of :data:`MARKS`. The registry record (``calibration:`` to
+    ``registry:``) is a row only when the run said where the registry put the calibration; the certificate then
+    starts at the registry line, else (a tree without a registry, or a registry that could not record) at the
+    calibration line."""
 
     def span(a: str, b: str) -> tuple[float, float]:
         return marks[b][0] - marks[a][0], marks[b][1] - marks[a][1]
 
-    return {
+    out = {
         "run (whole, in-process)": total,
         "— start-up to the first step": marks["first_step"],
         "— motion phase": span("first_step", "motion_end"),
         "— identification after the run": span("motion_end", "calibration"),
-        "— certificate": span("calibration", "certificate"),
     }
+    registry = "registry" in marks and marks["registry"][0] <= marks.get("certificate", (float("inf"),))[0]
+    if registry:
+        out[REGISTRY] = span("calibration", "registry")
+    if "certificate" in marks:
+        out["— certificate"] = span("registry" if registry else "calibration", "certificate")
+    return out
 
 
 LIKE_FOR_LIKE = "identify RUN, accelerometer only (offline, 18 states)"
@@ -208,22 +232,51 @@ def results_from_log(log: Path) -> dict[str, list[dict[str, tuple[float, float]]
     return {k: [r[k] for r in done] for k in ("base", "now")}
 
 
+def stage_order(results: dict[str, list[dict[str, tuple[float, float]]]]) -> list[str]:
+    """Every stage either tree has in any round, in the order the rounds list them (this code's first; a stage
+    only one tree has, e.g. the registry record the release lacks, keeps its place after its predecessor)."""
+    order: list[str] = []
+    for k in ("now", "base"):
+        for r in results[k]:
+            for i, s in enumerate(r):
+                if s not in order:
+                    prev = list(r)[i - 1] if i else None
+                    order.insert(order.index(prev) + 1 if prev in order else len(order), s)
+    return order
+
+
+def _median(values: list[float]) -> float | None:
+    return statistics.median(values) if values else None
+
+
 def table(results: dict[str, list[dict[str, tuple[float, float]]]]) -> str:
-    """The Markdown table: per stage, median wall and CPU of each tree and the medians of the per-round ratios."""
-    stages = [s for s in results["now"][0] if all(s in r for k in ("base", "now") for r in results[k])]
+    """The Markdown table: per stage, median wall and CPU of each tree and the medians of the per-round ratios.
+
+    A stage is never dropped: one that a tree does not have (the release has no registry record) shows "—" for
+    that tree and for the ratio; medians are over the rounds that have the stage, ratios over the rounds in
+    which both trees have it (paired round by round)."""
     rows = ["| stage | base wall | now wall | **now / base (wall)** | base CPU | now CPU | **now / base (CPU)** |",
             "|---|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
-    for s in stages:
+    pairs = list(zip(results["base"], results["now"], strict=False))
+    for s in stage_order(results):
         unit = " MB" if "MB" in s else " s"
-        w = [statistics.median(r[s][0] for r in results[k]) for k in ("base", "now")]
-        c = [statistics.median(r[s][1] for r in results[k]) for k in ("base", "now")]
-        rw = statistics.median(n[s][0] / b[s][0] for b, n in zip(results["base"], results["now"], strict=True))
-        rc = statistics.median(n[s][1] / b[s][1] for b, n in zip(results["base"], results["now"], strict=True))
+        w = [_median([r[s][0] for r in results[k] if s in r]) for k in ("base", "now")]
+        c = [_median([r[s][1] for r in results[k] if s in r]) for k in ("base", "now")]
+        both = [(b[s], n[s]) for b, n in pairs if s in b and s in n and b[s][0] > 0 and b[s][1] > 0]
+        rw = _median([n[0] / b[0] for b, n in both])
+        rc = _median([n[1] / b[1] for b, n in both])
+
+        def fig(x: float | None, bold: bool = False, ratio: bool = False, unit: str = unit) -> str:
+            if x is None:
+                return "—"
+            text = f"{x:.2f}" if ratio else f"{x:.3g}{unit}"
+            return f"**{text}**" if bold else text
+
         if "MB" in s:
-            rows.append(f"| {s} | {w[0]:.3g}{unit} | {w[1]:.3g}{unit} | **{rw:.2f}** | | | |")
+            rows.append(f"| {s} | {fig(w[0])} | {fig(w[1])} | {fig(rw, True, True)} | | | |")
         else:
-            rows.append(f"| {s} | {w[0]:.3g}{unit} | {w[1]:.3g}{unit} | **{rw:.2f}** | {c[0]:.3g}{unit} | "
-                        f"{c[1]:.3g}{unit} | **{rc:.2f}** |")  # fmt: skip
+            rows.append(f"| {s} | {fig(w[0])} | {fig(w[1])} | {fig(rw, True, True)} | {fig(c[0])} | {fig(c[1])} | "
+                        f"{fig(rc, True, True)} |")  # fmt: skip
     return "\n".join(rows) + "\n"
 
 

@@ -24,7 +24,8 @@ AXIS_NAMES: tuple[str, str, str] = ("outer", "middle", "inner")
 
 
 class TableStatus(enum.IntFlag):
-    """Status bits a turntable controller reports (the bit values are also the wire bits)."""
+    """Status bits a turntable controller reports (the bit values are also the wire bits; as plain integers, for
+    building a status bit by bit: the ``STATUS_*`` constants below, the one place they are defined)."""
 
     NONE = 0
     IN_POSITION = 1 << 0  # all position-mode axes within tolerance and settled
@@ -35,6 +36,19 @@ class TableStatus(enum.IntFlag):
     INTERLOCK_OPEN = 1 << 5  # motion inhibited
     WATCHDOG = 1 << 6  # heartbeat lost: the controller brought the table to rest
     REMOTE = 1 << 7  # remote control enabled
+
+
+# TableStatus's bits as plain integers, defined once here for every driver and simulator that builds a status bit
+# by bit on its hot path (an IntFlag's | runs Python code each time) and makes one TableStatus at the end:
+# drivers.acutrol.driver (the ACUTROL reading) and drivers.sim.world (the simulated table). Same values as the flags.
+STATUS_IN_POSITION: int = int(TableStatus.IN_POSITION)
+STATUS_MOVING: int = int(TableStatus.MOVING)
+STATUS_AT_RATE: int = int(TableStatus.AT_RATE)
+STATUS_FAULT: int = int(TableStatus.FAULT)
+STATUS_LIMIT: int = int(TableStatus.LIMIT)
+STATUS_INTERLOCK_OPEN: int = int(TableStatus.INTERLOCK_OPEN)
+STATUS_WATCHDOG: int = int(TableStatus.WATCHDOG)
+STATUS_REMOTE: int = int(TableStatus.REMOTE)
 
 
 class FaultCode(enum.IntEnum):

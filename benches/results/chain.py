@@ -34,11 +34,15 @@ def unregister_copy_sink(name: str) -> None:
 
 
 def sinks_for_run(
-    run: str | Path, options: Mapping[str, Any] | None = None, say: Callable[[str], None] = _say_stderr
+    run: str | Path,
+    options: Mapping[str, Any] | None = None,
+    say: Callable[[str], None] = _say_stderr,
+    tell: Callable[[str], None] | None = None,
 ) -> ResultSinks:
     """The chain for a run folder: the run folder itself, then every registered copy sink.
 
-    ``options`` are the command's sink options (``registry``: a URL, or "off").
+    ``options`` are the command's sink options (``registry``: a URL, or "off"); ``say`` takes the line of a
+    copy that cannot take a result, ``tell`` each copy's line saying where it put one (:class:`ResultSinks`).
     """
     runs_folder = Path(run).resolve().parent
     copies: list[ResultSink] = []
@@ -53,7 +57,7 @@ def sinks_for_run(
             continue
         if sink is not None:
             copies.append(sink)
-    return ResultSinks(RunFolderSink(), copies, say=say)
+    return ResultSinks(RunFolderSink(), copies, say=say, tell=tell)
 
 
 def _registry(runs_folder: Path, options: Mapping[str, Any]) -> ResultSink | None:

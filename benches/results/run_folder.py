@@ -72,5 +72,14 @@ class RunFolderSink:
             written.append(write_text_atomic(out / fname, png))
         return completed(doc, written=tuple(written))
 
+    def report(self, kind: str, doc: CalibrationDocument | CertificateDocument | AnalysisDocument) -> str | None:
+        """Where the record is (:func:`benches.results.sink.report_of`): ``calibration: PATH``, ``certificate: PDF``,
+        ``NAME: OUT/NAME.json``; None before the document is written."""
+        if isinstance(doc, CalibrationDocument):
+            return None if doc.path is None else f"calibration: {doc.path}"
+        if isinstance(doc, CertificateDocument):
+            return None if doc.pdf is None else f"certificate: {doc.pdf}"
+        return f"{doc.name}: {doc.written[0]}" if doc.written else None
+
 
 __all__ = ["RunFolderSink"]

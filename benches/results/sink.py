@@ -11,6 +11,13 @@ If it fails, the command fails. Every further sink (a calibration registry) is a
 take a result (a database that cannot be reached, a disk that is full), the chain says so in one line and
 the command goes on — the run folder stays the record and the copy can be made later
 (``tablebench registry add RUN``). See ``docs/extending.md`` (a results store) and ``docs/registry.md``.
+
+**Where a result went.** A sink may also have ``report(kind, doc) -> str | None``: one line naming where it put
+the document it has just taken (the run folder: ``calibration: RUN/calibration.json``; the registry: the unit,
+the calibration's number in its history and the database). The chain hands each copy's line to ``tell`` as
+soon as that copy has taken the document, so a command says where a result went stage by stage: ``run``
+publishes in two steps, :meth:`ResultSinks.keep` (the record; the command then says the record's line) and
+:meth:`ResultSinks.copy` (every copy, each telling its own line).
 """
 
 from __future__ import annotations
@@ -145,6 +152,16 @@ class ResultSink(Protocol):
         ...
 
 
+def report_of(sink: ResultSink, kind: str, doc: Document) -> str | None:
+    """The line in which ``sink`` says where it put ``doc`` of ``kind`` (its optional ``report`` method; None when
+    it has none or has nothing to say, e.g. a kind it does not keep)."""
+    report = getattr(sink, "report", None)
+    if report is None:
+        return None
+    line = report(kind, doc)
+    return str(line) if line else None
+
+
 def _say_stderr(text: str) -> None:
     try:
         print(text, file=sys.stderr, flush=True)
@@ -163,30 +180,59 @@ class ResultSinks:
         Further sinks; a failure of one is reported in one line by ``say`` and does not stop the chain.
     say : callable
         ``say(text)`` for those lines (stderr by default).
+    tell : callable, optional
+        ``tell(line)`` for each copy's line saying where it put a document (:func:`report_of`), told as soon as
+        that copy has taken it; None (default): not told.
     """
 
     def __init__(
-        self, record: ResultSink, copies: Sequence[ResultSink] = (), say: Callable[[str], None] = _say_stderr
+        self,
+        record: ResultSink,
+        copies: Sequence[ResultSink] = (),
+        say: Callable[[str], None] = _say_stderr,
+        tell: Callable[[str], None] | None = None,
     ) -> None:
         self.record = record
         self.copies = list(copies)
         self.say = say
+        self.tell = tell
         self.failures: list[str] = []
         """One line per copy that could not take a document (for tests and closing summaries)."""
 
     def __call__(self, kind: str, doc: Document) -> Document:
         """Publish ``doc`` of ``kind`` (one of :data:`KINDS`) to every sink; returns the completed document."""
+        doc = self.keep(kind, doc)
+        self.copy(kind, doc)
+        return doc
+
+    def keep(self, kind: str, doc: Document) -> Document:
+        """The first half of publishing: the record sink alone takes ``doc`` (its failure is the caller's);
+        returns the completed document, which :meth:`copy` then hands to the copies."""
         if kind not in KINDS:
             raise ValueError(f"unknown document kind {kind!r} (one of {KINDS})")
-        doc = getattr(self.record, kind)(doc)
+        return getattr(self.record, kind)(doc)
+
+    def copy(self, kind: str, doc: Document) -> None:
+        """The second half: every copy takes the completed ``doc``, in order; each one's line goes to ``tell``
+        when it has taken it, and a copy that cannot take it costs one line (``say``) and stops nothing."""
+        if kind not in KINDS:
+            raise ValueError(f"unknown document kind {kind!r} (one of {KINDS})")
         for sink in self.copies:
             try:
                 getattr(sink, kind)(doc)
+                line = report_of(sink, kind, doc) if self.tell is not None else None
             except SinkError as exc:
                 self._fail(f"{exc}")
+                continue
             except Exception as exc:  # noqa: BLE001 — a copy never takes the record down with it
                 self._fail(f"{sink.name}: could not take the {kind} ({exc.__class__.__name__}: {exc})")
-        return doc
+                continue
+            if line is not None and self.tell is not None:
+                self.tell(line)
+
+    def report(self, kind: str, doc: Document) -> str | None:
+        """The record sink's line for ``doc`` (where the record is: ``calibration: RUN/calibration.json``)."""
+        return report_of(self.record, kind, doc)
 
     def _fail(self, text: str) -> None:
         run_hint = "the run folder keeps the result"
@@ -222,4 +268,5 @@ __all__ = [
     "ResultSinks",
     "SinkError",
     "completed",
+    "report_of",
 ]

@@ -71,6 +71,12 @@ from analysis.units import DEG
 from drivers.acutrol.settings import AclSettings
 from drivers.protocols import (
     AXIS_NAMES,
+    STATUS_AT_RATE,
+    STATUS_FAULT,
+    STATUS_IN_POSITION,
+    STATUS_INTERLOCK_OPEN,
+    STATUS_MOVING,
+    STATUS_REMOTE,
     AxisLimits,
     AxisMode,
     FaultCode,
@@ -100,10 +106,6 @@ _OTHER_WORDS = {"synthesis", "track", "abort", "home"}
 MAX_QUEUE = 32
 """Most error-queue entries read after one message (a controller that keeps reporting is named as such)."""
 _NUMBER = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
-_REMOTE, _IN_POSITION, _AT_RATE, _MOVING, _FAULT, _INTERLOCK_OPEN = (
-    int(TableStatus.REMOTE), int(TableStatus.IN_POSITION), int(TableStatus.AT_RATE), int(TableStatus.MOVING),
-    int(TableStatus.FAULT), int(TableStatus.INTERLOCK_OPEN),
-)  # fmt: skip
 
 
 def format_number(x: float) -> str:
@@ -579,7 +581,8 @@ class AclTurntable:
     def _status(
         self, t: float, angles: NDArray[np.float64], rates: NDArray[np.float64], modes: tuple[AxisMode, ...], stb: int
     ) -> tuple[TableStatus, FaultCode]:
-        status = _REMOTE  # the bits as integers, one TableStatus at the end (an IntFlag's | runs Python code)
+        # the bits as integers (drivers.protocols.STATUS_*), one TableStatus at the end (an IntFlag's | runs Python)
+        status = STATUS_REMOTE
         fault = FaultCode.NONE
         steady = []
         for i in range(3):
@@ -601,14 +604,14 @@ class AclTurntable:
         pos = [i for i in range(3) if modes[i] == AxisMode.POSITION]
         rat = [i for i in range(3) if modes[i] == AxisMode.RATE]
         if pos and all(steady[i] for i in pos):
-            status |= _IN_POSITION
+            status |= STATUS_IN_POSITION
         if rat and all(steady[i] for i in rat):
-            status |= _AT_RATE
+            status |= STATUS_AT_RATE
         spinning = any(abs(float(rates[i])) > self.rate_tol for i in rat)
         if not all(steady) or spinning:
-            status |= _MOVING
+            status |= STATUS_MOVING
         if stb & STB_SI:
-            status |= _FAULT | _INTERLOCK_OPEN
+            status |= STATUS_FAULT | STATUS_INTERLOCK_OPEN
             fault = FaultCode.INTERLOCK
             if not self.fault_report:
                 try:
@@ -622,7 +625,7 @@ class AclTurntable:
                 if self._interlocks is None:
                     self._interlocks = self._interlock_fields()
                 if not all(f.strip().lower().startswith("clos") for f in self._interlocks):
-                    status |= _INTERLOCK_OPEN
+                    status |= STATUS_INTERLOCK_OPEN
         return TableStatus(status), fault
 
     def heartbeat(self) -> None:

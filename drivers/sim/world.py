@@ -56,16 +56,23 @@ from scipy import signal
 from analysis import gimbal
 from analysis.earth import earth_rate_enu
 from drivers.imu_unit.counts import CountScale, RawFrames, concat_frames
-from drivers.protocols import AxisLimits, AxisMode, FaultCode, TableError, TableState, TableStatus
+from drivers.protocols import (
+    STATUS_AT_RATE,
+    STATUS_FAULT,
+    STATUS_IN_POSITION,
+    STATUS_MOVING,
+    STATUS_REMOTE,
+    AxisLimits,
+    AxisMode,
+    FaultCode,
+    TableError,
+    TableState,
+    TableStatus,
+)
 from drivers.sim.chamber import ChamberPhysics
 from drivers.sim.config import ACCEL_PARAM_NAMES, SimConfig, gyro_truth
 from drivers.sim.imu_model import InertialModel, misalignment_matrix
 from drivers.sim.motion import AxisPlan, plan_hold, plan_position, plan_rate, plan_stop
-
-_REMOTE, _MOVING, _IN_POSITION, _AT_RATE, _FAULT = (
-    int(TableStatus.REMOTE), int(TableStatus.MOVING), int(TableStatus.IN_POSITION), int(TableStatus.AT_RATE),
-    int(TableStatus.FAULT),
-)  # fmt: skip
 
 
 class SimulatedBench(Protocol):
@@ -491,18 +498,19 @@ class SimulatedWorld:
             return acc[0].copy()
 
     def _status(self, t: float) -> TableStatus:
-        # the bits as integers, one TableStatus at the end (an IntFlag's | runs Python code every time)
-        st = _REMOTE | int(self._latched)
+        # the bits as integers (drivers.protocols.STATUS_*), one TableStatus at the end (an IntFlag's | runs Python
+        # code every time)
+        st = STATUS_REMOTE | int(self._latched)
         if any(t < pl.t_still for pl in self._plans):
-            st |= _MOVING
+            st |= STATUS_MOVING
         pos = [pl for pl in self._plans if pl.mode == AxisMode.POSITION]
         if pos and all(t >= pl.t_done for pl in pos):
-            st |= _IN_POSITION
+            st |= STATUS_IN_POSITION
         rate = [pl for pl in self._plans if pl.mode == AxisMode.RATE]
         if rate and all(t >= pl.t_done for pl in rate):
-            st |= _AT_RATE
+            st |= STATUS_AT_RATE
         if self._fault != FaultCode.NONE:
-            st |= _FAULT
+            st |= STATUS_FAULT
         return TableStatus(st)
 
     # ---- temperature chamber (docs/methods/thermal.md) --------------------------------------------------

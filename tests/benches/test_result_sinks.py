@@ -120,3 +120,48 @@ def test_the_run_folder_sink_writes_analyses(tmp_path):
     assert json.loads((tmp_path / "noise" / "noise.json").read_text()) == {"a": 1.0}
     assert (tmp_path / "noise" / "n.png").read_bytes() == b"P"
     assert [Path(p).name for p in doc.written] == ["noise.json", "n.png"]
+
+
+class Reporting(Collect):
+    """A copy that says where it put each document (its optional ``report``)."""
+
+    name = "archive"
+
+    def report(self, kind, doc):
+        return f"archive: {kind} of {Path(doc.run).name} kept"
+
+
+def test_each_copy_tells_where_it_put_a_document_as_soon_as_it_has_taken_it(tmp_path):
+    run = make_run_folder(tmp_path / "runs" / "r1")
+    result = CalibrationResult.load(run / "calibration.json")
+    events: list[str] = []
+
+    class Slow(Reporting):
+        def calibration(self, doc):
+            events.append("slow took it")
+            return super().calibration(doc)
+
+    said: list[str] = []
+    sinks = ResultSinks(RunFolderSink(), [Slow(), Unreachable(), Collect(), Reporting()], say=said.append,
+                        tell=events.append)  # fmt: skip
+    kept = sinks.keep("calibration", CalibrationDocument(run=run, result=result))
+    assert kept.path == run / "calibration.json" and events == []  # the record alone; no copy has it yet
+    assert sinks.report("calibration", kept) == f"calibration: {run / 'calibration.json'}"
+    sinks.copy("calibration", kept)
+    # each copy's line right after that copy took it; a failing copy costs one line (say) and no tell; a copy
+    # without ``report`` says nothing
+    assert events == ["slow took it", "archive: calibration of r1 kept", "archive: calibration of r1 kept"]
+    assert len(said) == 1 and "no space left" in said[0]
+    # publishing in one call does the same (without tell: nothing is told)
+    events.clear()
+    ResultSinks(RunFolderSink(), [Reporting()]).calibration(CalibrationDocument(run=run, result=result))
+    assert events == []
+
+
+def test_the_run_folder_reports_where_the_record_is(tmp_path):
+    run = make_run_folder(tmp_path / "runs" / "r1")
+    result = CalibrationResult.load(run / "calibration.json")
+    sink = RunFolderSink()
+    assert sink.report("calibration", CalibrationDocument(run=run, result=result)) is None  # not yet written
+    doc = sink.calibration(CalibrationDocument(run=run, result=result, path=tmp_path / "c.json"))
+    assert sink.report("calibration", doc) == f"calibration: {tmp_path / 'c.json'}"

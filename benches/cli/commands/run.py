@@ -270,7 +270,7 @@ def _finish(
                 say=_say,
                 done=done,
                 prep=prep,
-                sinks=sinks_for_run(folder, sink_options(args), say=_say),
+                sinks=sinks_for_run(folder, sink_options(args), say=_say, tell=lambda line: _say(line, err=False)),
             )
     except KeyboardInterrupt:
         left = [t for t in todo if t not in done]

@@ -18,13 +18,14 @@ import getpass
 import hashlib
 import json
 import os
+import sys
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from analysis.identification.model import PARAM_NAMES, centripetal, mean_model_error
+from analysis.identification.model import PARAM_NAMES, mean_model_error
 from benches.calibration_integrity import load_verified, read_raw
 from benches.calibration_result import CalibrationResult
 from benches.certificate_register import CertificateRegister, RegisterError
@@ -102,7 +103,13 @@ def bench_settings(run: str | Path) -> tuple[str, IntervalSettings]:
     """(unit configuration, recalibration settings) from the bench text recorded with the run (the run
     folder's bench.yaml copy when the recording cannot be read); defaults when neither is there."""
     run = Path(run)
+    # the run this process has just identified: its recording's bench text is in memory (a process that has
+    # identified nothing, e.g. ``registry due``, does not import the identification to find that out)
+    identify = sys.modules.get("benches.identify")
+    data = identify.recent_data(run) if identify is not None else None
     try:
+        if data is not None:
+            return from_bench_text(data.run.bench_text, f"{data.path}:/bench_yaml")
         with open_recording(run / "recording.h5") as f:
             return from_bench_text(f.bench_text, f"{run / 'recording.h5'}:/bench_yaml")
     except (RecordingError, OSError):
@@ -218,6 +225,28 @@ recording and process: ``registry add`` of many runs of one recording, and the a
 read it once)."""
 
 
+def window_moments(f_out: np.ndarray, f_ref: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """The (4, 3) sample means of f_out − f_ref, f_ref, f_ref∘f_ref and c(ω) over one window (body frame;
+    :func:`analysis.identification.model.centripetal`), equal to the last bit to ``np.mean(…, axis=0)`` of each.
+
+    ``np.mean`` over the samples of an (n, 3) array adds the rows one after another (a three-wide inner loop per
+    row); here the twelve columns are laid out as rows of one (12, n) array and summed by ``np.cumsum`` along
+    them — the same additions in the same order, so the same sums, in about half the time (issue 32). A test
+    checks the equality against ``np.mean`` of the per-sample values.
+    """
+    n = int(f_ref.shape[0])
+    if n == 0:
+        return np.full((4, 3), np.nan)
+    cols = np.empty((12, n))
+    np.subtract(f_out.T, f_ref.T, out=cols[0:3])
+    cols[3:6] = f_ref.T
+    np.multiply(cols[3:6], cols[3:6], out=cols[6:9])
+    w2 = np.square(np.asarray(omega, dtype=float).T)
+    np.subtract((w2[0] + w2[1]) + w2[2], w2, out=cols[9:12])  # c(ω): the row sum of ω², less each ω_i²
+    np.cumsum(cols, axis=1, out=cols)
+    return (cols[:, -1] / n).reshape(4, 3)
+
+
 def _window_moments(run: Path, recording_sha256: str) -> list[tuple[str, np.ndarray]] | None:
     """Per acquisition window, its name and the (4, 3) sample means of f_out − f_ref, f_ref, f_ref∘f_ref and
     c(ω) (body frame; :func:`analysis.identification.model.centripetal`); None when the recording cannot be
@@ -230,20 +259,7 @@ def _window_moments(run: Path, recording_sha256: str) -> list[tuple[str, np.ndar
         windows = load_run(run).windows
     except (IdentificationError, UserError, OSError):
         return None
-    moments = [
-        (
-            w.name,
-            np.array(
-                [
-                    np.mean(w.f_out - w.f_ref, axis=0),
-                    w.f_ref.mean(axis=0),
-                    np.mean(w.f_ref * w.f_ref, axis=0),
-                    centripetal(w.omega).mean(axis=0),
-                ]
-            ),
-        )  # fmt: skip
-        for w in windows
-    ]
+    moments = [(w.name, window_moments(w.f_out, w.f_ref, w.omega)) for w in windows]
     if recording_sha256:
         if len(_MOMENTS) >= 64:
             _MOMENTS.pop(next(iter(_MOMENTS)))

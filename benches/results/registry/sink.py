@@ -71,6 +71,8 @@ class RegistrySink:
         self.url = url
         self.operator = operator
         self._reg: Registry | None = None
+        self._last: tuple[Path, AddOutcome] | None = None
+        self._down = False  # could not record once: not tried again by this command (one line, not one per result)
 
     def _registry(self) -> Registry:
         from .store import Registry  # lazy: sqlalchemy, needed only when recording (--help time)
@@ -82,9 +84,13 @@ class RegistrySink:
     def _add(self, run: Path) -> None:
         from .store import RegistryError, display_url  # lazy: sqlalchemy, needed only when recording (--help time)
 
+        self._last = None
+        if self._down:  # its line said so, and ``registry add RUN`` records everything of the run later
+            return
         try:
-            add_run(self._registry(), run, operator=self.operator)
+            self._last = (run, add_run(self._registry(), run, operator=self.operator))
         except UserError as exc:
+            self._down = True
             text = str(exc).removeprefix(f"registry {display_url(self.url)}: ")
             raise RegistryError(
                 f"registry {display_url(self.url)}: not recorded ({text}); the run folder keeps the result — "
@@ -93,6 +99,7 @@ class RegistrySink:
 
     def calibration(self, doc: CalibrationDocument) -> CalibrationDocument:
         """Record the run once its calibration.json is written (in the run folder)."""
+        self._last = None
         if doc.path is not None and Path(doc.path).resolve() == (Path(doc.run) / "calibration.json").resolve():
             self._add(Path(doc.run))
         return doc
@@ -105,6 +112,34 @@ class RegistrySink:
     def analysis(self, doc: AnalysisDocument) -> AnalysisDocument:
         """Analyses are not kept by the registry (they stay in the run folder)."""
         return doc
+
+    def report(self, kind: str, doc: CalibrationDocument | CertificateDocument | AnalysisDocument) -> str | None:
+        """Where the registry put the run it has just recorded (:func:`benches.results.sink.report_of`): the unit,
+        the calibration's place in its history and the database, e.g. ``registry: SIM-U-0001 (QA-3000)
+        calibration 3 of 3 (id 17) in /lab/runs/registry.sqlite`` (a certificate: ``registry: certificate
+        TB-000042 with …``); None when it recorded nothing new for ``doc``."""
+        if self._last is None or kind == "analysis" or self._last[0] != Path(doc.run):
+            return None
+        out = self._last[1]
+        what = f"calibration {out.place} of {out.of} (id {out.calibration_id})"
+        if kind == "certificate":
+            if not out.certificates_added:
+                return None  # recorded before (nothing new to say)
+            what = f"certificate {', '.join(out.certificates_added)} with {out.serial} {what}"
+        else:
+            what = f"{out.serial} ({out.model}) {what}" if out.model else f"{out.serial} {what}"
+            if not out.added:
+                what += ", already recorded"
+        return f"registry: {what} in {_where(self.url)}"
+
+
+def _where(url: str) -> str:
+    """The database as a technician finds it: an SQLite file's path, else the URL without its password."""
+    if url.startswith("sqlite:///") and url != "sqlite:///:memory:":
+        return url.removeprefix("sqlite:///")
+    from .store import display_url  # lazy: sqlalchemy, imported by now when recording (--help time)
+
+    return display_url(url)
 
 
 def sink_factory(runs_folder: Path, options: Mapping[str, Any]) -> RegistrySink | None:

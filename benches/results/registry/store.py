@@ -98,11 +98,19 @@ class AddOutcome:
         False when the calibration was already there (nothing changed for it).
     certificates_added : tuple of str
         Certificate numbers newly recorded.
+    place, of : int
+        The calibration is the unit's ``place``-th of ``of`` in the registry (by run time; 0 when not stated).
+    serial, model : str
+        The unit's.
     """
 
     calibration_id: int
     added: bool
     certificates_added: tuple[str, ...]
+    place: int = 0
+    of: int = 0
+    serial: str = ""
+    model: str = ""
 
 
 class Registry:
@@ -273,7 +281,18 @@ class Registry:
                         .where(p.calibration_id == cal_id, p.name == par["name"])
                         .values(expanded=par["expanded"], budget=par["budget"])
                     )
-        return AddOutcome(cal_id, added, tuple(new_certs))
+            place, of = self._place(conn, unit_id, cal_id)
+        unit = rec["unit"]
+        return AddOutcome(cal_id, added, tuple(new_certs), place, of, str(unit["serial"]), str(unit["model"]))
+
+    @staticmethod
+    def _place(conn: Connection, unit_id: int, cal_id: int) -> tuple[int, int]:
+        """(the calibration's place in its unit's history by run time, the unit's number of calibrations)."""
+        c = S.calibrations.c
+        this = conn.execute(select(c.run_utc).where(c.id == cal_id)).scalar_one()
+        of_unit = select(func.count()).select_from(S.calibrations).where(c.unit_id == unit_id)
+        before = of_unit.where((c.run_utc < this) | ((c.run_utc == this) & (c.id <= cal_id)))
+        return int(conn.execute(before).scalar_one()), int(conn.execute(of_unit).scalar_one())
 
     @staticmethod
     def _insert(conn: Connection, table: Any) -> Any:
