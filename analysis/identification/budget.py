@@ -40,6 +40,10 @@ from elsewhere, e.g. the time base, enter the same way):
 Combined standard uncertainty u = √diag(Σ components); expanded uncertainty U = k u with k = 2 (≈ 95 %
 for a normal distribution; the effective degrees of freedom are large). Where the spec is silent the
 method follows IEEE Std 1293.
+
+Evaluation: one budget forms each step's H and Hᵀ R⁻¹, and each input's shapes and sensitivities, once
+(:class:`StepTerms`, a memo of that one evaluation, shared by the components and the mismatch test); nothing is
+kept between budgets.
 """
 
 from __future__ import annotations
