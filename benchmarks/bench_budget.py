@@ -161,6 +161,12 @@ def main(argv: list[str] | None = None) -> None:
         "Every component's covariance, its source text and the notes are the same bits on both sides (checked "
         "before timing). `run` forms the budget once (its NEES line and its certificate share it); the offline "
         "`identify RUN` (NEES line) and `certificate RUN` form it again each."
+        + (
+            " The in-process rows compare whole trees: they include every change between the base and this tree, "
+            "not only the budget's."
+            if stage
+            else ""
+        )
     )
     write_section("budget-speed", "GUM budget cost against an earlier commit (issue 32)", body)
     print(body)
