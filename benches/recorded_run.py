@@ -6,7 +6,8 @@ its copies of the bench and procedure files again. ``tablebench run`` builds it 
 hands it the bench and procedure it already parsed and compiled (:func:`open_run` reuses them when they are
 exactly the recorded texts), so one run parses the bench once and compiles the procedure once.
 
-The recording is verified when it is opened (every checksum, :func:`benches.recording.open_recording`); the
+The recording is verified when it is opened (every checksum, :func:`benches.recording.open_recording`; the run
+that has just written it uses the verification done while writing, ``open_run(..., written=True)``); the
 bench copy is parsed and the procedure copy compiled on first use, so a tool that needs neither never pays
 for them (or fails on them).
 """
@@ -155,6 +156,7 @@ def open_run(
     config: BenchConfig | None = None,
     compiled: CompiledProcedure | None = None,
     overrides: dict[str, float] | None = None,
+    written: bool = False,
 ) -> RecordedRun:
     """Open and verify a recording (a run folder or its ``recording.h5``) as a :class:`RecordedRun`.
 
@@ -166,13 +168,17 @@ def open_run(
         The bench, the compiled procedure and the parameter overrides it was compiled with, as the caller
         already has them (``tablebench run``); used instead of parsing the recorded copies again when they are
         exactly the recorded texts and overrides.
+    written : bool
+        The caller is the process that has just written the recording (``tablebench run``): the verification the
+        recorder did while writing is used instead of a second full pass, if it describes this file unchanged
+        (``open_recording(..., written=True)``); otherwise the full verification runs.
 
     Raises
     ------
     benches.recording.RecordingError
         Missing, unreadable or damaged recording.
     """
-    rec = open_recording(path)
+    rec = open_recording(path, written=written)
     try:
         return RecordedRun(
             recording=rec,

@@ -358,6 +358,7 @@ def identify_and_certify(
             config=None if prep is None else prep.config,
             compiled=None if prep is None else prep.compiled,
             overrides=None if prep is None else prep.overrides,
+            written=prep is not None,  # this process wrote it: the recorder's verification (benches.recording.written)
         )
     except RecordingError:
         recorded = None  # identification and certificate name the problem themselves
@@ -397,7 +398,12 @@ def _identify_and_certify(
         done.append("identification")
         say(result.summary(combined_covariance_or_none(result, source)))
         say(sinks.report("calibration", kept) or f"calibration: {kept.path}", err=False)
-        sinks.copy("calibration", kept)  # the registry: its own line when recorded, one line when it cannot
+        try:
+            sinks.copy("calibration", kept)  # the registry: its own line when recorded, one line when it cannot
+        except KeyboardInterrupt:
+            say(f"interrupted while the registry recorded the calibration (the run folder keeps it); record it "
+                f"later with: tablebench registry add {folder}")  # fmt: skip
+            raise
     if "certificate" in todo:
         from benches.certificate import (  # lazy: fpdf, matplotlib, filterpy (--help time)
             NOISE_REPORT,

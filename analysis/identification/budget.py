@@ -40,6 +40,10 @@ from elsewhere, e.g. the time base, enter the same way):
 Combined standard uncertainty u = √diag(Σ components); expanded uncertainty U = k u with k = 2 (≈ 95 %
 for a normal distribution; the effective degrees of freedom are large). Where the spec is silent the
 method follows IEEE Std 1293.
+
+Evaluation: one budget forms each step's H and Hᵀ R⁻¹, and each input's shapes and sensitivities, once
+(:class:`StepTerms`, a memo of that one evaluation, shared by the components and the mismatch test); nothing is
+kept between budgets.
 """
 
 from __future__ import annotations
@@ -216,7 +220,8 @@ class StepTerms:
 
     * H and Hᵀ R⁻¹ of step k: keyed by k, the step's position in this object's geometry;
     * an input's shapes e_k (one per step) and its per-step sensitivities: keyed by the shape callable itself
-      (held here, so its identity cannot be reused by another function while this object lives).
+      (held here, so its identity cannot be reused by another function while this object lives); a
+      :class:`DerivedShape` is formed from its base's memoised shapes.
 
     Nothing is keyed by the step's values: another geometry, noise or A⁻¹ means another object. The arithmetic
     is the uncached one's, operation for operation (the same numbers bit for bit).
@@ -262,7 +267,11 @@ class StepTerms:
         """``shape(geo)`` for every step (None where the step does not see the input)."""
         got = self._shapes.get(shape)
         if got is None:
-            got = self._shapes[shape] = [shape(geo) for geo in self.geometry]
+            if isinstance(shape, DerivedShape):  # its base formed once for every input derived from it
+                got = [None if e is None else shape.transform(e) for e in self.shapes(shape.base)]
+            else:
+                got = [shape(geo) for geo in self.geometry]
+            self._shapes[shape] = got
         return got
 
     def sensitivity(self, shape: Shape) -> list[NDArray[np.float64] | None]:
@@ -331,6 +340,35 @@ def attitude_shape(geo: StepGeometry, model: ModelSpec | None = None) -> NDArray
         sh = _cross_matrices(vecs[:, t, :])
         blocks.append(sh if rot is None else sh @ rot)
     return np.concatenate(blocks, axis=1)
+
+
+@dataclass(frozen=True)
+class AttitudeShape:
+    """The attitude input's shape function of ``model`` (:func:`attitude_shape`) as a value: two are equal, and so
+    share one entry of a budget's memo (:class:`StepTerms`, keyed by the shape function), when they are of the same
+    model object; the attitude input and the inputs derived from it (:class:`DerivedShape`, the gyro's azimuth)
+    then form it once per step."""
+
+    model: ModelSpec
+
+    def __call__(self, geo: StepGeometry) -> NDArray[np.float64]:
+        return attitude_shape(geo, self.model)
+
+
+@dataclass(frozen=True)
+class DerivedShape:
+    """An input's error shape computed from another input's: ``transform(base(geo))`` (None where base is None).
+
+    A budget's memo (:class:`StepTerms`) forms ``base`` once per step for every input that uses it, and applies
+    ``transform`` to that same array (the same numbers as calling it directly).
+    """
+
+    base: Shape
+    transform: Callable[[NDArray[np.float64]], NDArray[np.float64]]
+
+    def __call__(self, geo: StepGeometry) -> NDArray[np.float64] | None:
+        e = self.base(geo)
+        return None if e is None else self.transform(e)
 
 
 def attitude_sensitivity(
@@ -482,7 +520,7 @@ def reference_inputs(
             "attitude", "Table attitude accuracy",
             f"±{attitude_accuracy / ARCSEC:.3g}″ per axis (bench file), rectangular, u = {u_att / ARCSEC:.3g}″, "
             "independent per step",
-            np.eye(3) * u_att**2, lambda geo: attitude_shape(geo, model), per_step=True,
+            np.eye(3) * u_att**2, AttitudeShape(model), per_step=True,
         ),
         BudgetInput(
             "local_g", "Local gravity",
@@ -625,8 +663,10 @@ def _mismatch_component(
 
 __all__ = [
     "COVERAGE_FACTOR",
+    "AttitudeShape",
     "BudgetComponent",
     "BudgetInput",
+    "DerivedShape",
     "StepGeometry",
     "StepTerms",
     "UncertaintyBudget",

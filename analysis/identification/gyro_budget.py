@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from analysis.earth import EARTH_RATE
-from analysis.identification.budget import BudgetInput, StepGeometry, attitude_shape
+from analysis.identification.budget import AttitudeShape, BudgetInput, DerivedShape, StepGeometry
 from analysis.identification.specification import ModelSpec
 from analysis.units import ARCSEC, PPM
 
@@ -58,8 +58,8 @@ def earth_rate_inputs(
     up = np.array([0.0, 0.0, 1.0])
     d_omega = EARTH_RATE * np.array([0.0, -math.sin(latitude), math.cos(latitude)])
 
-    def azimuth(geo: StepGeometry) -> NDArray[np.float64]:
-        return (attitude_shape(geo, model) @ up)[:, :, None]
+    def azimuth(attitude: NDArray[np.float64]) -> NDArray[np.float64]:  # the attitude shape about the vertical
+        return (attitude @ up)[:, :, None]
 
     def lat(geo: StepGeometry) -> NDArray[np.float64] | None:
         if geo.c_bn is None:
@@ -72,7 +72,7 @@ def earth_rate_inputs(
             "azimuth", "Table azimuth alignment (Earth rate)",
             f"u = {u_azimuth / ARCSEC:.3g}″ about the vertical ({azimuth_source}), one for the run",
             np.array([[u_azimuth**2]]),
-            azimuth,
+            DerivedShape(AttitudeShape(model), azimuth),
         ),
         BudgetInput(
             "latitude", "Site latitude (Earth rate)", f"u = {u_latitude / ARCSEC:.3g}″ of latitude, one for the run",

@@ -27,6 +27,7 @@ from analysis.identification.budget import (
     default_g_uncertainty,
 )
 from analysis.identification.gyro_budget import earth_rate_inputs, time_base_inputs
+from analysis.identification.specification import ModelSpec
 from analysis.identification.table_axes import held_angle_input, orthogonality_input
 from analysis.timebase import TimeBase
 from analysis.units import ARCSEC
@@ -192,7 +193,7 @@ def budget_for_run(
             bias_instability = None
             notes.append("the unit's gyro bias instability is unknown: no flicker share in the mismatch test")
         covered = bool(tb_source) and cal.time_base is not None and "gyro_S_x" in (cal.time_base.sensitivity or {})
-        extra = _gyro_inputs(cal, latitude, azimuth_uncertainty, attitude_accuracy, notes, covered)
+        extra = _gyro_inputs(cal, latitude, azimuth_uncertainty, attitude_accuracy, notes, covered, model)
     # the table's axis non-orthogonality, bounded by its stated attitude accuracy: both triads (table_axes)
     extra += orthogonality_input(model, attitude_accuracy, g, "bounded by the table's attitude accuracy")
     extra += held_angle_input(model, g)  # the held gimbals' angle readings during spins (table_axes)
@@ -229,8 +230,11 @@ def _gyro_inputs(
     attitude_accuracy: float,
     notes: list[str],
     time_base_covered: bool = False,
+    model: ModelSpec | None = None,
 ) -> list[BudgetInput]:
-    model = cal.error_model
+    """The gyro's type-B inputs (:mod:`analysis.identification.gyro_budget`) for ``model`` (default the calibration's
+    error model; the budget passes its own object, so the inputs derived from the attitude share its shapes)."""
+    model = cal.error_model if model is None else model
     if latitude is None:
         notes.append("site latitude unknown: the Earth-rate inputs (azimuth, latitude) are not evaluated")
         out: list[BudgetInput] = []

@@ -17,7 +17,7 @@ import h5py
 import numpy as np
 from numpy.typing import NDArray
 
-from .layout import _IMU_DTYPES, _TABLE_DTYPES, IMU_FIELDS, NS_NAN, TABLE_FIELDS
+from .layout import _IMU_DTYPES, _TABLE_DTYPES, IMU_FIELDS, NS_NAN, TABLE_FIELDS, RecordingDamaged, RecordingError
 
 EXC_DTYPE = np.dtype([("row", np.int64), ("col", np.int8), ("value", np.float64)])
 
@@ -76,6 +76,29 @@ class _StepHasher:
             h.update(self.parts[key].digest())
         return h.hexdigest()
 
+    def imu_digests(self) -> tuple[bytes, ...]:
+        """The SHA-256 digests of the step's /imu datasets (in :data:`IMU_FIELDS` order)."""
+        return tuple(self.parts[("imu", n)].digest() for n in IMU_FIELDS)
+
+    @classmethod
+    def from_imu_digests(cls, digests: Sequence[bytes]) -> _StepHasher:
+        """A hasher whose /imu parts are finished, with these digests (:meth:`imu_digests`); the /table parts are
+        still to be updated."""
+        h = cls()
+        for n, d in zip(IMU_FIELDS, digests, strict=True):
+            h.parts[("imu", n)] = _Finished(d)  # type: ignore[assignment]
+        return h
+
+
+class _Finished:
+    """A finished hash: only its digest."""
+
+    def __init__(self, digest: bytes) -> None:
+        self._digest = bytes(digest)
+
+    def digest(self) -> bytes:
+        return self._digest
+
 
 # ---- writing -------------------------------------------------------------------------------------------------------
 
@@ -128,6 +151,44 @@ def _encode_chunk(chunk: NDArray[Any], rle: bool = False) -> bytes:
     return z + _fletcher32(z).to_bytes(4, "little")
 
 
+def _decodes_to(encoded: bytes, chunk: NDArray[Any]) -> bool:
+    """Whether an encoded chunk (:func:`_encode_chunk`: deflate stream + Fletcher-32) decodes, through the
+    pipeline's inverse (inflate, unshuffle), to exactly ``chunk``'s bytes. zlib and numpy release the GIL."""
+    it = chunk.dtype.itemsize
+    want = np.ascontiguousarray(chunk).view(np.uint8).reshape(-1, it)
+    try:
+        raw = zlib.decompress(encoded[:-4])
+    except zlib.error:
+        return False
+    if len(raw) != want.size:
+        return False
+    return bool(np.array_equal(np.frombuffer(raw, np.uint8).reshape(it, -1).T, want))
+
+
+def _dequantises_to(
+    counts: NDArray[Any], lsb: float, exc: NDArray[Any], row0: int, values: NDArray[Any], name: str
+) -> bool:
+    """Whether stored counts with their exceptions (rows ``row0 …``) read back (:func:`_dequantise`, as the reader
+    does) as exactly the recorded ``values`` (bit for bit, in the dataset's recorded dtype)."""
+    back = _dequantise(counts, lsb, exc, np.arange(row0, row0 + len(counts), dtype=np.int64))
+    want = np.ascontiguousarray(values, dtype=_IMU_DTYPES[name])
+    return back.shape == want.shape and bool(np.array_equal(back.view(np.uint8), want.view(np.uint8)))
+
+
+def _read_chunk(d: h5py.Dataset, offset: tuple[int, ...]) -> tuple[int, bytes]:
+    """A chunk's stored bytes and filter mask, as the file holds them (HDF5's direct chunk read)."""
+    mask, data = d.id.read_direct_chunk(offset)
+    return int(mask), bytes(data)
+
+
+class _ChunkMismatch(Exception):
+    """An encoded chunk or batch of rows failed its check (raised on the encoder thread)."""
+
+    def __init__(self, name: str, r0: int, r1: int, what: str) -> None:
+        super().__init__(what)
+        self.name, self.r0, self.r1, self.what = name, r0, r1, what
+
+
 def _append_rows(d: h5py.Dataset, data: NDArray[Any]) -> None:
     """Append rows to an extendable dataset."""
     n0 = d.shape[0]
@@ -160,12 +221,21 @@ class _ChunkWriter:
     are kept (``tail``) and that chunk is re-encoded when rows follow. :meth:`after` queues an action (a
     step row) that runs once everything submitted before it is on disk; :meth:`drain` writes results in
     order: those ready, or all of them with ``wait``.
+
+    Verified while written (RECORDING.md, "Where the integrity is verified"): on the worker, the counts with
+    their exceptions must read back (:func:`_dequantise`, as the reader does) as exactly the rows hashed, and
+    every encoded chunk must decode (inflate, unshuffle) to exactly the stored rows; on the draining thread, every
+    chunk read back from the file (:func:`_read_chunk`) must be the bytes written, with every filter applied, and
+    every exception row appended must read back. A failure raises :class:`RecordingDamaged` naming the file, the
+    dataset, the rows and the step (:attr:`describe`), and nothing queued after it is written (:attr:`broken`):
+    no step row names rows that failed.
     """
 
     def __init__(self, f: h5py.File, names: Sequence[str], chunk: int, quanta: dict[str, float]) -> None:
         self.chunk = chunk
         self.names = tuple(names)
         self.quanta = dict(quanta)
+        self.path = str(f.filename)
         self.ds = {n: f["imu"][n] for n in names}
         self.exc_ds = {n: f["imu/exceptions"][n] for n in self.quanta}
         self.dtypes = {n: d.dtype for n, d in self.ds.items()}
@@ -174,6 +244,12 @@ class _ChunkWriter:
         self.tail = {n: d[self.rows[n] - self.rows[n] % chunk : self.rows[n]] for n, d in self.ds.items()}
         self.pending: Any = deque()
         self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="recording-encoder")
+        self.exc_sha = {n: hashlib.sha256() for n in self.quanta}
+        """SHA-256 of the exception rows this writer appended (and read back), per dataset."""
+        self.describe: Callable[[int, int], str] = lambda a, b: ""
+        """`` (step …)`` naming the steps of rows [a, b), for messages (set by the recorder)."""
+        self.broken: RecordingError | None = None
+        """The failed check that stopped the writing (nothing queued after it is written)."""
 
     def submit(self, cols: dict[str, NDArray[Any]], row0: int, hasher: _StepHasher) -> None:
         """Queue rows ``row0 …`` of every dataset (recorded values) for hashing, quantising and encoding."""
@@ -186,7 +262,8 @@ class _ChunkWriter:
     def _encode(
         self, cols: dict[str, NDArray[Any]], row0: int, hasher: _StepHasher
     ) -> tuple[list[tuple[str, int, int, bytes]], dict[str, NDArray[Any]]]:
-        """Worker thread: the encoded chunks (dataset, first row, end row, bytes) and the count exceptions."""
+        """Worker thread: the encoded chunks (dataset, first row, end row, bytes) and the count exceptions, each
+        checked to decode to the rows hashed (:class:`_ChunkMismatch` if not)."""
         out: list[tuple[str, int, int, bytes]] = []
         excs: dict[str, NDArray[Any]] = {}
         for name in self.names:
@@ -194,6 +271,10 @@ class _ChunkWriter:
             if exc is not None and exc.size:
                 excs[name] = exc
             new = np.asarray(data, dtype=self.dtypes[name])
+            if exc is not None and not _dequantises_to(new, self.quanta[name], exc, row0, cols[name], name):
+                raise _ChunkMismatch(
+                    name, row0, row0 + len(new), "the stored counts do not read back as the rows hashed"
+                )
             tail = self.tail[name]
             rows = np.concatenate([tail, new]) if len(tail) else new
             r0 = self.rows[name] - len(tail)
@@ -202,30 +283,59 @@ class _ChunkWriter:
                 if len(part) < self.chunk:
                     buf = np.zeros((self.chunk, *self.shapes[name]), dtype=self.dtypes[name])
                     buf[: len(part)] = part
-                    part_bytes = _encode_chunk(buf, name in _RLE_FIELDS)
-                else:
-                    part_bytes = _encode_chunk(part, name in _RLE_FIELDS)
-                out.append((name, r0 + off, r0 + off + min(self.chunk, len(rows) - off), part_bytes))
+                    part = buf
+                part_bytes = _encode_chunk(part, name in _RLE_FIELDS)
+                r1 = r0 + off + min(self.chunk, len(rows) - off)
+                if not _decodes_to(part_bytes, part):
+                    raise _ChunkMismatch(name, r0 + off, r1, "an encoded chunk does not decode to the rows hashed")
+                out.append((name, r0 + off, r1, part_bytes))
             left = len(rows) % self.chunk
             self.tail[name] = rows[len(rows) - left :] if left else rows[:0]
             self.rows[name] += len(new)
         return out, excs
 
+    def _break(self, name: str, r0: int, r1: int, what: str) -> None:
+        """Stop writing (nothing queued is written any more) and raise RecordingDamaged for rows [r0, r1)."""
+        self.pending.clear()
+        self.broken = RecordingDamaged(
+            f"{self.path}: dataset /imu/{name} rows {r0}–{r1}{self.describe(r0, r1)}: {what} (checked while "
+            "writing; a storage, file-system or memory fault?); the run is stopped and the steps completed before "
+            "are kept: check the disk, then 'tablebench runs' says how to resume or salvage the run"
+        )
+        raise self.broken
+
     def drain(self, wait: bool) -> None:
-        """Write the encoded chunks and run the queued actions (in order): those ready, or all with ``wait``."""
+        """Write the encoded chunks and run the queued actions (in order): those ready, or all with ``wait``;
+        each chunk read back and compared with the bytes written. After a failed check nothing more is written."""
+        if self.broken is not None:
+            self.pending.clear()
+            return
         while self.pending and (wait or self.pending[0][0] is None or self.pending[0][0].done()):
             fut, action = self.pending.popleft()
             if fut is None:
                 action()
                 continue
-            chunks, excs = fut.result()
+            try:
+                chunks, excs = fut.result()
+            except _ChunkMismatch as m:
+                self._break(m.name, m.r0, m.r1, m.what)
             for name, r0, r1, data in chunks:
                 d = self.ds[name]
                 if d.shape[0] < r1:
                     d.resize(r1, axis=0)
-                d.id.write_direct_chunk((r0,) + (0,) * (d.ndim - 1), data, 0)
+                offset = (r0,) + (0,) * (d.ndim - 1)
+                d.id.write_direct_chunk(offset, data, 0)
+                mask, back = _read_chunk(d, offset)
+                if mask != 0 or back != data:
+                    self._break(name, r0, r1, "the chunk read back from the file is not the one written")
             for name, exc in excs.items():
-                _append_rows(self.exc_ds[name], exc)
+                d = self.exc_ds[name]
+                n0 = d.shape[0]
+                _append_rows(d, exc)
+                if np.asarray(d[n0:], dtype=EXC_DTYPE).tobytes() != np.ascontiguousarray(exc, EXC_DTYPE).tobytes():
+                    self._break(f"exceptions/{name}", int(exc["row"][0]), int(exc["row"][-1]) + 1,
+                                "the exception rows read back are not the ones written")  # fmt: skip
+                self.exc_sha[name].update(np.ascontiguousarray(exc, dtype=EXC_DTYPE).data)
 
     def close(self) -> None:
         """Write everything pending and stop the worker."""

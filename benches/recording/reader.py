@@ -6,6 +6,7 @@ Part of the package :mod:`benches.recording`, the one place that knows the HDF5 
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import math
 from collections.abc import Iterator, Sequence
@@ -23,6 +24,7 @@ from .layout import (
     _H5_ERRORS,
     _IMU_DTYPES,
     FORMAT,
+    FORMAT_VERSION,
     IMU_CHUNK,
     IMU_FIELDS,
     NS_DELTA,
@@ -48,33 +50,14 @@ from .layout import (
     _text,
     recording_file,
 )
+from .written import (
+    WrittenRecording,
+    _identity,
+    kept_plan,
+    take_written,
+)
 
 # ---- reading -------------------------------------------------------------------------------------------------------
-
-KEPT_FIELDS = ("time", "accel", "gyro", "status")
-"""The sample fields :meth:`Recording.verify` keeps for the acquisition windows (what identification reads)."""
-KEPT_WHOLE = ("temperature",)
-"""The sample fields :meth:`Recording.verify` keeps for every row (the temperature summaries of identification and
-certificate; 8 bytes a row, and it compresses to almost nothing, so decoding it again costs more than keeping it),
-in recordings of at most :data:`KEPT_WHOLE_MAX_ROWS` rows (64 MiB; a longer one is decoded again when read)."""
-KEPT_WHOLE_MAX_ROWS = 1 << 23
-KEPT_BETWEEN = ("time", "gyro")
-"""The sample fields :meth:`Recording.verify` also keeps for the rows between the acquisition windows (the moves:
-the time base's motion windows, benches.timebase, read them with the windows' edges; 32 bytes a row), in
-recordings with at most :data:`KEPT_BETWEEN_MAX_ROWS` such rows (64 MiB; more are decoded again when read)."""
-KEPT_BETWEEN_MAX_ROWS = 1 << 21
-
-
-def _gaps(ranges: list[tuple[int, int]], n: int) -> list[tuple[int, int]]:
-    """The row ranges of [0, n) outside ``ranges`` (in order)."""
-    out, pos = [], 0
-    for a, b in sorted(ranges):
-        if a > pos:
-            out.append((pos, min(a, n)))
-        pos = max(pos, b)
-    if pos < n:
-        out.append((pos, n))
-    return [(a, b) for a, b in out if b > a]
 
 
 class Recording:
@@ -408,10 +391,12 @@ class Recording:
 
         The samples are read once, in large chunk-aligned blocks, each step's rows hashed as they pass. With
         ``keep``, the decoded rows of every complete step's acquisition window (the fields in
-        :data:`KEPT_FIELDS`: what identification reads) are kept as they pass, and :meth:`samples` serves them
-        from memory once every checksum has passed: the identification reads the verified pass's rows
-        instead of decoding the file a second time; the rows between the windows are kept too for the fields in
-        :data:`KEPT_BETWEEN` (the time base's motion windows). :meth:`close` releases them.
+        :data:`~benches.recording.written.KEPT_FIELDS`: what identification reads) are kept as they pass, and
+        :meth:`samples` serves them from memory once every checksum has passed: the identification reads the
+        verified pass's rows instead of decoding the file a second time; the rows between the windows are kept too
+        for the fields in :data:`~benches.recording.written.KEPT_BETWEEN` (the time base's motion windows), and the
+        whole record for :data:`~benches.recording.written.KEPT_WHOLE` (the selection:
+        :func:`~benches.recording.written.kept_plan`). :meth:`close` releases them.
 
         Raises
         ------
@@ -421,24 +406,13 @@ class Recording:
         v2 = self.header.format_version >= 2
         done = [s for s in self.steps if s.status == "complete"] if v2 else []
         hashers = [_StepHasher() for _ in done]
-        kept: list[tuple[int, int, dict[str, NDArray[Any]]]] = []
-        names: list[list[str]] = []  # the fields each kept range keeps
-        if keep:
-            fields = [n for n in KEPT_FIELDS if n in self.sample_fields]
-            for s in self.complete_steps():
-                a, b = s.acq_start, min(s.acq_end, self.n_samples)
-                if b > a and fields:
-                    kept.append((a, b, {}))
-                    names.append(fields)
-            between = [n for n in KEPT_BETWEEN if n in self.sample_fields]
-            gaps = _gaps([(a, b) for a, b, _ in kept], self.n_samples)
-            if between and 0 < sum(b - a for a, b in gaps) <= KEPT_BETWEEN_MAX_ROWS:
-                kept.extend((a, b, {}) for a, b in gaps)
-                names.extend(between for _ in gaps)
-            whole = [n for n in KEPT_WHOLE if n in self.sample_fields]
-            if whole and 0 < self.n_samples <= KEPT_WHOLE_MAX_ROWS:
-                kept.append((0, self.n_samples, {}))
-                names.append(whole)
+        plan = (
+            kept_plan([(s.acq_start, s.acq_end) for s in self.complete_steps()], self.n_samples, self.sample_fields)
+            if keep
+            else []
+        )
+        kept: list[tuple[int, int, dict[str, NDArray[Any]]]] = [(a, b, {}) for a, b, _, _ in plan]
+        names = [list(fields) for _, _, fields, _ in plan]  # the fields each kept range keeps
         first = 0
         for chunk in self.iter_samples(fields=self.sample_fields):
             a, b = chunk.start, chunk.start + len(chunk)
@@ -459,6 +433,16 @@ class Recording:
                         if name not in arrays:
                             arrays[name] = np.empty((kb - ka, *v.shape[1:]), dtype=v.dtype)
                         arrays[name][lo - ka : hi - ka] = v[lo - a : hi - a]
+        self._check_step_sha(done, hashers)
+        self._check_small()
+        for _, _, arrays in kept:
+            for v in arrays.values():
+                v.flags.writeable = False  # served as views: nobody changes the verified rows
+        self._kept = kept  # every checksum passed
+
+    def _check_step_sha(self, done: list[StepRecord], hashers: list[_StepHasher]) -> None:
+        """Add each complete step's /table rows to its hasher (holding its /imu rows) and compare the SHA-256 with
+        the one its row stores (RecordingDamaged naming the step)."""
         table = self.table()
         for s, h in zip(done, hashers, strict=True):
             for name in TABLE_FIELDS:
@@ -469,16 +453,51 @@ class Recording:
                     f"{s.start_sample}–{s.end_sample}, /table {s.table_start}–{s.table_end}) does not match the "
                     f"one stored when the step closed; the data are damaged; {self._fix()}"
                 )
+
+    def _check_small(self) -> None:
+        """Read the small datasets for their checksums: events, bench and procedure texts, truth, aux."""
         self.events()
         self.bench_text  # noqa: B018 - read for its checksums
         self.procedure_text  # noqa: B018
         self.truth()
         for name in self.aux_names():
             self.aux(name)
-        for _, _, arrays in kept:
-            for v in arrays.values():
-                v.flags.writeable = False  # served as views: nobody changes the verified rows
-        self._kept = kept  # every checksum passed
+
+    def _verify_written(self, ev: WrittenRecording) -> bool:
+        """Verify a recording this process has just written, using what the recorder verified while writing
+        (:mod:`benches.recording.written`) instead of a second pass over the samples.
+
+        The recorder checked every /imu chunk as written (read back equal, decoding to the rows hashed into the
+        step's SHA-256); here the file must be the one it closed (same identity, extents, step rows, exception
+        rows), every complete step's SHA-256 is recomputed from the recorder's /imu digests and the /table rows
+        read now, and the small datasets are read for their checksums (as :meth:`verify`). The rows the recorder
+        kept are served as :meth:`verify` keeps them.
+
+        Returns False (nothing kept; run :meth:`verify`) when the evidence does not describe this file.
+        Raises RecordingDamaged when a checksum fails.
+        """
+        done = self.complete_steps()
+        mine = [w for w in ev.steps if w.status == "complete"]
+        if (
+            self.header.format_version != FORMAT_VERSION
+            or self.unfinished_tail
+            or _identity(self.path) != ev.identity
+            or (self.n_samples, self.n_table) != (ev.n_samples, ev.n_table)
+            or len(self.steps) != len(ev.steps)
+            or [(s.index, s.start_sample, s.end_sample, s.table_start, s.table_end, s.sha256) for s in done]
+            != [(w.index, w.start_sample, w.end_sample, w.table_start, w.table_end, w.sha256) for w in mine]
+            or set(self._exc) != set(ev.exceptions)
+        ):
+            return False
+        for name, exc in self._exc.items():
+            if hashlib.sha256(np.ascontiguousarray(exc, dtype=EXC_DTYPE).data).digest() != ev.exceptions[name]:
+                raise RecordingDamaged(
+                    f"{self.path}: dataset /imu/exceptions/{name} differs from the rows written; {self._fix()}"
+                )
+        self._check_step_sha(done, [_StepHasher.from_imu_digests(w.imu_digests) for w in mine])
+        self._check_small()
+        self._kept = ev.kept
+        return True
 
     def _kept_rows(self, name: str, a: int, b: int) -> NDArray[Any] | None:
         """Rows [a, b) of field ``name`` from the rows :meth:`verify` kept (a read-only view), or None."""
@@ -770,16 +789,15 @@ recording opened again unchanged (no second pass) serves them too (``certificate
 budget, the registry for its as found / as left). One recording only, replaced by the next verification."""
 
 
-def _identity(p: Path) -> tuple[int, ...]:
-    st = p.stat()
-    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
-
-
-def open_recording(path: str | Path, *, verify: bool = True) -> Recording:
+def open_recording(path: str | Path, *, verify: bool = True, written: bool = False) -> Recording:
     """Open a recording (a run folder or its ``recording.h5``) read-only, checked and by default verified.
 
     A file this process has already verified and which has not changed since (:data:`_VERIFIED`) is not read
-    through a second time.
+    through a second time. With ``written`` (``tablebench run`` identifying the recording it has just made), a
+    file this process has just written, checked while writing and closed complete
+    (:mod:`benches.recording.written`), is verified from that evidence (:meth:`Recording._verify_written`: the
+    steps' SHA-256 from the recorder's digests and the table read now, the small datasets read) instead of a second
+    pass over its samples; any other file, or one changed since, is verified in full.
 
     Raises
     ------
@@ -805,9 +823,11 @@ def open_recording(path: str | Path, *, verify: bool = True) -> Recording:
         rec = Recording(p, f)
         if verify:
             key, ident = p.resolve(), _identity(p)
+            ev = take_written(p)  # released whether used or not
             if _VERIFIED.get(key) != ident:
                 _VERIFIED.pop(key, None)
-                rec.verify()
+                if not (written and ev is not None and rec._verify_written(ev)):
+                    rec.verify()
                 if rec.integrity_verified:
                     _VERIFIED[key] = ident
                     _KEPT.clear()

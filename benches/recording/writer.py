@@ -54,6 +54,7 @@ from .layout import (
     TIMING_BLOCK,
     TIMING_CLOCKS,
     TIMING_TABLE,
+    RecordingDamaged,
     RecordingError,
     StepRecord,
     _clip_utf8,
@@ -62,6 +63,7 @@ from .layout import (
     _utc_now,
 )
 from .reader import open_recording
+from .written import KeptRows, WrittenRecording, WrittenStep, _identity, register_written
 
 
 class Recorder(Protocol):
@@ -163,6 +165,11 @@ class Hdf5Recorder:
         self._deferred: dict[str, float] = {}
         self._ns_last: dict[str, int] = {}  # /timing clock columns stored as ns deltas: ns of their last value
         self._handles: dict[str, h5py.Dataset] = {}  # datasets appended to at every step, opened once
+        self._ended: list[tuple[int, int, int, str]] = []  # steps ended: start, end sample, index, name
+        self._steps_written: list[WrittenStep] = []  # step rows written and read back, with their /imu digests
+        self._status = "running"
+        # the recorded values a verifying pass keeps (identification in this process; new compressed recordings)
+        self._keeper = KeptRows() if not resume and self._filters.get("compression") == "gzip" else None
         try:
             if resume:
                 self._file = self._open_resume()
@@ -188,6 +195,14 @@ class Hdf5Recorder:
     def _start_chunk_writer(self) -> None:
         if self._filters.get("compression") == "gzip":
             self._chunks = _ChunkWriter(self._file, IMU_FIELDS, IMU_CHUNK, self._quanta)
+            self._chunks.describe = self._steps_text
+
+    def _steps_text(self, a: int, b: int) -> str:
+        """`` (step …)``: the steps rows [a, b) of /imu belong to (for messages)."""
+        hit = [f"step {i} {n!r}" for s, e, i, n in self._ended if s < b and e > a]
+        if b > (self._ended[-1][1] if self._ended else 0):
+            hit.append("the step being recorded")
+        return f" ({', '.join(hit)})"
 
     def _counts_dataset(self, imu: h5py.Group, name: str, lsb: float) -> None:
         self._dataset(imu, name, _COUNT_DTYPE[name], _WIDTH.get(name), IMU_CHUNK)
@@ -424,6 +439,8 @@ class Hdf5Recorder:
             k = n if full else ((self._written + n) // IMU_CHUNK) * IMU_CHUNK - self._written
             if self._deferred:
                 self._materialise(cols)
+            if k > 0 and self._keeper is not None:
+                self._keeper.add(self._written, {name: cols[name][:k] for name in KeptRows.FIELDS})
             if k > 0 and self._chunks is not None:
                 self._chunks.submit({name: cols[name][:k] for name in IMU_FIELDS}, self._written, self._hasher)
             elif k > 0:
@@ -453,7 +470,7 @@ class Hdf5Recorder:
             }
             for name, data in tcols.items():
                 self._hasher.update("table", name, data)
-                _append_rows(self._dataset_at(f"table/{name}"), data)
+                self._append_checked(f"table/{name}", data)
             self._table_written += len(b)
             self._buf_table.clear()
             tim = np.array(self._buf_timing, dtype=np.float64).reshape(-1, 4)
@@ -477,6 +494,18 @@ class Hdf5Recorder:
             self._buf_aux.clear()
         f.flush()
 
+    def _append_checked(self, path: str, data: NDArray[Any]) -> None:
+        """Append rows to dataset ``path`` and read them back (RecordingDamaged if they differ)."""
+        d = self._dataset_at(path)
+        n0 = d.shape[0]
+        _append_rows(d, data)
+        if np.asarray(d[n0:], dtype=d.dtype).tobytes() != np.ascontiguousarray(data, dtype=d.dtype).tobytes():
+            raise RecordingDamaged(
+                f"{self.path}: dataset /{path} rows {n0}–{d.shape[0]}: the rows read back after writing are not the "
+                "ones written (a storage, file-system or memory fault?); the run is stopped and the steps completed "
+                "before are kept: check the disk, then 'tablebench runs' says how to resume or salvage the run"
+            )
+
     def end_step(self, record: StepRecord) -> None:
         """Append a step row with the SHA-256 of the step's rows (the step boundary checkpoint).
 
@@ -486,6 +515,9 @@ class Hdf5Recorder:
         """
         self.checkpoint(wait=False)
         hasher, table_start, table_end = self._hasher, self._table_step_start, self._table_written
+        if self._keeper is not None:
+            self._keeper.end_step(record)
+        self._ended.append((record.start_sample, record.end_sample, record.index, record.name))
 
         def write_row() -> None:
             row = np.array(
@@ -510,8 +542,20 @@ class Hdf5Recorder:
                 ],
                 dtype=STEP_DTYPE,
             )
-            _append_rows(self._dataset_at("steps"), row)
+            self._append_checked("steps", row)
             self._file.flush()
+            self._steps_written.append(
+                WrittenStep(
+                    record.index,
+                    record.start_sample,
+                    record.end_sample,
+                    table_start,
+                    table_end,
+                    record.status,
+                    hasher.hexdigest(),
+                    hasher.imu_digests(),
+                )
+            )
 
         with self._writing():
             if self._chunks is not None:
@@ -531,6 +575,7 @@ class Hdf5Recorder:
             _set_attr(self._file, "status", status)
             _set_attr(self._file, "updated_utc", _utc_now())
             self._file.flush()
+        self._status = status
 
     def close(self) -> None:
         """Flush and close; safe to call more than once."""
@@ -547,6 +592,31 @@ class Hdf5Recorder:
                 self._handles.clear()
                 self._file.close()
                 self._closed = True
+        evidence = self._evidence()
+        if evidence is not None:
+            register_written(evidence)
+
+    def _evidence(self) -> WrittenRecording | None:
+        """What this recorder verified while writing (:mod:`benches.recording.written`), for the identification
+        of the same process: only for a new recording closed complete, every chunk written by the verifying chunk
+        writer, every step row written, every check passed; None otherwise (a full verifying pass then runs)."""
+        chunks, keeper = self._chunks, self._keeper
+        if chunks is None or keeper is None or chunks.broken is not None or self._status != "complete":
+            return None
+        if len(self._steps_written) != len(self._ended) or self._buffered:
+            return None
+        kept = keeper.finish(self._written, IMU_FIELDS)
+        if kept is None:
+            return None
+        return WrittenRecording(
+            path=self.path,
+            identity=_identity(self.path),
+            n_samples=self._written,
+            n_table=self._table_written,
+            steps=tuple(self._steps_written),
+            exceptions={n: h.digest() for n, h in chunks.exc_sha.items()},
+            kept=kept,
+        )
 
 
 _COMPACT = (4096, 4000)  # attributes kept in the (checksummed) object header, never in a fractal heap

@@ -60,18 +60,26 @@ def test_a_registry_that_cannot_record_costs_one_line_and_the_run_folder_keeps_e
     assert (folder / "calibration.json").exists() and (folder / "certificate.pdf").exists()
 
 
+@pytest.mark.parametrize("certificate", [True, False], ids=["with-certificate", "no-certificate"])
 def test_an_interruption_while_the_registry_records_keeps_the_calibration_and_says_what_is_left(
-    inputs, monkeypatch, capsys
+    inputs, monkeypatch, capsys, certificate
 ):
     tmp, common = inputs
-    folder = tmp / "stopped"
+    folder = tmp / f"stopped-{certificate}"
 
     def interrupted(self, doc):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(RegistrySink, "calibration", interrupted)
-    code, out, err = _run([*common, "--out", str(folder)], monkeypatch, capsys, str(tmp / "lab2.sqlite"))
+    args = [*common, "--out", str(folder)] + ([] if certificate else ["--no-certificate"])
+    code, out, err = _run(args, monkeypatch, capsys, str(tmp / "lab2.sqlite"))
     assert code == 130
     assert out[-1] == f"calibration: {folder / 'calibration.json'}" and (folder / "calibration.json").exists()
-    assert any("not done: certificate" in ln for ln in err), err[-5:]
-    assert any(f"tablebench run --resume {folder}" in ln for ln in err)
+    [said] = [ln for ln in err if ln.startswith("interrupted while the registry")]
+    assert said.endswith(f"record it later with: tablebench registry add {folder}")
+    if certificate:  # the certificate is left; resuming issues it (and records the run in the registry)
+        assert any("not done: certificate" in ln for ln in err), err[-5:]
+        assert any(f"tablebench run --resume {folder}" in ln for ln in err)
+    else:  # nothing of the run is left, only the registry's record
+        assert err[-1] == f"interrupted after the results were written ({folder} is complete)"
+        assert not any("not done" in ln for ln in err)

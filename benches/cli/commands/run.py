@@ -274,6 +274,9 @@ def _finish(
             )
     except KeyboardInterrupt:
         left = [t for t in todo if t not in done]
+        if not left:  # only a further sink's record was cut short (the session said which and how to redo it)
+            _say(f"interrupted after the results were written ({folder} is complete)")
+            return 130
         _say(
             f"interrupted after the recording completed ({folder}/recording.h5 is complete and intact); "
             f"not done: {', '.join(left)}"

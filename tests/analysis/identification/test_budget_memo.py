@@ -256,3 +256,38 @@ def test_each_steps_shape_is_evaluated_once_per_budget(per_step: bool):
     for got, ref in zip(input_sensitivity(a_inv, geo, NOISE, base.shape, UNIT, terms=memo),
                         _naive_sensitivity(a_inv, geo, [base.shape(s) for s in geo]), strict=True):  # fmt: skip
         np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-12 * np.max(np.abs(ref)))
+
+
+def test_a_derived_shape_forms_its_base_once_per_step_and_gives_the_direct_numbers():
+    """The gyro's azimuth input is the attitude shape about the vertical: through the memo the base is formed once per
+    step for both inputs, and the derived component is bit for bit the one of the direct function. Attitude shapes
+    are one memo entry only for the same model object (another object of the same structure is another entry)."""
+    from analysis.identification.budget import AttitudeShape, DerivedShape, attitude_shape
+
+    geo = _geometry(np.eye(3))
+    a_inv = _a_inv(geo)
+    up = np.array([0.0, 0.0, 1.0])
+    calls: list[str] = []
+
+    def base(s: StepGeometry) -> np.ndarray:
+        calls.append(s.name)
+        return attitude_shape(s, UNIT)
+
+    def about_up(e: np.ndarray) -> np.ndarray:
+        return (e @ up)[:, :, None]
+
+    cov1 = np.array([[(20 * ARCSEC) ** 2]])
+    att = BudgetInput("att", "att", "test", np.eye(3) * (3 * ARCSEC) ** 2, base, per_step=True)
+    az = BudgetInput("az", "az", "test", cov1, DerivedShape(base, about_up))
+    b = build_budget(
+        a_inv, a_inv, geo, NOISE, g=G, g_uncertainty=3e-4, g_source="test", attitude_accuracy=5 * ARCSEC,
+        residuals_per_step=_rows(geo), model=UNIT, extra_inputs=[att, az],
+    )  # fmt: skip
+    assert sorted(calls) == sorted(s.name for s in geo)
+    direct = BudgetInput("az", "az", "test", cov1, lambda s: (attitude_shape(s, UNIT) @ up)[:, :, None])
+    got = next(c for c in b.components if c.key == "az").covariance
+    assert got.tobytes() == input_component(direct, a_inv, geo, NOISE, UNIT).covariance.tobytes()
+    assert np.max(np.abs(got)) > 0
+    twin = UnitModel((get_model("accelerometer"), get_model("gyro")))
+    assert AttitudeShape(UNIT) == AttitudeShape(UNIT) and hash(AttitudeShape(UNIT)) == hash(AttitudeShape(UNIT))
+    assert AttitudeShape(UNIT) != AttitudeShape(twin)
