@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from analysis.gimbal import body_rate
+from analysis.columns import column_mean, side_by_side
 from analysis.identification.batch import batch_identify, information_rank, unobservable_parameters
 from analysis.identification.bias_drift import flicker_components, window_mean_covariance
 from analysis.identification.kalman import StreamingIdentifier, estimate_measurement_noise
@@ -190,15 +190,14 @@ def window_reference(
     bench's reference clock, not of the unit's or the controller's.
     """
     mnt = config.unit.mounting
+    slope = angle_over_time(t, table_time, table_angles, span) if spin else None
+    if slope is not None:
+        slope = slope * (1.0 + clock_rate)
     fr, om, ang, trig = reference_for_window(  # each angle's sine and cosine once for the window's rotations
-        t, table_time, table_angles, table_rates, g=config.site.g, mounting=mnt, latency=latency, span=span
-    )
+        t, table_time, table_angles, table_rates, g=config.site.g, mounting=mnt, latency=latency, span=span,
+        gimbal_rates=slope,
+    )  # fmt: skip
     earth = earth_in_body(ang, config.site.latitude, mnt, trig=trig) if with_earth else None
-    if spin:
-        slope = angle_over_time(t, table_time, table_angles, span)
-        if slope is not None:
-            slope = slope * (1.0 + clock_rate)
-            om = body_rate(ang, np.broadcast_to(slope, ang.shape), mnt, trig=trig)
     return fr, om, ang, earth
 
 
@@ -421,7 +420,7 @@ class StepWindow:
         if model.n_axes == 3:
             return self.f_out
         assert self.gyro is not None
-        return np.hstack([self.f_out, self.gyro])
+        return side_by_side([self.f_out, self.gyro])
 
 
 @dataclass
@@ -614,12 +613,13 @@ def _identification_data(
 
 def _windows_as_plan_steps(windows: list[StepWindow], max_points: int = 4000) -> list[PlanStep]:
     out = []
+    buf = np.empty((3, max((w.f_ref.shape[0] for w in windows), default=0)))  # the means' one scratch array
     for w in windows:
         m = w.f_ref.shape[0]
         ea = w.earth
-        if w.kind == "hold":
-            mean = None if ea is None else ea.mean(0, keepdims=True)
-            out.append(PlanStep(w.name, w.f_ref.mean(0, keepdims=True), w.omega.mean(0, keepdims=True), np.array([m]),
+        if w.kind == "hold":  # means as np.mean's, bit for bit (analysis.columns.column_mean)
+            mean = None if ea is None else column_mean(ea, buf)[None]
+            out.append(PlanStep(w.name, column_mean(w.f_ref, buf)[None], column_mean(w.omega, buf)[None], np.array([m]),
                                 earth=mean))  # fmt: skip
         else:
             k = max(1, math.ceil(m / max_points))
@@ -780,6 +780,14 @@ def _time_base_covariance(
     return jac @ cov @ jac.T + reference_rate_covariance(list(data.model.names), tb.check), jac
 
 
+def _max_norm(v: NDArray[np.float64]) -> float:
+    """``max(np.linalg.norm(v, axis=1))`` of an (n, 3) array, bit for bit: √ of the largest (v_x² + v_y²) + v_z²
+    (the row sum's additions in numpy's order; √ is correctly rounded and monotonic, so it commutes with max),
+    column by column instead of three values at a time."""
+    v2 = v**2
+    return float(np.sqrt(np.max((v2[:, 0] + v2[:, 1]) + v2[:, 2])))
+
+
 def _time_base_warnings(data: IdentificationData) -> list[str]:
     """Lines for calibration.json's warnings: a timing misfit beyond what the budget carries (naming its cause),
     a host-clock check that disagrees, a time base that could not be measured.
@@ -790,7 +798,7 @@ def _time_base_warnings(data: IdentificationData) -> list[str]:
     tb = data.time_base
     out = [n for n in tb.notes if "disagrees" in n or "without a stated uncertainty" in n]
     host = tb.check.get("table_stamped_by") == "host"
-    w_max = max((float(np.max(np.linalg.norm(w.omega, axis=1))) for w in data.windows if w.omega.size), default=0.0)
+    w_max = max((_max_norm(w.omega) for w in data.windows if w.omega.size), default=0.0)
     att = float(data.config.turntable.attitude_accuracy) / math.sqrt(3.0)
     cause = misfit_cause(tb, host_stamped=host, carried=att / w_max if w_max > 0 else math.inf)
     if cause:

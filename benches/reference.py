@@ -94,7 +94,7 @@ def interpolate_windows(
     # only those two, whichever other readings lie between the windows)
     used = slice(int(lo.min()), int(hi.max())) if lo.size else slice(0, 1)
     ang = np.column_stack([np.interp(q, tt[used], ta[used, k]) for k in range(3)])
-    rat = np.column_stack([np.interp(q, tt[used], tr[used, k]) for k in range(3)])
+    rat = np.column_stack([_interp(q, tt[used], tr[used, k]) for k in range(3)])
     start = 0
     for t, a, b, one in zip(tq, lo.tolist(), hi.tolist(), alone.tolist(), strict=True):
         rows0 = start
@@ -114,6 +114,22 @@ def interpolate_windows(
         ang[nan] = np.nan
         rat[nan] = np.nan
     return ang, rat
+
+
+def _interp(x: NDArray[np.float64], xp: NDArray[np.float64], fp: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``np.interp(x, xp, fp)``, bit for bit; readings of one value (a hold's reported rate) filled with it.
+
+    np.interp gives exactly that value at every x then: the reading itself at and beyond the readings' times,
+    between two of them slope·(x − x_j) + f_j with slope (f − f)/Δx = +0 (0/0 for equal times falls back to
+    f_j), so +0 + f_j = f_j. Interpolated as np.interp does: f_j = −0.0 (+0 + −0 is +0), NaN readings, and any
+    NaN x (what np.interp gives for it depends on the number of readings). A test compares it with np.interp on
+    such columns (tests/benches/test_reference_shortcuts.py)."""
+    bits = fp.view(np.int64)
+    v = fp[0] if fp.size else np.nan
+    mixed = np.any(bits != bits[0])
+    if not np.isfinite(v) or (v == 0.0 and np.signbit(v)) or mixed or np.isnan(np.min(x, initial=0.0)):
+        return np.interp(x, xp, fp)
+    return np.full(np.shape(x), v)
 
 
 def reference_at(
@@ -139,8 +155,13 @@ def reference_for_window(
     mounting: NDArray[np.float64] | None,
     latency: float = 0.0,
     span: tuple[float, float] | None = None,
+    gimbal_rates: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], Trig]:
     """Reference for unit samples stamped ``t`` (s): the table at t − latency, within one step's ``span``.
+
+    ``gimbal_rates``: the gimbal rates (3,) or (n, 3), rad/s, the body rate is formed from instead of the
+    readings' reported rates (a spin's rate from its encoder angles, :func:`benches.identify.angle_over_time`);
+    the same body rate as forming it again from them afterwards, once instead of twice.
 
     Returns
     -------
@@ -157,6 +178,8 @@ def reference_for_window(
     """
     ang, rat = interpolate_table(np.asarray(t, dtype=float) - latency, table_time, table_angles, table_rates, span)
     trig = angle_trig(ang)
+    if gimbal_rates is not None:
+        rat = np.broadcast_to(np.asarray(gimbal_rates, dtype=float), ang.shape)
     f_ref, omega = reference_at(ang, rat, g, mounting, trig=trig)
     return f_ref, omega, ang, trig
 

@@ -135,17 +135,18 @@ class GyroModel(ModelSpec):
     def fill_base(self, out, f, omega, earth) -> None:  # type: ignore[no-untyped-def]
         """[1, ω_x, ω_y, ω_z, f_x, f_y, f_z (, ω_x², ω_y², ω_z²) (, |ω_x|, |ω_y|, |ω_z|)], ω = ω_ib."""
         out[:, 0] = 1.0
-        if earth is None:
-            out[:, 1:4] = omega
-        else:
-            np.add(omega, earth, out=out[:, 1:4])
-        out[:, 4:7] = f
         c = 7
-        if self.quadratic:
-            np.multiply(out[:, 1:4], out[:, 1:4], out=out[:, c : c + 3])
-            c += 3
-        if self.asymmetry:
-            np.abs(out[:, 1:4], out=out[:, c : c + 3])
+        for k in range(3):  # column by column (an (n, 3) operation into the wide block loops three values at a time)
+            w = out[:, 1 + k]
+            if earth is None:
+                w[:] = omega[:, k]
+            else:
+                np.add(omega[:, k], earth[:, k], out=w)
+            out[:, 4 + k] = f[:, k]
+            if self.quadratic:
+                np.multiply(w, w, out=out[:, c + k])
+            if self.asymmetry:
+                np.abs(w, out=out[:, c + 3 * self.quadratic + k])
 
     def ideal(self, f: ArrayLike, omega: ArrayLike, earth: ArrayLike | None = None) -> NDArray[np.float64]:
         """An error-free gyro reads ω_ib = table body rate + Earth rate (body frame, rad/s)."""

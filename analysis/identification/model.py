@@ -383,12 +383,18 @@ class AccelerometerModel(ModelSpec):
     bias_kind = "bias"
 
     def fill_base(self, out, f, omega, earth) -> None:  # type: ignore[no-untyped-def]
-        """[1, f_x, f_y, f_z, f_x², f_y², f_z², c_x, c_y, c_z]; Earth rate is not used (< 1e-8 m/s² in c)."""
+        """[1, f_x, f_y, f_z, f_x², f_y², f_z², c_x, c_y, c_z]; Earth rate is not used (< 1e-8 m/s² in c).
+
+        Written column by column: an (n, 3) operation into the wide row-major block loops three values at a time
+        (3× slower); c = Σω² − ω_i² with Σω² = (ω_x² + ω_y²) + ω_z², the additions of ``w2.sum(axis=1)`` in its
+        order, so the same values bit for bit as :func:`centripetal` (a test checks both)."""
         out[:, 0] = 1.0
-        out[:, 1:4] = f
-        np.multiply(f, f, out=out[:, 4:7])
         w2 = omega**2
-        np.subtract(w2.sum(axis=1, keepdims=True), w2, out=out[:, 7:10])
+        s = (w2[:, 0] + w2[:, 1]) + w2[:, 2]
+        for k in range(3):
+            out[:, 1 + k] = f[:, k]
+            np.multiply(f[:, k], f[:, k], out=out[:, 4 + k])
+            np.subtract(s, w2[:, k], out=out[:, 7 + k])
 
     def ideal(self, f: ArrayLike, omega: ArrayLike, earth: ArrayLike | None = None) -> NDArray[np.float64]:
         """An error-free accelerometer reads the specific force f."""

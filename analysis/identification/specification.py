@@ -33,6 +33,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from analysis.columns import side_by_side
 from analysis.units import DISPLAY_UNITS
 
 MODEL_MODULES: dict[str, str] = {
@@ -270,7 +271,8 @@ class ModelSpec:
             blk = a[: e - s]
             self.fill_base(blk[:, :nb], ff[s:e], om[s:e], None if ea is None else ea[s:e])
             if zz is not None:
-                blk[:, nb:] = zz[s:e]
+                for k in range(ncol - nb):  # column by column (an (n, 3) copy into the wide block is 3× slower)
+                    blk[:, nb + k] = zz[s:e, k]
             if w is None:
                 gram += blk.T @ blk
             else:
@@ -458,7 +460,7 @@ class UnitModel(ModelSpec):
         return gram
 
     def ideal(self, f: ArrayLike, omega: ArrayLike, earth: ArrayLike | None = None) -> NDArray[np.float64]:
-        return np.concatenate([p.ideal(f, omega, earth) for p in self._parts], axis=1)
+        return side_by_side([p.ideal(f, omega, earth) for p in self._parts])
 
     def predict(
         self, x: ArrayLike, f: ArrayLike, omega: ArrayLike, earth: ArrayLike | None = None

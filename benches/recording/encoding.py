@@ -103,23 +103,31 @@ class _Finished:
 # ---- writing -------------------------------------------------------------------------------------------------------
 
 
+_F32_BLOCK = 1 << 16
+"""Words per pass of :func:`_fletcher32`: its float64 sums stay exact integers (below 2⁴⁸)."""
+_F32_WEIGHTS = np.arange(_F32_BLOCK, 0, -1, dtype=np.float64)
+"""k, k − 1, …, 1 for a block of k words: the last k entries (each word's weight in the second sum)."""
+
+
 def _fletcher32(data: bytes) -> int:
     """HDF5's Fletcher-32 (``H5_checksum_fletcher32``): 16-bit big-endian words, sums in one's-complement
     arithmetic modulo 65535 (the library folds every 360 words; folding keeps the sums congruent and a
     non-zero sum never folds to 0, so the result is the residue in 1 … 65535, or 0 for an all-zero input).
 
-    Vectorised in a few numpy passes (each releasing the GIL): it runs in the recorder's encoder thread.
+    Vectorised in a few numpy passes (each releasing the GIL): it runs in the recorder's encoder thread. The words
+    are summed as float64 in blocks of :data:`_F32_BLOCK`, where every partial sum is an integer below 2⁴⁸ and so
+    exact (float64 holds integers exactly up to 2⁵³; the weighted sum is a BLAS dot product); the blocks are
+    combined in Python integers.
     """
     b = np.frombuffer(data, np.uint8)
     n = b.size // 2
+    words = np.frombuffer(data, ">u2", count=n)
     sum1 = sum2 = 0
-    block = 1 << 20  # words per pass: the weighted sum stays below 2⁶⁴ (65535 · 2²⁰ · 2²⁰ / 2)
-    for start in range(0, n, block):
-        stop = min(n, start + block)
-        w = (b[2 * start : 2 * stop : 2].astype(np.uint64) << np.uint64(8)) | b[2 * start + 1 : 2 * stop : 2]
-        k = stop - start
-        s1 = int(w.sum())
-        s2 = int(np.dot(w, np.arange(k, 0, -1, dtype=np.uint64)))
+    for start in range(0, n, _F32_BLOCK):
+        w = words[start : start + _F32_BLOCK].astype(np.float64)
+        k = w.size
+        s1 = int(w.sum())  # < 2¹⁶ · 2¹⁶
+        s2 = int(np.dot(w, _F32_WEIGHTS[_F32_BLOCK - k :]))  # Σ (k − i) w_i < 2¹⁶ · 2¹⁶ · 2¹⁶
         sum2 += k * sum1 + s2  # each word adds the running sum1 to sum2
         sum1 += s1
     if b.size % 2:

@@ -14,9 +14,10 @@ from benches.recording import _encode_chunk, _fletcher32
 def test_fletcher32_equals_hdf5s_for_every_length_and_extreme_bytes(tmp_path):
     rng = np.random.default_rng(0)
     with h5py.File(tmp_path / "f.h5", "w") as f:
-        sizes = (*range(1, 80), 359, 360, 361, 719, 720, 721, 300_001, 4_200_001)  # > 2²¹ bytes: two passes
-        cases = [rng.integers(0, 256, n).astype("u1") for n in sizes]
+        sizes = (*range(1, 80), 359, 360, 361, 719, 720, 721, 131_071, 131_072, 131_073, 131_074, 300_001, 4_200_001)
+        cases = [rng.integers(0, 256, n).astype("u1") for n in sizes]  # (> 2¹⁷ bytes: several blocks of 2¹⁶ words)
         cases += [np.full(100_000, 255, "u1"), np.zeros(4097, "u1"), np.full(7201, 0x80, "u1")]
+        cases += [np.full(n, 255, "u1") for n in (131_072, 131_073, 4_200_001)]  # the largest sums, several blocks
         for k, data in enumerate(cases):
             d = f.create_dataset(f"d{k}", data=data, chunks=(data.size,), fletcher32=True)
             _mask, stored = d.id.read_direct_chunk((0,))

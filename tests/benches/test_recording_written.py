@@ -36,7 +36,7 @@ def _cli(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]
 @pytest.fixture(scope="module")
 def bench(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[str]]:
     tmp = tmp_path_factory.mktemp("written")
-    b = bench_variant(tmp, rate=200.0)
+    b = bench_variant(tmp, rate=50.0)
     proc = tmp / "short.yaml"
     proc.write_text(short_ten_step(hold_s=3, warmup_s=5), encoding="utf-8")
     return tmp, ["--bench", str(b), "--procedure", str(proc), "--seed", "5", "--plain"]
@@ -81,6 +81,7 @@ def _stopped_then_resumed(bench, reference, out: Path, capsys, expect: str) -> N
     _forget()
     with open_recording(out) as rec:  # the steps written before the fault are intact, verified in full
         assert rec.header.status == "failed" and rec.complete_steps()
+        assert [e.message for e in rec.events()][-1] == "table at rest", "the run stopped with the table at rest"
     code, text = _cli(["run", "--resume", str(out), "--plain", "--no-identify"], capsys)
     assert code == 0, text[-2000:]
     assert written._WRITTEN == {}, "a resumed recording (steps of an earlier process) gets the full verifying pass"

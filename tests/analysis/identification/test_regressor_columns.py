@@ -1,0 +1,89 @@
+"""The regressors written column by column (issue 32) are the regressors as the model states them, bit for bit:
+the accelerometer's [1, f, f∘f, c(ω)] (c from analysis.identification.model.centripetal), the gyro's
+[1, ω_ib, f (, ω_ib∘ω_ib) (, |ω_ib|)], the unit's ideal output side by side, and the Gram formed from them the
+way it is formed (one (n, columns) block, Aᵀ A) — at rest (ω all ±0) and spinning, with and without Earth rate."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from analysis.identification.gyro import GyroModel
+from analysis.identification.model import ACCELEROMETER, centripetal
+from analysis.identification.specification import UnitModel
+
+
+def _bits(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=float).view(np.int64)
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> bool:
+    return a.shape == b.shape and np.array_equal(_bits(a), _bits(b))
+
+
+def _samples(rng: np.random.Generator, n: int, spinning: bool):
+    f = rng.normal(0.0, 6.0, (n, 3))
+    if spinning:
+        om = rng.normal(0.0, 2.0, (n, 3))
+    else:  # a hold: the table rate is a signed zero per component
+        om = np.where(rng.random((n, 3)) < 0.5, -0.0, 0.0)
+    earth = rng.normal(0.0, 5e-5, (n, 3))
+    return f, om, earth
+
+
+def _accel_plain(f, om):
+    return np.hstack([np.ones((f.shape[0], 1)), f, f * f, centripetal(om)])
+
+
+def _gyro_plain(model: GyroModel, f, om, earth):
+    w = om if earth is None else om + earth
+    cols = [np.ones((f.shape[0], 1)), w, f]
+    if model.quadratic:
+        cols.append(w * w)
+    if model.asymmetry:
+        cols.append(np.abs(w))
+    return np.hstack(cols)
+
+
+@pytest.mark.parametrize("spinning", [False, True])
+def test_accelerometer_regressors_are_the_stated_ones(spinning: bool) -> None:
+    rng = np.random.default_rng(11)
+    for n in (1, 7, 5000):
+        f, om, earth = _samples(rng, n, spinning)
+        assert _same(ACCELEROMETER.base_regressors(f, om, earth), _accel_plain(f, om))
+
+
+@pytest.mark.parametrize("spinning", [False, True])
+def test_gyro_regressors_are_the_stated_ones(spinning: bool) -> None:
+    rng = np.random.default_rng(12)
+    for full_g, quad, asym in itertools.product((False, True), repeat=3):
+        model = GyroModel(full_g=full_g, quadratic=quad, asymmetry=asym)
+        f, om, earth = _samples(rng, 3000, spinning)
+        for ea in (None, earth):
+            assert _same(model.base_regressors(f, om, ea), _gyro_plain(model, f, om, ea)), (full_g, quad, asym)
+
+
+@pytest.mark.parametrize("spinning", [False, True])
+def test_unit_ideal_output_and_gram_are_the_plain_ones(spinning: bool) -> None:
+    """The unit model's ideal output (np.concatenate of its parts' before) and the Kalman filter's Gram with the
+    measurement z (the block [regressors | z] per part, Aᵀ A), against the same formed from the stated pieces."""
+    rng = np.random.default_rng(13)
+    unit = UnitModel((ACCELEROMETER, GyroModel()))
+    n = 4000
+    f, om, earth = _samples(rng, n, spinning)
+    y = np.hstack([f + rng.normal(0.0, 1e-3, (n, 3)), om + earth + rng.normal(0.0, 1e-5, (n, 3))])
+    ideal = unit.ideal(f, om, earth)
+    assert _same(ideal, np.concatenate([ACCELEROMETER.ideal(f, om, earth), GyroModel().ideal(f, om, earth)], axis=1))
+    z = y - ideal
+    gram = unit.regressor_gram(f, om, z, earth=earth)
+    blocks = [np.hstack([_accel_plain(f, om), z[:, :3]]), np.hstack([_gyro_plain(GyroModel(), f, om, earth), z[:, 3:]])]
+    expected = np.zeros_like(gram)
+    off = 0
+    for blk in blocks:
+        blk = np.ascontiguousarray(blk)
+        m = blk.shape[1]
+        expected[off : off + m, off : off + m] = blk.T @ blk
+        off += m
+    assert _same(gram, expected)
