@@ -25,6 +25,8 @@ def column_mean(a: NDArray[np.float64], out: NDArray[np.float64] | None = None) 
     if arr.ndim != 2 or arr.shape[1] < 2 or not arr.flags.c_contiguous or arr.shape[0] == 0:
         return arr.mean(axis=0)  # one column is summed pairwise, another layout maybe in another order: numpy's own
     n, k = arr.shape
+    if not arr.any():  # all ±0 (a hold's body rate): numpy's sum from 0.0 is +0.0, whatever the zeros' signs
+        return np.zeros(k)
     buf = np.empty((k, n)) if out is None else out[:k, :n]
     np.add.accumulate(arr, axis=0, out=buf.T)
     return (buf[:, -1] + 0.0) / n

@@ -103,12 +103,28 @@ def nav_to_body(
     a = np.asarray(angles, dtype=float)
     vx, vy, vz = (float(c) for c in np.asarray(v, dtype=float).reshape(3))
     cp, sp, ct, st, cg, sg = angle_trig(a) if trig is None else trig
-    x, y = cp * vx + sp * vy, cp * vy - sp * vx  # R_z(ψ)ᵀ
-    y, z = ct * y + st * vz, ct * vz - st * y  # R_x(θ)ᵀ
+    # the products of x, y = cp·vx + sp·vy, cp·vy − sp·vx (R_z(ψ)ᵀ); y, z = ct·y + st·vz, ct·vz − st·y (R_x(θ)ᵀ);
+    # out = [cg·x − sg·z, y, sg·x + cg·z] (R_y(γ)ᵀ), each written into two scratch arrays and the result's
+    # columns instead of a new array per product (the same operations: the same values, less memory traffic)
     out = np.empty(a.shape)
-    out[..., 0] = cg * x - sg * z  # R_y(γ)ᵀ
-    out[..., 1] = y
-    out[..., 2] = sg * x + cg * z
+    shape = a.shape[:-1]
+    x, p, q = (np.multiply(c, w, out=np.empty(shape)) for c, w in ((cp, vx), (sp, vy), (cp, vy)))
+    np.add(x, p, out=x)  # x
+    np.multiply(sp, vx, out=p)
+    np.subtract(q, p, out=q)  # y (R_z(ψ)ᵀ)
+    y = out[..., 1]
+    np.multiply(ct, q, out=y)
+    np.multiply(st, vz, out=p)
+    np.add(y, p, out=y)  # y (R_x(θ)ᵀ)
+    z = np.multiply(ct, vz, out=np.empty(shape))
+    np.multiply(st, q, out=p)
+    np.subtract(z, p, out=z)  # z
+    np.multiply(cg, x, out=p)
+    np.multiply(sg, z, out=q)
+    np.subtract(p, q, out=out[..., 0])
+    np.multiply(sg, x, out=p)
+    np.multiply(cg, z, out=q)
+    np.add(p, q, out=out[..., 2])
     if mounting is None:
         return out
     return out @ np.asarray(mounting, dtype=float)  # (C_b^t)ᵀ v^t, row-vector form
@@ -127,13 +143,19 @@ def table_rate(angles: ArrayLike, rates: ArrayLike, *, trig: Trig | None = None)
     psid, thd, gad = r[..., 0], r[..., 1], r[..., 2]
     # R_x(θ)ᵀ ψ̇ e_z = ψ̇ [0, sin θ, cos θ]
     sin_th, cos_th = (np.sin(th), np.cos(th)) if trig is None else (trig[3], trig[2])
-    v1x, v1y, v1z = thd, psid * sin_th, psid * cos_th
-    # R_y(γ)ᵀ v = [c v_x − s v_z, v_y, s v_x + c v_z]
+    # R_y(γ)ᵀ v = [c v_x − s v_z, v_y, s v_x + c v_z], v = (θ̇, ψ̇ sin θ, ψ̇ cos θ); each product written into
+    # scratch arrays and the result's columns (the same operations, the same values, less memory traffic)
     c, s = (np.cos(ga), np.sin(ga)) if trig is None else (trig[4], trig[5])
     out = np.empty(np.broadcast_shapes(a.shape, r.shape))
-    out[..., 0] = c * v1x - s * v1z
-    out[..., 1] = v1y + gad
-    out[..., 2] = s * v1x + c * v1z
+    shape = out.shape[:-1]
+    v1z = np.multiply(psid, cos_th, out=np.empty(shape))
+    p, q = np.multiply(c, thd, out=np.empty(shape)), np.multiply(s, v1z, out=np.empty(shape))
+    np.subtract(p, q, out=out[..., 0])
+    np.multiply(psid, sin_th, out=p)
+    np.add(p, gad, out=out[..., 1])
+    np.multiply(s, thd, out=p)
+    np.multiply(c, v1z, out=q)
+    np.add(p, q, out=out[..., 2])
     return out
 
 
@@ -164,12 +186,13 @@ def gravity_in_body(
     else:
         cos_th, sin_th, cos_ga, sin_ga = trig[2], trig[3], trig[4], trig[5]
     row = np.empty(a.shape)
-    row[..., 0] = -cos_th * sin_ga
+    np.negative(cos_th, out=row[..., 0])  # (−cos θ) sin γ, in the result's column (no array per product)
+    np.multiply(row[..., 0], sin_ga, out=row[..., 0])
     row[..., 1] = sin_th
-    row[..., 2] = cos_th * cos_ga
+    np.multiply(cos_th, cos_ga, out=row[..., 2])
     if mounting is not None:
         row = row @ np.asarray(mounting, dtype=float)
-    return g * row
+    return np.multiply(g, row, out=row)
 
 
 def euler_from_body_to_nav(c_bn: ArrayLike, mounting: ArrayLike | None = None) -> NDArray[np.float64]:

@@ -153,6 +153,11 @@ class GyroModel(ModelSpec):
         om = as_n3(omega, "omega")
         return om.copy() if earth is None else om + as_n3(earth, "earth", om.shape[0])
 
+    def fill_measurement(self, out, y, f, omega, earth, base) -> None:  # type: ignore[no-untyped-def]
+        """z = y − ω_ib, column by column, ω_ib from the regressors (:meth:`fill_base` formed it as :meth:`ideal`)."""
+        for k in range(3):
+            np.subtract(y[:, k], base[:, 1 + k], out=out[:, k])
+
     # ---- the model's matrices --------------------------------------------------------------------------------
     def error_matrices(self, x: ArrayLike) -> dict[str, NDArray[np.float64]]:
         """M = I + S_g + T_g (T[i, j] = τ_ij), b_g, G (3 × 3), S2 (3,), A (3,) from a state vector."""

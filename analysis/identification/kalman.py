@@ -191,11 +191,11 @@ class StreamingIdentifier:
             )
         if n == 0:
             return
-        if not (np.all(np.isfinite(fo)) and np.all(np.isfinite(fr)) and np.all(np.isfinite(om))):
+        if not all(np.isfinite(np.min(a)) and np.isfinite(np.max(a)) for a in (fo, fr, om)):  # NaN, ±inf
             raise ValueError(f"step {step!r}: non-finite samples; drop or interpolate them before identification")
         t_end = self._block_end_time(n, t, step)
         dt = 0.0 if (self._t_last is None or not np.isfinite(t_end)) else max(t_end - self._t_last, 0.0)
-        gram = m.regressor_gram(fr, om, fo - m.ideal(fr, om, ea), earth=ea)
+        gram = m.regressor_gram(fr, om, earth=ea, y=fo)  # z = fo − ideal formed in the Gram's blocks
         info, eta = m.information_from_gram(gram, self.r_var)
         assert eta is not None
         if step not in self._grams:

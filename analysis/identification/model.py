@@ -400,6 +400,11 @@ class AccelerometerModel(ModelSpec):
         """An error-free accelerometer reads the specific force f."""
         return _as_n3(f, "f").copy()
 
+    def fill_measurement(self, out, y, f, omega, earth, base) -> None:  # type: ignore[no-untyped-def]
+        """z = y − f, column by column."""
+        for k in range(3):
+            np.subtract(y[:, k], f[:, k], out=out[:, k])
+
     def predict(
         self, x: ArrayLike, f: ArrayLike, omega: ArrayLike, earth: ArrayLike | None = None
     ) -> NDArray[np.float64]:

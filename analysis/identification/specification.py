@@ -147,6 +147,22 @@ class ModelSpec:
         """What an error-free sensor reads for the reference (n, n_axes), SI."""
         raise NotImplementedError
 
+    def fill_measurement(
+        self,
+        out: NDArray[np.float64],
+        y: NDArray[np.float64],
+        f: NDArray[np.float64],
+        omega: NDArray[np.float64],
+        earth: NDArray[np.float64] | None,
+        base: NDArray[np.float64],
+    ) -> None:
+        """Write z = y − :meth:`ideal` of a chunk (m, n_axes) into ``out``, column by column (SI); ``base``: the
+        chunk's regressors as :meth:`fill_base` wrote them (a model whose ideal output is among them takes it
+        from there, the same values)."""
+        ideal = self.ideal(f, omega, earth)
+        for k in range(self.n_axes):
+            np.subtract(y[:, k], ideal[:, k], out=out[:, k])
+
     def predict(
         self, x: ArrayLike, f: ArrayLike, omega: ArrayLike, earth: ArrayLike | None = None
     ) -> NDArray[np.float64]:
@@ -232,11 +248,14 @@ class ModelSpec:
         *,
         earth: ArrayLike | None = None,
         chunk: int = 1 << 17,
+        y: ArrayLike | None = None,
     ) -> NDArray[np.float64]:
         """Weighted Gram ``Σ_n w_n a_n a_nᵀ`` of the base regressors and (optionally) the measurement z.
 
         Computed in chunks with one matrix product each, so memory stays bounded for 10⁷ samples. Row and
-        column 0 hold the plain sums (the base regressor 0 is the constant 1).
+        column 0 hold the plain sums (the base regressor 0 is the constant 1). ``y``: the sensor output
+        (n, n_axes) instead of z: z = y − :meth:`ideal` is formed in each chunk's block (the same values as
+        passing z; :meth:`fill_measurement`).
         """
         ff = as_n3(f, "f")
         n = ff.shape[0]
@@ -244,13 +263,16 @@ class ModelSpec:
         if om.shape[0] != n:
             raise ValueError(f"f and omega must have the same number of samples, got {n} and {om.shape[0]}")
         ea = None if earth is None else as_n3(earth, "earth", n)
+        if z is not None and y is not None:
+            raise ValueError("give the measurement z or the output y, not both")
         zz = None
-        if z is not None:
-            zz = np.asarray(z, dtype=float)
+        if z is not None or y is not None:
+            zz = np.asarray(z if y is None else y, dtype=float)
             if zz.ndim != 2 or zz.shape[1] != self.n_axes or zz.shape[0] != n:
-                raise ValueError(f"z must have shape ({n}, {self.n_axes}), got {zz.shape}")
+                lab = "z" if y is None else "y"
+                raise ValueError(f"{lab} must have shape ({n}, {self.n_axes}), got {zz.shape}")
         w = _weights(weights, n)
-        return self._gram(ff, om, ea, zz, w, chunk)
+        return self._gram(ff, om, ea, zz, w, chunk, y is not None)
 
     def _gram(
         self,
@@ -260,7 +282,9 @@ class ModelSpec:
         zz: NDArray[np.float64] | None,
         w: NDArray[np.float64] | None,
         chunk: int,
+        output: bool = False,
     ) -> NDArray[np.float64]:
+        """The Gram (see :meth:`regressor_gram`); ``output``: ``zz`` is the sensor output y, not z."""
         n = ff.shape[0]
         nb = self.n_base
         ncol = self.gram_size(zz is not None)
@@ -269,8 +293,11 @@ class ModelSpec:
         for s in range(0, n, chunk):
             e = min(n, s + chunk)
             blk = a[: e - s]
-            self.fill_base(blk[:, :nb], ff[s:e], om[s:e], None if ea is None else ea[s:e])
-            if zz is not None:
+            ec = None if ea is None else ea[s:e]
+            self.fill_base(blk[:, :nb], ff[s:e], om[s:e], ec)
+            if zz is not None and output:
+                self.fill_measurement(blk[:, nb:], zz[s:e], ff[s:e], om[s:e], ec, blk[:, :nb])
+            elif zz is not None:
                 for k in range(ncol - nb):  # column by column (an (n, 3) copy into the wide block is 3× slower)
                     blk[:, nb + k] = zz[s:e, k]
             if w is None:
@@ -447,13 +474,13 @@ class UnitModel(ModelSpec):
             p.fill_base(out[:, off : off + p.n_base], f, omega, earth)
             off += p.n_base
 
-    def _gram(self, ff, om, ea, zz, w, chunk):  # type: ignore[no-untyped-def]
+    def _gram(self, ff, om, ea, zz, w, chunk, output=False):  # type: ignore[no-untyped-def]
         size = self.gram_size(zz is not None)
         gram = np.zeros((size, size))
         ax = self._axis_offsets()
         off = 0
         for k, p in enumerate(self._parts):
-            g = p._gram(ff, om, ea, self._split(zz, ax, k), w, chunk)
+            g = p._gram(ff, om, ea, self._split(zz, ax, k), w, chunk, output)
             m = g.shape[0]
             gram[off : off + m, off : off + m] = g
             off += m

@@ -30,6 +30,13 @@ def test_column_mean_is_numpys_mean_bit_for_bit(k: int) -> None:
 def test_column_mean_keeps_signed_zeros_and_other_layouts() -> None:
     z = np.array([[-0.0, 0.0, -0.0], [-0.0, -0.0, 0.0]])
     assert _same(column_mean(z), z.mean(axis=0))
+    assert _same(column_mean(-np.zeros((50, 3))), np.zeros(3))  # all −0.0: numpy's mean is +0.0
+    rng0 = np.random.default_rng(4)
+    mixed = np.where(rng0.random((300, 3)) < 0.5, -0.0, 0.0)
+    mixed[:, 0] = -0.0  # a column of −0.0 beside columns of other values
+    mixed[:, 2] = rng0.normal(size=300)
+    mixed[0, 2] = -0.0
+    assert _same(column_mean(mixed), mixed.mean(axis=0))
     rng = np.random.default_rng(5)
     a = rng.normal(size=(500, 6))
     for view in (a[:, :3], a[::2], np.asfortranarray(a), a[:0]):  # not C-ordered, or empty: numpy's own

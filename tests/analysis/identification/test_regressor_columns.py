@@ -12,7 +12,7 @@ import pytest
 
 from analysis.identification.gyro import GyroModel
 from analysis.identification.model import ACCELEROMETER, centripetal
-from analysis.identification.specification import UnitModel
+from analysis.identification.specification import ModelSpec, UnitModel
 
 
 def _bits(a: np.ndarray) -> np.ndarray:
@@ -87,3 +87,31 @@ def test_unit_ideal_output_and_gram_are_the_plain_ones(spinning: bool) -> None:
         expected[off : off + m, off : off + m] = blk.T @ blk
         off += m
     assert _same(gram, expected)
+
+
+@pytest.mark.parametrize("spinning", [False, True])
+def test_gram_from_the_output_is_the_gram_from_z(spinning: bool) -> None:
+    """regressor_gram(y=output) forms z = y − ideal in its blocks (each part's fill_measurement, the gyro's from
+    its ω_ib regressors): the same Gram as passing z, bit for bit; the generic fill_measurement (a model without
+    its own) agrees with each part's."""
+    rng = np.random.default_rng(14)
+    n = 3000
+    f, om, earth = _samples(rng, n, spinning)
+    for parts in ((ACCELEROMETER,), (ACCELEROMETER, GyroModel()), (ACCELEROMETER, GyroModel(quadratic=True))):
+        unit = parts[0] if len(parts) == 1 else UnitModel(parts)
+        y = unit.ideal(f, om, earth) + rng.normal(0.0, 1e-3, (n, unit.n_axes))
+        for ea in (None, earth):
+            z = y - unit.ideal(f, om, ea)
+            assert _same(unit.regressor_gram(f, om, earth=ea, y=y), unit.regressor_gram(f, om, z, earth=ea))
+            assert _same(
+                unit.regressor_gram(f, om, earth=ea, y=y, chunk=700), unit.regressor_gram(f, om, z, earth=ea, chunk=700)
+            )
+    for part in (ACCELEROMETER, GyroModel()):
+        y = rng.normal(size=(n, 3))
+        base = part.base_regressors(f, om, earth)
+        own, generic = np.empty((n, 3)), np.empty((n, 3))
+        part.fill_measurement(own, y, f, om, earth, base)
+        ModelSpec.fill_measurement(part, generic, y, f, om, earth, base)
+        assert _same(own, generic) and _same(own, y - part.ideal(f, om, earth))
+    with pytest.raises(ValueError):
+        ACCELEROMETER.regressor_gram(f, om, y, y=y)
