@@ -470,7 +470,7 @@ class Hdf5Recorder:
             }
             for name, data in tcols.items():
                 self._hasher.update("table", name, data)
-                self._append_checked(f"table/{name}", data)
+                self._append_checked(f"table/{name}", data, "the step being recorded")
             self._table_written += len(b)
             self._buf_table.clear()
             tim = np.array(self._buf_timing, dtype=np.float64).reshape(-1, 4)
@@ -494,17 +494,23 @@ class Hdf5Recorder:
             self._buf_aux.clear()
         f.flush()
 
-    def _append_checked(self, path: str, data: NDArray[Any]) -> None:
-        """Append rows to dataset ``path`` and read them back (RecordingDamaged if they differ)."""
+    def _append_checked(self, path: str, data: NDArray[Any], where: str) -> None:
+        """Append rows to dataset ``path`` and read them back: RecordingDamaged naming the rows and ``where`` (the
+        step) if they differ, and nothing queued is written any more (no step row after rows that failed)."""
         d = self._dataset_at(path)
         n0 = d.shape[0]
         _append_rows(d, data)
         if np.asarray(d[n0:], dtype=d.dtype).tobytes() != np.ascontiguousarray(data, dtype=d.dtype).tobytes():
-            raise RecordingDamaged(
-                f"{self.path}: dataset /{path} rows {n0}–{d.shape[0]}: the rows read back after writing are not the "
-                "ones written (a storage, file-system or memory fault?); the run is stopped and the steps completed "
-                "before are kept: check the disk, then 'tablebench runs' says how to resume or salvage the run"
+            err = RecordingDamaged(
+                f"{self.path}: dataset /{path} rows {n0}–{d.shape[0]} ({where}): the rows read back after writing are "
+                "not the ones written (checked while writing; a storage, file-system or memory fault?); the run is "
+                "stopped and the steps completed before are kept: check the disk, then 'tablebench runs' says how to "
+                "resume or salvage the run"
             )
+            if self._chunks is not None:
+                self._chunks.pending.clear()
+                self._chunks.broken = err
+            raise err
 
     def end_step(self, record: StepRecord) -> None:
         """Append a step row with the SHA-256 of the step's rows (the step boundary checkpoint).
@@ -542,7 +548,7 @@ class Hdf5Recorder:
                 ],
                 dtype=STEP_DTYPE,
             )
-            self._append_checked("steps", row)
+            self._append_checked("steps", row, f"the row of step {record.index} {record.name!r}")
             self._file.flush()
             self._steps_written.append(
                 WrittenStep(

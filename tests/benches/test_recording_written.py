@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 import benches.recording.encoding as encoding
+import benches.recording.writer as writer
 from benches.cli import main
 from benches.recording import RecordingDamaged, open_recording, reader, written
 from tests import REPO_ROOT
@@ -70,13 +71,14 @@ def _same_recording(a: Path, b: Path) -> None:
             assert getattr(ta, name).tobytes() == getattr(tb, name).tobytes(), name
 
 
-def _stopped_then_resumed(bench, reference, out: Path, capsys, expect: str) -> None:
+def _stopped_then_resumed(bench, reference, out: Path, capsys, expect: str, dataset: str = "/imu/") -> None:
     """The run stopped with one line naming file, dataset, rows and step; resumed, it equals the reference."""
     _forget()
     code, text = _cli(["run", *bench[1], "--no-identify", "--out", str(out)], capsys)
     assert code == 2 and "Traceback" not in text, text[-2000:]
     last = text.strip().splitlines()[-1]
-    assert str(out / "recording.h5") in last and "dataset /imu/" in last and "step" in last and expect in last, last
+    assert str(out / "recording.h5") in last and f"dataset {dataset}" in last, last
+    assert "step" in last and expect in last, last
     assert written._WRITTEN == {}, "no evidence is offered for a recording that failed its checks"
     _forget()
     with open_recording(out) as rec:  # the steps written before the fault are intact, verified in full
@@ -132,6 +134,21 @@ def test_counts_that_do_not_read_back_as_the_rows_hashed_stop_the_run(bench, ref
 
     monkeypatch.setattr(encoding, "_quantise", quantise)
     _stopped_then_resumed(bench, reference, bench[0] / "counts", capsys, "do not read back")
+
+
+def test_table_rows_that_read_back_differently_stop_the_run(bench, reference, monkeypatch, capsys):
+    real = writer._append_rows
+    calls = {"n": 0}
+
+    def append(d, data):
+        if d.name == "/table/angles":
+            calls["n"] += 1
+            if calls["n"] == 12:  # what reaches the file is not what was hashed into the step's SHA-256
+                data = data + 1e-6
+        return real(d, data)
+
+    monkeypatch.setattr(writer, "_append_rows", append)
+    _stopped_then_resumed(bench, reference, bench[0] / "table", capsys, "read back after writing", "/table/angles")
 
 
 def _kept_bytes(kept) -> list:
