@@ -1,9 +1,10 @@
 """The run recording: the ONE package that knows the HDF5 layout (``benches/RECORDING.md``).
 
 Parts: :mod:`.layout` (format constants, dtypes, typed records, errors), :mod:`.encoding` (counts, checksums,
-the chunk encoder), :mod:`.writer` (:class:`Hdf5Recorder`), :mod:`.reader` (:func:`open_recording`),
-:mod:`.salvage` (damaged recordings, decoded samples). Import from the package: ``from benches.recording
-import open_recording``.
+the chunk encoder, which checks every chunk as it writes it), :mod:`.writer` (:class:`Hdf5Recorder`), :mod:`.reader`
+(:func:`open_recording`), :mod:`.written` (what the recorder verified while writing, for the same process's
+identification), :mod:`.salvage` (damaged recordings, decoded samples). Import from the package:
+``from benches.recording import open_recording``.
 
 Writing (:class:`Hdf5Recorder`): one file per run, written incrementally. Samples are buffered in memory and
 written in short bursts at checkpoints (every step boundary and every ``checkpoint_samples`` samples), each
@@ -17,7 +18,9 @@ an exact float64 residual, so the stored values equal the recorded ones bit for 
 Reading (:func:`open_recording` → :class:`Recording`): a typed run header (:class:`RunHeader`), typed steps
 (:class:`StepRecord`), samples (:class:`Samples`, whole or as an iterator of chunks), table readings
 (:class:`TableReadings`), events (:class:`Event`) and the simulator's truth (:class:`Truth`). On opening,
-every checksum is verified; any failure, and any HDF5 error (also while reading data lazily), raises
+every checksum is verified (in the process that has just written the file, ``open_recording(path,
+written=True)`` uses the verification done while writing instead of a second pass: ``benches/RECORDING.md``, "Where
+the integrity is verified"); any failure, and any HDF5 error (also while reading data lazily), raises
 :class:`RecordingError` naming the file, the dataset and the step. A recording written by another tool to
 the layout without checksums (format version 1) stays usable: :attr:`Recording.integrity_verified` is False
 and :attr:`Recording.integrity_note` says so in one line.

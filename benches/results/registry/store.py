@@ -19,6 +19,7 @@ first and then inserts nothing. See ``docs/registry.md``.
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -148,6 +149,9 @@ class Registry:
             ) from None
         except OSError as exc:
             raise RegistryError(f"registry {self.where}: cannot create its folder ({exc.strerror})") from None
+        # the pool's connections are closed when this object goes (a dropped Registry would otherwise leave them to
+        # the cyclic garbage collector, whenever it runs, and psycopg warns about each one still open then)
+        self._release = weakref.finalize(self, self.engine.dispose)
         if upgrade:
             self.upgrade()
 

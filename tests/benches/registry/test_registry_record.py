@@ -103,3 +103,21 @@ def test_the_registry_says_which_unit_which_calibration_and_where(factory, tmp_p
     # a certificate with nothing new to record (this run has none) says nothing either
     cert = CertificateDocument(run=r1, certificate=None)  # type: ignore[arg-type]
     assert sink.report("certificate", sink.certificate(cert)) is None
+
+
+def test_a_dropped_registry_closes_its_connections_at_once(registry_url):
+    """A Registry that is dropped without close() releases its pool then, not whenever the cyclic garbage collector
+    next runs (psycopg warns about every connection still open at that moment, in whatever command runs then)."""
+    import gc
+    import warnings
+
+    from benches.results.registry import Registry
+
+    def use() -> None:
+        Registry(registry_url).count()
+
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        use()
+        gc.collect()
+    assert [w for w in seen if issubclass(w.category, ResourceWarning)] == []
