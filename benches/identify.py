@@ -848,6 +848,7 @@ def truth_check(
 def _run_info(data: IdentificationData) -> RunInfo:
     a = data.run.attrs()
     config, temp = data.config, data.temperature
+    temp = temp[np.isfinite(temp)]  # a unit without a temperature channel records NaN: no summary (None)
     return RunInfo(
         status=str(a.get("status", "")),
         bench_name=str(a.get("bench_name", "")),

@@ -60,6 +60,13 @@ def test_ten_step_over_loopback_in_a_real_format_equals_in_process(tmp_path, ben
     sb = np.array([b["parameters"][p]["u_white"] for p in PARAM_NAMES])
     assert np.max(np.abs(xa - xb) / sb) < 0.05
     assert a["information"]["rank"] == b["information"]["rank"] == len(b["parameter_names"]) == 33  # whole unit
+    # a unit without a temperature channel records NaN: the calibration says "none" and can be written (strict JSON)
+    from core.jsonio import dumps
+
+    for r in (a, b):
+        t = r["run"]["temperature_k"]
+        assert all(v is None or np.isfinite(v) for v in t.values())
+        dumps(r)  # raises on a non-finite number
 
 
 def test_samples_flagged_invalid_are_never_used(tmp_path):
