@@ -387,14 +387,19 @@ class AccelerometerModel(ModelSpec):
 
         Written column by column: an (n, 3) operation into the wide row-major block loops three values at a time
         (3× slower); c = Σω² − ω_i² with Σω² = (ω_x² + ω_y²) + ω_z², the additions of ``w2.sum(axis=1)`` in its
-        order, so the same values bit for bit as :func:`centripetal` (a test checks both)."""
+        order, so the same values bit for bit as :func:`centripetal` (a test checks both); ω_i² and Σω² are formed
+        in the rows of one (4, n) scratch array (ω² as an (n, 3) array is another three-wide loop per row)."""
         out[:, 0] = 1.0
-        w2 = omega**2
-        s = (w2[:, 0] + w2[:, 1]) + w2[:, 2]
+        sq = np.empty((4, out.shape[0]))
+        w2, s = sq[:3], sq[3]
+        for k in range(3):
+            np.multiply(omega[:, k], omega[:, k], out=w2[k])
+        np.add(w2[0], w2[1], out=s)
+        np.add(s, w2[2], out=s)
         for k in range(3):
             out[:, 1 + k] = f[:, k]
             np.multiply(f[:, k], f[:, k], out=out[:, 4 + k])
-            np.subtract(s, w2[:, k], out=out[:, 7 + k])
+            np.subtract(s, w2[k], out=out[:, 7 + k])
 
     def ideal(self, f: ArrayLike, omega: ArrayLike, earth: ArrayLike | None = None) -> NDArray[np.float64]:
         """An error-free accelerometer reads the specific force f."""

@@ -313,9 +313,16 @@ class ModelSpec:
         """Data information Λ = Σ HᵀR⁻¹H and η = Σ HᵀR⁻¹z from a :meth:`regressor_gram` (η None without z)."""
         r = self.as_noise_variance(r_var)
         with_z = gram.shape[0] == self.gram_size(True)
-        cols, zc, _ = self.layout(with_z)
         info = np.zeros((self.n_params, self.n_params))
         eta = np.zeros(self.n_params) if with_z else None
+        idx = self._information_index(with_z)
+        if idx is not None:  # one gather per matrix: the same quotients gram[q, q'] / r[i], element by element
+            pi, pj, qi, qj, ai, ep, eq, ez, ea = idx
+            info[pi, pj] = gram[qi, qj] / r[ai]
+            if eta is not None:
+                eta[ep] = gram[eq, ez] / r[ea]
+            return info, eta
+        cols, zc, _ = self.layout(with_z)
         for i in range(self.n_axes):
             p = list(self.axis_params[i])
             q = list(cols[i])
@@ -323,6 +330,35 @@ class ModelSpec:
             if eta is not None:
                 eta[p] = gram[q, zc[i]] / r[i]
         return info, eta
+
+    def _information_index(self, with_z: bool) -> tuple[NDArray[np.int64], ...] | None:
+        """Flat indices for :meth:`information_from_gram`, formed once per layout (None when two axes share a state:
+        the axis-by-axis loop keeps its order of assignment there).
+
+        (info rows, info columns, Gram rows, Gram columns, axis) of every Λ entry Λ[p, p'] = Gram[q, q'] / r[axis]
+        and (state, Gram row, z column, axis) of every η entry η[p] = Gram[q, z] / r[axis]; the same quotients as
+        the loop's ``np.ix_`` blocks (a test compares them bit for bit), without its ~20 small numpy calls per
+        axis on each of the filter's windows."""
+        key = (with_z, self.axis_params, self.axis_base, self.n_base)
+        cache: dict[object, tuple[NDArray[np.int64], ...] | None] = self.__dict__.setdefault("_info_index_cache", {})
+        if key in cache:
+            return cache[key]
+        cols, zc, _ = self.layout(with_z)
+        flat = [k for ax in self.axis_params for k in ax]
+        out: tuple[NDArray[np.int64], ...] | None = None
+        if len(set(flat)) == len(flat):
+            lam: list[list[int]] = [[], [], [], [], []]
+            et: list[list[int]] = [[], [], [], []]
+            for i, (p, q) in enumerate(zip(self.axis_params, cols, strict=True)):
+                for a in range(len(p)):
+                    for b in range(len(p)):
+                        for lst, v in zip(lam, (p[a], p[b], q[a], q[b], i), strict=True):
+                            lst.append(v)
+                    for lst, v in zip(et, (p[a], q[a], zc[i] if with_z else 0, i), strict=True):
+                        lst.append(v)
+            out = tuple(np.array(v, dtype=np.int64) for v in lam + et)
+        cache[key] = out
+        return out
 
     def offset_gains(self, gram: NDArray[np.float64], r_var: ArrayLike) -> NDArray[np.float64]:
         """G = Σ_n w_n H_nᵀ R⁻¹ (n_params, n_axes): the effect of a constant error per axis on η."""

@@ -115,3 +115,43 @@ def test_gram_from_the_output_is_the_gram_from_z(spinning: bool) -> None:
         assert _same(own, generic) and _same(own, y - part.ideal(f, om, earth))
     with pytest.raises(ValueError):
         ACCELEROMETER.regressor_gram(f, om, y, y=y)
+
+
+def _information_per_axis(model: ModelSpec, gram: np.ndarray, r: np.ndarray) -> tuple:
+    """Λ and η from a Gram axis by axis with ``np.ix_`` blocks (the plain form information_from_gram replaced)."""
+    with_z = gram.shape[0] == model.gram_size(True)
+    cols, zc, _ = model.layout(with_z)
+    info = np.zeros((model.n_params, model.n_params))
+    eta = np.zeros(model.n_params) if with_z else None
+    for i in range(model.n_axes):
+        p, q = list(model.axis_params[i]), list(cols[i])
+        info[np.ix_(p, p)] = gram[np.ix_(q, q)] / r[i]
+        if eta is not None:
+            eta[p] = gram[q, zc[i]] / r[i]
+    return info, eta
+
+
+def test_information_from_gram_is_the_per_axis_one() -> None:
+    """information_from_gram's one gather per matrix gives the per-axis ``np.ix_`` blocks' Λ and η bit for bit
+    (every model, with and without z, twice: the cached indices), and a model whose axes share a state keeps
+    the per-axis assignment."""
+    rng = np.random.default_rng(15)
+    models = [ACCELEROMETER, GyroModel(), GyroModel(full_g=True, quadratic=True, asymmetry=True)]
+    models += [UnitModel((ACCELEROMETER, GyroModel())), UnitModel((ACCELEROMETER, GyroModel(quadratic=True)))]
+    for model in models:
+        for with_z in (False, True, True):
+            m = model.gram_size(with_z)
+            g = rng.normal(size=(m, m)) * 10.0 ** rng.integers(-8, 8, (m, m))
+            r = rng.uniform(0.1, 10.0, model.n_axes) * 1e-6
+            info, eta = model.information_from_gram(g, r)
+            e_info, e_eta = _information_per_axis(model, g, r)
+            assert _same(info, e_info)
+            assert (eta is None) == (not with_z) and (eta is None or _same(eta, e_eta))
+    shared = GyroModel()
+    shared.axis_params = (shared.axis_params[0],) * 2 + shared.axis_params[2:]  # axes x and y share x's states
+    g = rng.normal(size=(shared.gram_size(True),) * 2)
+    r = np.array([1.0, 2.0, 3.0])
+    info, eta = shared.information_from_gram(g, r)
+    e_info, e_eta = _information_per_axis(shared, g, r)
+    assert shared.__dict__["_info_index_cache"][(True, shared.axis_params, shared.axis_base, shared.n_base)] is None
+    assert _same(info, e_info) and _same(eta, e_eta)
