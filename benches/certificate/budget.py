@@ -2,9 +2,10 @@
 
 The maths lives in :mod:`analysis.identification.budget` (one model, one set of sensitivities). This
 module only gathers its inputs from a run: the reference points of the identified steps, built with THE
-reference function (:func:`benches.reference.reference_for_window`: table at t − latency, never across a
-motion boundary), the identification's own covariance (calibration.json), and the bench's stated
-uncertainties (table attitude and rate accuracy, local g, unit bias instability).
+reference function's steps (:func:`benches.reference.reference_for_window`: table at t − latency, never across
+a motion boundary; each window interpolated once, for the reference and its gimbal rates), the identification's
+own covariance (calibration.json), and the bench's stated uncertainties (table attitude and rate accuracy,
+local g, unit bias instability).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from analysis.earth import DEFAULT_LATITUDE_U
-from analysis.gimbal import body_to_nav
+from analysis.gimbal import angle_trig, body_to_nav
 from analysis.identification.bias_drift import flicker_components, window_mean_covariance
 from analysis.identification.budget import (
     BudgetComponent,
@@ -32,7 +33,7 @@ from analysis.identification.table_axes import held_angle_input, orthogonality_i
 from analysis.timebase import TimeBase
 from analysis.units import ARCSEC
 from benches.calibration_result import CalibrationResult
-from benches.reference import acquisition_span, earth_in_body, interpolate_table, reference_for_window
+from benches.reference import acquisition_span, earth_in_body, interpolate_table, reference_at
 from benches.timebase import reference_rate_covariance, reference_rate_u, table_in_unit_time
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -107,8 +108,11 @@ def step_geometry(
         t = f.samples(fields=("time",), index=idx).time
         assert t is not None
         span = acquisition_span(t_first, t_last, latency, rate)
-        fr, om, ang, _trig = reference_for_window(t, tt, ta, tr, g=g, mounting=mounting, latency=latency, span=span)
-        _ang, gimbal_rates = interpolate_table(np.asarray(t, dtype=float) - latency, tt, ta, tr, span)
+        # reference_for_window's own steps (the table at t − latency within the step's span, its trig, the
+        # reference), the window interpolated once: its gimbal rates are kept for the geometry as well
+        ang, gimbal_rates = interpolate_table(np.asarray(t, dtype=float) - latency, tt, ta, tr, span)
+        trig = angle_trig(ang)
+        fr, om = reference_at(ang, gimbal_rates, g, mounting, trig=trig)
         spin_axis, held_u = None, None
         if s.kind == "spin":
             sel = (tt >= t_first) & (tt <= t_last)
@@ -118,7 +122,7 @@ def step_geometry(
         out.append(
             StepGeometry(
                 s.name, s.kind, fr, om, np.diff(edges).astype(float), body_to_nav(ang, mounting), spin_axis,
-                (t_first, t_last), None if latitude is None else earth_in_body(ang, latitude, mounting),
+                (t_first, t_last), None if latitude is None else earth_in_body(ang, latitude, mounting, trig=trig),
                 ang, gimbal_rates, held_u,
             )
         )  # fmt: skip
