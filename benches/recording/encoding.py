@@ -204,6 +204,24 @@ def _append_rows(d: h5py.Dataset, data: NDArray[Any]) -> None:
     d[n0:] = data
 
 
+def _append_read_back(d: h5py.Dataset, data: NDArray[Any]) -> tuple[int, bool]:
+    """Append rows to an extendable dataset and read them back: (the first row appended, whether the rows read
+    back are, byte for byte in the dataset's dtype, the ones written) — the writer's check of what it appends."""
+    n0 = d.shape[0]
+    _append_rows(d, data)
+    same = np.asarray(d[n0:], dtype=d.dtype).tobytes() == np.ascontiguousarray(data, dtype=d.dtype).tobytes()
+    return n0, same
+
+
+def _written_fault(path: str, dataset: str, r0: int, r1: int, where: str, what: str) -> RecordingDamaged:
+    """The error of a check made while writing: rows [r0, r1) of ``dataset`` (``where``: `` (step …)``)."""
+    return RecordingDamaged(
+        f"{path}: dataset /{dataset} rows {r0}–{r1}{where}: {what} (checked while writing; a storage, file-system or "
+        "memory fault?); the run is stopped and the steps completed before are kept: check the disk, then "
+        "'tablebench runs' says how to resume or salvage the run"
+    )
+
+
 def _stored_rows(
     name: str, data: NDArray[Any], hasher: _StepHasher, quanta: dict[str, float], row0: int
 ) -> tuple[NDArray[Any], NDArray[Any] | None]:
@@ -302,15 +320,15 @@ class _ChunkWriter:
             self.rows[name] += len(new)
         return out, excs
 
-    def _break(self, name: str, r0: int, r1: int, what: str) -> None:
-        """Stop writing (nothing queued is written any more) and raise RecordingDamaged for rows [r0, r1)."""
+    def stop(self, error: RecordingError) -> None:
+        """A check failed (here or in the recorder): nothing queued is written any more (:attr:`broken`)."""
         self.pending.clear()
-        self.broken = RecordingDamaged(
-            f"{self.path}: dataset /imu/{name} rows {r0}–{r1}{self.describe(r0, r1)}: {what} (checked while "
-            "writing; a storage, file-system or memory fault?); the run is stopped and the steps completed before "
-            "are kept: check the disk, then 'tablebench runs' says how to resume or salvage the run"
-        )
-        raise self.broken
+        self.broken = error
+
+    def _break(self, name: str, r0: int, r1: int, what: str) -> None:
+        """Stop writing and raise RecordingDamaged for rows [r0, r1) of /imu/``name``."""
+        self.stop(_written_fault(self.path, f"imu/{name}", r0, r1, self.describe(r0, r1), what))
+        raise self.broken  # type: ignore[misc]
 
     def drain(self, wait: bool) -> None:
         """Write the encoded chunks and run the queued actions (in order): those ready, or all with ``wait``;
@@ -337,10 +355,8 @@ class _ChunkWriter:
                 if mask != 0 or back != data:
                     self._break(name, r0, r1, "the chunk read back from the file is not the one written")
             for name, exc in excs.items():
-                d = self.exc_ds[name]
-                n0 = d.shape[0]
-                _append_rows(d, exc)
-                if np.asarray(d[n0:], dtype=EXC_DTYPE).tobytes() != np.ascontiguousarray(exc, EXC_DTYPE).tobytes():
+                _, same = _append_read_back(self.exc_ds[name], exc)
+                if not same:
                     self._break(f"exceptions/{name}", int(exc["row"][0]), int(exc["row"][-1]) + 1,
                                 "the exception rows read back are not the ones written")  # fmt: skip
                 self.exc_sha[name].update(np.ascontiguousarray(exc, dtype=EXC_DTYPE).data)

@@ -21,11 +21,13 @@ from drivers.protocols import ImuBlock, Reading, TableState
 from .encoding import (
     _COUNT_DTYPE,
     EXC_DTYPE,
+    _append_read_back,
     _append_rows,
     _ChunkWriter,
     _quantise,
     _StepHasher,
     _stored_rows,
+    _written_fault,
     ns_delta_encode,
     ns_delta_last,
 )
@@ -54,7 +56,6 @@ from .layout import (
     TIMING_BLOCK,
     TIMING_CLOCKS,
     TIMING_TABLE,
-    RecordingDamaged,
     RecordingError,
     StepRecord,
     _clip_utf8,
@@ -498,18 +499,12 @@ class Hdf5Recorder:
         """Append rows to dataset ``path`` and read them back: RecordingDamaged naming the rows and ``where`` (the
         step) if they differ, and nothing queued is written any more (no step row after rows that failed)."""
         d = self._dataset_at(path)
-        n0 = d.shape[0]
-        _append_rows(d, data)
-        if np.asarray(d[n0:], dtype=d.dtype).tobytes() != np.ascontiguousarray(data, dtype=d.dtype).tobytes():
-            err = RecordingDamaged(
-                f"{self.path}: dataset /{path} rows {n0}–{d.shape[0]} ({where}): the rows read back after writing are "
-                "not the ones written (checked while writing; a storage, file-system or memory fault?); the run is "
-                "stopped and the steps completed before are kept: check the disk, then 'tablebench runs' says how to "
-                "resume or salvage the run"
-            )
+        n0, same = _append_read_back(d, data)
+        if not same:
+            err = _written_fault(str(self.path), path, n0, d.shape[0], f" ({where})",
+                                 "the rows read back after writing are not the ones written")  # fmt: skip
             if self._chunks is not None:
-                self._chunks.pending.clear()
-                self._chunks.broken = err
+                self._chunks.stop(err)
             raise err
 
     def end_step(self, record: StepRecord) -> None:

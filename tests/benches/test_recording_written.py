@@ -21,7 +21,6 @@ import numpy as np
 import pytest
 
 import benches.recording.encoding as encoding
-import benches.recording.writer as writer
 from benches.cli import main
 from benches.recording import RecordingDamaged, open_recording, reader, written
 from tests import REPO_ROOT
@@ -137,7 +136,7 @@ def test_counts_that_do_not_read_back_as_the_rows_hashed_stop_the_run(bench, ref
 
 
 def test_table_rows_that_read_back_differently_stop_the_run(bench, reference, monkeypatch, capsys):
-    real = writer._append_rows
+    real = encoding._append_rows  # the recorder appends (and reads back) through encoding._append_read_back
     calls = {"n": 0}
 
     def append(d, data):
@@ -147,7 +146,7 @@ def test_table_rows_that_read_back_differently_stop_the_run(bench, reference, mo
                 data = data + 1e-6
         return real(d, data)
 
-    monkeypatch.setattr(writer, "_append_rows", append)
+    monkeypatch.setattr(encoding, "_append_rows", append)
     _stopped_then_resumed(bench, reference, bench[0] / "table", capsys, "read back after writing", "/table/angles")
 
 
