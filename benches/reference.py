@@ -176,12 +176,33 @@ def reference_for_window(
         of the same samples (:func:`earth_in_body`, a spin's body rate): each computed once per window instead
         of once per rotation (the same values bit for bit).
     """
-    ang, rat = interpolate_table(np.asarray(t, dtype=float) - latency, table_time, table_angles, table_rates, span)
-    trig = angle_trig(ang)
-    if gimbal_rates is not None:
-        rat = np.broadcast_to(np.asarray(gimbal_rates, dtype=float), ang.shape)
-    f_ref, omega = reference_at(ang, rat, g, mounting, trig=trig)
+    f_ref, omega, ang, trig, _ = reference_and_rates(
+        t, table_time, table_angles, table_rates, g=g, mounting=mounting, latency=latency, span=span,
+        gimbal_rates=gimbal_rates,
+    )  # fmt: skip
     return f_ref, omega, ang, trig
+
+
+def reference_and_rates(
+    t: NDArray[np.float64],
+    table_time: NDArray[np.float64],
+    table_angles: NDArray[np.float64],
+    table_rates: NDArray[np.float64],
+    *,
+    g: float,
+    mounting: NDArray[np.float64] | None,
+    latency: float = 0.0,
+    span: tuple[float, float] | None = None,
+    gimbal_rates: NDArray[np.float64] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], Trig, NDArray[np.float64]]:
+    """:func:`reference_for_window` (f_ref, omega, angles, trig) and the gimbal rates (n, 3), rad/s, the table's
+    readings give at the same times (interpolated with the angles, by the same rule; the step geometry of the
+    uncertainty budget keeps them): the window is interpolated once for both."""
+    ang, rates = interpolate_table(np.asarray(t, dtype=float) - latency, table_time, table_angles, table_rates, span)
+    trig = angle_trig(ang)
+    rat = rates if gimbal_rates is None else np.broadcast_to(np.asarray(gimbal_rates, dtype=float), ang.shape)
+    f_ref, omega = reference_at(ang, rat, g, mounting, trig=trig)
+    return f_ref, omega, ang, trig, rates
 
 
 def earth_in_body(

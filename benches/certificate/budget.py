@@ -2,8 +2,8 @@
 
 The maths lives in :mod:`analysis.identification.budget` (one model, one set of sensitivities). This
 module only gathers its inputs from a run: the reference points of the identified steps, built with THE
-reference function's steps (:func:`benches.reference.reference_for_window`: table at t − latency, never across
-a motion boundary; each window interpolated once, for the reference and its gimbal rates), the identification's
+reference function (:func:`benches.reference.reference_and_rates`: table at t − latency, never across a motion
+boundary; each window interpolated once, for the reference and its gimbal rates), the identification's
 own covariance (calibration.json), and the bench's stated uncertainties (table attitude and rate accuracy,
 local g, unit bias instability).
 """
@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from analysis.earth import DEFAULT_LATITUDE_U
-from analysis.gimbal import angle_trig, body_to_nav
+from analysis.gimbal import body_to_nav
 from analysis.identification.bias_drift import flicker_components, window_mean_covariance
 from analysis.identification.budget import (
     BudgetComponent,
@@ -33,7 +33,7 @@ from analysis.identification.table_axes import held_angle_input, orthogonality_i
 from analysis.timebase import TimeBase
 from analysis.units import ARCSEC
 from benches.calibration_result import CalibrationResult
-from benches.reference import acquisition_span, earth_in_body, interpolate_table, reference_at
+from benches.reference import acquisition_span, earth_in_body, reference_and_rates
 from benches.timebase import reference_rate_covariance, reference_rate_u, table_in_unit_time
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -108,11 +108,9 @@ def step_geometry(
         t = f.samples(fields=("time",), index=idx).time
         assert t is not None
         span = acquisition_span(t_first, t_last, latency, rate)
-        # reference_for_window's own steps (the table at t − latency within the step's span, its trig, the
-        # reference), the window interpolated once: its gimbal rates are kept for the geometry as well
-        ang, gimbal_rates = interpolate_table(np.asarray(t, dtype=float) - latency, tt, ta, tr, span)
-        trig = angle_trig(ang)
-        fr, om = reference_at(ang, gimbal_rates, g, mounting, trig=trig)
+        fr, om, ang, trig, gimbal_rates = reference_and_rates(  # the window interpolated once for both
+            t, tt, ta, tr, g=g, mounting=mounting, latency=latency, span=span
+        )
         spin_axis, held_u = None, None
         if s.kind == "spin":
             sel = (tt >= t_first) & (tt <= t_last)
@@ -261,6 +259,8 @@ def _gyro_inputs(
     else:
         notes.append("no time-base estimate in the calibration result: one clock assumed (time base not budgeted)")
     return out
+
+
 def time_base_covariance(cal: CalibrationResult) -> tuple[NDArray[np.float64], str]:
     """The parameters' covariance from the run's estimated time base (J Σ Jᵀ, J = ∂x/∂(t₀, ε) from
     calibration.json's ``time_base.sensitivity``; included in its covariance) and the budget line's source text
