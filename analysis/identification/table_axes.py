@@ -144,9 +144,7 @@ def orthogonality_shape(geo: StepGeometry, model: ModelSpec, g: float) -> NDArra
         d[k] = _STEP
         fp, wp = ch.references(d[0], d[1], g)
         fm, wm = ch.references(-d[0], -d[1], g)
-        df, dw = (fp - fm) / (2 * _STEP), (wp - wm) / (2 * _STEP)
-        rows = [df if p.output == "accel" else dw if p.output == "gyro" else np.zeros_like(df) for p in model.parts]
-        cols.append(np.concatenate(rows, axis=1))
+        cols.append(_both_triads(model, (fp - fm) / (2 * _STEP), (wp - wm) / (2 * _STEP)))
     return np.stack(cols, axis=2)
 
 
@@ -166,6 +164,8 @@ def orthogonality_input(model: ModelSpec, bound: float, g: float, source: str) -
 
 
 def _both_triads(model: ModelSpec, df: NDArray[np.float64], dw: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The model's measurement axes (m, n_axes) of a reference change: ``df`` (specific force) for each accelerometer
+    part, ``dw`` (body rate) for each gyro part, zeros for any other."""
     rows = [df if p.output == "accel" else dw if p.output == "gyro" else np.zeros_like(df) for p in model.parts]
     return np.concatenate(rows, axis=1)
 
