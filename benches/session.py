@@ -34,6 +34,7 @@ from .recording import Hdf5Recorder, RecordingError, open_recording
 from .results.chain import sinks_for_run
 from .results.sink import CalibrationDocument, ResultSinks
 from .runner import Runner, RunResult, SampleObserver
+from .thermal.steps import is_thermal_run
 
 if TYPE_CHECKING:
     from .calibration_result import CalibrationResult
@@ -425,11 +426,11 @@ def _identify_and_certify(
 def _thermal(folder: Path, recorded: RecordedRun, todo: list[str], say: Callable[..., None], done: list[str]) -> bool:
     """A thermal run (a completed soak step): its thermal calibration and certificate instead of one calibration
     over every temperature (benches.thermal.calibrate); False for any other run."""
-    from benches.identify import IdentificationError  # lazy: filterpy, scipy (--help time)
-    from benches.thermal.calibrate import is_thermal_run, thermal_calibrate  # lazy: filterpy, scipy (--help time)
-
     if not is_thermal_run(recorded):
         return False
+    from benches.identify import IdentificationError  # lazy: filterpy, scipy (--help time)
+    from benches.thermal.calibrate import thermal_calibrate  # lazy: filterpy, scipy, fpdf (--help time)
+
     try:
         cal, pdf = thermal_calibrate(recorded, certificate="certificate" in todo, say=lambda m: say(m))
     except IdentificationError as exc:

@@ -16,11 +16,6 @@ from benches.thermal.document import FILE_NAME, load_thermal, save_thermal, ther
 from benches.thermal.identify import identify_thermal
 
 
-def is_thermal_run(rr: RecordedRun) -> bool:
-    """True when the recording holds a completed soak step (a thermal procedure)."""
-    return any(s.kind == "soak" and s.status == "complete" for s in rr.steps)
-
-
 def thermal_calibrate(
     run: Path | RecordedRun, *, reference: float | None = None, max_order: int = 3, rate_term: bool = False,
     issue_date: str | None = None, certificate: bool = True, say: Callable[[str], None] | None = None,

@@ -21,7 +21,7 @@ uses the bench's auxiliary device ``"chamber"`` (:class:`drivers.chamber.base.Ch
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -31,6 +31,16 @@ from drivers.chamber.base import ChamberError
 from drivers.chamber.safety import leave_safe
 from drivers.protocols import ImuBlock, Reading
 from procedures.steps import Ramp, Soak, Step
+
+if TYPE_CHECKING:  # pragma: no cover
+    from benches.recorded_run import RecordedRun
+
+def is_thermal_run(rr: RecordedRun) -> bool:
+    """True when the recording holds a completed soak step (a thermal procedure: ``tablebench run`` then hands
+    it to :func:`benches.thermal.calibrate.thermal_calibrate`). Here, beside the soak step, so the run's end asks
+    without importing the thermal identification and certificate (a module the runner has loaded anyway)."""
+    return any(s.kind == Soak.kind and s.status == "complete" for s in rr.steps)
+
 
 RECORD_EVERY = 30.0
 """Bench seconds between chamber readings in the recording."""
