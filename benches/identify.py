@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from analysis.columns import column_mean, side_by_side
+from analysis.columns import column_means, side_by_side
 from analysis.identification.batch import batch_identify, information_rank, unobservable_parameters
 from analysis.identification.bias_drift import flicker_components, window_mean_covariance
 from analysis.identification.kalman import StreamingIdentifier, estimate_measurement_noise
@@ -613,13 +613,12 @@ def _identification_data(
 
 def _windows_as_plan_steps(windows: list[StepWindow], max_points: int = 4000) -> list[PlanStep]:
     out = []
-    buf = np.empty((3, max((w.f_ref.shape[0] for w in windows), default=0)))  # the means' one scratch array
     for w in windows:
         m = w.f_ref.shape[0]
         ea = w.earth
-        if w.kind == "hold":  # means as np.mean's, bit for bit (analysis.columns.column_mean)
-            mean = None if ea is None else column_mean(ea, buf)[None]
-            out.append(PlanStep(w.name, column_mean(w.f_ref, buf)[None], column_mean(w.omega, buf)[None], np.array([m]),
+        if w.kind == "hold":  # each column's own mean, pairwise (analysis.columns.column_means)
+            mean = None if ea is None else column_means(ea)[None]
+            out.append(PlanStep(w.name, column_means(w.f_ref)[None], column_means(w.omega)[None], np.array([m]),
                                 earth=mean))  # fmt: skip
         else:
             k = max(1, math.ceil(m / max_points))

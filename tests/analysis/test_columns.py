@@ -1,14 +1,15 @@
-"""analysis.columns: each column-wise form equals the numpy operation it replaces, bit for bit (signed zeros
-included), on the shapes identification uses and on the edges (one row, one column, zeros, a reused scratch)."""
+"""analysis.columns: side_by_side equals np.hstack bit for bit (signed zeros included); column_means equals each
+column's own numpy mean bit for bit and the exact mean to rounding, on the shapes identification uses and on
+the edges (one row, one column, zeros, no rows)."""
 
 from __future__ import annotations
 
-import warnings
+import math
 
 import numpy as np
 import pytest
 
-from analysis.columns import column_mean, side_by_side
+from analysis.columns import column_means, side_by_side
 
 
 def _bits(a: np.ndarray) -> np.ndarray:
@@ -20,39 +21,26 @@ def _same(a: np.ndarray, b: np.ndarray) -> bool:
 
 
 @pytest.mark.parametrize("k", [1, 2, 3, 6, 9])
-def test_column_mean_is_numpys_mean_bit_for_bit(k: int) -> None:
+def test_column_means_are_each_columns_own_mean(k: int) -> None:
+    """Each column's numpy mean (pairwise), bit for bit; within rounding of the exact mean (math.fsum) and of
+    ``a.mean(axis=0)``, on the shapes identification uses, any layout."""
     rng = np.random.default_rng(k)
     for n in (1, 2, 3, 7, 8, 9, 16, 17, 1000, 8193, 60000):
         a = rng.normal(size=(n, k)) * 10.0 ** rng.uniform(-9, 3, k) + rng.uniform(-10, 10, k)
-        assert _same(column_mean(a), a.mean(axis=0)), (n, k)
+        for view in (a, np.asfortranarray(a), np.hstack([a, a])[:, ::2]):
+            got = column_means(view)
+            assert _same(got, np.array([view[:, j].mean() for j in range(k)])), (n, k)
+            exact = np.array([math.fsum(view[:, j]) / n for j in range(k)])
+            scale = np.max(np.abs(view), axis=0)
+            assert np.all(np.abs(got - exact) <= 8 * np.finfo(float).eps * scale), (n, k)
+            assert np.all(np.abs(got - view.mean(axis=0)) <= 4 * n * np.finfo(float).eps * scale), (n, k)
 
 
-def test_column_mean_keeps_signed_zeros_and_other_layouts() -> None:
-    z = np.array([[-0.0, 0.0, -0.0], [-0.0, -0.0, 0.0]])
-    assert _same(column_mean(z), z.mean(axis=0))
-    assert _same(column_mean(-np.zeros((50, 3))), np.zeros(3))  # all −0.0: numpy's mean is +0.0
-    rng0 = np.random.default_rng(4)
-    mixed = np.where(rng0.random((300, 3)) < 0.5, -0.0, 0.0)
-    mixed[:, 0] = -0.0  # a column of −0.0 beside columns of other values
-    mixed[:, 2] = rng0.normal(size=300)
-    mixed[0, 2] = -0.0
-    assert _same(column_mean(mixed), mixed.mean(axis=0))
-    rng = np.random.default_rng(5)
-    a = rng.normal(size=(500, 6))
-    for view in (a[:, :3], a[::2], np.asfortranarray(a), a[:0]):  # not C-ordered, or empty: numpy's own
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # the mean of no rows
-            assert _same(column_mean(view), view.mean(axis=0))
-
-
-def test_column_mean_with_a_reused_scratch_array() -> None:
-    """One scratch array for windows of several lengths: each mean as if alone (nothing of the previous
-    window's sums leaks into the next)."""
-    rng = np.random.default_rng(6)
-    buf = np.full((3, 5000), np.nan)
-    for n in (5000, 17, 4999, 1, 3000):
-        a = rng.normal(size=(n, 3)) * 9.8
-        assert _same(column_mean(a, buf), a.mean(axis=0)), n
+def test_column_means_of_zeros_no_rows_and_wrong_shapes() -> None:
+    assert _same(column_means(-np.zeros((50, 3))), np.zeros(3))  # as numpy's mean: its sum starts from +0.0
+    assert np.all(np.isnan(column_means(np.zeros((0, 3))))) and column_means(np.zeros((0, 3))).shape == (3,)
+    with pytest.raises(ValueError, match="n, k"):
+        column_means(np.zeros(5))
 
 
 def test_side_by_side_is_hstack() -> None:
