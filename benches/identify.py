@@ -422,6 +422,14 @@ class StepWindow:
         assert self.gyro is not None
         return side_by_side([self.f_out, self.gyro])
 
+    def output_columns(self, model: ModelSpec) -> tuple[NDArray[np.float64], ...]:
+        """:meth:`output` as the arrays whose columns side by side are it, not copied into one: (accelerometer,)
+        or (accelerometer, gyro) (the filter's update and the Gram take them so)."""
+        if model.n_axes == 3:
+            return (self.f_out,)
+        assert self.gyro is not None
+        return (self.f_out, self.gyro)
+
 
 @dataclass
 class IdentificationData:
@@ -686,7 +694,7 @@ def estimate(data: IdentificationData, method: str, noise: str = "configured") -
     if method == "kalman":
         kf = StreamingIdentifier(r_var, p0, sample_rate=data.config.unit.sample_rate, model=model)
         for w in data.windows:
-            kf.update(w.output(model), w.f_ref, w.omega, w.name, t=w.t, earth=w.earth)
+            kf.update(w.output_columns(model), w.f_ref, w.omega, w.name, t=w.t, earth=w.earth)
         rows = [
             StepResiduals(name=name, samples=int(st.count), mean=list(map(float, st.mean)),
                           rms=list(map(float, st.rms)))

@@ -38,7 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from analysis.identification._filterpy import kalman_filter_class
 from analysis.identification.batch import information_rank
-from analysis.identification.specification import ModelSpec, resolve
+from analysis.identification.specification import ModelSpec, is_output_columns, resolve
 
 
 @dataclass(frozen=True)
@@ -161,8 +161,10 @@ class StreamingIdentifier:
 
         Parameters
         ----------
-        f_out : array_like (n, n_axes)
-            Sensor output (the model's channels side by side: accelerometer m/s², gyro rad/s), body frame.
+        f_out : array_like (n, n_axes), or a tuple of arrays (n, k_i)
+            Sensor output (the model's channels side by side: accelerometer m/s², gyro rad/s), body frame; as a
+            tuple, the arrays whose columns side by side are that output (each triad's output as read, not
+            copied into one array).
         f_ref : array_like (n, 3)
             Reference specific force from the table attitude and local g, body frame, m/s².
         omega : array_like (n, 3)
@@ -176,25 +178,27 @@ class StreamingIdentifier:
             Earth rate in the body frame, rad/s (the gyro reference ω_ib = omega + earth; None = 0).
         """
         m = self.model
-        fo = np.asarray(f_out, dtype=float)
+        fos = [np.asarray(a, dtype=float) for a in (f_out if is_output_columns(f_out) else (f_out,))]
         fr = np.asarray(f_ref, dtype=float)
         om = np.asarray(omega, dtype=float)
-        n = fo.shape[0] if fo.ndim == 2 else -1
+        n = fos[0].shape[0] if fos[0].ndim == 2 else -1
         ea = None if earth is None else np.asarray(earth, dtype=float)
         if (
-            fo.ndim != 2 or fo.shape[1] != m.n_axes or fr.shape != (n, 3) or om.shape != (n, 3)
-            or (ea is not None and ea.shape != (n, 3))
+            any(a.ndim != 2 or a.shape[0] != n for a in fos) or sum(a.shape[1] for a in fos) != m.n_axes
+            or fr.shape != (n, 3) or om.shape != (n, 3) or (ea is not None and ea.shape != (n, 3))
         ):  # fmt: skip
+            shapes = fos[0].shape if len(fos) == 1 else [a.shape for a in fos]
             raise ValueError(
                 f"step {step!r}: f_out, f_ref and omega must have shapes (n, {m.n_axes}), (n, 3), (n, 3); "
-                f"got {fo.shape}, {fr.shape}, {om.shape}"
+                f"got {shapes}, {fr.shape}, {om.shape}"
             )
         if n == 0:
             return
-        if not all(np.isfinite(np.min(a)) and np.isfinite(np.max(a)) for a in (fo, fr, om)):  # NaN, ±inf
+        if not all(np.isfinite(np.min(a)) and np.isfinite(np.max(a)) for a in (*fos, fr, om)):  # NaN, ±inf
             raise ValueError(f"step {step!r}: non-finite samples; drop or interpolate them before identification")
         t_end = self._block_end_time(n, t, step)
         dt = 0.0 if (self._t_last is None or not np.isfinite(t_end)) else max(t_end - self._t_last, 0.0)
+        fo = tuple(fos) if len(fos) > 1 else fos[0]
         gram = m.regressor_gram(fr, om, earth=ea, y=fo)  # z = fo − ideal formed in the Gram's blocks
         info, eta = m.information_from_gram(gram, self.r_var)
         assert eta is not None

@@ -255,7 +255,8 @@ class ModelSpec:
         Computed in chunks with one matrix product each, so memory stays bounded for 10⁷ samples. Row and
         column 0 hold the plain sums (the base regressor 0 is the constant 1). ``y``: the sensor output
         (n, n_axes) instead of z: z = y − :meth:`ideal` is formed in each chunk's block (the same values as
-        passing z; :meth:`fill_measurement`).
+        passing z; :meth:`fill_measurement`); or a tuple of numpy arrays (n, k_i) whose columns side by side are
+        that output (a unit's accelerometer and gyro outputs as read, without copying them into one array).
         """
         ff = as_n3(f, "f")
         n = ff.shape[0]
@@ -265,8 +266,10 @@ class ModelSpec:
         ea = None if earth is None else as_n3(earth, "earth", n)
         if z is not None and y is not None:
             raise ValueError("give the measurement z or the output y, not both")
-        zz = None
-        if z is not None or y is not None:
+        zz: NDArray[np.float64] | list[NDArray[np.float64]] | None = None
+        if is_output_columns(y):
+            zz = output_columns(y, n, self.n_axes)
+        elif z is not None or y is not None:
             zz = np.asarray(z if y is None else y, dtype=float)
             if zz.ndim != 2 or zz.shape[1] != self.n_axes or zz.shape[0] != n:
                 lab = "z" if y is None else "y"
@@ -284,7 +287,10 @@ class ModelSpec:
         chunk: int,
         output: bool = False,
     ) -> NDArray[np.float64]:
-        """The Gram (see :meth:`regressor_gram`); ``output``: ``zz`` is the sensor output y, not z."""
+        """The Gram (see :meth:`regressor_gram`); ``output``: ``zz`` is the sensor output y, not z (one array, or
+        the arrays whose columns side by side are y)."""
+        if isinstance(zz, list):
+            zz = zz[0] if len(zz) == 1 else side_by_side(zz)
         n = ff.shape[0]
         nb = self.n_base
         ncol = self.gram_size(zz is not None)
@@ -430,6 +436,25 @@ class ModelSpec:
         return f"<model {self.name!r}: {self.n_params} states, {self.n_axes} axes>"
 
 
+def is_output_columns(y: object) -> bool:
+    """Whether a sensor output is given as a tuple of numpy arrays whose columns side by side are the model's
+    channels (:func:`output_columns`), not as one array_like (a nested list is one array)."""
+    return isinstance(y, tuple) and len(y) > 0 and all(isinstance(a, np.ndarray) for a in y)
+
+
+def output_columns(y: Sequence[ArrayLike], n: int, n_axes: int) -> list[NDArray[np.float64]]:
+    """A sensor output given as arrays (n, k_i) whose columns side by side are the model's n_axes channels (a
+    unit's accelerometer and gyro outputs as read): the arrays as float, checked; ``ValueError`` naming the shapes.
+    """
+    arrs = [np.asarray(a, dtype=float) for a in y]
+    if not arrs or any(a.ndim != 2 or a.shape[0] != n for a in arrs) or sum(a.shape[1] for a in arrs) != n_axes:
+        raise ValueError(
+            f"y must be arrays of {n} rows whose columns side by side are the model's {n_axes} channels, got "
+            f"shapes {[a.shape for a in arrs]}"
+        )
+    return arrs
+
+
 def _weights(weights: ArrayLike | None, n: int) -> NDArray[np.float64] | None:
     if weights is None:
         return None
@@ -501,8 +526,24 @@ class UnitModel(ModelSpec):
             off += p.gram_size(with_z)
         return tuple(cols), tuple(zc), tuple(one)
 
-    def _split(self, a: NDArray[np.float64] | None, axis_off: NDArray[np.int64], k: int) -> NDArray[np.float64] | None:
-        return None if a is None else a[:, axis_off[k] : axis_off[k + 1]]
+    def _split(
+        self, a: NDArray[np.float64] | list[NDArray[np.float64]] | None, axis_off: NDArray[np.int64], k: int
+    ) -> NDArray[np.float64] | list[NDArray[np.float64]] | None:
+        """Part k's columns of ``a``: (n, n_axes) → (n, part k's n_axes); a list of arrays (the output's columns side
+        by side, :func:`output_columns`) → the arrays holding exactly part k's columns (no copy when the arrays
+        line up with the parts, as a unit's accelerometer and gyro outputs do)."""
+        if a is None:
+            return None
+        lo, hi = int(axis_off[k]), int(axis_off[k + 1])
+        if not isinstance(a, list):
+            return a[:, lo:hi]
+        out, col = [], 0
+        for arr in a:
+            w = arr.shape[1]
+            if col + w > lo and col < hi:  # overlaps the part's columns: those of them it holds
+                out.append(arr[:, max(lo - col, 0) : min(hi - col, w)])
+            col += w
+        return out
 
     def fill_base(self, out, f, omega, earth) -> None:  # type: ignore[no-untyped-def]
         off = 0

@@ -117,6 +117,34 @@ def test_gram_from_the_output_is_the_gram_from_z(spinning: bool) -> None:
         ACCELEROMETER.regressor_gram(f, om, y, y=y)
 
 
+@pytest.mark.parametrize("spinning", [False, True])
+def test_gram_from_the_output_as_arrays_side_by_side_is_the_gram_from_one_array(spinning: bool) -> None:
+    """regressor_gram(y=(a, b, …)): the arrays whose columns side by side are the output give the Gram of their
+    np.hstack, bit for bit, whether they line up with the model's parts (a unit's accelerometer and gyro outputs:
+    no copy) or not (split across a part, or several arrays for a one-part model); wrong shapes are refused."""
+    rng = np.random.default_rng(15)
+    n = 2500
+    f, om, earth = _samples(rng, n, spinning)
+    unit = UnitModel((ACCELEROMETER, GyroModel()))
+    y = unit.ideal(f, om, earth) + rng.normal(0.0, 1e-3, (n, 6))
+    whole = unit.regressor_gram(f, om, earth=earth, y=y)
+    for cut in ((3,), (1, 3), (2, 4, 5), (5,)):
+        parts = tuple(np.ascontiguousarray(a) for a in np.split(y, cut, axis=1))
+        assert _same(unit.regressor_gram(f, om, earth=earth, y=parts), whole), cut
+        assert _same(
+            unit.regressor_gram(f, om, earth=earth, y=parts, chunk=700),
+            unit.regressor_gram(f, om, earth=earth, y=y, chunk=700),
+        ), cut
+    ya = y[:, :3].copy()
+    assert _same(
+        ACCELEROMETER.regressor_gram(f, om, y=(ya[:, :1].copy(), ya[:, 1:].copy())),
+        ACCELEROMETER.regressor_gram(f, om, y=ya),
+    )
+    for bad in ((y[:, :3].copy(),), (y[:, :3].copy(), y[:-1, 3:].copy()), (y[:, :3].copy(), y[:, 3:].copy(), y)):
+        with pytest.raises(ValueError, match="side by side"):
+            unit.regressor_gram(f, om, earth=earth, y=bad)
+
+
 def _information_per_axis(model: ModelSpec, gram: np.ndarray, r: np.ndarray) -> tuple:
     """Λ and η from a Gram axis by axis with ``np.ix_`` blocks (the plain form information_from_gram replaced)."""
     with_z = gram.shape[0] == model.gram_size(True)
