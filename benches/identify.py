@@ -409,7 +409,6 @@ class StepWindow:
     f_out: NDArray[np.float64]
     f_ref: NDArray[np.float64]
     omega: NDArray[np.float64]
-    angles: NDArray[np.float64] | None = None
     gyro: NDArray[np.float64] | None = None
     """Gyro output (n, 3), rad/s, body frame (None: accelerometer only)."""
     earth: NDArray[np.float64] | None = None
@@ -556,10 +555,10 @@ def _read_window(
         if t.size == 0:
             return None
     span = acquisition_span(float(t[0]), float(t[-1]), latency, float(config.unit.sample_rate))
-    fr, om, ang, earth = window_reference(
+    fr, om, _ang, earth = window_reference(  # the angles are not kept: nothing after the reference needs them
         t, table.time, table.angles, table.rates, config, latency, span, s.kind == Spin.kind, clock_rate, with_gyro
     )
-    return StepWindow(s.name, s.kind, t, fo, fr, om, ang, gy if with_gyro else None, earth)
+    return StepWindow(s.name, s.kind, t, fo, fr, om, gy if with_gyro else None, earth)
 
 
 def _identification_data(
