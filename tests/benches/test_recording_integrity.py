@@ -211,3 +211,28 @@ def test_index_reads_from_the_verified_rows_equal_the_files(pristine, tmp_path):
                 a = getattr(raw.samples(fields=(name,), index=idx), name)
                 b = getattr(kept.samples(fields=(name,), index=idx), name)
                 assert a.dtype == b.dtype and np.array_equal(a, b), (s.name, name)
+
+
+def test_the_chunk_index_is_read_in_one_pass_as_entry_by_entry(tmp_path):
+    """The layout check's chunk index (benches.recording.reader._chunk_infos): one pass over the index gives every
+    entry get_chunk_info(i) gives, in the same order (offsets, filter masks, sizes), and without chunk_iter the
+    entry-by-entry lookup is what it falls back to."""
+    from benches.recording.reader import _chunk_infos
+
+    path = tmp_path / "chunks.h5"
+    with h5py.File(path, "w") as f:
+        f.create_dataset("a", data=np.arange(30000.0).reshape(-1, 3), chunks=(512, 3), fletcher32=True)
+        f.create_dataset("b", data=np.arange(7, dtype=np.int32), chunks=(4,), fletcher32=True, maxshape=(None,))
+        f.create_dataset("c", shape=(0, 3), dtype="f8", chunks=(16, 3), maxshape=(None, 3), fletcher32=True)
+    with h5py.File(path, "r") as f:
+        for name in ("a", "b", "c"):
+            d = f[name]
+            want = [d.id.get_chunk_info(i) for i in range(d.id.get_num_chunks())]
+            got = _chunk_infos(d)
+            key = [(tuple(i.chunk_offset), i.filter_mask, i.byte_offset, i.size) for i in want]
+            assert [(tuple(i.chunk_offset), i.filter_mask, i.byte_offset, i.size) for i in got] == key, name
+
+            class _NoIter:  # a dataset whose h5py has no chunk_iter
+                id = type("Id", (), {"get_num_chunks": d.id.get_num_chunks, "get_chunk_info": d.id.get_chunk_info})()
+
+            assert [(tuple(i.chunk_offset), i.size) for i in _chunk_infos(_NoIter())] == [(k[0], k[3]) for k in key]
