@@ -414,20 +414,16 @@ class StepWindow:
     earth: NDArray[np.float64] | None = None
     """What the gyro reference adds to ``omega`` (n, 3), rad/s: Earth rate (+ the spin's angle-over-time rate)."""
 
-    def output(self, model: ModelSpec) -> NDArray[np.float64]:
-        """The unit's output for ``model``: accelerometer (n, 3), or accelerometer and gyro side by side (n, 6)."""
-        if model.n_axes == 3:
-            return self.f_out
-        assert self.gyro is not None
-        return side_by_side([self.f_out, self.gyro])
-
     def output_columns(self, model: ModelSpec) -> tuple[NDArray[np.float64], ...]:
-        """:meth:`output` as the arrays whose columns side by side are it, not copied into one: (accelerometer,)
-        or (accelerometer, gyro) (the filter's update and the Gram take them so)."""
-        if model.n_axes == 3:
-            return (self.f_out,)
-        assert self.gyro is not None
-        return (self.f_out, self.gyro)
+        """The unit's output for ``model`` as the arrays whose columns side by side are it, not copied into one:
+        (accelerometer,) or (accelerometer, gyro) (the filter's update and the Gram take them so)."""
+        assert model.n_axes == 3 or self.gyro is not None
+        return (self.f_out,) if model.n_axes == 3 else (self.f_out, self.gyro)  # type: ignore[return-value]
+
+    def output(self, model: ModelSpec) -> NDArray[np.float64]:
+        """The unit's output for ``model`` in one array: accelerometer (n, 3), or with the gyro side by side (n, 6)."""
+        cols = self.output_columns(model)
+        return cols[0] if len(cols) == 1 else side_by_side(list(cols))
 
 
 @dataclass
