@@ -35,13 +35,6 @@ from procedures.steps import Ramp, Soak, Step
 if TYPE_CHECKING:  # pragma: no cover
     from benches.recorded_run import RecordedRun
 
-def is_thermal_run(rr: RecordedRun) -> bool:
-    """True when the recording holds a completed soak step (a thermal procedure: ``tablebench run`` then hands
-    it to :func:`benches.thermal.calibrate.thermal_calibrate`). Here, beside the soak step, so the run's end asks
-    without importing the thermal identification and certificate (a module the runner has loaded anyway)."""
-    return any(s.kind == Soak.kind and s.status == "complete" for s in rr.steps)
-
-
 RECORD_EVERY = 30.0
 """Bench seconds between chamber readings in the recording."""
 RAMP_UPDATE = 10.0
@@ -52,6 +45,13 @@ AUX_NAME = "chamber"
 """The recording group of the chamber's readings: ``/aux/chamber``."""
 AUX_UNITS = {"setpoint": "K", "air": "K", "unit": "K", "running": "1", "alarm": "1"}
 """Units of the recorded chamber channels."""
+
+
+def is_thermal_run(rr: RecordedRun) -> bool:
+    """True when the recording holds a completed soak step (a thermal procedure: ``tablebench run`` then hands
+    it to :func:`benches.thermal.calibrate.thermal_calibrate`). Here, beside the soak step, so the run's end asks
+    without importing the thermal identification and certificate (a module the runner has loaded anyway)."""
+    return any(s.kind == Soak.kind and s.status == "complete" for s in rr.steps)
 
 
 class ThermalSteps:
