@@ -54,7 +54,7 @@ from .calibration_result import (
 )
 from .progress import ProgressDisplay
 from .recorded_run import RecordedRun, run_of
-from .recording import RecordingError, StepRecord, TableReadings, recording_file
+from .recording import RecordingError, StepRecord, TableReadings, file_identity, recording_file
 from .reference import acquisition_span, earth_in_body, reference_at, reference_for_window
 from .timebase import reference_rate_covariance, run_time_base, table_in_unit_time, time_base_sensitivity
 
@@ -497,10 +497,9 @@ def _data_key(run: str | Path | RecordedRun, time_base: str, with_gyro: bool | N
     None when it cannot be stated (then nothing is remembered or taken)."""
     try:
         path = run.path if isinstance(run, RecordedRun) else recording_file(run)
-        st = Path(path).stat()
+        ident = file_identity(path)
     except (OSError, ValueError, TypeError):
         return None
-    ident = (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
     return (str(Path(path).resolve()), ident, time_base, with_gyro)
 
 

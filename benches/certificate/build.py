@@ -49,7 +49,7 @@ from benches.bench_config import BenchConfig, load_bench_text
 from benches.calibration_integrity import load_verified
 from benches.calibration_result import SI_UNITS, CalibrationFormatError, CalibrationResult
 from benches.recorded_run import RecordedRun, run_of
-from benches.recording import RecordingError, StepRecord
+from benches.recording import RecordingError, StepRecord, file_identity
 from benches.results.chain import sinks_for_run
 from benches.results.sink import CertificateDocument, ResultSinks
 from core.provenance import file_sha256, software_version
@@ -395,15 +395,14 @@ forming them a second time (the same recording, calibration and bench: the same 
 
 
 def _budget_key(rr: RecordedRun, binfo: BenchInfo, cal: CalibrationResult) -> tuple | None:
-    """(recording file and its identity: device, inode, size, modification time; the SHA-256 of the calibration
+    """(recording file and its identity, :func:`benches.recording.file_identity`; the SHA-256 of the calibration
     as calibration.json states it; the bench's certificate inputs); None when it cannot be stated."""
     try:
         path = Path(rr.path)
-        st = path.stat()
+        ident = file_identity(path)
         doc = json.dumps(cal.to_dict(), sort_keys=True, default=str)
     except (OSError, TypeError, ValueError):
         return None
-    ident = (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
     return (str(path.resolve()), ident, hashlib.sha256(doc.encode()).hexdigest(), repr(binfo))
 
 

@@ -51,6 +51,7 @@ from .layout import (
 from .reader import Recording, open_recording
 from .salvage import salvage, write_decoded_samples
 from .writer import Hdf5Recorder, Recorder, storage_filters
+from .written import file_identity
 
 __all__ = [
     "AUX_NAME",
@@ -74,6 +75,7 @@ __all__ = [
     "Truth",
     "_encode_chunk",
     "_fletcher32",
+    "file_identity",
     "open_recording",
     "recording_file",
     "salvage",

@@ -52,7 +52,7 @@ from .layout import (
 )
 from .written import (
     WrittenRecording,
-    _identity,
+    file_identity,
     kept_plan,
     take_written,
 )
@@ -479,7 +479,7 @@ class Recording:
         if (
             self.header.format_version != FORMAT_VERSION
             or self.unfinished_tail
-            or _identity(self.path) != ev.identity
+            or file_identity(self.path) != ev.identity
             or (self.n_samples, self.n_table) != (ev.n_samples, ev.n_table)
             or len(self.steps) != len(ev.steps)
             or [(s.index, s.start_sample, s.end_sample, s.table_start, s.table_end, s.sha256) for s in done]
@@ -832,7 +832,7 @@ def open_recording(path: str | Path, *, verify: bool = True, written: bool = Fal
     try:
         rec = Recording(p, f)
         if verify:
-            key, ident = p.resolve(), _identity(p)
+            key, ident = p.resolve(), file_identity(p)
             ev = take_written(p)  # released whether used or not
             if _VERIFIED.get(key) != ident:
                 _VERIFIED.pop(key, None)

@@ -64,7 +64,7 @@ from .layout import (
     _utc_now,
 )
 from .reader import open_recording
-from .written import KeptRows, WrittenRecording, WrittenStep, _identity, register_written
+from .written import KeptRows, WrittenRecording, WrittenStep, file_identity, register_written
 
 
 class Recorder(Protocol):
@@ -611,7 +611,7 @@ class Hdf5Recorder:
             return None
         return WrittenRecording(
             path=self.path,
-            identity=_identity(self.path),
+            identity=file_identity(self.path),
             n_samples=self._written,
             n_table=self._table_written,
             steps=tuple(self._steps_written),

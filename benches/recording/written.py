@@ -78,9 +78,11 @@ def kept_plan(
     return out
 
 
-def _identity(p: Path) -> tuple[int, ...]:
-    """The file's identity: device, inode, size, modification and change times (ns)."""
-    st = p.stat()
+def file_identity(p: str | Path) -> tuple[int, ...]:
+    """The file's identity: device, inode, size, modification and change times (ns). Equal identities mean the
+    file is unchanged (what every "this process already read/verified it" shortcut keys on: the recorder's
+    evidence, the verified-recording memo, identification's and the budget's memos)."""
+    st = Path(p).stat()
     return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
 
 
