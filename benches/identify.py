@@ -193,7 +193,7 @@ def window_reference(
     slope = angle_over_time(t, table_time, table_angles, span) if spin else None
     if slope is not None:
         slope = slope * (1.0 + clock_rate)
-    fr, om, ang, trig = reference_for_window(  # each angle's sine and cosine once for the window's rotations
+    fr, om, ang, trig, _ = reference_for_window(  # each angle's sine and cosine once for the window's rotations
         t, table_time, table_angles, table_rates, g=config.site.g, mounting=mnt, latency=latency, span=span,
         gimbal_rates=slope,
     )  # fmt: skip

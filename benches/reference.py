@@ -156,7 +156,7 @@ def reference_for_window(
     latency: float = 0.0,
     span: tuple[float, float] | None = None,
     gimbal_rates: NDArray[np.float64] | None = None,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], Trig]:
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], Trig, NDArray[np.float64]]:
     """Reference for unit samples stamped ``t`` (s): the table at t − latency, within one step's ``span``.
 
     ``gimbal_rates``: the gimbal rates (3,) or (n, 3), rad/s, the body rate is formed from instead of the
@@ -175,29 +175,11 @@ def reference_for_window(
         The angles' cosines and sines (:func:`analysis.gimbal.angle_trig`), for the caller's further rotations
         of the same samples (:func:`earth_in_body`, a spin's body rate): each computed once per window instead
         of once per rotation (the same values bit for bit).
+    rates : (n, 3)
+        The gimbal rates the table's readings give at the same times, rad/s (interpolated with the angles, by the
+        same rule, whatever ``gimbal_rates`` says; the step geometry of the uncertainty budget keeps them): the
+        window is interpolated once for both.
     """
-    f_ref, omega, ang, trig, _ = reference_and_rates(
-        t, table_time, table_angles, table_rates, g=g, mounting=mounting, latency=latency, span=span,
-        gimbal_rates=gimbal_rates,
-    )  # fmt: skip
-    return f_ref, omega, ang, trig
-
-
-def reference_and_rates(
-    t: NDArray[np.float64],
-    table_time: NDArray[np.float64],
-    table_angles: NDArray[np.float64],
-    table_rates: NDArray[np.float64],
-    *,
-    g: float,
-    mounting: NDArray[np.float64] | None,
-    latency: float = 0.0,
-    span: tuple[float, float] | None = None,
-    gimbal_rates: NDArray[np.float64] | None = None,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], Trig, NDArray[np.float64]]:
-    """:func:`reference_for_window` (f_ref, omega, angles, trig) and the gimbal rates (n, 3), rad/s, the table's
-    readings give at the same times (interpolated with the angles, by the same rule; the step geometry of the
-    uncertainty budget keeps them): the window is interpolated once for both."""
     ang, rates = interpolate_table(np.asarray(t, dtype=float) - latency, table_time, table_angles, table_rates, span)
     trig = angle_trig(ang)
     rat = rates if gimbal_rates is None else np.broadcast_to(np.asarray(gimbal_rates, dtype=float), ang.shape)

@@ -2,7 +2,7 @@
 
 The maths lives in :mod:`analysis.identification.budget` (one model, one set of sensitivities). This
 module only gathers its inputs from a run: the reference points of the identified steps, built with THE
-reference function (:func:`benches.reference.reference_and_rates`: table at t − latency, never across a motion
+reference function (:func:`benches.reference.reference_for_window`: table at t − latency, never across a motion
 boundary; each window interpolated once, for the reference and its gimbal rates), the identification's
 own covariance (calibration.json), and the bench's stated uncertainties (table attitude and rate accuracy,
 local g, unit bias instability).
@@ -33,7 +33,7 @@ from analysis.identification.table_axes import held_angle_input, orthogonality_i
 from analysis.timebase import TimeBase
 from analysis.units import ARCSEC
 from benches.calibration_result import CalibrationResult
-from benches.reference import acquisition_span, earth_in_body, reference_and_rates
+from benches.reference import acquisition_span, earth_in_body, reference_for_window
 from benches.timebase import reference_rate_covariance, reference_rate_u, table_in_unit_time
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -108,7 +108,7 @@ def step_geometry(
         t = f.samples(fields=("time",), index=idx).time
         assert t is not None
         span = acquisition_span(t_first, t_last, latency, rate)
-        fr, om, ang, trig, gimbal_rates = reference_and_rates(  # the window interpolated once for both
+        fr, om, ang, trig, gimbal_rates = reference_for_window(  # the window interpolated once for both
             t, tt, ta, tr, g=g, mounting=mounting, latency=latency, span=span
         )
         spin_axis, held_u = None, None

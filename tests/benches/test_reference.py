@@ -33,8 +33,8 @@ def test_latency_takes_the_table_at_t_minus_latency():
     rat = np.zeros((101, 3))
     rat[:, 2] = 0.3
     t = np.array([5.0])
-    f0, w0, a0, _ = reference_for_window(t, tt, ang, rat, g=9.8, mounting=None, latency=0.0)
-    f1, w1, a1, _ = reference_for_window(t, tt, ang, rat, g=9.8, mounting=None, latency=0.01)
+    f0, w0, a0, _, _ = reference_for_window(t, tt, ang, rat, g=9.8, mounting=None, latency=0.0)
+    f1, w1, a1, _, _ = reference_for_window(t, tt, ang, rat, g=9.8, mounting=None, latency=0.01)
     np.testing.assert_allclose(a0[0, 2] - a1[0, 2], 0.3 * 0.01, rtol=1e-9)
     np.testing.assert_allclose(w0, w1)
     assert not np.allclose(f0, f1)

@@ -64,7 +64,7 @@ def test_window_reference_is_the_reference_then_the_spins_body_rate(spinning: bo
     span = acquisition_span(float(t[0]), float(t[-1]), lat, fs)
     cfg = _bench(mounting)
     fr, om, ang, earth = window_reference(t, tt, ta, tr, cfg, lat, span, spinning, clock, True)
-    f0, w0, a0, _ = reference_for_window(t, tt, ta, tr, g=cfg.site.g, mounting=mounting, latency=lat, span=span)
+    f0, w0, a0, _, _ = reference_for_window(t, tt, ta, tr, g=cfg.site.g, mounting=mounting, latency=lat, span=span)
     if spinning:
         slope = angle_over_time(t, tt, ta, span) * (1.0 + clock)
         w0 = body_rate(a0, np.broadcast_to(slope, a0.shape), mounting)
